@@ -1,0 +1,24 @@
+#pragma once
+// The `scan2model` subcommands. Each registers its options on the app and returns the function that runs it.
+
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+namespace s2m::app {
+
+// Exit codes, stable across releases (docs/cli.md).
+enum ExitCode : int {
+  kOk = 0,
+  kUsage = 2,       // bad command line
+  kInputError = 3,  // unreadable, corrupt, empty or degenerate input
+  kFitError = 4,    // the fit could not be computed
+  kInternal = 70,   // a bug: please report it
+};
+
+using Runner = std::function<int()>;
+
+Runner AddInfoCommand(CLI::App& app);
+Runner AddFitCommand(CLI::App& app);
+
+}  // namespace s2m::app

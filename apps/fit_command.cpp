@@ -1,0 +1,186 @@
+#include <chrono>
+#include <fstream>
+#include <iostream>
+#include <iomanip>
+#include <optional>
+
+#include "acquisition/format_error.h"
+#include "acquisition/nist_reference.h"
+#include "acquisition/point_cloud_io.h"
+#include "apps/commands.h"
+#include "apps/output.h"
+#include "fitting/primitive_compare.h"
+#include "fitting/primitive_fit.h"
+
+namespace s2m::app {
+namespace {
+
+struct FitOptions {
+  std::string file;
+  std::string model;
+  std::string method = "tdm";
+  std::string reference;
+  std::string history;
+  std::string units;
+  int max_iterations = 200;
+  bool json = false;
+};
+
+// One named result value with its uncertainty, for both text and JSON output.
+struct Row {
+  std::string name;
+  nlohmann::json value;
+  std::string text;
+};
+
+std::vector<Row> Parameters(const Plane& s) {
+  return {{"point", ToJson(s.point), Format(s.point)}, {"normal", ToJson(s.normal), Format(s.normal)}};
+}
+std::vector<Row> Parameters(const Sphere& s) {
+  return {{"center", ToJson(s.center), Format(s.center)},
+          {"radius", s.radius, Format(s.radius)},
+          {"diameter", 2 * s.radius, Format(2 * s.radius)}};
+}
+std::vector<Row> Parameters(const Cylinder& s) {
+  return {{"axis_point", ToJson(s.axis_point), Format(s.axis_point)},
+          {"axis_direction", ToJson(s.axis_direction), Format(s.axis_direction)},
+          {"radius", s.radius, Format(s.radius)},
+          {"diameter", 2 * s.radius, Format(2 * s.radius)}};
+}
+std::vector<Row> Parameters(const Cone& s) {
+  const double degrees = 180.0 / M_PI;
+  return {{"axis_point", ToJson(s.axis_point), Format(s.axis_point)},
+          {"axis_direction", ToJson(s.axis_direction), Format(s.axis_direction)},
+          {"radius", s.radius, Format(s.radius) + "  (cross-section through the axis point)"},
+          {"surface_distance", s.SurfaceDistanceFromAxisPoint(), Format(s.SurfaceDistanceFromAxisPoint())},
+          {"half_angle", s.half_angle, Format(s.half_angle) + " rad"},
+          {"apex_angle_deg", 2 * s.half_angle * degrees, Format(2 * s.half_angle * degrees) + " deg (full)"},
+          {"apex", ToJson(s.Apex()), Format(s.Apex())}};
+}
+
+Plane ReadReference(const std::string& f, const Plane&) { return ReadNistPlaneFit(f); }
+Sphere ReadReference(const std::string& f, const Sphere&) { return ReadNistSphereFit(f); }
+Cylinder ReadReference(const std::string& f, const Cylinder&) { return ReadNistCylinderFit(f); }
+Cone ReadReference(const std::string& f, const Cone&) { return ReadNistConeFit(f); }
+
+void WriteHistory(const std::string& path, const std::vector<IterationRecord>& history) {
+  std::ofstream out(path);
+  if (!out) throw FormatError(path, "", "cannot create the history file");
+  out.precision(17);
+  out << "iteration,rms,max_distance,objective,damping,step_norm,seconds\n";
+  for (const IterationRecord& r : history) {
+    out << r.iteration << ',' << r.rms << ',' << r.max_distance << ',' << r.objective << ',' << r.damping << ','
+        << r.step_norm << ',' << r.seconds << '\n';
+  }
+  if (!out) throw FormatError(path, "", "write failed");
+}
+
+template <class Shape, class FitFn>
+int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, FitFn fit_fn) {
+  PrimitiveFitOptions options;
+  options.method = o.method == "sdm" ? PrimitiveMethod::kSdm : PrimitiveMethod::kTdm;
+  options.solver.max_iterations = o.max_iterations;
+  const auto start = std::chrono::steady_clock::now();
+  const PrimitiveFit<Shape> fit = fit_fn(scan.points, options);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const std::vector<Row> rows = Parameters(fit.shape);
+  const double extent = ComputeBounds(scan.points).diagonal();
+
+  std::optional<PrimitiveDeviation> deviation;
+  if (!o.reference.empty()) deviation = Compare(fit.shape, ReadReference(o.reference, fit.shape));
+  if (!o.history.empty()) WriteHistory(o.history, fit.history);
+
+  if (o.json) {
+    nlohmann::json j;
+    j["schema"] = "scan2model.fit/1";
+    j["input"] = DescribeScan(scan, o.file, format);
+    j["model"] = o.model;
+    j["method"] = ToString(options.method);
+    for (const Row& r : rows) j["parameters"][r.name] = r.value;
+    j["nist_layout"] = ToNistLayout(fit.shape);
+    for (const ParameterUncertainty& u : fit.uncertainties) {
+      j["uncertainties"][u.name] = {{"standard_uncertainty", u.standard_uncertainty}, {"unit", u.is_angle ? "rad" : scan.units}};
+    }
+    j["residuals"] = {{"count", fit.residuals.count}, {"rms", fit.residuals.rms}, {"max_abs", fit.residuals.max_abs}, {"mean", fit.residuals.mean}};
+    j["iterations"] = fit.iterations;
+    j["stop_reason"] = ToString(fit.stop_reason);
+    j["seconds"] = seconds;
+    j["history"] = nlohmann::json::array();
+    for (const IterationRecord& r : fit.history) {
+      j["history"].push_back({{"iteration", r.iteration}, {"rms", r.rms}, {"max_distance", r.max_distance},
+                              {"objective", r.objective}, {"damping", r.damping}, {"step_norm", r.step_norm}, {"seconds", r.seconds}});
+    }
+    if (deviation) {
+      j["reference"] = {{"file", o.reference}, {"extent", extent}, {"position", deviation->position},
+                        {"direction_rad", deviation->direction}, {"size", deviation->size}, {"apex_angle_rad", deviation->angle}};
+    }
+    std::cout << j.dump(2) << "\n";
+    return kOk;
+  }
+
+  std::cout << "scan2model fit: " << o.model << " to " << scan.size() << " points of " << o.file << " (" << format
+            << ", units " << scan.units << ")\n\n";
+  for (const Row& r : rows) std::cout << "  " << std::left << std::setw(18) << r.name << r.text << "\n";
+  if (!fit.uncertainties.empty()) {
+    std::cout << "\n  standard uncertainties (type A, from the residuals)\n";
+    for (const ParameterUncertainty& u : fit.uncertainties) {
+      std::cout << "  " << std::left << std::setw(18) << u.name << Format(u.standard_uncertainty, 3)
+                << (u.is_angle ? " rad" : "") << "\n";
+    }
+  } else {
+    std::cout << "\n  no uncertainties: as many parameters as points (the fit interpolates and may not be unique)\n";
+  }
+  std::cout << "\n  residuals         RMS " << Format(fit.residuals.rms, 6) << ", max " << Format(fit.residuals.max_abs, 6)
+            << ", mean " << Format(fit.residuals.mean, 3) << "\n"
+            << "  solver            " << ToString(options.method) << " + Levenberg-Marquardt, " << fit.iterations
+            << " iterations, stopped: " << ToString(fit.stop_reason) << ", " << Format(seconds * 1e3, 3) << " ms\n";
+  if (deviation) {
+    std::cout << "\n  against reference " << o.reference << " (relative to the data's extent " << Format(extent, 6) << ")\n"
+              << "  position          " << Format(deviation->position / extent, 3) << "\n";
+    if (deviation->direction > 0 || !std::is_same_v<Shape, Sphere>) {
+      std::cout << "  direction         " << Format(deviation->direction, 3) << " rad\n";
+    }
+    if (!std::is_same_v<Shape, Plane>) std::cout << "  size              " << Format(deviation->size / extent, 3) << "\n";
+    if (std::is_same_v<Shape, Cone>) std::cout << "  apex angle        " << Format(deviation->angle, 3) << " rad\n";
+  }
+  return kOk;
+}
+
+}  // namespace
+
+Runner AddFitCommand(CLI::App& app) {
+  auto o = std::make_shared<FitOptions>();
+  CLI::App* cmd = app.add_subcommand("fit", "Fit a model to a point cloud by orthogonal-distance least squares");
+  cmd->add_option("file", o->file, "Input: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds")->required();
+  cmd->add_option("--model,-m", o->model, "Model to fit")->required()->check(CLI::IsMember({"plane", "sphere", "cylinder", "cone"}));
+  cmd->add_option("--method", o->method, "Error term per iteration: tdm (Gauss-Newton) or sdm (curvature-aware)")
+      ->capture_default_str()->check(CLI::IsMember({"tdm", "sdm"}));
+  cmd->add_option("--max-iterations", o->max_iterations, "Iteration cap")->capture_default_str()->check(CLI::PositiveNumber);
+  cmd->add_option("--reference", o->reference, "A NIST .fit reference file to compare the result with");
+  cmd->add_option("--history", o->history, "Write the per-iteration history to this CSV file");
+  cmd->add_option("--units", o->units, "Declare the input's units (e.g. mm) when the file does not say");
+  cmd->add_flag("--json", o->json, "Machine-readable output (schema scan2model.fit/1, docs/cli.md)");
+  return [o]() {
+    try {
+      const PointCloudFormat format = DetectFormat(o->file);
+      Scan scan = ReadPointCloud(o->file, format);
+      if (!o->units.empty()) scan.units = o->units;
+      for (const std::string& note : scan.metadata.notes) std::cerr << "scan2model fit: note: " << note << "\n";
+      const std::string f = ToString(format);
+      if (o->model == "plane") return RunFit<Plane>(*o, scan, f, [](const auto& p, const auto& opt) { return FitPlane(p, opt); });
+      if (o->model == "sphere") return RunFit<Sphere>(*o, scan, f, [](const auto& p, const auto& opt) { return FitSphere(p, opt); });
+      if (o->model == "cylinder") return RunFit<Cylinder>(*o, scan, f, [](const auto& p, const auto& opt) { return FitCylinder(p, opt); });
+      return RunFit<Cone>(*o, scan, f, [](const auto& p, const auto& opt) { return FitCone(p, opt); });
+    } catch (const FormatError& e) {
+      std::cerr << "scan2model fit: error: " << e.what() << "\n";
+      if (o->json) std::cout << nlohmann::json{{"schema", "scan2model.error/1"}, {"error", e.what()}, {"exit_code", kInputError}}.dump(2) << "\n";
+      return int{kInputError};
+    } catch (const FitError& e) {
+      std::cerr << "scan2model fit: error: " << o->file << ": " << e.what() << "\n";
+      if (o->json) std::cout << nlohmann::json{{"schema", "scan2model.error/1"}, {"error", o->file + ": " + e.what()}, {"exit_code", kFitError}}.dump(2) << "\n";
+      return int{kFitError};
+    }
+  };
+}
+
+}  // namespace s2m::app

@@ -1,0 +1,40 @@
+// scan2model: from scanner views to measured models. See README.md and docs/cli.md.
+
+#include <exception>
+#include <iostream>
+
+#include "apps/commands.h"
+
+#ifndef S2M_VERSION
+#define S2M_VERSION "unknown"
+#endif
+
+int main(int argc, char** argv) {
+  CLI::App app{"scan2model: fit models to multi-view scans (SDM/TDM/PDM registration and fitting)", "scan2model"};
+  app.set_version_flag("--version", std::string("scan2model ") + S2M_VERSION);
+  app.require_subcommand(1);
+  app.footer("Run 'scan2model <command> --help' for a command's options. Exit codes: 0 ok, 2 usage, "
+             "3 bad input, 4 fit failed.");
+  const s2m::app::Runner info = s2m::app::AddInfoCommand(app);
+  const s2m::app::Runner fit = s2m::app::AddFitCommand(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return s2m::app::kUsage;
+  }
+  try {
+    if (app.got_subcommand("info")) return info();
+    if (app.got_subcommand("fit")) return fit();
+  } catch (const std::exception& e) {
+    std::cerr << "scan2model: internal error: " << e.what() << "\n";
+    return s2m::app::kInternal;
+  }
+  return s2m::app::kUsage;
+}

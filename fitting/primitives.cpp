@@ -1,0 +1,68 @@
+#include "fitting/primitives.h"
+
+#include <cmath>
+
+#include <Eigen/Geometry>
+
+namespace s2m {
+
+double Cone::SurfaceDistanceFromAxisPoint() const { return radius * std::cos(half_angle); }
+
+Eigen::Vector3d Cone::Apex() const { return axis_point - (radius / std::tan(half_angle)) * axis_direction; }
+
+double SignedDistance(const Plane& plane, const Eigen::Vector3d& x) { return plane.normal.dot(x - plane.point); }
+
+double SignedDistance(const Sphere& sphere, const Eigen::Vector3d& x) {
+  return (x - sphere.center).norm() - sphere.radius;
+}
+
+double SignedDistance(const Cylinder& cylinder, const Eigen::Vector3d& x) {
+  const Eigen::Vector3d v = x - cylinder.axis_point;
+  return (v - cylinder.axis_direction.dot(v) * cylinder.axis_direction).norm() - cylinder.radius;
+}
+
+double SignedDistance(const Cone& cone, const Eigen::Vector3d& x) {
+  // Forbes, NPL report DITC 140/89, section 7: d = rho cos(psi) - z sin(psi) - s, with s the orthogonal distance
+  // from the axis point to the surface, rho the distance from the axis and z the axial coordinate.
+  const Eigen::Vector3d v = x - cone.axis_point;
+  const double z = cone.axis_direction.dot(v);
+  const double rho = (v - z * cone.axis_direction).norm();
+  return rho * std::cos(cone.half_angle) - z * std::sin(cone.half_angle) - cone.SurfaceDistanceFromAxisPoint();
+}
+
+Plane Transformed(const Plane& s, double scale, const Eigen::Vector3d& offset) {
+  return {scale * s.point + offset, s.normal};
+}
+Sphere Transformed(const Sphere& s, double scale, const Eigen::Vector3d& offset) {
+  return {scale * s.center + offset, scale * s.radius};
+}
+Cylinder Transformed(const Cylinder& s, double scale, const Eigen::Vector3d& offset) {
+  return {scale * s.axis_point + offset, s.axis_direction, scale * s.radius};
+}
+Cone Transformed(const Cone& s, double scale, const Eigen::Vector3d& offset) {
+  return {scale * s.axis_point + offset, s.axis_direction, s.half_angle, scale * s.radius};
+}
+
+void MoveAxisPointNear(Cylinder& cylinder, const Eigen::Vector3d& reference) {
+  const double t = cylinder.axis_direction.dot(reference - cylinder.axis_point);
+  cylinder.axis_point += t * cylinder.axis_direction;
+}
+
+void MoveAxisPointNear(Cone& cone, const Eigen::Vector3d& reference) {
+  const double t = cone.axis_direction.dot(reference - cone.axis_point);
+  cone.axis_point += t * cone.axis_direction;
+  cone.radius += t * std::tan(cone.half_angle);
+}
+
+Eigen::Matrix3d FrameWithAxis(const Eigen::Vector3d& axis) {
+  // Pick the coordinate axis least aligned with `axis` to build a well-conditioned perpendicular.
+  Eigen::Index k;
+  axis.cwiseAbs().minCoeff(&k);
+  const Eigen::Vector3d e1 = axis.cross(Eigen::Vector3d::Unit(k)).normalized();
+  const Eigen::Vector3d e2 = axis.cross(e1);
+  Eigen::Matrix3d frame;
+  frame << e1, e2, axis;
+  return frame;
+}
+
+}  // namespace s2m

@@ -1,0 +1,64 @@
+#pragma once
+// Primitive surfaces with closed-form signed distances (outside positive).
+
+#include <Eigen/Core>
+
+namespace s2m {
+
+struct Plane {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit
+};
+
+struct Sphere {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  double radius = 1.0;
+};
+
+struct Cylinder {
+  Eigen::Vector3d axis_point = Eigen::Vector3d::Zero();
+  Eigen::Vector3d axis_direction = Eigen::Vector3d::UnitZ();  // unit; sign is arbitrary
+  double radius = 1.0;
+};
+
+// A circular cone. `radius` is the radius of the cross-section through `axis_point` (perpendicular to the axis);
+// the radius grows along `axis_direction` with slope tan(half_angle), half_angle in (0, pi/2).
+struct Cone {
+  Eigen::Vector3d axis_point = Eigen::Vector3d::Zero();
+  Eigen::Vector3d axis_direction = Eigen::Vector3d::UnitZ();  // unit, towards increasing radius
+  double half_angle = 0.5;
+  double radius = 1.0;
+
+  // Orthogonal distance from axis_point to the surface (the NIST / ASME B89.4.10 cone parameter).
+  double SurfaceDistanceFromAxisPoint() const;
+  Eigen::Vector3d Apex() const;
+};
+
+// Signed orthogonal distance, positive outside (on the side the outward normal points to).
+double SignedDistance(const Plane& plane, const Eigen::Vector3d& x);
+double SignedDistance(const Sphere& sphere, const Eigen::Vector3d& x);
+double SignedDistance(const Cylinder& cylinder, const Eigen::Vector3d& x);
+// Exact for points whose foot point lies on the nappe that axis_direction opens into.
+double SignedDistance(const Cone& cone, const Eigen::Vector3d& x);
+
+template <class Shape>
+Eigen::VectorXd SignedDistances(const Shape& shape, const Eigen::Matrix3Xd& points) {
+  Eigen::VectorXd d(points.cols());
+  for (Eigen::Index i = 0; i < points.cols(); ++i) d[i] = SignedDistance(shape, Eigen::Vector3d(points.col(i)));
+  return d;
+}
+
+// The shape under the similarity x -> scale * x + offset (used to map fits out of normalized coordinates).
+Plane Transformed(const Plane& s, double scale, const Eigen::Vector3d& offset);
+Sphere Transformed(const Sphere& s, double scale, const Eigen::Vector3d& offset);
+Cylinder Transformed(const Cylinder& s, double scale, const Eigen::Vector3d& offset);
+Cone Transformed(const Cone& s, double scale, const Eigen::Vector3d& offset);
+
+// Moves the (free) axis point to the projection of `reference` onto the axis; the cone's radius follows.
+void MoveAxisPointNear(Cylinder& cylinder, const Eigen::Vector3d& reference);
+void MoveAxisPointNear(Cone& cone, const Eigen::Vector3d& reference);
+
+// An orthonormal basis (e1, e2, axis) with the given unit axis as third column.
+Eigen::Matrix3d FrameWithAxis(const Eigen::Vector3d& axis);
+
+}  // namespace s2m
