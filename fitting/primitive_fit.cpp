@@ -467,7 +467,8 @@ PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitO
   const Eigen::Matrix3d scatter = data.points * data.points.transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
   const Eigen::Vector3d values = eig.eigenvalues();
-  if (!(values[1] > 1e-24 * values[2])) throw FitError("cannot fit a plane: the points are collinear");
+  // Second singular value below 1e-6 of the first: the points lie on a line (to rounding), the normal is arbitrary.
+  if (!(values[1] > 1e-12 * values[2])) throw FitError("cannot fit a plane: the points are collinear");
   Eigen::Vector3d normal = eig.eigenvectors().col(0);
   Eigen::Index k;
   normal.cwiseAbs().maxCoeff(&k);

@@ -106,7 +106,7 @@ class PlyParser {
       if (tok[0] == "end_header") break;
       if (tok[0] == "comment") {
         if (tok.size() >= 3 && tok[1] == "units") scan_.units = std::string(tok[2]);
-        if (tok.size() == 15 && tok[1] == "world_T_scan") ReadPoseComment(tok, where);
+        if (tok.size() == 14 && tok[1] == "world_T_scan") ReadPoseComment(tok, where);
         continue;
       }
       if (tok[0] == "obj_info") continue;

@@ -1,0 +1,124 @@
+// End-to-end checks of the `scan2model` command: help, version, exit codes, JSON output and error messages.
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "test_paths.h"
+
+namespace s2m {
+namespace {
+
+struct Result {
+  int exit_code = -1;
+  std::string out;  // stdout and stderr together unless stderr is redirected by the command
+};
+
+Result RunCli(const std::string& args, bool with_stderr = true) {
+  const std::string cmd = std::string(S2M_CLI_PATH) + " " + args + (with_stderr ? " 2>&1" : " 2>/dev/null");
+  Result r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return r;
+  char buffer[4096];
+  std::size_t n;
+  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) r.out.append(buffer, n);
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string Data(const std::string& name) { return test::TestData("nist/" + name).string(); }
+
+TEST(Cli, VersionAndHelp) {
+  const Result v = RunCli("--version");
+  EXPECT_EQ(v.exit_code, 0);
+  EXPECT_NE(v.out.find("scan2model 0."), std::string::npos) << v.out;
+  for (const char* cmd : {"--help", "info --help", "fit --help"}) {
+    const Result h = RunCli(cmd);
+    EXPECT_EQ(h.exit_code, 0) << cmd;
+    EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
+  }
+  EXPECT_NE(RunCli("fit --help").out.find("--model"), std::string::npos);
+}
+
+TEST(Cli, UsageErrorsExitWithTwo) {
+  EXPECT_EQ(RunCli("").exit_code, 2);
+  EXPECT_EQ(RunCli("frobnicate").exit_code, 2);
+  EXPECT_EQ(RunCli("fit " + Data("cyl1.ds")).exit_code, 2);  // --model missing
+  EXPECT_EQ(RunCli("fit --model torus_knot " + Data("cyl1.ds")).exit_code, 2);
+}
+
+TEST(Cli, InfoDescribesAFile) {
+  const Result r = RunCli("info " + Data("sph1.ds"));
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("points    169"), std::string::npos) << r.out;
+  const Result j = RunCli("info --json " + Data("sph1.ds"), false);
+  ASSERT_EQ(j.exit_code, 0);
+  const auto doc = nlohmann::json::parse(j.out);
+  EXPECT_EQ(doc["schema"], "scan2model.info/1");
+  EXPECT_EQ(doc["points"], 169);
+  EXPECT_EQ(doc["has_normals"], false);
+  EXPECT_EQ(doc["bounds"]["min"].size(), 3u);
+}
+
+TEST(Cli, FitJsonAgreesWithTheNistReference) {
+  const Result r = RunCli("fit --json --model cylinder " + Data("cyl1.ds") + " --reference " + Data("cyl1.fit"), false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto doc = nlohmann::json::parse(r.out);
+  EXPECT_EQ(doc["schema"], "scan2model.fit/1");
+  EXPECT_EQ(doc["model"], "cylinder");
+  EXPECT_EQ(doc["input"]["points"], 500);
+  EXPECT_NEAR(doc["parameters"]["diameter"].get<double>(), 57.289229507551100877, 1e-9);
+  EXPECT_EQ(doc["nist_layout"].size(), 7u);
+  EXPECT_LT(doc["reference"]["direction_rad"].get<double>(), 1e-8);
+  EXPECT_GT(doc["iterations"].get<int>(), 0);
+  EXPECT_EQ(doc["history"].size(), doc["iterations"].get<std::size_t>());
+  EXPECT_GT(doc["uncertainties"]["radius"]["standard_uncertainty"].get<double>(), 0.0);
+}
+
+TEST(Cli, FitWritesTheIterationHistory) {
+  const auto csv = std::filesystem::temp_directory_path() / "s2m_cli_history.csv";
+  const Result r = RunCli("fit --model cone " + Data("con1.ds") + " --history " + csv.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("apex_angle_deg"), std::string::npos);
+  std::ifstream in(csv);
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header, "iteration,rms,max_distance,objective,damping,step_norm,seconds");
+  int rows = 0;
+  for (std::string line; std::getline(in, line);) ++rows;
+  EXPECT_GT(rows, 0);
+  std::filesystem::remove(csv);
+}
+
+TEST(Cli, BadInputExitsWithThreeAndNamesTheFile) {
+  const auto bad = std::filesystem::temp_directory_path() / "s2m_cli_bad.ds";
+  std::ofstream(bad) << "5\n1 2 3\n";
+  const Result r = RunCli("fit --model sphere " + bad.string());
+  EXPECT_EQ(r.exit_code, 3);
+  EXPECT_NE(r.out.find(bad.string()), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("truncated"), std::string::npos) << r.out;
+  const Result j = RunCli("info --json " + bad.string(), false);
+  EXPECT_EQ(j.exit_code, 3);
+  EXPECT_EQ(nlohmann::json::parse(j.out)["schema"], "scan2model.error/1");
+  std::filesystem::remove(bad);
+  EXPECT_EQ(RunCli("info /nonexistent/file.ply").exit_code, 3);
+}
+
+TEST(Cli, DegenerateDataExitsWithFour) {
+  const auto flat = std::filesystem::temp_directory_path() / "s2m_cli_flat.xyz";
+  std::ofstream(flat) << "0 0 0\n1 0 0\n0 1 0\n1 1 0\n2 1 0\n";
+  const Result r = RunCli("fit --model sphere " + flat.string());
+  EXPECT_EQ(r.exit_code, 4);
+  EXPECT_NE(r.out.find("coplanar"), std::string::npos) << r.out;
+  std::filesystem::remove(flat);
+}
+
+}  // namespace
+}  // namespace s2m
