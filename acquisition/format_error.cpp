@@ -18,7 +18,11 @@ FormatError::FormatError(std::string file, std::string location, std::string pro
       location_(std::move(location)),
       problem_(std::move(problem)) {}
 
-std::string AtLine(std::size_t line) { return "line " + std::to_string(line); }
-std::string AtByte(std::size_t offset) { return "byte " + std::to_string(offset); }
+std::string AtLine(std::size_t line) {
+  return "line " + std::to_string(line);
+}
+std::string AtByte(std::size_t offset) {
+  return "byte " + std::to_string(offset);
+}
 
 }  // namespace s2m

@@ -9,7 +9,9 @@
 namespace s2m {
 namespace {
 constexpr double kDegree = M_PI / 180.0;
-Eigen::Vector3d Vec(const std::vector<double>& v, std::size_t i) { return {v[i], v[i + 1], v[i + 2]}; }
+Eigen::Vector3d Vec(const std::vector<double>& v, std::size_t i) {
+  return {v[i], v[i + 1], v[i + 2]};
+}
 }  // namespace
 
 std::vector<double> ReadNistFitValues(const std::filesystem::path& path, std::size_t expected) {
@@ -23,14 +25,16 @@ std::vector<double> ReadNistFitValues(const std::filesystem::path& path, std::si
     formats::Tokenize(line.text, tok);
     for (const auto t : tok) {
       double v;
-      if (!formats::ParseDouble(t, v)) throw FormatError(file, AtLine(line.number), "not a number: " + formats::Quoted(t));
+      if (!formats::ParseDouble(t, v))
+        throw FormatError(file, AtLine(line.number), "not a number: " + formats::Quoted(t));
       if (!std::isfinite(v)) throw FormatError(file, AtLine(line.number), "value is not finite");
       values.push_back(v);
     }
   }
   if (values.size() != expected) {
-    throw FormatError(file, "", "expected " + std::to_string(expected) + " numbers for this reference fit, found " +
-                                    std::to_string(values.size()));
+    throw FormatError(file, "",
+                      "expected " + std::to_string(expected) + " numbers for this reference fit, found " +
+                          std::to_string(values.size()));
   }
   return values;
 }
@@ -63,13 +67,18 @@ std::vector<double> ToNistLayout(const Sphere& s) {
   return {s.center.x(), s.center.y(), s.center.z(), 2.0 * s.radius};
 }
 std::vector<double> ToNistLayout(const Cylinder& s) {
-  return {s.axis_point.x(), s.axis_point.y(), s.axis_point.z(), s.axis_direction.x(), s.axis_direction.y(),
-          s.axis_direction.z(), 2.0 * s.radius};
+  return {s.axis_point.x(),     s.axis_point.y(),     s.axis_point.z(), s.axis_direction.x(),
+          s.axis_direction.y(), s.axis_direction.z(), 2.0 * s.radius};
 }
 std::vector<double> ToNistLayout(const Cone& s) {
-  return {s.axis_point.x(),     s.axis_point.y(),     s.axis_point.z(),
-          s.axis_direction.x(), s.axis_direction.y(), s.axis_direction.z(),
-          s.SurfaceDistanceFromAxisPoint(), 2.0 * s.half_angle / kDegree};
+  return {s.axis_point.x(),
+          s.axis_point.y(),
+          s.axis_point.z(),
+          s.axis_direction.x(),
+          s.axis_direction.y(),
+          s.axis_direction.z(),
+          s.SurfaceDistanceFromAxisPoint(),
+          2.0 * s.half_angle / kDegree};
 }
 
 }  // namespace s2m

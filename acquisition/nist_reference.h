@@ -1,8 +1,8 @@
 #pragma once
-// NIST reference fits (.fit files of the NIST Algorithm Testing System / ASME B89.4.10 data sets), converted into
-// scan2model's primitive types. Layouts: plane = point, unit normal; sphere = centre, DIAMETER; cylinder = point on
-// axis, axis direction, DIAMETER; cone = point on axis, axis direction (towards increasing radius), orthogonal distance
-// from that point to the surface, full apex angle in degrees.
+// NIST reference fits (.fit files of the NIST Algorithm Testing System / ASME B89.4.10 data sets), converted
+// into scan2model's primitive types. Layouts: plane = point, unit normal; sphere = centre, DIAMETER; cylinder
+// = point on axis, axis direction, DIAMETER; cone = point on axis, axis direction (towards increasing
+// radius), orthogonal distance from that point to the surface, full apex angle in degrees.
 
 #include <filesystem>
 #include <vector>
@@ -11,7 +11,8 @@
 
 namespace s2m {
 
-// All numbers of a .fit file; throws FormatError when the count differs from `expected` or a value is not finite.
+// All numbers of a .fit file; throws FormatError when the count differs from `expected` or a value is not
+// finite.
 std::vector<double> ReadNistFitValues(const std::filesystem::path& path, std::size_t expected);
 
 Plane ReadNistPlaneFit(const std::filesystem::path& path);

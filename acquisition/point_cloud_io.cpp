@@ -27,10 +27,14 @@ std::string LowerExtension(const std::filesystem::path& path) {
 
 const char* ToString(PointCloudFormat format) {
   switch (format) {
-    case PointCloudFormat::kPly: return "ply";
-    case PointCloudFormat::kPcd: return "pcd";
-    case PointCloudFormat::kText: return "text";
-    case PointCloudFormat::kNistDs: return "nist-ds";
+    case PointCloudFormat::kPly:
+      return "ply";
+    case PointCloudFormat::kPcd:
+      return "pcd";
+    case PointCloudFormat::kText:
+      return "text";
+    case PointCloudFormat::kNistDs:
+      return "nist-ds";
   }
   return "unknown";
 }
@@ -39,27 +43,36 @@ PointCloudFormat DetectFormat(const std::filesystem::path& path) {
   const std::string ext = LowerExtension(path);
   if (ext == ".ply" || ext == ".ply.gz") return PointCloudFormat::kPly;
   if (ext == ".pcd") return PointCloudFormat::kPcd;
-  if (ext == ".xyz" || ext == ".txt" || ext == ".csv" || ext == ".pts" || ext == ".xyz.gz" || ext == ".csv.gz") {
+  if (ext == ".xyz" || ext == ".txt" || ext == ".csv" || ext == ".pts" || ext == ".xyz.gz" ||
+      ext == ".csv.gz") {
     return PointCloudFormat::kText;
   }
   if (ext == ".ds") return PointCloudFormat::kNistDs;
-  throw FormatError(path.string(), "", "unknown point-cloud format '" + ext +
-                                           "' (supported: .ply, .ply.gz, .pcd, .xyz, .txt, .csv, .pts, .ds)");
+  throw FormatError(path.string(), "",
+                    "unknown point-cloud format '" + ext +
+                        "' (supported: .ply, .ply.gz, .pcd, .xyz, .txt, .csv, .pts, .ds)");
 }
 
-Scan ReadPointCloud(const std::filesystem::path& path) { return ReadPointCloud(path, DetectFormat(path)); }
+Scan ReadPointCloud(const std::filesystem::path& path) {
+  return ReadPointCloud(path, DetectFormat(path));
+}
 
 Scan ReadPointCloud(const std::filesystem::path& path, PointCloudFormat format) {
   const std::string file = path.string();
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw FormatError(file, "", "is a directory, not a point-cloud file");
+  if (std::filesystem::is_directory(path, ec))
+    throw FormatError(file, "", "is a directory, not a point-cloud file");
   const std::string bytes = formats::ReadFileBytes(file);
   if (bytes.empty()) throw FormatError(file, "", "empty file");
   switch (format) {
-    case PointCloudFormat::kPly: return formats::ParsePly(bytes, file);
-    case PointCloudFormat::kPcd: return formats::ParsePcd(bytes, file);
-    case PointCloudFormat::kText: return formats::ParseTextPoints(bytes, file);
-    case PointCloudFormat::kNistDs: return formats::ParseNistDs(bytes, file);
+    case PointCloudFormat::kPly:
+      return formats::ParsePly(bytes, file);
+    case PointCloudFormat::kPcd:
+      return formats::ParsePcd(bytes, file);
+    case PointCloudFormat::kText:
+      return formats::ParseTextPoints(bytes, file);
+    case PointCloudFormat::kNistDs:
+      return formats::ParseNistDs(bytes, file);
   }
   throw FormatError(file, "", "unknown format");
 }
@@ -70,7 +83,8 @@ void WritePly(const std::filesystem::path& path, const Scan& scan, PlyEncoding e
   const bool normals = scan.has_normals();
   const bool weights = scan.has_weights();
   std::ostringstream header;
-  header << "ply\nformat " << (encoding == PlyEncoding::kAscii ? "ascii" : "binary_little_endian") << " 1.0\n";
+  header << "ply\nformat " << (encoding == PlyEncoding::kAscii ? "ascii" : "binary_little_endian")
+         << " 1.0\n";
   header << "comment written by scan2model\n";
   header << "comment units " << scan.units << "\n";
   header.precision(17);
@@ -78,7 +92,8 @@ void WritePly(const std::filesystem::path& path, const Scan& scan, PlyEncoding e
   const Eigen::Matrix4d m = scan.world_T_scan.matrix();
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 4; ++c) header << ' ' << m(r, c);
-  header << "\nelement vertex " << scan.size() << "\nproperty double x\nproperty double y\nproperty double z\n";
+  header << "\nelement vertex " << scan.size()
+         << "\nproperty double x\nproperty double y\nproperty double z\n";
   if (normals) header << "property double nx\nproperty double ny\nproperty double nz\n";
   if (weights) header << "property double weight\n";
   header << "end_header\n";
@@ -98,8 +113,10 @@ void WritePly(const std::filesystem::path& path, const Scan& scan, PlyEncoding e
         for (std::size_t k = 0; k < record.size(); ++k) out << (k ? " " : "") << record[k];
         out << '\n';
       } else {
-        static_assert(std::endian::native == std::endian::little, "binary PLY writer assumes a little-endian host");
-        out.write(reinterpret_cast<const char*>(record.data()), static_cast<std::streamsize>(record.size() * sizeof(double)));
+        static_assert(std::endian::native == std::endian::little,
+                      "binary PLY writer assumes a little-endian host");
+        out.write(reinterpret_cast<const char*>(record.data()),
+                  static_cast<std::streamsize>(record.size() * sizeof(double)));
       }
     }
     out.flush();

@@ -1,7 +1,8 @@
 #pragma once
-// Reading and writing single-view point sets. Formats: PLY (ASCII and binary, optionally gzipped), PCD (ascii,
-// binary, binary_compressed), plain text (XYZ/CSV) and the NIST .ds format. Every reader throws FormatError naming the
-// file, the line or byte offset and the problem for corrupt, truncated, NaN-laden or empty input.
+// Reading and writing single-view point sets. Formats: PLY (ASCII and binary, optionally gzipped), PCD
+// (ascii, binary, binary_compressed), plain text (XYZ/CSV) and the NIST .ds format. Every reader throws
+// FormatError naming the file, the line or byte offset and the problem for corrupt, truncated, NaN-laden or
+// empty input.
 
 #include <filesystem>
 #include <string>
@@ -21,8 +22,10 @@ Scan ReadPointCloud(const std::filesystem::path& path, PointCloudFormat format);
 
 enum class PlyEncoding { kBinaryLittleEndian, kAscii };
 
-// Writes x y z (double), normals and weights when present, units and world_T_scan as comments. The file appears
-// atomically (written beside it, then renamed), so a crash never leaves a half-written PLY under the final name.
-void WritePly(const std::filesystem::path& path, const Scan& scan, PlyEncoding encoding = PlyEncoding::kBinaryLittleEndian);
+// Writes x y z (double), normals and weights when present, units and world_T_scan as comments. The file
+// appears atomically (written beside it, then renamed), so a crash never leaves a half-written PLY under the
+// final name.
+void WritePly(const std::filesystem::path& path, const Scan& scan,
+              PlyEncoding encoding = PlyEncoding::kBinaryLittleEndian);
 
 }  // namespace s2m

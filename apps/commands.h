@@ -1,9 +1,8 @@
 #pragma once
 // The `scan2model` subcommands. Each registers its options on the app and returns the function that runs it.
 
-#include <functional>
-
 #include <CLI/CLI.hpp>
+#include <functional>
 
 namespace s2m::app {
 

@@ -1,7 +1,7 @@
 #include <chrono>
 #include <fstream>
-#include <iostream>
 #include <iomanip>
+#include <iostream>
 #include <optional>
 
 #include "acquisition/format_error.h"
@@ -58,10 +58,18 @@ std::vector<Row> Parameters(const Cone& s) {
           {"apex", ToJson(s.Apex()), Format(s.Apex())}};
 }
 
-Plane ReadReference(const std::string& f, const Plane&) { return ReadNistPlaneFit(f); }
-Sphere ReadReference(const std::string& f, const Sphere&) { return ReadNistSphereFit(f); }
-Cylinder ReadReference(const std::string& f, const Cylinder&) { return ReadNistCylinderFit(f); }
-Cone ReadReference(const std::string& f, const Cone&) { return ReadNistConeFit(f); }
+Plane ReadReference(const std::string& f, const Plane&) {
+  return ReadNistPlaneFit(f);
+}
+Sphere ReadReference(const std::string& f, const Sphere&) {
+  return ReadNistSphereFit(f);
+}
+Cylinder ReadReference(const std::string& f, const Cylinder&) {
+  return ReadNistCylinderFit(f);
+}
+Cone ReadReference(const std::string& f, const Cone&) {
+  return ReadNistConeFit(f);
+}
 
 void WriteHistory(const std::string& path, const std::vector<IterationRecord>& history) {
   std::ofstream out(path);
@@ -69,8 +77,8 @@ void WriteHistory(const std::string& path, const std::vector<IterationRecord>& h
   out.precision(17);
   out << "iteration,rms,max_distance,objective,damping,step_norm,seconds\n";
   for (const IterationRecord& r : history) {
-    out << r.iteration << ',' << r.rms << ',' << r.max_distance << ',' << r.objective << ',' << r.damping << ','
-        << r.step_norm << ',' << r.seconds << '\n';
+    out << r.iteration << ',' << r.rms << ',' << r.max_distance << ',' << r.objective << ',' << r.damping
+        << ',' << r.step_norm << ',' << r.seconds << '\n';
   }
   if (!out) throw FormatError(path, "", "write failed");
 }
@@ -99,27 +107,40 @@ int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, Fit
     for (const Row& r : rows) j["parameters"][r.name] = r.value;
     j["nist_layout"] = ToNistLayout(fit.shape);
     for (const ParameterUncertainty& u : fit.uncertainties) {
-      j["uncertainties"][u.name] = {{"standard_uncertainty", u.standard_uncertainty}, {"unit", u.is_angle ? "rad" : scan.units}};
+      j["uncertainties"][u.name] = {{"standard_uncertainty", u.standard_uncertainty},
+                                    {"unit", u.is_angle ? "rad" : scan.units}};
     }
-    j["residuals"] = {{"count", fit.residuals.count}, {"rms", fit.residuals.rms}, {"max_abs", fit.residuals.max_abs}, {"mean", fit.residuals.mean}};
+    j["residuals"] = {{"count", fit.residuals.count},
+                      {"rms", fit.residuals.rms},
+                      {"max_abs", fit.residuals.max_abs},
+                      {"mean", fit.residuals.mean}};
     j["iterations"] = fit.iterations;
     j["stop_reason"] = ToString(fit.stop_reason);
     j["seconds"] = seconds;
     j["history"] = nlohmann::json::array();
     for (const IterationRecord& r : fit.history) {
-      j["history"].push_back({{"iteration", r.iteration}, {"rms", r.rms}, {"max_distance", r.max_distance},
-                              {"objective", r.objective}, {"damping", r.damping}, {"step_norm", r.step_norm}, {"seconds", r.seconds}});
+      j["history"].push_back({{"iteration", r.iteration},
+                              {"rms", r.rms},
+                              {"max_distance", r.max_distance},
+                              {"objective", r.objective},
+                              {"damping", r.damping},
+                              {"step_norm", r.step_norm},
+                              {"seconds", r.seconds}});
     }
     if (deviation) {
-      j["reference"] = {{"file", o.reference}, {"extent", extent}, {"position", deviation->position},
-                        {"direction_rad", deviation->direction}, {"size", deviation->size}, {"apex_angle_rad", deviation->angle}};
+      j["reference"] = {{"file", o.reference},
+                        {"extent", extent},
+                        {"position", deviation->position},
+                        {"direction_rad", deviation->direction},
+                        {"size", deviation->size},
+                        {"apex_angle_rad", deviation->angle}};
     }
     std::cout << j.dump(2) << "\n";
     return kOk;
   }
 
-  std::cout << "scan2model fit: " << o.model << " to " << scan.size() << " points of " << o.file << " (" << format
-            << ", units " << scan.units << ")\n\n";
+  std::cout << "scan2model fit: " << o.model << " to " << scan.size() << " points of " << o.file << " ("
+            << format << ", units " << scan.units << ")\n\n";
   for (const Row& r : rows) std::cout << "  " << std::left << std::setw(18) << r.name << r.text << "\n";
   if (!fit.uncertainties.empty()) {
     std::cout << "\n  standard uncertainties (type A, from the residuals)\n";
@@ -128,20 +149,25 @@ int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, Fit
                 << (u.is_angle ? " rad" : "") << "\n";
     }
   } else {
-    std::cout << "\n  no uncertainties: as many parameters as points (the fit interpolates and may not be unique)\n";
+    std::cout << "\n  no uncertainties: as many parameters as points (the fit interpolates and may not be "
+                 "unique)\n";
   }
-  std::cout << "\n  residuals         RMS " << Format(fit.residuals.rms, 6) << ", max " << Format(fit.residuals.max_abs, 6)
-            << ", mean " << Format(fit.residuals.mean, 3) << "\n"
-            << "  solver            " << ToString(options.method) << " + Levenberg-Marquardt, " << fit.iterations
-            << " iterations, stopped: " << ToString(fit.stop_reason) << ", " << Format(seconds * 1e3, 3) << " ms\n";
+  std::cout << "\n  residuals         RMS " << Format(fit.residuals.rms, 6) << ", max "
+            << Format(fit.residuals.max_abs, 6) << ", mean " << Format(fit.residuals.mean, 3) << "\n"
+            << "  solver            " << ToString(options.method) << " + Levenberg-Marquardt, "
+            << fit.iterations << " iterations, stopped: " << ToString(fit.stop_reason) << ", "
+            << Format(seconds * 1e3, 3) << " ms\n";
   if (deviation) {
-    std::cout << "\n  against reference " << o.reference << " (relative to the data's extent " << Format(extent, 6) << ")\n"
+    std::cout << "\n  against reference " << o.reference << " (relative to the data's extent "
+              << Format(extent, 6) << ")\n"
               << "  position          " << Format(deviation->position / extent, 3) << "\n";
     if (deviation->direction > 0 || !std::is_same_v<Shape, Sphere>) {
       std::cout << "  direction         " << Format(deviation->direction, 3) << " rad\n";
     }
-    if (!std::is_same_v<Shape, Plane>) std::cout << "  size              " << Format(deviation->size / extent, 3) << "\n";
-    if (std::is_same_v<Shape, Cone>) std::cout << "  apex angle        " << Format(deviation->angle, 3) << " rad\n";
+    if (!std::is_same_v<Shape, Plane>)
+      std::cout << "  size              " << Format(deviation->size / extent, 3) << "\n";
+    if (std::is_same_v<Shape, Cone>)
+      std::cout << "  apex angle        " << Format(deviation->angle, 3) << " rad\n";
   }
   return kOk;
 }
@@ -150,12 +176,19 @@ int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, Fit
 
 Runner AddFitCommand(CLI::App& app) {
   auto o = std::make_shared<FitOptions>();
-  CLI::App* cmd = app.add_subcommand("fit", "Fit a model to a point cloud by orthogonal-distance least squares");
+  CLI::App* cmd =
+      app.add_subcommand("fit", "Fit a model to a point cloud by orthogonal-distance least squares");
   cmd->add_option("file", o->file, "Input: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds")->required();
-  cmd->add_option("--model,-m", o->model, "Model to fit")->required()->check(CLI::IsMember({"plane", "sphere", "cylinder", "cone"}));
-  cmd->add_option("--method", o->method, "Error term per iteration: tdm (Gauss-Newton) or sdm (curvature-aware)")
-      ->capture_default_str()->check(CLI::IsMember({"tdm", "sdm"}));
-  cmd->add_option("--max-iterations", o->max_iterations, "Iteration cap")->capture_default_str()->check(CLI::PositiveNumber);
+  cmd->add_option("--model,-m", o->model, "Model to fit")
+      ->required()
+      ->check(CLI::IsMember({"plane", "sphere", "cylinder", "cone"}));
+  cmd->add_option("--method", o->method,
+                  "Error term per iteration: tdm (Gauss-Newton) or sdm (curvature-aware)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"tdm", "sdm"}));
+  cmd->add_option("--max-iterations", o->max_iterations, "Iteration cap")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--reference", o->reference, "A NIST .fit reference file to compare the result with");
   cmd->add_option("--history", o->history, "Write the per-iteration history to this CSV file");
   cmd->add_option("--units", o->units, "Declare the input's units (e.g. mm) when the file does not say");
@@ -165,19 +198,34 @@ Runner AddFitCommand(CLI::App& app) {
       const PointCloudFormat format = DetectFormat(o->file);
       Scan scan = ReadPointCloud(o->file, format);
       if (!o->units.empty()) scan.units = o->units;
-      for (const std::string& note : scan.metadata.notes) std::cerr << "scan2model fit: note: " << note << "\n";
+      for (const std::string& note : scan.metadata.notes)
+        std::cerr << "scan2model fit: note: " << note << "\n";
       const std::string f = ToString(format);
-      if (o->model == "plane") return RunFit<Plane>(*o, scan, f, [](const auto& p, const auto& opt) { return FitPlane(p, opt); });
-      if (o->model == "sphere") return RunFit<Sphere>(*o, scan, f, [](const auto& p, const auto& opt) { return FitSphere(p, opt); });
-      if (o->model == "cylinder") return RunFit<Cylinder>(*o, scan, f, [](const auto& p, const auto& opt) { return FitCylinder(p, opt); });
+      if (o->model == "plane")
+        return RunFit<Plane>(*o, scan, f, [](const auto& p, const auto& opt) { return FitPlane(p, opt); });
+      if (o->model == "sphere")
+        return RunFit<Sphere>(*o, scan, f, [](const auto& p, const auto& opt) { return FitSphere(p, opt); });
+      if (o->model == "cylinder")
+        return RunFit<Cylinder>(*o, scan, f,
+                                [](const auto& p, const auto& opt) { return FitCylinder(p, opt); });
       return RunFit<Cone>(*o, scan, f, [](const auto& p, const auto& opt) { return FitCone(p, opt); });
     } catch (const FormatError& e) {
       std::cerr << "scan2model fit: error: " << e.what() << "\n";
-      if (o->json) std::cout << nlohmann::json{{"schema", "scan2model.error/1"}, {"error", e.what()}, {"exit_code", kInputError}}.dump(2) << "\n";
+      if (o->json)
+        std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
+                                    {"error", e.what()},
+                                    {"exit_code", kInputError}}
+                         .dump(2)
+                  << "\n";
       return int{kInputError};
     } catch (const FitError& e) {
       std::cerr << "scan2model fit: error: " << o->file << ": " << e.what() << "\n";
-      if (o->json) std::cout << nlohmann::json{{"schema", "scan2model.error/1"}, {"error", o->file + ": " + e.what()}, {"exit_code", kFitError}}.dump(2) << "\n";
+      if (o->json)
+        std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
+                                    {"error", o->file + ": " + e.what()},
+                                    {"exit_code", kFitError}}
+                         .dump(2)
+                  << "\n";
       return int{kFitError};
     }
   };

@@ -35,7 +35,8 @@ Runner AddInfoCommand(CLI::App& app) {
                 << "  units     " << scan.units << "\n"
                 << "  min       " << Format(b.min, 8) << "\n"
                 << "  max       " << Format(b.max, 8) << "\n"
-                << "  extent    " << Format(b.extent(), 8) << "  (diagonal " << Format(b.diagonal(), 8) << ")\n";
+                << "  extent    " << Format(b.extent(), 8) << "  (diagonal " << Format(b.diagonal(), 8)
+                << ")\n";
       if (!scan.world_T_scan.matrix().isIdentity(0.0)) {
         std::cout << "  world_T_scan\n" << scan.world_T_scan.matrix() << "\n";
       }
@@ -43,7 +44,12 @@ Runner AddInfoCommand(CLI::App& app) {
       return int{kOk};
     } catch (const FormatError& e) {
       std::cerr << "scan2model info: error: " << e.what() << "\n";
-      if (options->json) std::cout << nlohmann::json{{"schema", "scan2model.error/1"}, {"error", e.what()}, {"exit_code", kInputError}}.dump(2) << "\n";
+      if (options->json)
+        std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
+                                    {"error", e.what()},
+                                    {"exit_code", kInputError}}
+                         .dump(2)
+                  << "\n";
       return int{kInputError};
     }
   };

@@ -10,11 +10,13 @@
 #endif
 
 int main(int argc, char** argv) {
-  CLI::App app{"scan2model: fit models to multi-view scans (SDM/TDM/PDM registration and fitting)", "scan2model"};
+  CLI::App app{"scan2model: fit models to multi-view scans (SDM/TDM/PDM registration and fitting)",
+               "scan2model"};
   app.set_version_flag("--version", std::string("scan2model ") + S2M_VERSION);
   app.require_subcommand(1);
-  app.footer("Run 'scan2model <command> --help' for a command's options. Exit codes: 0 ok, 2 usage, "
-             "3 bad input, 4 fit failed.");
+  app.footer(
+      "Run 'scan2model <command> --help' for a command's options. Exit codes: 0 ok, 2 usage, "
+      "3 bad input, 4 fit failed.");
   const s2m::app::Runner info = s2m::app::AddInfoCommand(app);
   const s2m::app::Runner fit = s2m::app::AddFitCommand(app);
   try {

@@ -4,7 +4,9 @@
 
 namespace s2m::app {
 
-nlohmann::json ToJson(const Eigen::Vector3d& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); }
+nlohmann::json ToJson(const Eigen::Vector3d& v) {
+  return nlohmann::json::array({v.x(), v.y(), v.z()});
+}
 
 nlohmann::json ToJson(const Eigen::Matrix4d& m) {
   nlohmann::json rows = nlohmann::json::array();
@@ -32,7 +34,9 @@ nlohmann::json DescribeScan(const Scan& scan, const std::string& file, const std
   j["has_normals"] = scan.has_normals();
   j["has_weights"] = scan.has_weights();
   j["units"] = scan.units;
-  j["bounds"] = {{"min", ToJson(b.min)}, {"max", ToJson(b.max)}, {"extent", ToJson(b.extent())},
+  j["bounds"] = {{"min", ToJson(b.min)},
+                 {"max", ToJson(b.max)},
+                 {"extent", ToJson(b.extent())},
                  {"diagonal", b.diagonal()}};
   j["centroid"] = ToJson(Eigen::Vector3d(scan.points.rowwise().mean()));
   j["world_T_scan"] = ToJson(scan.world_T_scan.matrix());

@@ -1,10 +1,9 @@
 #pragma once
 // Shared output helpers for the command line: JSON documents and readable text.
 
-#include <string>
-
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "registration/scan.h"
 

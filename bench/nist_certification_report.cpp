@@ -1,6 +1,7 @@
-// Measures our primitive fits against all 60 NIST reference pairs, with TDM and SDM steps, and prints a markdown
-// table: the largest deviation per geometry (relative to each data set's extent, or in radians) and the iterations.
-// Usage: nist_certification_report [path/to/nist_l2_reference_pairs]   (default: ../shared/data/... beside the repo)
+// Measures our primitive fits against all 60 NIST reference pairs, with TDM and SDM steps, and prints a
+// markdown table: the largest deviation per geometry (relative to each data set's extent, or in radians) and
+// the iterations. Usage: nist_certification_report [path/to/nist_l2_reference_pairs]   (default:
+// ../shared/data/... beside the repo)
 
 #include <algorithm>
 #include <chrono>
@@ -24,7 +25,8 @@ struct Summary {
 };
 
 template <class Shape, class Fit, class Read>
-void Run(const fs::path& dir, const char* prefix, PrimitiveMethod method, Fit fit_fn, Read read_fn, Summary& s) {
+void Run(const fs::path& dir, const char* prefix, PrimitiveMethod method, Fit fit_fn, Read read_fn,
+         Summary& s) {
   for (int i = 1; i <= 15; ++i) {
     const std::string name = prefix + std::to_string(i);
     const Scan scan = ReadPointCloud(dir / (name + ".ds"));
@@ -48,23 +50,34 @@ void Run(const fs::path& dir, const char* prefix, PrimitiveMethod method, Fit fi
 }
 
 int main(int argc, char** argv) {
-  const fs::path root = argc > 1 ? fs::path(argv[1])
-                                 : fs::path(S2M_SOURCE_DIR) / ".." / "shared" / "data" / "nist_l2_reference_pairs";
+  const fs::path root = argc > 1
+                            ? fs::path(argv[1])
+                            : fs::path(S2M_SOURCE_DIR) / ".." / "shared" / "data" / "nist_l2_reference_pairs";
   if (!fs::is_directory(root)) {
     std::cerr << "nist_certification_report: no NIST reference pairs at " << root << "\n";
     return 2;
   }
-  std::cout << "| geometry | method | max position dev. (rel.) | max direction dev. (rad) | max size dev. (rel.) | "
-               "max apex-angle dev. (rad) | worst set | mean / max iterations | total time (ms) |\n"
-            << "|---|---|---|---|---|---|---|---|---|\n";
+  std::cout
+      << "| geometry | method | max position dev. (rel.) | max direction dev. (rad) | max size dev. (rel.) | "
+         "max apex-angle dev. (rad) | worst set | mean / max iterations | total time (ms) |\n"
+      << "|---|---|---|---|---|---|---|---|---|\n";
   for (PrimitiveMethod method : {PrimitiveMethod::kTdm, PrimitiveMethod::kSdm}) {
     Summary plane, sphere, cylinder, cone;
-    Run<Plane>(root / "Plane", "pla", method, [](auto& p, auto& o) { return FitPlane(p, o); }, ReadNistPlaneFit, plane);
-    Run<Sphere>(root / "Sphere", "sph", method, [](auto& p, auto& o) { return FitSphere(p, o); }, ReadNistSphereFit, sphere);
-    Run<Cylinder>(root / "Cylinder", "cyl", method, [](auto& p, auto& o) { return FitCylinder(p, o); }, ReadNistCylinderFit, cylinder);
-    Run<Cone>(root / "Cone", "con", method, [](auto& p, auto& o) { return FitCone(p, o); }, ReadNistConeFit, cone);
-    for (const auto& [name, s] : {std::pair<const char*, Summary&>{"plane", plane}, {"sphere", sphere},
-                                  {"cylinder", cylinder}, {"cone", cone}}) {
+    Run<Plane>(
+        root / "Plane", "pla", method, [](auto& p, auto& o) { return FitPlane(p, o); }, ReadNistPlaneFit,
+        plane);
+    Run<Sphere>(
+        root / "Sphere", "sph", method, [](auto& p, auto& o) { return FitSphere(p, o); }, ReadNistSphereFit,
+        sphere);
+    Run<Cylinder>(
+        root / "Cylinder", "cyl", method, [](auto& p, auto& o) { return FitCylinder(p, o); },
+        ReadNistCylinderFit, cylinder);
+    Run<Cone>(
+        root / "Cone", "con", method, [](auto& p, auto& o) { return FitCone(p, o); }, ReadNistConeFit, cone);
+    for (const auto& [name, s] : {std::pair<const char*, Summary&>{"plane", plane},
+                                  {"sphere", sphere},
+                                  {"cylinder", cylinder},
+                                  {"cone", cone}}) {
       std::printf("| %s | %s | %.2e | %.2e | %.2e | %.2e | %s | %.1f / %d | %.1f |\n", name, ToString(method),
                   s.position, s.direction, s.size, s.angle, s.worst_set.c_str(),
                   static_cast<double>(s.iterations) / s.sets, s.max_iterations, s.seconds * 1e3);

@@ -16,12 +16,18 @@ ResidualStatistics ComputeResidualStatistics(const Eigen::VectorXd& d) {
 
 const char* ToString(StopReason reason) {
   switch (reason) {
-    case StopReason::kClosedForm: return "closed form";
-    case StopReason::kStepTolerance: return "step below tolerance";
-    case StopReason::kGradientTolerance: return "gradient below tolerance";
-    case StopReason::kObjectiveTolerance: return "objective decrease below tolerance";
-    case StopReason::kNoFurtherDecrease: return "no further decrease at machine precision";
-    case StopReason::kMaxIterations: return "iteration limit reached";
+    case StopReason::kClosedForm:
+      return "closed form";
+    case StopReason::kStepTolerance:
+      return "step below tolerance";
+    case StopReason::kGradientTolerance:
+      return "gradient below tolerance";
+    case StopReason::kObjectiveTolerance:
+      return "objective decrease below tolerance";
+    case StopReason::kNoFurtherDecrease:
+      return "no further decrease at machine precision";
+    case StopReason::kMaxIterations:
+      return "iteration limit reached";
   }
   return "unknown";
 }

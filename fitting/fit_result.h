@@ -1,14 +1,14 @@
 #pragma once
 // What every fit reports: residual statistics, the iteration history and why the iteration stopped.
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
-
 namespace s2m {
 
-// Residual statistics at exact foot points (METHOD.md section 2: RMS = sqrt(1/n sum ||X_j - s_j||^2), max distance).
+// Residual statistics at exact foot points (METHOD.md section 2: RMS = sqrt(1/n sum ||X_j - s_j||^2), max
+// distance).
 struct ResidualStatistics {
   Eigen::Index count = 0;
   double rms = 0.0;

@@ -1,12 +1,12 @@
 #include "fitting/primitive_compare.h"
 
-#include <cmath>
-
 #include <Eigen/Geometry>
+#include <cmath>
 
 namespace s2m {
 namespace {
-double DistanceToAxis(const Eigen::Vector3d& x, const Eigen::Vector3d& point, const Eigen::Vector3d& direction) {
+double DistanceToAxis(const Eigen::Vector3d& x, const Eigen::Vector3d& point,
+                      const Eigen::Vector3d& direction) {
   const Eigen::Vector3d v = x - point;
   return (v - direction.dot(v) * direction).norm();
 }

@@ -1,5 +1,10 @@
 #include "fitting/primitive_fit.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <Eigen/QR>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -8,19 +13,13 @@
 #include <optional>
 #include <string>
 
-#include <Eigen/Cholesky>
-#include <Eigen/Geometry>
-#include <Eigen/LU>
-#include <Eigen/Eigenvalues>
-#include <Eigen/QR>
-
 namespace s2m {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Data centred at the centroid and scaled uniformly into the unit box (METHOD.md section 3), so that tolerances
-// and damping do not depend on the user's units or on where the part sits in the scanner's frame.
+// Data centred at the centroid and scaled uniformly into the unit box (METHOD.md section 3), so that
+// tolerances and damping do not depend on the user's units or on where the part sits in the scanner's frame.
 struct NormalizedData {
   Eigen::Vector3d offset;
   double scale = 1.0;
@@ -32,7 +31,8 @@ NormalizedData Normalize(const Eigen::Matrix3Xd& points, Eigen::Index min_points
     throw FitError(std::string("a ") + what + " fit needs at least " + std::to_string(min_points) +
                    " points, got " + std::to_string(points.cols()));
   }
-  if (!points.allFinite()) throw FitError(std::string("cannot fit a ") + what + ": the points contain NaN or inf");
+  if (!points.allFinite())
+    throw FitError(std::string("cannot fit a ") + what + ": the points contain NaN or inf");
   NormalizedData n;
   n.offset = points.rowwise().mean();
   const double half_extent = 0.5 * (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).maxCoeff();
@@ -51,14 +51,16 @@ double SdmWeight(double delta, double kappa) {
   return std::max(0.0, dk / denom);
 }
 
-// ---- Models: closed-form foot points, TDM rows d(distance)/d(params) and SDM tangential rows ----------------------
-// For every model the TDM row equals -n^T C_P at the foot point (Liu & Wang, GMP 2008, section 3), and the SDM term
-// adds beta_k (T_k^T C_P)^T (T_k^T C_P) with C_P the motion of the model point at a fixed surface parameter.
+// ---- Models: closed-form foot points, TDM rows d(distance)/d(params) and SDM tangential rows
+// ---------------------- For every model the TDM row equals -n^T C_P at the foot point (Liu & Wang, GMP 2008,
+// section 3), and the SDM term adds beta_k (T_k^T C_P)^T (T_k^T C_P) with C_P the motion of the model point
+// at a fixed surface parameter.
 
 struct SphereModel {
   using Shape = Sphere;
   static constexpr int kParams = 4;
-  // User-facing uncertainties: which local parameters (summed in quadrature) and whether the result is a length.
+  // User-facing uncertainties: which local parameters (summed in quadrature) and whether the result is a
+  // length.
   static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix4d& cov, double scale) {
     return {{"center_x", std::sqrt(cov(0, 0)) * scale, false},
             {"center_y", std::sqrt(cov(1, 1)) * scale, false},
@@ -68,8 +70,8 @@ struct SphereModel {
   static double Magnitude(const Sphere& s) { return s.center.norm() + std::abs(s.radius); }
 
   template <class JacobianT, class TangentialT>
-  static void Linearize(const Sphere& s, const Eigen::Matrix3Xd& y, bool sdm, Eigen::VectorXd& d, JacobianT& J,
-                        TangentialT& T) {
+  static void Linearize(const Sphere& s, const Eigen::Matrix3Xd& y, bool sdm, Eigen::VectorXd& d,
+                        JacobianT& J, TangentialT& T) {
     const Eigen::Index n = y.cols();
     d.resize(n);
     J.resize(n, kParams);
@@ -84,7 +86,9 @@ struct SphereModel {
       if (sdm) {
         const double beta = SdmWeight(d[i], kappa);
         // C_P = [I | n]: both tangential directions see the centre block only.
-        if (beta > 0) T.template topLeftCorner<3, 3>() += beta * (Eigen::Matrix3d::Identity() - normal * normal.transpose());
+        if (beta > 0)
+          T.template topLeftCorner<3, 3>() +=
+              beta * (Eigen::Matrix3d::Identity() - normal * normal.transpose());
       }
     }
   }
@@ -97,18 +101,20 @@ struct SphereModel {
 struct CylinderModel {
   using Shape = Cylinder;
   static constexpr int kParams = 5;
-  static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix<double, 5, 5>& cov, double scale) {
+  static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix<double, 5, 5>& cov,
+                                                         double scale) {
     return {{"axis_position", std::sqrt(cov(0, 0) + cov(1, 1)) * scale, false},
             {"axis_direction", std::sqrt(cov(2, 2) + cov(3, 3)), true},
             {"radius", std::sqrt(cov(4, 4)) * scale, false}};
   }
   static double Magnitude(const Cylinder& s) { return s.axis_point.norm() + 1.0 + std::abs(s.radius); }
 
-  // Local parameters (u1, u2, a1, b1, r): axis point (u1, u2, 0) and direction (a1, b1, 1) in the frame whose z axis
-  // is the current axis (Forbes, NPL DITC 140/89, section 6). Foot point of y: s = y - d n, n = (cos t, sin t, 0).
+  // Local parameters (u1, u2, a1, b1, r): axis point (u1, u2, 0) and direction (a1, b1, 1) in the frame whose
+  // z axis is the current axis (Forbes, NPL DITC 140/89, section 6). Foot point of y: s = y - d n, n = (cos
+  // t, sin t, 0).
   template <class JacobianT, class TangentialT>
-  static void Linearize(const Cylinder& s, const Eigen::Matrix3Xd& y, bool sdm, Eigen::VectorXd& d, JacobianT& J,
-                        TangentialT& T) {
+  static void Linearize(const Cylinder& s, const Eigen::Matrix3Xd& y, bool sdm, Eigen::VectorXd& d,
+                        JacobianT& J, TangentialT& T) {
     const Eigen::Matrix3d frame = FrameWithAxis(s.axis_direction);
     const Eigen::Index n = y.cols();
     d.resize(n);
@@ -125,7 +131,8 @@ struct CylinderModel {
       d[i] = rho - s.radius;
       J.row(i) << -c, -sn, -c * z, -sn * z, -1.0;
       if (sdm) {
-        // Circumferential direction T1 = (-sin, cos, 0), kappa1 = -1/r; the rulings are straight (kappa2 = 0).
+        // Circumferential direction T1 = (-sin, cos, 0), kappa1 = -1/r; the rulings are straight (kappa2 =
+        // 0).
         const double beta = SdmWeight(d[i], kappa);
         if (beta > 0) {
           t << -sn, c, -z * sn, z * c, 0.0;
@@ -149,17 +156,20 @@ struct CylinderModel {
 struct ConeModel {
   using Shape = Cone;
   static constexpr int kParams = 6;
-  static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix<double, 6, 6>& cov, double scale) {
+  static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix<double, 6, 6>& cov,
+                                                         double scale) {
     return {{"axis_position", std::sqrt(cov(0, 0) + cov(1, 1)) * scale, false},
             {"axis_direction", std::sqrt(cov(2, 2) + cov(3, 3)), true},
             {"half_angle", std::sqrt(cov(4, 4)), true},
             {"surface_distance", std::sqrt(cov(5, 5)) * scale, false}};
   }
-  static double Magnitude(const Cone& s) { return s.axis_point.norm() + 1.0 + std::abs(s.radius) + s.half_angle; }
+  static double Magnitude(const Cone& s) {
+    return s.axis_point.norm() + 1.0 + std::abs(s.radius) + s.half_angle;
+  }
 
-  // Local parameters (u1, u2, a1, b1, psi, s) with d = rho cos(psi) - z sin(psi) - s (Forbes, NPL DITC 140/89,
-  // section 7): s, the orthogonal distance from the axis point to the surface, stays well conditioned for small
-  // apex angles where the apex runs off to infinity.
+  // Local parameters (u1, u2, a1, b1, psi, s) with d = rho cos(psi) - z sin(psi) - s (Forbes, NPL DITC
+  // 140/89, section 7): s, the orthogonal distance from the axis point to the surface, stays well conditioned
+  // for small apex angles where the apex runs off to infinity.
   template <class JacobianT, class TangentialT>
   static void Linearize(const Cone& s, const Eigen::Matrix3Xd& y, bool sdm, Eigen::VectorXd& d, JacobianT& J,
                         TangentialT& T) {
@@ -181,8 +191,9 @@ struct ConeModel {
       const double dpsi = -rho * spsi - z * cpsi;
       J.row(i) << -cpsi * c, -cpsi * sn, c * dpsi, sn * dpsi, dpsi, -1.0;
       if (sdm) {
-        // Foot point s = y - d n with n = (cos psi e_rho - sin psi e_z): radius rho_f = rho - d cos psi, axial
-        // h = z + d sin psi. The circle direction has normal curvature -cos(psi)/rho_f; the rulings are straight.
+        // Foot point s = y - d n with n = (cos psi e_rho - sin psi e_z): radius rho_f = rho - d cos psi,
+        // axial h = z + d sin psi. The circle direction has normal curvature -cos(psi)/rho_f; the rulings are
+        // straight.
         const double rho_foot = rho - d[i] * cpsi;
         if (rho_foot > 0) {
           const double beta = SdmWeight(d[i], -cpsi / rho_foot);
@@ -212,7 +223,8 @@ struct ConeModel {
   }
 };
 
-// ---- Levenberg-Marquardt over a model's local parametrization (METHOD.md section 9) ----------------------------
+// ---- Levenberg-Marquardt over a model's local parametrization (METHOD.md section 9)
+// ----------------------------
 
 template <class Model>
 PrimitiveFit<typename Model::Shape> Solve(const Eigen::Matrix3Xd& y, typename Model::Shape shape,
@@ -313,11 +325,13 @@ PrimitiveFit<typename Model::Shape> Solve(const Eigen::Matrix3Xd& y, typename Mo
 template <class Shape>
 void Finish(PrimitiveFit<Shape>& fit, const NormalizedData& data, const Eigen::Matrix3Xd& points) {
   fit.shape = Transformed(fit.shape, data.scale, data.offset);
-  if constexpr (requires(Shape s) { MoveAxisPointNear(s, data.offset); }) MoveAxisPointNear(fit.shape, data.offset);
+  if constexpr (requires(Shape s) { MoveAxisPointNear(s, data.offset); })
+    MoveAxisPointNear(fit.shape, data.offset);
   fit.residuals = ComputeResidualStatistics(SignedDistances(fit.shape, points));
 }
 
-// ---- Initial guesses ------------------------------------------------------------------------------------------
+// ---- Initial guesses
+// ------------------------------------------------------------------------------------------
 
 Eigen::Matrix3Xd Subsample(const Eigen::Matrix3Xd& y, int max_points) {
   if (y.cols() <= max_points) return y;
@@ -368,9 +382,9 @@ std::optional<Cylinder> CylinderForDirection(const Eigen::Matrix3Xd& y, const Ei
   return cyl;
 }
 
-// Algebraic cone fit for a given axis direction (derived): with q the coordinates across the axis and z along it,
-// |q - c|^2 = (r0 + k z)^2 is linear in (c, r0^2 - |c|^2, 2 r0 k, k^2) when the coupling k^2 = (2 r0 k)^2/(4 r0^2) is
-// dropped; k = tan(half angle).
+// Algebraic cone fit for a given axis direction (derived): with q the coordinates across the axis and z along
+// it, |q - c|^2 = (r0 + k z)^2 is linear in (c, r0^2 - |c|^2, 2 r0 k, k^2) when the coupling k^2 = (2 r0
+// k)^2/(4 r0^2) is dropped; k = tan(half angle).
 std::optional<Cone> ConeForDirection(const Eigen::Matrix3Xd& y, const Eigen::Vector3d& dir) {
   const Eigen::Matrix3d frame = FrameWithAxis(dir);
   const Eigen::Matrix2Xd q = frame.leftCols<2>().transpose() * y;
@@ -395,7 +409,8 @@ std::optional<Cone> ConeForDirection(const Eigen::Matrix3Xd& y, const Eigen::Vec
   return cone;
 }
 
-// Scores every candidate direction, then refines the best few mutually distinct ones and keeps the lowest objective.
+// Scores every candidate direction, then refines the best few mutually distinct ones and keeps the lowest
+// objective.
 template <class Model, class Guess>
 PrimitiveFit<typename Model::Shape> FitWithDirectionSearch(const NormalizedData& data,
                                                            const PrimitiveFitOptions& options, Guess guess,
@@ -413,7 +428,9 @@ PrimitiveFit<typename Model::Shape> FitWithDirectionSearch(const NormalizedData&
       if (std::isfinite(score)) scored.push_back({score, *shape});
     }
   }
-  if (scored.empty()) throw FitError(std::string("cannot fit a ") + what + ": no axis direction gives a usable initial guess (degenerate data?)");
+  if (scored.empty())
+    throw FitError(std::string("cannot fit a ") + what +
+                   ": no axis direction gives a usable initial guess (degenerate data?)");
   std::sort(scored.begin(), scored.end(), [](const Scored& a, const Scored& b) { return a.score < b.score; });
 
   const double min_separation_cos = std::cos(10.0 * M_PI / 180.0);
@@ -426,9 +443,10 @@ PrimitiveFit<typename Model::Shape> FitWithDirectionSearch(const NormalizedData&
     if (static_cast<int>(starts.size()) >= std::max(1, options.refined_candidates)) break;
   }
 
-  // Starts are in order of their algebraic score. A later start replaces the current best only when it is clearly
-  // lower: with as many points as parameters several surfaces interpolate the data exactly (objective at rounding
-  // level), and the one reached from the best algebraic guess is the one closest to the data's overall shape.
+  // Starts are in order of their algebraic score. A later start replaces the current best only when it is
+  // clearly lower: with as many points as parameters several surfaces interpolate the data exactly (objective
+  // at rounding level), and the one reached from the best algebraic guess is the one closest to the data's
+  // overall shape.
   const double rounding_floor = 1e-24 * static_cast<double>(data.points.cols());
   std::optional<PrimitiveFit<Shape>> best;
   double best_objective = std::numeric_limits<double>::infinity();
@@ -449,7 +467,8 @@ Sphere AlgebraicSphere(const Eigen::Matrix3Xd& y) {
   A.col(3).setOnes();
   const Eigen::VectorXd b = y.colwise().squaredNorm().transpose();
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A);
-  if (qr.rank() < 4) throw FitError("cannot fit a sphere: the points are coplanar (a sphere is not determined)");
+  if (qr.rank() < 4)
+    throw FitError("cannot fit a sphere: the points are coplanar (a sphere is not determined)");
   const Eigen::Vector4d x = qr.solve(b);
   const double r2 = x[3] + x.head<3>().squaredNorm();
   if (!(r2 > 0)) throw FitError("cannot fit a sphere: the algebraic initial guess has no real radius");
@@ -458,7 +477,9 @@ Sphere AlgebraicSphere(const Eigen::Matrix3Xd& y) {
 
 }  // namespace
 
-const char* ToString(PrimitiveMethod method) { return method == PrimitiveMethod::kSdm ? "sdm" : "tdm"; }
+const char* ToString(PrimitiveMethod method) {
+  return method == PrimitiveMethod::kSdm ? "sdm" : "tdm";
+}
 
 PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions&) {
   const NormalizedData data = Normalize(points, 3, "plane");
@@ -467,7 +488,8 @@ PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitO
   const Eigen::Matrix3d scatter = data.points * data.points.transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
   const Eigen::Vector3d values = eig.eigenvalues();
-  // Second singular value below 1e-6 of the first: the points lie on a line (to rounding), the normal is arbitrary.
+  // Second singular value below 1e-6 of the first: the points lie on a line (to rounding), the normal is
+  // arbitrary.
   if (!(values[1] > 1e-12 * values[2])) throw FitError("cannot fit a plane: the points are collinear");
   Eigen::Vector3d normal = eig.eigenvectors().col(0);
   Eigen::Index k;
@@ -503,7 +525,8 @@ PrimitiveFit<Sphere> RefineSphere(const Eigen::Matrix3Xd& points, const Sphere& 
 
 PrimitiveFit<Sphere> FitSphere(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
   const NormalizedData data = Normalize(points, 4, "sphere");
-  PrimitiveFit<Sphere> fit = Solve<SphereModel>(data.points, AlgebraicSphere(data.points), options, data.scale);
+  PrimitiveFit<Sphere> fit =
+      Solve<SphereModel>(data.points, AlgebraicSphere(data.points), options, data.scale);
   Finish(fit, data, points);
   return fit;
 }
@@ -526,10 +549,11 @@ PrimitiveFit<Cylinder> FitCylinder(const Eigen::Matrix3Xd& points, const Primiti
   return fit;
 }
 
-PrimitiveFit<Cone> RefineCone(const Eigen::Matrix3Xd& points, const Cone& initial, const PrimitiveFitOptions& options) {
+PrimitiveFit<Cone> RefineCone(const Eigen::Matrix3Xd& points, const Cone& initial,
+                              const PrimitiveFitOptions& options) {
   const NormalizedData data = Normalize(points, 6, "cone");
-  Cone start{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(), initial.half_angle,
-             initial.radius / data.scale};
+  Cone start{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
+             initial.half_angle, initial.radius / data.scale};
   PrimitiveFit<Cone> fit = Solve<ConeModel>(data.points, start, options, data.scale);
   Finish(fit, data, points);
   return fit;
@@ -553,13 +577,23 @@ Eigen::MatrixXd JacobianOf(const typename Model::Shape& s, const Eigen::Matrix3X
 }
 }  // namespace
 
-Eigen::MatrixXd DistanceJacobian(const Sphere& s, const Eigen::Matrix3Xd& p) { return JacobianOf<SphereModel>(s, p); }
+Eigen::MatrixXd DistanceJacobian(const Sphere& s, const Eigen::Matrix3Xd& p) {
+  return JacobianOf<SphereModel>(s, p);
+}
 Eigen::MatrixXd DistanceJacobian(const Cylinder& s, const Eigen::Matrix3Xd& p) {
   return JacobianOf<CylinderModel>(s, p);
 }
-Eigen::MatrixXd DistanceJacobian(const Cone& s, const Eigen::Matrix3Xd& p) { return JacobianOf<ConeModel>(s, p); }
-Sphere ApplyIncrement(const Sphere& s, const Eigen::VectorXd& delta) { return SphereModel::Update(s, delta); }
-Cylinder ApplyIncrement(const Cylinder& s, const Eigen::VectorXd& delta) { return CylinderModel::Update(s, delta); }
-Cone ApplyIncrement(const Cone& s, const Eigen::VectorXd& delta) { return ConeModel::Update(s, delta); }
+Eigen::MatrixXd DistanceJacobian(const Cone& s, const Eigen::Matrix3Xd& p) {
+  return JacobianOf<ConeModel>(s, p);
+}
+Sphere ApplyIncrement(const Sphere& s, const Eigen::VectorXd& delta) {
+  return SphereModel::Update(s, delta);
+}
+Cylinder ApplyIncrement(const Cylinder& s, const Eigen::VectorXd& delta) {
+  return CylinderModel::Update(s, delta);
+}
+Cone ApplyIncrement(const Cone& s, const Eigen::VectorXd& delta) {
+  return ConeModel::Update(s, delta);
+}
 
 }  // namespace s2m

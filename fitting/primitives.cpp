@@ -1,16 +1,21 @@
 #include "fitting/primitives.h"
 
-#include <cmath>
-
 #include <Eigen/Geometry>
+#include <cmath>
 
 namespace s2m {
 
-double Cone::SurfaceDistanceFromAxisPoint() const { return radius * std::cos(half_angle); }
+double Cone::SurfaceDistanceFromAxisPoint() const {
+  return radius * std::cos(half_angle);
+}
 
-Eigen::Vector3d Cone::Apex() const { return axis_point - (radius / std::tan(half_angle)) * axis_direction; }
+Eigen::Vector3d Cone::Apex() const {
+  return axis_point - (radius / std::tan(half_angle)) * axis_direction;
+}
 
-double SignedDistance(const Plane& plane, const Eigen::Vector3d& x) { return plane.normal.dot(x - plane.point); }
+double SignedDistance(const Plane& plane, const Eigen::Vector3d& x) {
+  return plane.normal.dot(x - plane.point);
+}
 
 double SignedDistance(const Sphere& sphere, const Eigen::Vector3d& x) {
   return (x - sphere.center).norm() - sphere.radius;
@@ -22,12 +27,13 @@ double SignedDistance(const Cylinder& cylinder, const Eigen::Vector3d& x) {
 }
 
 double SignedDistance(const Cone& cone, const Eigen::Vector3d& x) {
-  // Forbes, NPL report DITC 140/89, section 7: d = rho cos(psi) - z sin(psi) - s, with s the orthogonal distance
-  // from the axis point to the surface, rho the distance from the axis and z the axial coordinate.
+  // Forbes, NPL report DITC 140/89, section 7: d = rho cos(psi) - z sin(psi) - s, with s the orthogonal
+  // distance from the axis point to the surface, rho the distance from the axis and z the axial coordinate.
   const Eigen::Vector3d v = x - cone.axis_point;
   const double z = cone.axis_direction.dot(v);
   const double rho = (v - z * cone.axis_direction).norm();
-  return rho * std::cos(cone.half_angle) - z * std::sin(cone.half_angle) - cone.SurfaceDistanceFromAxisPoint();
+  return rho * std::cos(cone.half_angle) - z * std::sin(cone.half_angle) -
+         cone.SurfaceDistanceFromAxisPoint();
 }
 
 Plane Transformed(const Plane& s, double scale, const Eigen::Vector3d& offset) {

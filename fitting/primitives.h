@@ -21,8 +21,8 @@ struct Cylinder {
   double radius = 1.0;
 };
 
-// A circular cone. `radius` is the radius of the cross-section through `axis_point` (perpendicular to the axis);
-// the radius grows along `axis_direction` with slope tan(half_angle), half_angle in (0, pi/2).
+// A circular cone. `radius` is the radius of the cross-section through `axis_point` (perpendicular to the
+// axis); the radius grows along `axis_direction` with slope tan(half_angle), half_angle in (0, pi/2).
 struct Cone {
   Eigen::Vector3d axis_point = Eigen::Vector3d::Zero();
   Eigen::Vector3d axis_direction = Eigen::Vector3d::UnitZ();  // unit, towards increasing radius
@@ -44,7 +44,8 @@ double SignedDistance(const Cone& cone, const Eigen::Vector3d& x);
 template <class Shape>
 Eigen::VectorXd SignedDistances(const Shape& shape, const Eigen::Matrix3Xd& points) {
   Eigen::VectorXd d(points.cols());
-  for (Eigen::Index i = 0; i < points.cols(); ++i) d[i] = SignedDistance(shape, Eigen::Vector3d(points.col(i)));
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    d[i] = SignedDistance(shape, Eigen::Vector3d(points.col(i)));
   return d;
 }
 

@@ -1,9 +1,8 @@
 #include "registration/rigid_motion.h"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
-
-#include <Eigen/SVD>
 
 namespace s2m {
 namespace {

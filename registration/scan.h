@@ -1,29 +1,28 @@
 #pragma once
 // A scan: one view of a part, in the scanner's own coordinates, with the pose that places it in the world.
 
+#include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "registration/rigid_motion.h"
 
 namespace s2m {
 
 struct ScanMetadata {
-  std::string device;                          // e.g. "virtual:kinect", "horus", "file"
-  std::optional<double> timestamp_s;           // acquisition time, seconds since the Unix epoch
-  std::optional<double> turntable_angle_rad;   // nominal turntable angle of this view
-  std::string source;                          // where the scan came from (file path, recording and frame)
-  std::vector<std::string> notes;              // what the source did to the data (e.g. invalid points dropped)
+  std::string device;                         // e.g. "virtual:kinect", "horus", "file"
+  std::optional<double> timestamp_s;          // acquisition time, seconds since the Unix epoch
+  std::optional<double> turntable_angle_rad;  // nominal turntable angle of this view
+  std::string source;                         // where the scan came from (file path, recording and frame)
+  std::vector<std::string> notes;             // what the source did to the data (e.g. invalid points dropped)
 };
 
 struct Scan {
-  Eigen::Matrix3Xd points;    // double precision, scan coordinates, one point per column
-  Eigen::Matrix3Xd normals;   // empty, or one unit normal per point
-  Eigen::VectorXd weights;    // empty, or one non-negative weight per point
-  RigidMotion world_T_scan;   // maps scan coordinates to world coordinates
+  Eigen::Matrix3Xd points;        // double precision, scan coordinates, one point per column
+  Eigen::Matrix3Xd normals;       // empty, or one unit normal per point
+  Eigen::VectorXd weights;        // empty, or one non-negative weight per point
+  RigidMotion world_T_scan;       // maps scan coordinates to world coordinates
   std::string units = "unknown";  // "mm", "m", ... as declared by the source; never guessed
   ScanMetadata metadata;
 

@@ -1,14 +1,13 @@
 // End-to-end checks of the `scan2model` command: help, version, exit codes, JSON output and error messages.
 
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <string>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "test_paths.h"
 
@@ -33,7 +32,9 @@ Result RunCli(const std::string& args, bool with_stderr = true) {
   return r;
 }
 
-std::string Data(const std::string& name) { return test::TestData("nist/" + name).string(); }
+std::string Data(const std::string& name) {
+  return test::TestData("nist/" + name).string();
+}
 
 TEST(Cli, VersionAndHelp) {
   const Result v = RunCli("--version");
@@ -68,7 +69,8 @@ TEST(Cli, InfoDescribesAFile) {
 }
 
 TEST(Cli, FitJsonAgreesWithTheNistReference) {
-  const Result r = RunCli("fit --json --model cylinder " + Data("cyl1.ds") + " --reference " + Data("cyl1.fit"), false);
+  const Result r =
+      RunCli("fit --json --model cylinder " + Data("cyl1.ds") + " --reference " + Data("cyl1.fit"), false);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto doc = nlohmann::json::parse(r.out);
   EXPECT_EQ(doc["schema"], "scan2model.fit/1");

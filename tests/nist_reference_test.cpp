@@ -1,14 +1,15 @@
-// Certified accuracy: our fits against the NIST reference fits (60-digit arithmetic) of the NIST least-squares
-// reference pairs. Tolerances from the foundation issue: positions and diameters within 1e-8 of the data set's
-// extent and directions within 1e-8 rad (planes, spheres, cylinders); cones within 1e-7.
+// Certified accuracy: our fits against the NIST reference fits (60-digit arithmetic) of the NIST
+// least-squares reference pairs. Tolerances from the foundation issue: positions and diameters within 1e-8 of
+// the data set's extent and directions within 1e-8 rad (planes, spheres, cylinders); cones within 1e-7.
+
+#include "acquisition/nist_reference.h"
+
+#include <gtest/gtest.h>
 
 #include <filesystem>
 #include <string>
 #include <vector>
 
-#include <gtest/gtest.h>
-
-#include "acquisition/nist_reference.h"
 #include "acquisition/point_cloud_io.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_fit.h"
@@ -22,9 +23,13 @@ struct Case {
   std::filesystem::path data, fit;  // .ds and .fit
 };
 
-std::string Kind(const std::string& name) { return name.substr(0, 3); }
+std::string Kind(const std::string& name) {
+  return name.substr(0, 3);
+}
 
-double Tolerance(const std::string& name) { return Kind(name) == "con" ? 1e-7 : 1e-8; }
+double Tolerance(const std::string& name) {
+  return Kind(name) == "con" ? 1e-7 : 1e-8;
+}
 
 struct Outcome {
   PrimitiveDeviation deviation;
@@ -40,7 +45,8 @@ Outcome FitAndCompare(const Case& c, PrimitiveMethod method) {
   const std::string kind = Kind(c.name);
   if (kind == "pla") out.deviation = Compare(FitPlane(scan.points, options).shape, ReadNistPlaneFit(c.fit));
   if (kind == "sph") out.deviation = Compare(FitSphere(scan.points, options).shape, ReadNistSphereFit(c.fit));
-  if (kind == "cyl") out.deviation = Compare(FitCylinder(scan.points, options).shape, ReadNistCylinderFit(c.fit));
+  if (kind == "cyl")
+    out.deviation = Compare(FitCylinder(scan.points, options).shape, ReadNistCylinderFit(c.fit));
   if (kind == "con") out.deviation = Compare(FitCone(scan.points, options).shape, ReadNistConeFit(c.fit));
   return out;
 }
@@ -58,7 +64,8 @@ void ExpectCertified(const Case& c, PrimitiveMethod method) {
 
 std::vector<Case> SharedCases() {
   std::vector<Case> cases;
-  const std::pair<const char*, const char*> kinds[] = {{"Plane", "pla"}, {"Sphere", "sph"}, {"Cylinder", "cyl"}, {"Cone", "con"}};
+  const std::pair<const char*, const char*> kinds[] = {
+      {"Plane", "pla"}, {"Sphere", "sph"}, {"Cylinder", "cyl"}, {"Cone", "con"}};
   for (const auto& [folder, prefix] : kinds) {
     for (int i = 1; i <= 15; ++i) {
       const std::string name = std::string(prefix) + std::to_string(i);
@@ -72,25 +79,35 @@ std::vector<Case> SharedCases() {
 std::vector<Case> ShippedCases() {
   std::vector<Case> cases;
   for (const char* name : {"pla1", "pla7", "sph1", "sph9", "cyl1", "cyl7", "con1", "con7", "con8"}) {
-    cases.push_back({name, test::TestData(std::string("nist/") + name + ".ds"), test::TestData(std::string("nist/") + name + ".fit")});
+    cases.push_back({name, test::TestData(std::string("nist/") + name + ".ds"),
+                     test::TestData(std::string("nist/") + name + ".fit")});
   }
   return cases;
 }
 
 class NistShipped : public ::testing::TestWithParam<Case> {};
-TEST_P(NistShipped, TdmAgreesWithTheReferenceFit) { ExpectCertified(GetParam(), PrimitiveMethod::kTdm); }
-TEST_P(NistShipped, SdmAgreesWithTheReferenceFit) { ExpectCertified(GetParam(), PrimitiveMethod::kSdm); }
+TEST_P(NistShipped, TdmAgreesWithTheReferenceFit) {
+  ExpectCertified(GetParam(), PrimitiveMethod::kTdm);
+}
+TEST_P(NistShipped, SdmAgreesWithTheReferenceFit) {
+  ExpectCertified(GetParam(), PrimitiveMethod::kSdm);
+}
 INSTANTIATE_TEST_SUITE_P(Nist, NistShipped, ::testing::ValuesIn(ShippedCases()),
                          [](const auto& param_info) { return param_info.param.name; });
 
 class NistShared : public ::testing::TestWithParam<Case> {
  protected:
   void SetUp() override {
-    if (!test::HaveSharedData()) GTEST_SKIP() << "../shared/data is absent: the 60 NIST pairs are not checked";
+    if (!test::HaveSharedData())
+      GTEST_SKIP() << "../shared/data is absent: the 60 NIST pairs are not checked";
   }
 };
-TEST_P(NistShared, TdmAgreesWithTheReferenceFit) { ExpectCertified(GetParam(), PrimitiveMethod::kTdm); }
-TEST_P(NistShared, SdmAgreesWithTheReferenceFit) { ExpectCertified(GetParam(), PrimitiveMethod::kSdm); }
+TEST_P(NistShared, TdmAgreesWithTheReferenceFit) {
+  ExpectCertified(GetParam(), PrimitiveMethod::kTdm);
+}
+TEST_P(NistShared, SdmAgreesWithTheReferenceFit) {
+  ExpectCertified(GetParam(), PrimitiveMethod::kSdm);
+}
 INSTANTIATE_TEST_SUITE_P(Nist, NistShared, ::testing::ValuesIn(SharedCases()),
                          [](const auto& param_info) { return param_info.param.name; });
 

@@ -1,5 +1,6 @@
 #include "acquisition/point_cloud_io.h"
 
+#include <gtest/gtest.h>
 #include <zlib.h>
 
 #include <cstring>
@@ -7,8 +8,6 @@
 #include <fstream>
 #include <limits>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "acquisition/format_error.h"
 #include "test_paths.h"
@@ -21,7 +20,8 @@ namespace fs = std::filesystem;
 class PointCloudIo : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("s2m_io_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    dir_ = fs::temp_directory_path() /
+           ("s2m_io_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -49,7 +49,8 @@ class PointCloudIo : public ::testing::Test {
       const std::string what = e.what();
       EXPECT_EQ(e.file(), path.string());
       EXPECT_NE(what.find(path.string()), std::string::npos) << what;
-      for (const std::string& f : fragments) EXPECT_NE(what.find(f), std::string::npos) << "'" << f << "' not in: " << what;
+      for (const std::string& f : fragments)
+        EXPECT_NE(what.find(f), std::string::npos) << "'" << f << "' not in: " << what;
     }
   }
 
@@ -71,7 +72,8 @@ const char* kAsciiPly =
     "element range_grid 4\nproperty list uchar int vertex_indices\nend_header\n"
     "1 2 3 0 0 1\n4 5 6 0 1 0\n7 8 9.5 1 0 0\n1 0\n0\n1 2\n0\n";
 
-// ---- PLY ------------------------------------------------------------------------------------------------------
+// ---- PLY
+// ------------------------------------------------------------------------------------------------------
 
 TEST_F(PointCloudIo, ReadsAsciiPlyWithNormalsAndSkipsTheRangeGrid) {
   const Scan s = ReadPointCloud(Write("a.ply", kAsciiPly));
@@ -125,22 +127,36 @@ TEST_F(PointCloudIo, PlyWriteReadRoundTripIsExact) {
 
 TEST_F(PointCloudIo, BrokenPlyFilesGetClearErrors) {
   ExpectError(Write("magic.ply", "plx\nformat ascii 1.0\n"), {"line 1", "not a PLY file"});
-  ExpectError(Write("header.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"), {"no 'end_header'"});
-  ExpectError(Write("noxyz.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n"), {"x, y, z"});
-  ExpectError(Write("empty.ply", "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n"),
+  ExpectError(Write("header.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"),
+              {"no 'end_header'"});
+  ExpectError(
+      Write("noxyz.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n"),
+      {"x, y, z"});
+  ExpectError(Write("empty.ply",
+                    "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty "
+                    "float z\nend_header\n"),
               {"empty point set"});
-  const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+  const std::string head =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float "
+      "z\nend_header\n";
   ExpectError(Write("short.ply", head + "1 2 3\n4 5 6\n"), {"truncated", "line 10", "declares 3"});
   ExpectError(Write("nan.ply", head + "1 2 3\n4 nan 6\n7 8 9\n"), {"line 9", "vertex 1", "y is not finite"});
   ExpectError(Write("word.ply", head + "1 2 3\n4 five 6\n7 8 9\n"), {"line 9", "not a number: 'five'"});
   ExpectError(Write("extra.ply", head + "1 2 3\n4 5 6 7\n7 8 9\n"), {"line 9", "expected 3 values"});
   ExpectError(Write("nobody.ply", head), {"truncated"});
-  const std::string bin = "ply\nformat binary_little_endian 1.0\nelement vertex 1000\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
-  ExpectError(Write("bin.ply", bin + std::string(100, '\0')), {"byte " + std::to_string(bin.size()), "truncated", "1000 entries"});
-  const std::string list = "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
-                           "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
-  ExpectError(Write("list.ply", list + std::string(12, '\0') + Bytes<uint8_t>(200) + "abc"), {"truncated", "element 'face'"});
-  ExpectError(Write("type.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n"), {"line 4", "unknown property type"});
+  const std::string bin =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1000\nproperty float x\nproperty float "
+      "y\nproperty float z\nend_header\n";
+  ExpectError(Write("bin.ply", bin + std::string(100, '\0')),
+              {"byte " + std::to_string(bin.size()), "truncated", "1000 entries"});
+  const std::string list =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty "
+      "float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  ExpectError(Write("list.ply", list + std::string(12, '\0') + Bytes<uint8_t>(200) + "abc"),
+              {"truncated", "element 'face'"});
+  ExpectError(Write("type.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n"),
+              {"line 4", "unknown property type"});
   ExpectError(Write("zero.ply", ""), {"empty file"});
 }
 
@@ -160,14 +176,16 @@ TEST_F(PointCloudIo, ReadsARealStanfordRangeScan) {
   EXPECT_LT(ComputeBounds(gz.points).diagonal(), 0.5);  // metres
 }
 
-// ---- PCD ------------------------------------------------------------------------------------------------------
+// ---- PCD
+// ------------------------------------------------------------------------------------------------------
 
 const char* kPcdHeader =
     "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z normal_x normal_y normal_z\nSIZE 4 4 4 4 4 4\nTYPE F F F F F F\n"
     "COUNT 1 1 1 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\n";
 
 TEST_F(PointCloudIo, ReadsAsciiAndBinaryPcd) {
-  const Scan a = ReadPointCloud(Write("a.pcd", std::string(kPcdHeader) + "DATA ascii\n1 2 3 0 0 1\n4 5 6 1 0 0\n"));
+  const Scan a =
+      ReadPointCloud(Write("a.pcd", std::string(kPcdHeader) + "DATA ascii\n1 2 3 0 0 1\n4 5 6 1 0 0\n"));
   ASSERT_EQ(a.size(), 2);
   EXPECT_TRUE(a.has_normals());
   EXPECT_EQ(a.points.col(1), Eigen::Vector3d(4, 5, 6));
@@ -179,11 +197,14 @@ TEST_F(PointCloudIo, ReadsAsciiAndBinaryPcd) {
 }
 
 TEST_F(PointCloudIo, ReadsLzfCompressedPcd) {
-  // Field-major payload x0 x1 y0 y1 z0 z1 with z = x: 16 literal bytes, then an 8-byte back reference 16 bytes back.
+  // Field-major payload x0 x1 y0 y1 z0 z1 with z = x: 16 literal bytes, then an 8-byte back reference 16
+  // bytes back.
   std::string plain;
   for (float v : {1.f, 4.f, 2.f, 5.f}) plain += Bytes(v);
   std::string lzf = Bytes<uint8_t>(15) + plain + Bytes<uint8_t>(0xC0) + Bytes<uint8_t>(0x0F);
-  std::string pcd = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary_compressed\n";
+  std::string pcd =
+      "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA "
+      "binary_compressed\n";
   pcd += Bytes<uint32_t>(static_cast<uint32_t>(lzf.size())) + Bytes<uint32_t>(24) + lzf;
   const Scan s = ReadPointCloud(Write("c.pcd", pcd));
   ASSERT_EQ(s.size(), 2);
@@ -200,17 +221,25 @@ TEST_F(PointCloudIo, PcdInvalidPointsAreDroppedAndCounted) {
   EXPECT_EQ(s.size(), 2);
   ASSERT_EQ(s.metadata.notes.size(), 1u);
   EXPECT_NE(s.metadata.notes[0].find("dropped 2 of 4"), std::string::npos);
-  ExpectError(Write("allnan.pcd", head + "nan nan nan\nnan nan nan\nnan nan nan\nnan nan nan\n"), {"no valid point"});
+  ExpectError(Write("allnan.pcd", head + "nan nan nan\nnan nan nan\nnan nan nan\nnan nan nan\n"),
+              {"no valid point"});
 }
 
 TEST_F(PointCloudIo, BrokenPcdFilesGetClearErrors) {
-  ExpectError(Write("short.pcd", std::string(kPcdHeader) + "DATA ascii\n1 2 3 0 0 1\n"), {"truncated", "line 13"});
-  ExpectError(Write("cols.pcd", std::string(kPcdHeader) + "DATA ascii\n1 2 3 0 0 1\n4 5 6\n"), {"line 13", "expected 6 values, found 3"});
-  ExpectError(Write("bin.pcd", std::string(kPcdHeader) + "DATA binary\n" + std::string(10, '\0')), {"truncated", "byte"});
-  ExpectError(Write("fields.pcd", "FIELDS x y z\nSIZE 4 4\nTYPE F F F\nWIDTH 1\nPOINTS 1\nDATA ascii\n1 2 3\n"), {"different numbers of fields"});
+  ExpectError(Write("short.pcd", std::string(kPcdHeader) + "DATA ascii\n1 2 3 0 0 1\n"),
+              {"truncated", "line 13"});
+  ExpectError(Write("cols.pcd", std::string(kPcdHeader) + "DATA ascii\n1 2 3 0 0 1\n4 5 6\n"),
+              {"line 13", "expected 6 values, found 3"});
+  ExpectError(Write("bin.pcd", std::string(kPcdHeader) + "DATA binary\n" + std::string(10, '\0')),
+              {"truncated", "byte"});
+  ExpectError(
+      Write("fields.pcd", "FIELDS x y z\nSIZE 4 4\nTYPE F F F\nWIDTH 1\nPOINTS 1\nDATA ascii\n1 2 3\n"),
+      {"different numbers of fields"});
   ExpectError(Write("nodata.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"), {"no DATA line"});
-  ExpectError(Write("empty.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 0\nPOINTS 0\nDATA ascii\n"), {"empty point set"});
-  ExpectError(Write("xy.pcd", "FIELDS x y\nSIZE 4 4\nTYPE F F\nWIDTH 1\nPOINTS 1\nDATA ascii\n1 2\n"), {"lacks one of x, y, z"});
+  ExpectError(Write("empty.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 0\nPOINTS 0\nDATA ascii\n"),
+              {"empty point set"});
+  ExpectError(Write("xy.pcd", "FIELDS x y\nSIZE 4 4\nTYPE F F\nWIDTH 1\nPOINTS 1\nDATA ascii\n1 2\n"),
+              {"lacks one of x, y, z"});
 }
 
 TEST_F(PointCloudIo, ReadsPclsBunnyPcd) {
@@ -221,7 +250,8 @@ TEST_F(PointCloudIo, ReadsPclsBunnyPcd) {
   EXPECT_EQ(ReadPointCloud(test::SharedData("pcl_bunny_small/bun4.pcd")).size(), 361);
 }
 
-// ---- Text and NIST .ds ------------------------------------------------------------------------------------------
+// ---- Text and NIST .ds
+// ------------------------------------------------------------------------------------------
 
 TEST_F(PointCloudIo, ReadsXyzAndCsvWithHeaders) {
   const Scan xyz = ReadPointCloud(Write("a.xyz", "# comment\n1 2 3\n\n4\t5 6\r\n"));

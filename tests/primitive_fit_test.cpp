@@ -1,10 +1,10 @@
 #include "fitting/primitive_fit.h"
 
-#include <cmath>
-#include <random>
+#include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
+#include <cmath>
+#include <random>
 
 #include "fitting/primitive_compare.h"
 
@@ -35,7 +35,8 @@ Eigen::Matrix3Xd SampleCylinder(const Cylinder& s, double length, int n, double 
   for (int i = 0; i < n; ++i) {
     const double a = angle(rng);
     const double r = s.radius + (sigma > 0 ? noise(rng) : 0.0);
-    p.col(i) = s.axis_point + t(rng) * s.axis_direction + r * (std::cos(a) * f.col(0) + std::sin(a) * f.col(1));
+    p.col(i) =
+        s.axis_point + t(rng) * s.axis_direction + r * (std::cos(a) * f.col(0) + std::sin(a) * f.col(1));
   }
   return p;
 }
@@ -52,7 +53,8 @@ Eigen::Matrix3Xd SampleCone(const Cone& s, double z0, double z1, double arc, int
   return p;
 }
 
-// ---- Property test shared by the family: analytic distance Jacobians against central differences ------------
+// ---- Property test shared by the family: analytic distance Jacobians against central differences
+// ------------
 
 template <class Shape>
 struct Family;
@@ -86,9 +88,9 @@ TYPED_TEST(PrimitiveFamily, DistanceJacobianMatchesCentralDifferences) {
     for (Eigen::Index k = 0; k < J.cols(); ++k) {
       Eigen::VectorXd step = Eigen::VectorXd::Zero(J.cols());
       step[k] = h;
-      const Eigen::VectorXd numeric =
-          (SignedDistances(ApplyIncrement(shape, step), points) - SignedDistances(ApplyIncrement(shape, -step), points)) /
-          (2 * h);
+      const Eigen::VectorXd numeric = (SignedDistances(ApplyIncrement(shape, step), points) -
+                                       SignedDistances(ApplyIncrement(shape, -step), points)) /
+                                      (2 * h);
       EXPECT_LT((numeric - J.col(k)).cwiseAbs().maxCoeff(), 1e-7) << "parameter " << k << ", trial " << trial;
     }
   }
@@ -99,10 +101,12 @@ TYPED_TEST(PrimitiveFamily, ZeroIncrementIsTheIdentity) {
   const TypeParam shape = Family<TypeParam>::Make(rng);
   Eigen::Matrix3Xd points = Eigen::Matrix3Xd::Random(3, 10) * 3.0;
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(DistanceJacobian(shape, points).cols());
-  EXPECT_LT((SignedDistances(ApplyIncrement(shape, zero), points) - SignedDistances(shape, points)).norm(), 1e-13);
+  EXPECT_LT((SignedDistances(ApplyIncrement(shape, zero), points) - SignedDistances(shape, points)).norm(),
+            1e-13);
 }
 
-// ---- Exact recovery from noise-free data, both methods --------------------------------------------------------
+// ---- Exact recovery from noise-free data, both methods
+// --------------------------------------------------------
 
 class BothMethods : public ::testing::TestWithParam<PrimitiveMethod> {
  protected:
@@ -112,7 +116,8 @@ class BothMethods : public ::testing::TestWithParam<PrimitiveMethod> {
     return o;
   }
 };
-INSTANTIATE_TEST_SUITE_P(Methods, BothMethods, ::testing::Values(PrimitiveMethod::kTdm, PrimitiveMethod::kSdm),
+INSTANTIATE_TEST_SUITE_P(Methods, BothMethods,
+                         ::testing::Values(PrimitiveMethod::kTdm, PrimitiveMethod::kSdm),
                          [](const auto& param_info) { return std::string(ToString(param_info.param)); });
 
 TEST_P(BothMethods, RecoversAnExactSphereFromAHemisphere) {
@@ -163,9 +168,10 @@ TEST(PrimitiveFit, ExactPlaneIsClosedForm) {
   EXPECT_LT(Compare(fit.shape, truth).position, 1e-12);
 }
 
-// ---- Statistical efficiency: Monte Carlo against sigma / sqrt(N) ------------------------------------------------
-// For N points with independent N(0, sigma^2) errors along the normal, covering the whole sphere or cylinder, the
-// least-squares radius has standard deviation sigma / sqrt(N) to first order; an efficient estimator stays close.
+// ---- Statistical efficiency: Monte Carlo against sigma / sqrt(N)
+// ------------------------------------------------ For N points with independent N(0, sigma^2) errors along
+// the normal, covering the whole sphere or cylinder, the least-squares radius has standard deviation sigma /
+// sqrt(N) to first order; an efficient estimator stays close.
 
 TEST(PrimitiveFit, SphereRadiusIsStatisticallyEfficient) {
   std::mt19937_64 rng(2026);
@@ -204,10 +210,12 @@ TEST(PrimitiveFit, ReportedUncertaintyMatchesTheScatter) {
   const auto fit = FitSphere(SampleSphere(truth, 500, 0.01, rng));
   ASSERT_EQ(fit.uncertainties.size(), 4u);
   EXPECT_EQ(fit.uncertainties[3].name, "radius");
-  EXPECT_NEAR(fit.uncertainties[3].standard_uncertainty, 0.01 / std::sqrt(500.0), 0.1 * 0.01 / std::sqrt(500.0));
+  EXPECT_NEAR(fit.uncertainties[3].standard_uncertainty, 0.01 / std::sqrt(500.0),
+              0.1 * 0.01 / std::sqrt(500.0));
 }
 
-// ---- Bad input: clear errors, no crash ---------------------------------------------------------------------------
+// ---- Bad input: clear errors, no crash
+// ---------------------------------------------------------------------------
 
 TEST(PrimitiveFit, RejectsTooFewPoints) {
   const Eigen::Matrix3Xd three = Eigen::Matrix3Xd::Random(3, 3);

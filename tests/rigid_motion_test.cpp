@@ -1,14 +1,15 @@
 #include "registration/rigid_motion.h"
 
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 namespace s2m {
 namespace {
 
 // METHOD.md section 5, literally: x -> a0 + R(a, phi)(x - a0) + p phi a.
-Eigen::Vector3d HelicalLiteral(const Eigen::Vector3d& c, const Eigen::Vector3d& cbar, const Eigen::Vector3d& x) {
+Eigen::Vector3d HelicalLiteral(const Eigen::Vector3d& c, const Eigen::Vector3d& cbar,
+                               const Eigen::Vector3d& x) {
   const double phi = c.norm();
   const Eigen::Vector3d a = c / phi;
   const double p = c.dot(cbar) / (phi * phi);

@@ -11,7 +11,9 @@ inline std::filesystem::path TestData(const std::string& relative) {
 }
 
 // ../shared/data beside the project; tests that need it call GTEST_SKIP() when this returns false.
-inline bool HaveSharedData() { return std::filesystem::is_directory(S2M_SHARED_DATA_DIR); }
+inline bool HaveSharedData() {
+  return std::filesystem::is_directory(S2M_SHARED_DATA_DIR);
+}
 inline std::filesystem::path SharedData(const std::string& relative) {
   return std::filesystem::path(S2M_SHARED_DATA_DIR) / relative;
 }

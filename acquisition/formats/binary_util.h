@@ -8,20 +8,35 @@
 
 namespace s2m::formats {
 
-enum class ScalarType { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kInt64, kUint64, kFloat32, kFloat64 };
+enum class ScalarType {
+  kInt8,
+  kUint8,
+  kInt16,
+  kUint16,
+  kInt32,
+  kUint32,
+  kInt64,
+  kUint64,
+  kFloat32,
+  kFloat64
+};
 
 inline std::size_t SizeOf(ScalarType t) {
   switch (t) {
     case ScalarType::kInt8:
-    case ScalarType::kUint8: return 1;
+    case ScalarType::kUint8:
+      return 1;
     case ScalarType::kInt16:
-    case ScalarType::kUint16: return 2;
+    case ScalarType::kUint16:
+      return 2;
     case ScalarType::kInt32:
     case ScalarType::kUint32:
-    case ScalarType::kFloat32: return 4;
+    case ScalarType::kFloat32:
+      return 4;
     case ScalarType::kInt64:
     case ScalarType::kUint64:
-    case ScalarType::kFloat64: return 8;
+    case ScalarType::kFloat64:
+      return 8;
   }
   return 0;
 }
@@ -41,16 +56,26 @@ T LoadScalar(const char* p, bool little_endian) {
 // Reads one scalar of type t at p (the caller has checked that SizeOf(t) bytes are available).
 inline double LoadAsDouble(const char* p, ScalarType t, bool little_endian) {
   switch (t) {
-    case ScalarType::kInt8: return LoadScalar<std::int8_t>(p, little_endian);
-    case ScalarType::kUint8: return LoadScalar<std::uint8_t>(p, little_endian);
-    case ScalarType::kInt16: return LoadScalar<std::int16_t>(p, little_endian);
-    case ScalarType::kUint16: return LoadScalar<std::uint16_t>(p, little_endian);
-    case ScalarType::kInt32: return LoadScalar<std::int32_t>(p, little_endian);
-    case ScalarType::kUint32: return LoadScalar<std::uint32_t>(p, little_endian);
-    case ScalarType::kInt64: return static_cast<double>(LoadScalar<std::int64_t>(p, little_endian));
-    case ScalarType::kUint64: return static_cast<double>(LoadScalar<std::uint64_t>(p, little_endian));
-    case ScalarType::kFloat32: return LoadScalar<float>(p, little_endian);
-    case ScalarType::kFloat64: return LoadScalar<double>(p, little_endian);
+    case ScalarType::kInt8:
+      return LoadScalar<std::int8_t>(p, little_endian);
+    case ScalarType::kUint8:
+      return LoadScalar<std::uint8_t>(p, little_endian);
+    case ScalarType::kInt16:
+      return LoadScalar<std::int16_t>(p, little_endian);
+    case ScalarType::kUint16:
+      return LoadScalar<std::uint16_t>(p, little_endian);
+    case ScalarType::kInt32:
+      return LoadScalar<std::int32_t>(p, little_endian);
+    case ScalarType::kUint32:
+      return LoadScalar<std::uint32_t>(p, little_endian);
+    case ScalarType::kInt64:
+      return static_cast<double>(LoadScalar<std::int64_t>(p, little_endian));
+    case ScalarType::kUint64:
+      return static_cast<double>(LoadScalar<std::uint64_t>(p, little_endian));
+    case ScalarType::kFloat32:
+      return LoadScalar<float>(p, little_endian);
+    case ScalarType::kFloat64:
+      return LoadScalar<double>(p, little_endian);
   }
   return 0.0;
 }

@@ -26,8 +26,9 @@ std::string ReadGzip(const std::string& path) {
       int code = 0;
       const std::string message = gzerror(gz, &code);
       gzclose(gz);
-      throw FormatError(path, AtByte(out.size()), "corrupt gzip data after " + std::to_string(out.size()) +
-                                                       " uncompressed bytes (" + message + ")");
+      throw FormatError(
+          path, AtByte(out.size()),
+          "corrupt gzip data after " + std::to_string(out.size()) + " uncompressed bytes (" + message + ")");
     }
     if (n == 0) break;
     out.append(buffer, static_cast<std::size_t>(n));

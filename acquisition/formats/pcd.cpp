@@ -1,13 +1,13 @@
 // PCD, the Point Cloud Library's format (v0.5 to v0.7): DATA ascii, binary and binary_compressed (LZF, fields
-// stored one after the other). NaN coordinates are PCD's own marker for "no measurement" (organized clouds, is_dense
-// false): such points are dropped and counted in the scan's notes; a file with no valid point at all is an error.
+// stored one after the other). NaN coordinates are PCD's own marker for "no measurement" (organized clouds,
+// is_dense false): such points are dropped and counted in the scan's notes; a file with no valid point at all
+// is an error.
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "acquisition/format_error.h"
 #include "acquisition/formats/binary_util.h"
@@ -76,9 +76,12 @@ class PcdParser {
     if (points_ == 0) throw FormatError(file_, "header", "empty point set: POINTS is 0");
     raw_.resize(3, static_cast<Eigen::Index>(points_));
     if (HasNormals()) raw_normals_.resize(3, static_cast<Eigen::Index>(points_));
-    if (data_ == "ascii") ReadAscii();
-    else if (data_ == "binary") ReadBinary();
-    else ReadCompressed();
+    if (data_ == "ascii")
+      ReadAscii();
+    else if (data_ == "binary")
+      ReadBinary();
+    else
+      ReadCompressed();
     return Finish();
   }
 
@@ -132,18 +135,24 @@ class PcdParser {
         integers(counts);
       } else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
         std::size_t v = 0;
-        if (tok.size() != 2 || !ParseInteger(tok[1], v)) Fail(where, "malformed " + std::string(key) + " line");
+        if (tok.size() != 2 || !ParseInteger(tok[1], v))
+          Fail(where, "malformed " + std::string(key) + " line");
         if (key == "WIDTH") width = v;
         if (key == "HEIGHT") height = v;
-        if (key == "POINTS") { points_ = v; have_points = true; }
+        if (key == "POINTS") {
+          points_ = v;
+          have_points = true;
+        }
       } else if (key == "VIEWPOINT") {
         double vp[7];
         if (tok.size() != 8) Fail(where, "VIEWPOINT needs 7 numbers");
         for (int i = 0; i < 7; ++i) {
-          if (!ParseDouble(tok[static_cast<std::size_t>(i + 1)], vp[i]) || !std::isfinite(vp[i])) Fail(where, "bad VIEWPOINT value");
+          if (!ParseDouble(tok[static_cast<std::size_t>(i + 1)], vp[i]) || !std::isfinite(vp[i]))
+            Fail(where, "bad VIEWPOINT value");
         }
         // PCD viewpoint: translation tx ty tz, then orientation qw qx qy qz: the sensor pose.
-        viewpoint_ = RigidMotion::FromQuaternion(Eigen::Quaterniond(vp[3], vp[4], vp[5], vp[6]), {vp[0], vp[1], vp[2]});
+        viewpoint_ = RigidMotion::FromQuaternion(Eigen::Quaterniond(vp[3], vp[4], vp[5], vp[6]),
+                                                 {vp[0], vp[1], vp[2]});
       } else if (key == "DATA") {
         if (tok.size() != 2 || (tok[1] != "ascii" && tok[1] != "binary" && tok[1] != "binary_compressed")) {
           Fail(where, "unsupported DATA " + Quoted(line.text) + " (ascii, binary or binary_compressed)");
@@ -158,7 +167,8 @@ class PcdParser {
     if (sizes.size() != fields_.size() || types.size() != fields_.size()) {
       Fail("header", "FIELDS, SIZE and TYPE list different numbers of fields");
     }
-    if (!counts.empty() && counts.size() != fields_.size()) Fail("header", "COUNT lists a different number of fields");
+    if (!counts.empty() && counts.size() != fields_.size())
+      Fail("header", "COUNT lists a different number of fields");
     std::size_t offset = 0;
     for (std::size_t i = 0; i < fields_.size(); ++i) {
       Field& f = fields_[i];
@@ -166,7 +176,9 @@ class PcdParser {
       f.type = types[i];
       f.count = counts.empty() ? 1 : counts[i];
       auto scalar = ScalarOf(f.type, f.size);
-      if (!scalar) Fail("header", "field '" + f.name + "' has an unsupported TYPE/SIZE " + std::string(1, f.type) + "/" + std::to_string(f.size));
+      if (!scalar)
+        Fail("header", "field '" + f.name + "' has an unsupported TYPE/SIZE " + std::string(1, f.type) + "/" +
+                           std::to_string(f.size));
       f.scalar = *scalar;
       f.offset = offset;
       offset += f.size * f.count;
@@ -174,7 +186,8 @@ class PcdParser {
     record_size_ = offset;
     if (!have_points) points_ = width * height;
     if (width * height != points_) {
-      Fail("header", "WIDTH x HEIGHT (" + std::to_string(width) + " x " + std::to_string(height) + ") differs from POINTS " + std::to_string(points_));
+      Fail("header", "WIDTH x HEIGHT (" + std::to_string(width) + " x " + std::to_string(height) +
+                         ") differs from POINTS " + std::to_string(points_));
     }
     organized_ = height > 1;
     x_ = FieldIndex("x"), y_ = FieldIndex("y"), z_ = FieldIndex("z");
@@ -198,11 +211,14 @@ class PcdParser {
     Line line;
     for (std::size_t i = 0; i < points_; ++i) {
       do {
-        if (!lines_.Next(line)) Fail(AtLine(lines_.line_number() + 1), "truncated: POINTS is " + std::to_string(points_) + ", the data ends after " + std::to_string(i));
+        if (!lines_.Next(line))
+          Fail(AtLine(lines_.line_number() + 1), "truncated: POINTS is " + std::to_string(points_) +
+                                                     ", the data ends after " + std::to_string(i));
         Tokenize(line.text, tok);
       } while (tok.empty());
       const std::string where = AtLine(line.number);
-      if (tok.size() != columns) Fail(where, "expected " + std::to_string(columns) + " values, found " + std::to_string(tok.size()));
+      if (tok.size() != columns)
+        Fail(where, "expected " + std::to_string(columns) + " values, found " + std::to_string(tok.size()));
       auto number = [&](std::size_t c) {
         double v;
         if (!ParseDouble(tok[c], v)) Fail(where, "not a number: " + Quoted(tok[c]));
@@ -210,15 +226,17 @@ class PcdParser {
       };
       const auto col = static_cast<Eigen::Index>(i);
       raw_.col(col) << number(cx), number(cy), number(cz);
-      if (HasNormals()) raw_normals_.col(col) << number(Column(nx_)), number(Column(ny_)), number(Column(nz_));
+      if (HasNormals())
+        raw_normals_.col(col) << number(Column(nx_)), number(Column(ny_)), number(Column(nz_));
     }
   }
 
   void ReadBinary() {
     const std::size_t left = bytes_.size() - data_start_;
     if (points_ > left / record_size_) {
-      Fail(AtByte(data_start_), "truncated: POINTS is " + std::to_string(points_) + " (" + std::to_string(record_size_) +
-                                    " bytes each) but only " + std::to_string(left) + " bytes follow");
+      Fail(AtByte(data_start_), "truncated: POINTS is " + std::to_string(points_) + " (" +
+                                    std::to_string(record_size_) + " bytes each) but only " +
+                                    std::to_string(left) + " bytes follow");
     }
     for (std::size_t i = 0; i < points_; ++i) {
       const char* record = bytes_.data() + data_start_ + i * record_size_;
@@ -233,18 +251,23 @@ class PcdParser {
   }
 
   void ReadCompressed() {
-    if (bytes_.size() - data_start_ < 8) Fail(AtByte(data_start_), "truncated: missing the compressed-size words");
+    if (bytes_.size() - data_start_ < 8)
+      Fail(AtByte(data_start_), "truncated: missing the compressed-size words");
     const auto compressed = LoadScalar<std::uint32_t>(bytes_.data() + data_start_, true);
     const auto uncompressed = LoadScalar<std::uint32_t>(bytes_.data() + data_start_ + 4, true);
     const std::size_t start = data_start_ + 8;
     if (compressed > bytes_.size() - start) {
-      Fail(AtByte(start), "truncated: " + std::to_string(compressed) + " compressed bytes declared, " + std::to_string(bytes_.size() - start) + " present");
+      Fail(AtByte(start), "truncated: " + std::to_string(compressed) + " compressed bytes declared, " +
+                              std::to_string(bytes_.size() - start) + " present");
     }
     if (uncompressed != points_ * record_size_) {
-      Fail(AtByte(data_start_ + 4), "uncompressed size " + std::to_string(uncompressed) + " does not match POINTS x record size " + std::to_string(points_ * record_size_));
+      Fail(AtByte(data_start_ + 4), "uncompressed size " + std::to_string(uncompressed) +
+                                        " does not match POINTS x record size " +
+                                        std::to_string(points_ * record_size_));
     }
     std::vector<unsigned char> plain(uncompressed);
-    if (!LzfDecompress(reinterpret_cast<const unsigned char*>(bytes_.data() + start), compressed, plain.data(), plain.size())) {
+    if (!LzfDecompress(reinterpret_cast<const unsigned char*>(bytes_.data() + start), compressed,
+                       plain.data(), plain.size())) {
       Fail(AtByte(start), "corrupt LZF data");
     }
     // Field-major layout: all values of field 0, then all of field 1, ...
@@ -257,7 +280,8 @@ class PcdParser {
     for (std::size_t i = 0; i < points_; ++i) {
       auto value = [&](int f) {
         const Field& field = fields_[static_cast<std::size_t>(f)];
-        const char* p = reinterpret_cast<const char*>(plain.data()) + field_start[static_cast<std::size_t>(f)] + i * field.size * field.count;
+        const char* p = reinterpret_cast<const char*>(plain.data()) +
+                        field_start[static_cast<std::size_t>(f)] + i * field.size * field.count;
         return LoadAsDouble(p, field.scalar, true);
       };
       const auto col = static_cast<Eigen::Index>(i);
@@ -273,10 +297,12 @@ class PcdParser {
     for (Eigen::Index i = 0; i < raw_.cols(); ++i) {
       if (raw_.col(i).allFinite()) keep.push_back(i);
     }
-    if (keep.empty()) Fail("", "no valid point: all " + std::to_string(points_) + " points have NaN or infinite coordinates");
+    if (keep.empty())
+      Fail("", "no valid point: all " + std::to_string(points_) + " points have NaN or infinite coordinates");
     const std::size_t dropped = points_ - keep.size();
     scan.points.resize(3, static_cast<Eigen::Index>(keep.size()));
-    for (std::size_t k = 0; k < keep.size(); ++k) scan.points.col(static_cast<Eigen::Index>(k)) = raw_.col(keep[k]);
+    for (std::size_t k = 0; k < keep.size(); ++k)
+      scan.points.col(static_cast<Eigen::Index>(k)) = raw_.col(keep[k]);
     if (HasNormals()) {
       bool finite = true;
       scan.normals.resize(3, scan.points.cols());
@@ -314,6 +340,8 @@ class PcdParser {
 
 }  // namespace
 
-Scan ParsePcd(const std::string& bytes, const std::string& file) { return PcdParser(bytes, file).Parse(); }
+Scan ParsePcd(const std::string& bytes, const std::string& file) {
+  return PcdParser(bytes, file).Parse();
+}
 
 }  // namespace s2m::formats

@@ -1,5 +1,6 @@
-// PLY (Turk, "The PLY polygon file format", 1994): ascii, binary_little_endian and binary_big_endian. Only the vertex
-// element is kept; every other element (faces, the Stanford range_grid, ...) is parsed to validate the file and dropped.
+// PLY (Turk, "The PLY polygon file format", 1994): ascii, binary_little_endian and binary_big_endian. Only
+// the vertex element is kept; every other element (faces, the Stanford range_grid, ...) is parsed to validate
+// the file and dropped.
 
 #include <cmath>
 #include <optional>
@@ -52,13 +53,20 @@ VertexLayout LayoutOf(const Element& vertex) {
   for (int i = 0; i < static_cast<int>(vertex.properties.size()); ++i) {
     const Property& p = vertex.properties[static_cast<std::size_t>(i)];
     if (p.is_list) continue;
-    if (p.name == "x") l.x = i;
-    else if (p.name == "y") l.y = i;
-    else if (p.name == "z") l.z = i;
-    else if (p.name == "nx" || p.name == "normal_x") l.nx = i;
-    else if (p.name == "ny" || p.name == "normal_y") l.ny = i;
-    else if (p.name == "nz" || p.name == "normal_z") l.nz = i;
-    else if (p.name == "weight") l.weight = i;
+    if (p.name == "x")
+      l.x = i;
+    else if (p.name == "y")
+      l.y = i;
+    else if (p.name == "z")
+      l.z = i;
+    else if (p.name == "nx" || p.name == "normal_x")
+      l.nx = i;
+    else if (p.name == "ny" || p.name == "normal_y")
+      l.ny = i;
+    else if (p.name == "nz" || p.name == "normal_z")
+      l.nz = i;
+    else if (p.name == "weight")
+      l.weight = i;
   }
   return l;
 }
@@ -73,15 +81,19 @@ class PlyParser {
     for (const Element& e : elements_) {
       if (e.name == "vertex") vertex = &e;
     }
-    if (vertex == nullptr) throw FormatError(file_, "header", "no 'vertex' element: the file holds no points");
+    if (vertex == nullptr)
+      throw FormatError(file_, "header", "no 'vertex' element: the file holds no points");
     layout_ = LayoutOf(*vertex);
     if (layout_.x < 0 || layout_.y < 0 || layout_.z < 0) {
       throw FormatError(file_, "header", "the vertex element lacks one of the properties x, y, z");
     }
-    if (vertex->count == 0) throw FormatError(file_, "header", "empty point set: the vertex element has 0 entries");
+    if (vertex->count == 0)
+      throw FormatError(file_, "header", "empty point set: the vertex element has 0 entries");
     for (const Element& e : elements_) {
-      if (encoding_ == Encoding::kAscii) ReadAsciiElement(e, &e == vertex);
-      else ReadBinaryElement(e, &e == vertex);
+      if (encoding_ == Encoding::kAscii)
+        ReadAsciiElement(e, &e == vertex);
+      else
+        ReadBinaryElement(e, &e == vertex);
     }
     scan_.metadata.device = "file";
     scan_.metadata.source = file_;
@@ -95,7 +107,8 @@ class PlyParser {
 
   void ParseHeader() {
     Line line;
-    if (!lines_.Next(line) || line.text != "ply") Fail(AtLine(1), "not a PLY file (the first line must be 'ply')");
+    if (!lines_.Next(line) || line.text != "ply")
+      Fail(AtLine(1), "not a PLY file (the first line must be 'ply')");
     std::vector<std::string_view> tok;
     bool have_format = false;
     while (true) {
@@ -112,14 +125,19 @@ class PlyParser {
       if (tok[0] == "obj_info") continue;
       if (tok[0] == "format") {
         if (tok.size() != 3) Fail(where, "malformed format line " + Quoted(line.text));
-        if (tok[1] == "ascii") encoding_ = Encoding::kAscii;
-        else if (tok[1] == "binary_little_endian") encoding_ = Encoding::kBinaryLittle;
-        else if (tok[1] == "binary_big_endian") encoding_ = Encoding::kBinaryBig;
-        else Fail(where, "unknown PLY encoding " + Quoted(tok[1]));
+        if (tok[1] == "ascii")
+          encoding_ = Encoding::kAscii;
+        else if (tok[1] == "binary_little_endian")
+          encoding_ = Encoding::kBinaryLittle;
+        else if (tok[1] == "binary_big_endian")
+          encoding_ = Encoding::kBinaryBig;
+        else
+          Fail(where, "unknown PLY encoding " + Quoted(tok[1]));
         have_format = true;
       } else if (tok[0] == "element") {
         std::size_t count = 0;
-        if (tok.size() != 3 || !ParseInteger(tok[2], count)) Fail(where, "malformed element line " + Quoted(line.text));
+        if (tok.size() != 3 || !ParseInteger(tok[2], count))
+          Fail(where, "malformed element line " + Quoted(line.text));
         elements_.push_back({std::string(tok[1]), count, {}});
       } else if (tok[0] == "property") {
         if (elements_.empty()) Fail(where, "property before any element");
@@ -127,7 +145,8 @@ class PlyParser {
         if (tok.size() == 5 && tok[1] == "list") {
           auto count_type = ParseType(tok[2]);
           auto item_type = ParseType(tok[3]);
-          if (!count_type || !item_type || *count_type == ScalarType::kFloat32 || *count_type == ScalarType::kFloat64) {
+          if (!count_type || !item_type || *count_type == ScalarType::kFloat32 ||
+              *count_type == ScalarType::kFloat64) {
             Fail(where, "bad list property types in " + Quoted(line.text));
           }
           p = {std::string(tok[4]), *item_type, true, *count_type};
@@ -149,7 +168,8 @@ class PlyParser {
   void ReadPoseComment(const std::vector<std::string_view>& tok, const std::string& where) {
     Eigen::Matrix<double, 3, 4> m;
     for (int i = 0; i < 12; ++i) {
-      if (!ParseDouble(tok[static_cast<std::size_t>(2 + i)], m(i / 4, i % 4)) || !std::isfinite(m(i / 4, i % 4))) {
+      if (!ParseDouble(tok[static_cast<std::size_t>(2 + i)], m(i / 4, i % 4)) ||
+          !std::isfinite(m(i / 4, i % 4))) {
         Fail(where, "malformed world_T_scan comment");
       }
     }
@@ -168,11 +188,14 @@ class PlyParser {
     const auto c = static_cast<Eigen::Index>(i);
     auto finite = [&](int idx, const char* what) {
       const double x = v[static_cast<std::size_t>(idx)];
-      if (!std::isfinite(x)) Fail(where, "vertex " + std::to_string(i) + ": " + what + " is not finite (" + std::to_string(x) + ")");
+      if (!std::isfinite(x))
+        Fail(where,
+             "vertex " + std::to_string(i) + ": " + what + " is not finite (" + std::to_string(x) + ")");
       return x;
     };
     scan_.points.col(c) << finite(layout_.x, "x"), finite(layout_.y, "y"), finite(layout_.z, "z");
-    if (layout_.has_normals()) scan_.normals.col(c) << finite(layout_.nx, "nx"), finite(layout_.ny, "ny"), finite(layout_.nz, "nz");
+    if (layout_.has_normals())
+      scan_.normals.col(c) << finite(layout_.nx, "nx"), finite(layout_.ny, "ny"), finite(layout_.nz, "nz");
     if (layout_.weight >= 0) scan_.weights[c] = finite(layout_.weight, "weight");
   }
 
@@ -185,8 +208,8 @@ class PlyParser {
       do {
         if (!lines_.Next(line)) {
           Fail(AtLine(lines_.line_number() + 1), "truncated: element '" + e.name + "' declares " +
-                                                     std::to_string(e.count) + " entries, the file ends after " +
-                                                     std::to_string(i));
+                                                     std::to_string(e.count) +
+                                                     " entries, the file ends after " + std::to_string(i));
         }
         Tokenize(line.text, tok);
       } while (tok.empty());
@@ -194,11 +217,14 @@ class PlyParser {
       std::size_t t = 0;
       for (std::size_t p = 0; p < e.properties.size(); ++p) {
         const Property& prop = e.properties[p];
-        if (t >= tok.size()) Fail(where, "too few values for element '" + e.name + "' entry " + std::to_string(i));
+        if (t >= tok.size())
+          Fail(where, "too few values for element '" + e.name + "' entry " + std::to_string(i));
         if (prop.is_list) {
           std::size_t n = 0;
           if (!ParseInteger(tok[t], n)) Fail(where, "bad list length " + Quoted(tok[t]));
-          if (t + 1 + n > tok.size()) Fail(where, "list '" + prop.name + "' declares " + std::to_string(n) + " items, the line has fewer");
+          if (t + 1 + n > tok.size())
+            Fail(where,
+                 "list '" + prop.name + "' declares " + std::to_string(n) + " items, the line has fewer");
           for (std::size_t k = 0; k < n; ++k) {
             double dummy;
             if (!ParseDouble(tok[t + 1 + k], dummy)) Fail(where, "not a number: " + Quoted(tok[t + 1 + k]));
@@ -209,7 +235,9 @@ class PlyParser {
           ++t;
         }
       }
-      if (t != tok.size()) Fail(where, "expected " + std::to_string(t) + " values for element '" + e.name + "', found " + std::to_string(tok.size()));
+      if (t != tok.size())
+        Fail(where, "expected " + std::to_string(t) + " values for element '" + e.name + "', found " +
+                        std::to_string(tok.size()));
       if (is_vertex) StoreVertex(i, values, where);
     }
   }
@@ -221,14 +249,16 @@ class PlyParser {
     bool fixed = true;
     std::size_t record = 0;
     for (const Property& p : e.properties) {
-      if (p.is_list) fixed = false;
-      else record += SizeOf(p.type);
+      if (p.is_list)
+        fixed = false;
+      else
+        record += SizeOf(p.type);
     }
     const std::size_t left = bytes_.size() - offset_;
     if (fixed && record > 0 && e.count > left / record) {
-      Fail(AtByte(offset_), "truncated: element '" + e.name + "' declares " + std::to_string(e.count) + " entries (" +
-                                std::to_string(e.count) + " x " + std::to_string(record) + " bytes) but only " +
-                                std::to_string(left) + " bytes follow");
+      Fail(AtByte(offset_), "truncated: element '" + e.name + "' declares " + std::to_string(e.count) +
+                                " entries (" + std::to_string(e.count) + " x " + std::to_string(record) +
+                                " bytes) but only " + std::to_string(left) + " bytes follow");
     }
     if (is_vertex) Allocate(e.count);
     std::vector<double> values(e.properties.size());
@@ -257,8 +287,8 @@ class PlyParser {
   }
 
   [[noreturn]] void TruncatedAt(const Element& e, std::size_t i) const {
-    Fail(AtByte(offset_), "truncated: the file ends inside element '" + e.name + "' entry " + std::to_string(i) +
-                              " of " + std::to_string(e.count));
+    Fail(AtByte(offset_), "truncated: the file ends inside element '" + e.name + "' entry " +
+                              std::to_string(i) + " of " + std::to_string(e.count));
   }
 
   const std::string& bytes_;
@@ -273,6 +303,8 @@ class PlyParser {
 
 }  // namespace
 
-Scan ParsePly(const std::string& bytes, const std::string& file) { return PlyParser(bytes, file).Parse(); }
+Scan ParsePly(const std::string& bytes, const std::string& file) {
+  return PlyParser(bytes, file).Parse();
+}
 
 }  // namespace s2m::formats

@@ -9,9 +9,9 @@
 namespace s2m::formats {
 
 struct Line {
-  std::string_view text;    // without the line terminator (\n or \r\n)
-  std::size_t number = 0;   // 1-based
-  std::size_t offset = 0;   // byte offset of the line's first character
+  std::string_view text;   // without the line terminator (\n or \r\n)
+  std::size_t number = 0;  // 1-based
+  std::size_t offset = 0;  // byte offset of the line's first character
 };
 
 class LineReader {
@@ -52,8 +52,8 @@ inline void Tokenize(std::string_view text, std::vector<std::string_view>& token
   }
 }
 
-// Locale-independent; accepts a leading '+'. Returns false unless the whole token is a number (nan/inf included:
-// callers decide whether non-finite values are allowed).
+// Locale-independent; accepts a leading '+'. Returns false unless the whole token is a number (nan/inf
+// included: callers decide whether non-finite values are allowed).
 inline bool ParseDouble(std::string_view token, double& value) {
   if (!token.empty() && token.front() == '+') token.remove_prefix(1);
   const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
