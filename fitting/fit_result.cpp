@@ -28,6 +28,8 @@ const char* ToString(StopReason reason) {
       return "no further decrease at machine precision";
     case StopReason::kMaxIterations:
       return "iteration limit reached";
+    case StopReason::kTargetReached:
+      return "target RMS reached";
   }
   return "unknown";
 }

@@ -1,0 +1,237 @@
+#include "fitting/bspline_basis.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace s2m {
+namespace {
+
+void CheckOrder(int order, int num_control) {
+  if (order < 2 || order > BSplineBasis::kMaxOrder) {
+    throw std::invalid_argument("B-spline order must be in [2, " + std::to_string(BSplineBasis::kMaxOrder) +
+                                "], got " + std::to_string(order));
+  }
+  if (num_control < order) {
+    throw std::invalid_argument("a B-spline of order " + std::to_string(order) + " needs at least " +
+                                std::to_string(order) + " control points, got " + std::to_string(num_control));
+  }
+}
+
+// Gauss-Legendre nodes and weights on [-1, 1]; n points integrate polynomials of degree 2n - 1 exactly.
+void GaussLegendre(int n, std::vector<double>& x, std::vector<double>& w) {
+  x.assign(static_cast<std::size_t>(n), 0.0);
+  w.assign(static_cast<std::size_t>(n), 0.0);
+  for (int i = 0; i < n; ++i) {
+    double z = std::cos(M_PI * (i + 0.75) / (n + 0.5));
+    double dp = 0.0;
+    for (int it = 0; it < 100; ++it) {
+      double p0 = 1.0, p1 = 0.0;
+      for (int k = 1; k <= n; ++k) {
+        const double p2 = p1;
+        p1 = p0;
+        p0 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p2) / k;
+      }
+      dp = n * (z * p0 - p1) / (z * z - 1.0);
+      const double dz = p0 / dp;
+      z -= dz;
+      if (std::abs(dz) < 1e-16) break;
+    }
+    x[static_cast<std::size_t>(i)] = z;
+    w[static_cast<std::size_t>(i)] = 2.0 / ((1.0 - z * z) * dp * dp);
+  }
+}
+
+}  // namespace
+
+BSplineBasis::BSplineBasis(int order, int num_control, bool periodic, std::vector<double> knots)
+    : order_(order), num_control_(num_control), periodic_(periodic), knots_(std::move(knots)) {
+  if (!periodic_) {
+    ext_ = knots_;
+    lo_ = knots_[static_cast<std::size_t>(order_ - 1)];
+    hi_ = knots_[static_cast<std::size_t>(num_control_)];
+  } else {
+    lo_ = knots_.front();
+    hi_ = knots_.back();
+    const int n = num_control_;
+    const double period = hi_ - lo_;
+    ext_offset_ = order_ - 1;
+    for (int i = -(order_ - 1); i <= n + order_ - 1; ++i) {
+      const int wrapped = ((i % n) + n) % n;
+      const int shift = (i - wrapped) / n;
+      ext_.push_back(knots_[static_cast<std::size_t>(wrapped)] + shift * period);
+    }
+  }
+}
+
+BSplineBasis BSplineBasis::Clamped(int order, std::vector<double> knots) {
+  const int n = static_cast<int>(knots.size()) - order;
+  CheckOrder(order, n);
+  for (std::size_t i = 0; i < knots.size(); ++i) {
+    if (!std::isfinite(knots[i])) throw std::invalid_argument("knot " + std::to_string(i) + " is not finite");
+    if (i > 0 && knots[i] < knots[i - 1]) {
+      throw std::invalid_argument("knots must be non-decreasing: knot " + std::to_string(i) + " (" +
+                                  std::to_string(knots[i]) + ") < knot " + std::to_string(i - 1));
+    }
+  }
+  for (int i = 1; i < order; ++i) {
+    if (knots[static_cast<std::size_t>(i)] != knots[0] || knots[knots.size() - 1 - static_cast<std::size_t>(i)] != knots.back()) {
+      throw std::invalid_argument("a clamped knot vector repeats its first and last knots `order` (" +
+                                  std::to_string(order) + ") times");
+    }
+  }
+  if (!(knots.back() > knots.front())) throw std::invalid_argument("the knot vector spans an empty domain");
+  for (std::size_t i = static_cast<std::size_t>(order); i + static_cast<std::size_t>(order) < knots.size(); ++i) {
+    std::size_t m = 1;
+    while (i + m < knots.size() - static_cast<std::size_t>(order) && knots[i + m] == knots[i]) ++m;
+    if (m >= static_cast<std::size_t>(order)) {
+      throw std::invalid_argument("interior knot " + std::to_string(knots[i]) + " has multiplicity " + std::to_string(m) +
+                                  " >= order " + std::to_string(order) + " (the curve would break apart)");
+    }
+  }
+  return BSplineBasis(order, n, false, std::move(knots));
+}
+
+BSplineBasis BSplineBasis::ClampedUniform(int order, int num_control, double lo, double hi) {
+  CheckOrder(order, num_control);
+  std::vector<double> knots;
+  const int spans = num_control - order + 1;
+  for (int i = 0; i < order; ++i) knots.push_back(lo);
+  for (int i = 1; i < spans; ++i) knots.push_back(lo + (hi - lo) * i / spans);
+  for (int i = 0; i < order; ++i) knots.push_back(hi);
+  return Clamped(order, std::move(knots));
+}
+
+BSplineBasis BSplineBasis::Periodic(int order, std::vector<double> breakpoints) {
+  const int n = static_cast<int>(breakpoints.size()) - 1;
+  CheckOrder(order, n);
+  for (std::size_t i = 1; i < breakpoints.size(); ++i) {
+    if (!std::isfinite(breakpoints[i]) || !(breakpoints[i] > breakpoints[i - 1])) {
+      throw std::invalid_argument("periodic breakpoints must be finite and strictly increasing (breakpoint " +
+                                  std::to_string(i) + ")");
+    }
+  }
+  return BSplineBasis(order, n, true, std::move(breakpoints));
+}
+
+BSplineBasis BSplineBasis::PeriodicUniform(int order, int num_control, double lo, double hi) {
+  CheckOrder(order, num_control);
+  std::vector<double> b;
+  for (int i = 0; i <= num_control; ++i) b.push_back(lo + (hi - lo) * i / num_control);
+  return Periodic(order, std::move(b));
+}
+
+std::vector<double> BSplineBasis::Breakpoints() const {
+  std::vector<double> out;
+  for (double k : knots_) {
+    if (k >= lo_ && k <= hi_ && (out.empty() || k > out.back())) out.push_back(k);
+  }
+  return out;
+}
+
+double BSplineBasis::Normalize(double t) const {
+  if (periodic_) {
+    double u = std::fmod(t - lo_, hi_ - lo_);
+    if (u < 0) u += hi_ - lo_;
+    const double w = lo_ + u;
+    return w >= hi_ ? lo_ : w;
+  }
+  return std::clamp(t, lo_, hi_);
+}
+
+int BSplineBasis::FindSpan(double t) const {
+  if (!periodic_) {
+    if (t >= hi_) return num_control_ - 1;
+    if (t <= lo_) return order_ - 1;
+    // ext_[span] <= t < ext_[span + 1] with span in [order - 1, n - 1]
+    const auto it = std::upper_bound(ext_.begin() + order_ - 1, ext_.begin() + num_control_ + 1, t);
+    return static_cast<int>(it - ext_.begin()) - 1;
+  }
+  const auto it = std::upper_bound(ext_.begin() + ext_offset_, ext_.begin() + ext_offset_ + num_control_ + 1, t);
+  return std::min(static_cast<int>(it - ext_.begin()) - 1, ext_offset_ + num_control_ - 1);
+}
+
+void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
+  const double t = Normalize(t_in);
+  const int p = order_ - 1;
+  const int span = FindSpan(t);
+  const std::vector<double>& U = ext_;
+  // A2.3: ndu holds basis functions (upper triangle) and knot differences (lower triangle).
+  double ndu[kMaxOrder][kMaxOrder];
+  double left[kMaxOrder], right[kMaxOrder];
+  ndu[0][0] = 1.0;
+  for (int j = 1; j <= p; ++j) {
+    left[j] = t - U[static_cast<std::size_t>(span + 1 - j)];
+    right[j] = U[static_cast<std::size_t>(span + j)] - t;
+    double saved = 0.0;
+    for (int r = 0; r < j; ++r) {
+      ndu[j][r] = right[r + 1] + left[j - r];
+      const double temp = ndu[r][j - 1] / ndu[j][r];
+      ndu[r][j] = saved + right[r + 1] * temp;
+      saved = left[j - r] * temp;
+    }
+    ndu[j][j] = saved;
+  }
+  for (int j = 0; j <= p; ++j) out.values[0][static_cast<std::size_t>(j)] = ndu[j][p];
+  const int n_der = std::min(derivatives, std::min(p, kMaxDerivative));
+  for (int k = n_der + 1; k <= derivatives && k <= kMaxDerivative; ++k) out.values[static_cast<std::size_t>(k)].fill(0.0);
+  double a[2][kMaxOrder];
+  for (int r = 0; r <= p; ++r) {
+    int s1 = 0, s2 = 1;
+    a[0][0] = 1.0;
+    for (int k = 1; k <= n_der; ++k) {
+      double d = 0.0;
+      const int rk = r - k, pk = p - k;
+      if (r >= k) {
+        a[s2][0] = a[s1][0] / ndu[pk + 1][rk];
+        d = a[s2][0] * ndu[rk][pk];
+      }
+      const int j1 = rk >= -1 ? 1 : -rk;
+      const int j2 = (r - 1 <= pk) ? k - 1 : p - r;
+      for (int j = j1; j <= j2; ++j) {
+        a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][rk + j];
+        d += a[s2][j] * ndu[rk + j][pk];
+      }
+      if (r <= pk) {
+        a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r];
+        d += a[s2][k] * ndu[r][pk];
+      }
+      out.values[static_cast<std::size_t>(k)][static_cast<std::size_t>(r)] = d;
+      std::swap(s1, s2);
+    }
+  }
+  double factor = p;
+  for (int k = 1; k <= n_der; ++k) {
+    for (int j = 0; j <= p; ++j) out.values[static_cast<std::size_t>(k)][static_cast<std::size_t>(j)] *= factor;
+    factor *= (p - k);
+  }
+  out.first = periodic_ ? ((span - ext_offset_ - p) % num_control_ + num_control_) % num_control_ : span - p;
+}
+
+std::vector<double> BSplineBasis::GramMatrix(int derivative) const {
+  const int n = num_control_;
+  std::vector<double> gram(static_cast<std::size_t>(n * n), 0.0);
+  std::vector<double> gx, gw;
+  GaussLegendre(order_, gx, gw);  // products of degree-(order-1) pieces: degree <= 2 order - 2
+  const std::vector<double> breaks = Breakpoints();
+  Values v;
+  for (std::size_t s = 0; s + 1 < breaks.size(); ++s) {
+    const double a = breaks[s], b = breaks[s + 1];
+    for (std::size_t q = 0; q < gx.size(); ++q) {
+      const double t = 0.5 * (a + b) + 0.5 * (b - a) * gx[q];
+      const double w = 0.5 * (b - a) * gw[q];
+      Evaluate(t, derivative, v);
+      const auto& d = v.values[static_cast<std::size_t>(derivative)];
+      for (int i = 0; i < order_; ++i) {
+        for (int j = 0; j < order_; ++j) {
+          const int ci = ControlIndex(v.first, i), cj = ControlIndex(v.first, j);
+          gram[static_cast<std::size_t>(ci * n + cj)] += w * d[static_cast<std::size_t>(i)] * d[static_cast<std::size_t>(j)];
+        }
+      }
+    }
+  }
+  return gram;
+}
+
+}  // namespace s2m

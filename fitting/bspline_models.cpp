@@ -1,0 +1,330 @@
+#include "fitting/bspline_models.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include <Eigen/Geometry>
+
+namespace s2m {
+namespace {
+
+const char* kAxis[3] = {"x", "y", "z"};
+
+ParameterDomain DomainOf(const BSplineBasis& b, int dimension) {
+  ParameterDomain d;
+  d.dimension = dimension;
+  d.lo[0] = b.lo();
+  d.hi[0] = b.hi();
+  d.periodic[0] = b.periodic();
+  return d;
+}
+
+// Gram matrix of one basis as an Eigen matrix.
+Eigen::MatrixXd Gram(const BSplineBasis& b, int derivative) {
+  const std::vector<double> g = b.GramMatrix(derivative);
+  const int n = b.num_control();
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(g.data(), n, n);
+}
+
+// K (x) I_s for parameters stacked point by point (index = point * s + coordinate).
+Eigen::MatrixXd KroneckerIdentity(const Eigen::MatrixXd& k, int s) {
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(k.rows() * s, k.cols() * s);
+  for (Eigen::Index i = 0; i < k.rows(); ++i)
+    for (Eigen::Index j = 0; j < k.cols(); ++j)
+      for (int c = 0; c < s; ++c) out(i * s + c, j * s + c) = k(i, j);
+  return out;
+}
+
+std::vector<double> SpanSamples(const BSplineBasis& b, int per_span) {
+  std::vector<double> out;
+  const std::vector<double> breaks = b.Breakpoints();
+  for (std::size_t s = 0; s + 1 < breaks.size(); ++s) {
+    for (int i = 0; i < per_span; ++i) out.push_back(breaks[s] + (breaks[s + 1] - breaks[s]) * (i + 0.5) / per_span);
+  }
+  if (!b.periodic()) {
+    out.push_back(b.lo());
+    out.push_back(b.hi());
+  }
+  return out;
+}
+
+}  // namespace
+
+// ---- BSplineCurve -------------------------------------------------------------------------------------------------
+
+BSplineCurve::BSplineCurve(BSplineBasis basis, Eigen::MatrixXd control_points)
+    : basis_(std::move(basis)), control_(std::move(control_points)) {
+  if (control_.rows() != 2 && control_.rows() != 3) throw std::invalid_argument("a B-spline curve lives in 2D or 3D");
+  if (control_.cols() != basis_.num_control()) {
+    throw std::invalid_argument("the basis has " + std::to_string(basis_.num_control()) + " functions but " +
+                                std::to_string(control_.cols()) + " control points were given");
+  }
+}
+
+ParameterDomain BSplineCurve::domain() const { return DomainOf(basis_, 1); }
+
+std::string BSplineCurve::parameter_name(int index) const {
+  const int s = ambient_dimension();
+  return "control point " + std::to_string(index / s) + " " + kAxis[index % s];
+}
+
+Eigen::VectorXd BSplineCurve::parameters() const { return Eigen::Map<const Eigen::VectorXd>(control_.data(), control_.size()); }
+
+void BSplineCurve::set_parameters(const Eigen::VectorXd& p) {
+  control_ = Eigen::Map<const Eigen::MatrixXd>(p.data(), control_.rows(), control_.cols());
+}
+
+void BSplineCurve::ApplySimilarity(double scale, const VecS& offset) {
+  control_ = (scale * control_).colwise() + Eigen::VectorXd(offset);
+}
+
+void BSplineCurve::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+  BSplineBasis::Values v;
+  basis_.Evaluate(t[0], derivatives, v);
+  const Eigen::Index s = control_.rows();
+  out.point.setZero(s);
+  out.d1.setZero(s, 1);
+  out.d2.setZero(s, 1);
+  for (int i = 0; i < basis_.order(); ++i) {
+    const auto p = control_.col(basis_.ControlIndex(v.first, i));
+    out.point += v.values[0][static_cast<std::size_t>(i)] * p;
+    if (derivatives >= 1) out.d1.col(0) += v.values[1][static_cast<std::size_t>(i)] * p;
+    if (derivatives >= 2) out.d2.col(0) += v.values[2][static_cast<std::size_t>(i)] * p;
+  }
+}
+
+void BSplineCurve::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {
+  out.clear();
+  BSplineBasis::Values v;
+  basis_.Evaluate(t[0], with_dt ? 1 : 0, v);
+  const int s = ambient_dimension();
+  for (int i = 0; i < basis_.order(); ++i) {
+    const int point = basis_.ControlIndex(v.first, i);
+    for (int c = 0; c < s; ++c) {
+      JacobianEntry e;
+      e.index = point * s + c;
+      e.column = v.values[0][static_cast<std::size_t>(i)] * Eigen::Vector3d::Unit(c);
+      e.dcolumn_dt[0] = with_dt ? Eigen::Vector3d(v.values[1][static_cast<std::size_t>(i)] * Eigen::Vector3d::Unit(c)) : Eigen::Vector3d::Zero();
+      e.dcolumn_dt[1].setZero();
+      out.push_back(e);
+    }
+  }
+}
+
+Eigen::MatrixXd BSplineCurve::FairnessMatrix(const FairnessWeights& w) const {
+  if (w.stretch == 0.0 && w.bending == 0.0) return {};
+  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(basis_.num_control(), basis_.num_control());
+  // F_1 = integral |C'|^2 = P^T (G1 (x) I) P and F_2 likewise (METHOD.md section 3; Wang et al. 2006, section 5).
+  if (w.stretch != 0.0) k += w.stretch * Gram(basis_, 1);
+  if (w.bending != 0.0 && basis_.order() > 2) k += w.bending * Gram(basis_, 2);
+  return KroneckerIdentity(k, ambient_dimension());
+}
+
+std::vector<ParamT> BSplineCurve::SampleParameters() const {
+  std::vector<ParamT> out;
+  for (double t : SpanSamples(basis_, 16)) out.push_back({t, 0.0});
+  return out;
+}
+
+// ---- BSplineSurface -------------------------------------------------------------------------------------------------
+
+BSplineSurface::BSplineSurface(BSplineBasis basis_u, BSplineBasis basis_v, Eigen::Matrix3Xd control_points)
+    : basis_u_(std::move(basis_u)), basis_v_(std::move(basis_v)), control_(std::move(control_points)) {
+  if (basis_v_.periodic()) throw std::invalid_argument("B-spline surfaces may be periodic in u only");
+  if (control_.cols() != basis_u_.num_control() * basis_v_.num_control()) {
+    throw std::invalid_argument("a " + std::to_string(basis_u_.num_control()) + " x " +
+                                std::to_string(basis_v_.num_control()) + " surface needs that many control points, got " +
+                                std::to_string(control_.cols()));
+  }
+}
+
+ParameterDomain BSplineSurface::domain() const {
+  ParameterDomain d = DomainOf(basis_u_, 2);
+  d.lo[1] = basis_v_.lo();
+  d.hi[1] = basis_v_.hi();
+  d.periodic[1] = false;
+  return d;
+}
+
+std::string BSplineSurface::parameter_name(int index) const {
+  const int point = index / 3, nv = basis_v_.num_control();
+  return "control point (" + std::to_string(point / nv) + ", " + std::to_string(point % nv) + ") " + kAxis[index % 3];
+}
+
+Eigen::VectorXd BSplineSurface::parameters() const { return Eigen::Map<const Eigen::VectorXd>(control_.data(), control_.size()); }
+
+void BSplineSurface::set_parameters(const Eigen::VectorXd& p) {
+  control_ = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, control_.cols());
+}
+
+void BSplineSurface::ApplySimilarity(double scale, const VecS& offset) {
+  control_ = (scale * control_).colwise() + Eigen::Vector3d(offset);
+}
+
+void BSplineSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+  BSplineBasis::Values bu, bv;
+  basis_u_.Evaluate(t[0], derivatives, bu);
+  basis_v_.Evaluate(t[1], derivatives, bv);
+  out.point.setZero(3);
+  out.d1.setZero(3, 2);
+  out.d2.setZero(3, 3);
+  const int nv = basis_v_.num_control();
+  for (int i = 0; i < basis_u_.order(); ++i) {
+    const int iu = basis_u_.ControlIndex(bu.first, i);
+    const auto ui = static_cast<std::size_t>(i);
+    for (int j = 0; j < basis_v_.order(); ++j) {
+      const auto vj = static_cast<std::size_t>(j);
+      const Eigen::Vector3d p = control_.col(iu * nv + basis_v_.ControlIndex(bv.first, j));
+      out.point += bu.values[0][ui] * bv.values[0][vj] * p;
+      if (derivatives >= 1) {
+        out.d1.col(0) += bu.values[1][ui] * bv.values[0][vj] * p;
+        out.d1.col(1) += bu.values[0][ui] * bv.values[1][vj] * p;
+      }
+      if (derivatives >= 2) {
+        out.d2.col(0) += bu.values[2][ui] * bv.values[0][vj] * p;
+        out.d2.col(1) += bu.values[1][ui] * bv.values[1][vj] * p;
+        out.d2.col(2) += bu.values[0][ui] * bv.values[2][vj] * p;
+      }
+    }
+  }
+}
+
+void BSplineSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {
+  out.clear();
+  BSplineBasis::Values bu, bv;
+  basis_u_.Evaluate(t[0], with_dt ? 1 : 0, bu);
+  basis_v_.Evaluate(t[1], with_dt ? 1 : 0, bv);
+  const int nv = basis_v_.num_control();
+  for (int i = 0; i < basis_u_.order(); ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    for (int j = 0; j < basis_v_.order(); ++j) {
+      const auto vj = static_cast<std::size_t>(j);
+      const int point = basis_u_.ControlIndex(bu.first, i) * nv + basis_v_.ControlIndex(bv.first, j);
+      const double w = bu.values[0][ui] * bv.values[0][vj];
+      for (int c = 0; c < 3; ++c) {
+        JacobianEntry e;
+        e.index = point * 3 + c;
+        e.column = w * Eigen::Vector3d::Unit(c);
+        if (with_dt) {
+          e.dcolumn_dt[0] = bu.values[1][ui] * bv.values[0][vj] * Eigen::Vector3d::Unit(c);
+          e.dcolumn_dt[1] = bu.values[0][ui] * bv.values[1][vj] * Eigen::Vector3d::Unit(c);
+        } else {
+          e.dcolumn_dt[0].setZero();
+          e.dcolumn_dt[1].setZero();
+        }
+        out.push_back(e);
+      }
+    }
+  }
+}
+
+Eigen::MatrixXd BSplineSurface::FairnessMatrix(const FairnessWeights& w) const {
+  if (w.stretch == 0.0 && w.bending == 0.0) return {};
+  const Eigen::MatrixXd u0 = Gram(basis_u_, 0), u1 = Gram(basis_u_, 1), v0 = Gram(basis_v_, 0), v1 = Gram(basis_v_, 1);
+  const Eigen::MatrixXd u2 = basis_u_.order() > 2 ? Gram(basis_u_, 2) : Eigen::MatrixXd::Zero(u0.rows(), u0.cols());
+  const Eigen::MatrixXd v2 = basis_v_.order() > 2 ? Gram(basis_v_, 2) : Eigen::MatrixXd::Zero(v0.rows(), v0.cols());
+  const Eigen::Index nu = u0.rows(), nv = v0.rows();
+  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(nu * nv, nu * nv);
+  // Tensor-product Gram matrices: integral S_uu . S_uu = P^T (G2u (x) G0v) P, etc. (thin plate + membrane energies).
+  for (Eigen::Index a = 0; a < nu; ++a)
+    for (Eigen::Index b = 0; b < nu; ++b)
+      for (Eigen::Index c = 0; c < nv; ++c)
+        for (Eigen::Index d = 0; d < nv; ++d) {
+          double e = 0.0;
+          if (w.bending != 0.0) e += w.bending * (u2(a, b) * v0(c, d) + 2.0 * u1(a, b) * v1(c, d) + u0(a, b) * v2(c, d));
+          if (w.stretch != 0.0) e += w.stretch * (u1(a, b) * v0(c, d) + u0(a, b) * v1(c, d));
+          k(a * nv + c, b * nv + d) = e;
+        }
+  return KroneckerIdentity(k, 3);
+}
+
+std::vector<ParamT> BSplineSurface::SampleParameters() const {
+  std::vector<ParamT> out;
+  const std::vector<double> us = SpanSamples(basis_u_, 6), vs = SpanSamples(basis_v_, 6);
+  for (double u : us)
+    for (double v : vs) out.push_back({u, v});
+  return out;
+}
+
+// ---- Ellipse3D ------------------------------------------------------------------------------------------------------
+
+Ellipse3D::Ellipse3D(const Eigen::Vector3d& center, const Eigen::Matrix3d& rotation, double a, double b, bool circle)
+    : center_(center), rotation_(rotation), a_(a), b_(circle ? a : b), circle_(circle) {}
+
+ParameterDomain Ellipse3D::domain() const {
+  ParameterDomain d;
+  d.dimension = 1;
+  d.lo[0] = 0.0;
+  d.hi[0] = 2.0 * M_PI;
+  d.periodic[0] = true;
+  return d;
+}
+
+std::string Ellipse3D::parameter_name(int index) const {
+  static const char* names[] = {"centre x", "centre y", "centre z", "rotation x", "rotation y", "rotation z", "a", "b"};
+  if (circle_ && index == 6) return "radius";
+  return names[index];
+}
+
+Eigen::VectorXd Ellipse3D::parameters() const {
+  Eigen::VectorXd p(num_parameters());
+  p << center_, 0.0, 0.0, 0.0, a_;
+  if (!circle_) p[7] = b_;
+  return p;
+}
+
+void Ellipse3D::set_parameters(const Eigen::VectorXd& p) {
+  center_ = p.head<3>();
+  const Eigen::Vector3d w = p.segment<3>(3);
+  if (w.norm() > 0) rotation_ = rotation_ * Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+  a_ = p[6];
+  b_ = circle_ ? a_ : p[7];
+}
+
+void Ellipse3D::ApplySimilarity(double scale, const VecS& offset) {
+  center_ = scale * center_ + Eigen::Vector3d(offset);
+  a_ *= scale;
+  b_ *= scale;
+}
+
+void Ellipse3D::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+  const double c = std::cos(t[0]), s = std::sin(t[0]), b = circle_ ? a_ : b_;
+  out.point = center_ + rotation_ * Eigen::Vector3d(a_ * c, b * s, 0.0);
+  out.d1.resize(3, 1);
+  out.d2.resize(3, 1);
+  out.d1.col(0) = derivatives >= 1 ? Eigen::Vector3d(rotation_ * Eigen::Vector3d(-a_ * s, b * c, 0.0)) : Eigen::Vector3d::Zero();
+  out.d2.col(0) = derivatives >= 2 ? Eigen::Vector3d(rotation_ * Eigen::Vector3d(-a_ * c, -b * s, 0.0)) : Eigen::Vector3d::Zero();
+}
+
+void Ellipse3D::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {
+  out.clear();
+  const double c = std::cos(t[0]), s = std::sin(t[0]), b = circle_ ? a_ : b_;
+  const Eigen::Vector3d p(a_ * c, b * s, 0.0), dp(-a_ * s, b * c, 0.0);
+  auto add = [&](int index, const Eigen::Vector3d& column, const Eigen::Vector3d& dcolumn) {
+    JacobianEntry e;
+    e.index = index;
+    e.column = column;
+    e.dcolumn_dt[0] = with_dt ? dcolumn : Eigen::Vector3d::Zero();
+    e.dcolumn_dt[1].setZero();
+    out.push_back(e);
+  };
+  for (int k = 0; k < 3; ++k) add(k, Eigen::Vector3d::Unit(k), Eigen::Vector3d::Zero());
+  // d/dw_k of R exp([w]x) p at w = 0 is R (e_k x p).
+  for (int k = 0; k < 3; ++k) {
+    add(3 + k, rotation_ * Eigen::Vector3d::Unit(k).cross(p), rotation_ * Eigen::Vector3d::Unit(k).cross(dp));
+  }
+  if (circle_) {
+    add(6, rotation_ * Eigen::Vector3d(c, s, 0.0), rotation_ * Eigen::Vector3d(-s, c, 0.0));
+  } else {
+    add(6, rotation_ * Eigen::Vector3d(c, 0.0, 0.0), rotation_ * Eigen::Vector3d(-s, 0.0, 0.0));
+    add(7, rotation_ * Eigen::Vector3d(0.0, s, 0.0), rotation_ * Eigen::Vector3d(0.0, c, 0.0));
+  }
+}
+
+std::vector<ParamT> Ellipse3D::SampleParameters() const {
+  std::vector<ParamT> out;
+  for (int i = 0; i < 256; ++i) out.push_back({2.0 * M_PI * i / 256, 0.0});
+  return out;
+}
+
+}  // namespace s2m

@@ -1,0 +1,100 @@
+#pragma once
+// B-spline models for the fitting engine: curves in the plane or in space (open or closed) and tensor-product
+// surfaces (clamped, or periodic in u). P enters linearly (METHOD.md section 7).
+
+#include "fitting/bspline_basis.h"
+#include "fitting/parametric_model.h"
+
+namespace s2m {
+
+class BSplineCurve final : public ParametricModel {
+ public:
+  // control_points: s x n (s = 2 or 3), n == basis.num_control().
+  BSplineCurve(BSplineBasis basis, Eigen::MatrixXd control_points);
+
+  const BSplineBasis& basis() const { return basis_; }
+  const Eigen::MatrixXd& control_points() const { return control_; }
+
+  std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<BSplineCurve>(*this); }
+  void CopyFrom(const ParametricModel& other) override { *this = dynamic_cast<const BSplineCurve&>(other); }
+  std::string name() const override { return basis_.periodic() ? "closed B-spline curve" : "open B-spline curve"; }
+  int ambient_dimension() const override { return static_cast<int>(control_.rows()); }
+  ParameterDomain domain() const override;
+  int num_parameters() const override { return static_cast<int>(control_.size()); }
+  std::string parameter_name(int index) const override;
+  Eigen::VectorXd parameters() const override;
+  void set_parameters(const Eigen::VectorXd& p) override;
+  void ApplySimilarity(double scale, const VecS& offset) override;
+  void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
+  void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  Eigen::MatrixXd FairnessMatrix(const FairnessWeights& weights) const override;
+  std::vector<ParamT> SampleParameters() const override;
+
+ private:
+  BSplineBasis basis_;
+  Eigen::MatrixXd control_;  // s x n
+};
+
+class BSplineSurface final : public ParametricModel {
+ public:
+  // control_points: 3 x (nu * nv), index i * nv + j for basis_u function i and basis_v function j.
+  BSplineSurface(BSplineBasis basis_u, BSplineBasis basis_v, Eigen::Matrix3Xd control_points);
+
+  const BSplineBasis& basis_u() const { return basis_u_; }
+  const BSplineBasis& basis_v() const { return basis_v_; }
+  const Eigen::Matrix3Xd& control_points() const { return control_; }
+
+  std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<BSplineSurface>(*this); }
+  void CopyFrom(const ParametricModel& other) override { *this = dynamic_cast<const BSplineSurface&>(other); }
+  std::string name() const override { return "tensor-product B-spline surface"; }
+  int ambient_dimension() const override { return 3; }
+  ParameterDomain domain() const override;
+  int num_parameters() const override { return static_cast<int>(control_.size()); }
+  std::string parameter_name(int index) const override;
+  Eigen::VectorXd parameters() const override;
+  void set_parameters(const Eigen::VectorXd& p) override;
+  void ApplySimilarity(double scale, const VecS& offset) override;
+  void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
+  void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  Eigen::MatrixXd FairnessMatrix(const FairnessWeights& weights) const override;
+  std::vector<ParamT> SampleParameters() const override;
+
+ private:
+  BSplineBasis basis_u_, basis_v_;
+  Eigen::Matrix3Xd control_;
+};
+
+// A 3D ellipse (or circle) C(t) = c + R (a cos t, b sin t, 0), t in [0, 2 pi). Parameters: centre (3), a rotation
+// increment (3, linearized at zero and applied exactly as R <- R exp([w]x)), then a and b (ellipse) or r (circle).
+class Ellipse3D final : public ParametricModel {
+ public:
+  Ellipse3D(const Eigen::Vector3d& center, const Eigen::Matrix3d& rotation, double a, double b, bool circle = false);
+
+  const Eigen::Vector3d& center() const { return center_; }
+  const Eigen::Matrix3d& rotation() const { return rotation_; }
+  Eigen::Vector3d normal() const { return rotation_.col(2); }
+  double a() const { return a_; }
+  double b() const { return circle_ ? a_ : b_; }
+
+  std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<Ellipse3D>(*this); }
+  void CopyFrom(const ParametricModel& other) override { *this = dynamic_cast<const Ellipse3D&>(other); }
+  std::string name() const override { return circle_ ? "3D circle" : "3D ellipse"; }
+  int ambient_dimension() const override { return 3; }
+  ParameterDomain domain() const override;
+  int num_parameters() const override { return circle_ ? 7 : 8; }
+  std::string parameter_name(int index) const override;
+  Eigen::VectorXd parameters() const override;
+  void set_parameters(const Eigen::VectorXd& p) override;
+  void ApplySimilarity(double scale, const VecS& offset) override;
+  void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
+  void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  std::vector<ParamT> SampleParameters() const override;
+
+ private:
+  Eigen::Vector3d center_;
+  Eigen::Matrix3d rotation_;
+  double a_, b_;
+  bool circle_;
+};
+
+}  // namespace s2m

@@ -1,0 +1,157 @@
+#include "fitting/foot_point.h"
+
+#include <cmath>
+
+#include <Eigen/Dense>
+
+namespace s2m {
+namespace {
+
+Eigen::Vector3d To3(const VecS& v) {
+  Eigen::Vector3d out = Eigen::Vector3d::Zero();
+  out.head(v.size()) = v;
+  return out;
+}
+
+// Brings t into the domain: wraps periodic directions, clamps open ones.
+void Confine(const ParameterDomain& d, ParamT& t) {
+  for (int k = 0; k < d.dimension; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    if (d.periodic[i]) {
+      const double period = d.hi[i] - d.lo[i];
+      double u = std::fmod(t[i] - d.lo[i], period);
+      if (u < 0) u += period;
+      t[i] = d.lo[i] + u;
+    } else {
+      t[i] = std::clamp(t[i], d.lo[i], d.hi[i]);
+    }
+  }
+}
+
+}  // namespace
+
+FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d, const VecS& x, ParamT t,
+                          LocalGeometry& g) {
+  const int m = d.dimension;
+  Confine(d, t);
+  model.Evaluate(t, 2, g);
+  VecS r = g.point - x;
+  double f = 0.5 * r.squaredNorm();
+  bool on_boundary = false;
+  for (int iter = 0; iter < 50; ++iter) {
+    // Gradient C_t^T r and Hessian C_t^T C_t + [r . C_tk tl] of f(t) = |C(t) - X|^2 / 2.
+    Eigen::Vector2d grad = Eigen::Vector2d::Zero();
+    Eigen::Matrix2d hess = Eigen::Matrix2d::Identity();
+    for (int k = 0; k < m; ++k) grad[k] = g.d1.col(k).dot(r);
+    if (m == 1) {
+      hess(0, 0) = g.d1.col(0).squaredNorm() + r.dot(g.d2.col(0));
+    } else {
+      hess(0, 0) = g.d1.col(0).squaredNorm() + r.dot(g.d2.col(0));
+      hess(0, 1) = hess(1, 0) = g.d1.col(0).dot(g.d1.col(1)) + r.dot(g.d2.col(1));
+      hess(1, 1) = g.d1.col(1).squaredNorm() + r.dot(g.d2.col(2));
+    }
+    // Open boundaries: a parameter pinned at its bound with the gradient pushing outwards is fixed (active set).
+    std::array<bool, 2> fixed{false, false};
+    for (int k = 0; k < m; ++k) {
+      const auto i = static_cast<std::size_t>(k);
+      if (d.periodic[i]) continue;
+      if ((t[i] <= d.lo[i] && grad[k] > 0) || (t[i] >= d.hi[i] && grad[k] < 0)) fixed[i] = true;
+    }
+    Eigen::Vector2d step = Eigen::Vector2d::Zero();
+    Eigen::Matrix2d h = hess;
+    for (int k = 0; k < m; ++k) {
+      if (fixed[static_cast<std::size_t>(k)]) {
+        h.row(k).setZero();
+        h.col(k).setZero();
+        h(k, k) = 1.0;
+        grad[k] = 0.0;
+      }
+    }
+    if (m == 1) {
+      // Newton when the curvature term keeps f convex along t, else Gauss-Newton (always a descent direction).
+      const double h00 = h(0, 0) > 0 ? h(0, 0) : g.d1.col(0).squaredNorm();
+      step[0] = h00 > 0 ? -grad[0] / h00 : 0.0;
+    } else {
+      Eigen::Matrix2d hh = h.topLeftCorner(2, 2);
+      if (!(hh.determinant() > 0 && hh(0, 0) > 0)) {
+        hh(0, 0) = fixed[0] ? 1.0 : g.d1.col(0).squaredNorm();
+        hh(1, 1) = fixed[1] ? 1.0 : g.d1.col(1).squaredNorm();
+        hh(0, 1) = hh(1, 0) = (fixed[0] || fixed[1]) ? 0.0 : g.d1.col(0).dot(g.d1.col(1));
+      }
+      step = hh.ldlt().solve(-grad);
+    }
+    if (!step.allFinite() || step.norm() == 0.0) break;
+    // Backtracking: halve until |C - X| decreases (the orthogonality residual may be far from zero).
+    double alpha = 1.0;
+    ParamT trial = t;
+    bool improved = false;
+    for (int ls = 0; ls < 30; ++ls, alpha *= 0.5) {
+      trial = {t[0] + alpha * step[0], t[1] + (m > 1 ? alpha * step[1] : 0.0)};
+      Confine(d, trial);
+      model.Evaluate(trial, 2, g);
+      const double ft = 0.5 * (g.point - x).squaredNorm();
+      if (ft <= f) {
+        improved = true;
+        f = ft;
+        break;
+      }
+    }
+    if (!improved) {
+      model.Evaluate(t, 2, g);
+      break;
+    }
+    const double moved = std::abs(trial[0] - t[0]) + (m > 1 ? std::abs(trial[1] - t[1]) : 0.0);
+    t = trial;
+    r = g.point - x;
+    const double span = (d.hi[0] - d.lo[0]) + (m > 1 ? d.hi[1] - d.lo[1] : 0.0);
+    if (moved <= 1e-15 * span) break;
+  }
+  // On an open boundary the orthogonality condition need not hold: record it for the end rule (METHOD.md section 4).
+  for (int k = 0; k < m; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    if (!d.periodic[i] && (t[i] <= d.lo[i] || t[i] >= d.hi[i])) {
+      const double c = g.d1.col(k).norm() * r.norm();
+      if (c > 0 && std::abs(g.d1.col(k).dot(r)) > 1e-9 * c) on_boundary = true;
+    }
+  }
+  return {t, std::sqrt(2.0 * f), on_boundary};
+}
+
+FootPointSeeds::FootPointSeeds(const ParametricModel& model) : params_(model.SampleParameters()) {
+  Eigen::Matrix3Xd samples(3, static_cast<Eigen::Index>(params_.size()));
+  LocalGeometry g;
+  for (std::size_t i = 0; i < params_.size(); ++i) {
+    model.Evaluate(params_[i], 0, g);
+    samples.col(static_cast<Eigen::Index>(i)) = To3(g.point);
+  }
+  index_ = NearestIndex(std::move(samples));
+}
+
+ParamT FootPointSeeds::Nearest(const VecS& x) const { return params_[static_cast<std::size_t>(index_.Nearest(To3(x)))]; }
+
+void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& points, std::vector<FootPoint>& feet,
+                       const std::vector<FootPoint>* warm) {
+  const FootPointSeeds seeds(model);
+  const ParameterDomain d = model.domain();
+  const Eigen::Index n = points.cols();
+  feet.resize(static_cast<std::size_t>(n));
+#pragma omp parallel
+  {
+    LocalGeometry g;
+#pragma omp for schedule(static)
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const VecS x = points.col(j);
+      ParamT start = seeds.Nearest(x);
+      if (warm != nullptr) {
+        const ParamT previous = (*warm)[static_cast<std::size_t>(j)].t;
+        model.Evaluate(start, 0, g);
+        const double d_seed = (g.point - x).squaredNorm();
+        model.Evaluate(previous, 0, g);
+        if ((g.point - x).squaredNorm() <= d_seed) start = previous;
+      }
+      feet[static_cast<std::size_t>(j)] = RefineFootPoint(model, d, x, start, g);
+    }
+  }
+}
+
+}  // namespace s2m

@@ -1,0 +1,75 @@
+#pragma once
+// The fitting engine: minimizes 1/2 sum_j d^2(X_j, C(P; .)) + F_s(P) over the shape parameters P of any
+// ParametricModel by alternating exact foot points and one linear least-squares step on a local quadratic model
+// built with one of the six error terms of METHOD.md section 2 (Wang, Pottmann, Liu, ACM TOG 25 (2006);
+// Liu & Wang, GMP 2008).
+
+#include <functional>
+#include <stdexcept>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "fitting/fit_result.h"
+#include "fitting/foot_point.h"
+#include "fitting/parametric_model.h"
+
+namespace s2m {
+
+enum class ErrorTerm {
+  kPdm,   // point distance |e|^2: ICP-like, linear convergence
+  kTdm,   // tangent distance (n.e)^2: Gauss-Newton-like, needs step control at high curvature
+  kSdm,   // squared distance: curvature-weighted tangential terms plus the whole normal space (the default)
+  kCdm,   // SDM with squared weights: Gauss-Newton without the mixed second derivative
+  kGtdm,  // the whole normal space (N.e)^2: TDM generalized to curves in 3D
+  kGn,    // Gauss-Newton with the full implicit-function Jacobian C_P - C_t G^-1 Q (reference, most expensive)
+};
+const char* ToString(ErrorTerm term);
+ErrorTerm ErrorTermFromString(const std::string& name);  // "pdm", "tdm", ...; throws std::invalid_argument
+
+enum class StepControl {
+  kNone,                // take the full step (how TDM and PDM are usually run)
+  kLevenbergMarquardt,  // damping lambda * diag(H), true objective re-evaluated at new foot points (default)
+  kArmijo,              // backtracking on the full step until sufficient decrease
+};
+const char* ToString(StepControl control);
+
+struct GeometricFitOptions {
+  ErrorTerm error_term = ErrorTerm::kSdm;
+  StepControl step_control = StepControl::kLevenbergMarquardt;
+  // Fairness weights, applied to data normalized into the unit box (METHOD.md section 3): curves alpha (stretch)
+  // and beta (bending); surfaces membrane and thin plate. Paper default for curves: bending 0.001.
+  FairnessWeights fairness;
+  bool normalize = true;          // scale data and model into the unit box while fitting
+  bool open_end_rule = true;      // METHOD.md section 4 for points whose foot point lies on an open boundary
+  int max_iterations = 100;
+  double target_rms = 0.0;        // stop as soon as RMS (input units) <= target (0: off)
+  double objective_tolerance = 1e-10;  // stop when the objective's relative decrease in an iteration falls below
+  double step_tolerance = 1e-12;  // on |D| / (1 + |P|), normalized units
+  double gradient_tolerance = 1e-13;  // on |g| / (1 + sum |C_P^T r|), normalized units
+  double initial_damping = 1e-4;  // LM lambda relative to diag(H)
+  double armijo_c = 1e-4;
+  // Called after every iteration (progress on long fits).
+  std::function<void(const IterationRecord&)> on_iteration;
+};
+
+struct GeometricFitResult {
+  ResidualStatistics residuals;  // at exact foot points, input units
+  int iterations = 0;
+  StopReason stop_reason = StopReason::kMaxIterations;
+  std::vector<IterationRecord> history;
+  std::vector<FootPoint> foot_points;  // of the final model, distances in input units
+};
+
+// Thrown when the normal matrix of the chosen error term is singular (e.g. plain TDM for a curve in 3D fitted to
+// planar data): the message names the unconstrained parameters instead of letting damping hide them.
+class SingularSystemError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Fits `model` (updated in place) to the points (s x n, s = model.ambient_dimension()).
+GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& points,
+                            const GeometricFitOptions& options = {});
+
+}  // namespace s2m
