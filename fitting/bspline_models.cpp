@@ -267,8 +267,9 @@ std::string Ellipse3D::parameter_name(int index) const {
 }
 
 Eigen::VectorXd Ellipse3D::parameters() const {
-  Eigen::VectorXd p(num_parameters());
-  p << center_, 0.0, 0.0, 0.0, a_;
+  Eigen::VectorXd p = Eigen::VectorXd::Zero(num_parameters());
+  p.head<3>() = center_;
+  p[6] = a_;
   if (!circle_) p[7] = b_;
   return p;
 }
@@ -279,6 +280,20 @@ void Ellipse3D::set_parameters(const Eigen::VectorXd& p) {
   if (w.norm() > 0) rotation_ = rotation_ * Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
   a_ = p[6];
   b_ = circle_ ? a_ : p[7];
+}
+
+void Ellipse3D::ApplyStep(const Eigen::VectorXd& step) {
+  set_parameters(parameters() + step);
+  if (a_ < 0) {  // (x, y, z) -> (-x, y, -z): a rotation, maps a cos t to -a cos t
+    a_ = -a_;
+    rotation_.col(0) *= -1.0;
+    rotation_.col(2) *= -1.0;
+  }
+  if (!circle_ && b_ < 0) {
+    b_ = -b_;
+    rotation_.col(1) *= -1.0;
+    rotation_.col(2) *= -1.0;
+  }
 }
 
 void Ellipse3D::ApplySimilarity(double scale, const VecS& offset) {

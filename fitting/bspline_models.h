@@ -85,6 +85,8 @@ class Ellipse3D final : public ParametricModel {
   std::string parameter_name(int index) const override;
   Eigen::VectorXd parameters() const override;
   void set_parameters(const Eigen::VectorXd& p) override;
+  // Applies the step, then keeps a, b positive by turning the frame half a turn (the same point set).
+  void ApplyStep(const Eigen::VectorXd& step) override;
   void ApplySimilarity(double scale, const VecS& offset) override;
   void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;

@@ -180,6 +180,26 @@ std::string DescribeNullSpace(const ParametricModel& model, const Eigen::MatrixX
   return names.str();
 }
 
+// LDLT with diagonal pivoting reveals the rank of a positive semidefinite matrix: tiny trailing pivots.
+bool IsSingular(const Eigen::LDLT<Eigen::MatrixXd>& ldlt) {
+  if (ldlt.info() != Eigen::Success) return true;
+  const Eigen::VectorXd d = ldlt.vectorD().cwiseAbs();
+  return !(d.minCoeff() > 1e-13 * d.maxCoeff());
+}
+
+std::string SingularMessage(const ParametricModel& model, const Eigen::MatrixXd& H, const GeometricFitOptions& options) {
+  int null_count = 0;
+  const std::string names = DescribeNullSpace(model, H, null_count);
+  const bool curve_in_space = model.domain().dimension == 1 && model.ambient_dimension() == 3;
+  return std::string("the ") + ToString(options.error_term) + " normal matrix of the " + model.name() +
+         " is singular (" + std::to_string(std::max(null_count, 1)) + " unconstrained direction(s), mostly " + names +
+         ")" +
+         (options.error_term == ErrorTerm::kTdm && curve_in_space
+              ? ": plain TDM constrains only the direction towards each data point, which leaves a curve in 3D free "
+                "to tilt out of planar data; use gtdm or sdm"
+              : ": add fairness or data that cover the whole model");
+}
+
 }  // namespace
 
 const char* ToString(ErrorTerm term) {
@@ -250,6 +270,7 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
   auto rms_of = [&](const std::vector<FootPoint>& ft) { return std::sqrt(2.0 * DataObjective(ft) / n) * norm.scale; };
   double rms = rms_of(feet);
 
+  bool last_singular = false;
   result.stop_reason = StopReason::kMaxIterations;
   if (options.target_rms > 0 && rms <= options.target_rms) result.stop_reason = StopReason::kTargetReached;
   while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
@@ -263,18 +284,13 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
       result.stop_reason = StopReason::kGradientTolerance;
       break;
     }
-    // A singular normal matrix means the error term leaves directions unconstrained: say which, don't damp it away.
+    // A singular normal matrix means the error term leaves directions unconstrained. Without damping no step can be
+    // taken: say which directions, don't guess. With LM a transient singularity (a far start) is damped, but one that
+    // persists to the end is reported (below) instead of being hidden.
     Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
-    if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-13)) {
-      int null_count = 0;
-      const std::string names = DescribeNullSpace(*current, H, null_count);
-      throw SingularSystemError(std::string("the ") + ToString(options.error_term) + " normal matrix of the " +
-                                current->name() + " is singular (" + std::to_string(null_count) +
-                                " unconstrained direction(s), mostly " + names + ")" +
-                                (options.error_term == ErrorTerm::kTdm && current->domain().dimension == 1 && s == 3
-                                     ? ": plain TDM constrains only the direction towards each data point, which "
-                                       "leaves a curve in 3D free to tilt out of planar data; use gtdm or sdm"
-                                     : ": add fairness or data that cover the whole model"));
+    last_singular = IsSingular(ldlt);
+    if (last_singular && options.step_control != StepControl::kLevenbergMarquardt) {
+      throw SingularSystemError(SingularMessage(*current, H, options));
     }
     Eigen::VectorXd step;
     const double previous_objective = f;
@@ -282,7 +298,8 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
     bool accepted = false;
     const double p_norm = current->parameters().norm();
     if (options.step_control == StepControl::kLevenbergMarquardt) {
-      const double floor = 1e-12 * H.diagonal().cwiseAbs().maxCoeff();
+      // The floor keeps damping effective in (near-)null directions, where diag(H) alone would vanish.
+      const double floor = 1e-6 * H.diagonal().cwiseAbs().maxCoeff();
       while (true) {
         Eigen::MatrixXd A = H;
         A.diagonal() += lambda * H.diagonal().cwiseAbs().cwiseMax(floor);
@@ -355,6 +372,7 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
     }
   }
 
+  if (last_singular) throw SingularSystemError(SingularMessage(*current, H, options));
   current->ApplySimilarity(norm.scale, norm.offset);
   model.CopyFrom(*current);
   Eigen::VectorXd d(static_cast<Eigen::Index>(feet.size()));

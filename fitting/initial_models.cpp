@@ -1,0 +1,151 @@
+#include "fitting/initial_models.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+
+#include <Eigen/Dense>
+
+#include "fitting/primitive_fit.h"
+
+namespace s2m {
+
+BSplineBasis UnitSpacedClamped(int order, int num_control) {
+  return BSplineBasis::ClampedUniform(order, num_control, 0.0, num_control - order + 1);
+}
+BSplineBasis UnitSpacedPeriodic(int order, int num_control) {
+  return BSplineBasis::PeriodicUniform(order, num_control, 0.0, num_control);
+}
+
+namespace {
+
+// Centroids of the occupied cells of a uniform grid with 2^level cells per side over the bounding square.
+std::vector<Eigen::Vector2d> OccupiedCells(const Eigen::Matrix2Xd& p, int level) {
+  const Eigen::Vector2d lo = p.rowwise().minCoeff();
+  const double side = std::max((p.rowwise().maxCoeff() - lo).maxCoeff(), 1e-300);
+  const double cells = std::ldexp(1.0, level);
+  std::map<std::pair<long, long>, std::pair<Eigen::Vector2d, int>> grid;
+  for (Eigen::Index j = 0; j < p.cols(); ++j) {
+    const auto ix = static_cast<long>(std::min(cells - 1, std::floor((p(0, j) - lo.x()) / side * cells)));
+    const auto iy = static_cast<long>(std::min(cells - 1, std::floor((p(1, j) - lo.y()) / side * cells)));
+    auto& cell = grid[{ix, iy}];
+    cell.first += p.col(j);
+    ++cell.second;
+  }
+  std::vector<Eigen::Vector2d> out;
+  for (auto& [key, cell] : grid) out.push_back(cell.first / cell.second);
+  return out;
+}
+
+// Orders the cell centroids into a chain by nearest neighbours, starting from an end of the point set.
+std::vector<Eigen::Vector2d> Chain(std::vector<Eigen::Vector2d> cells) {
+  auto farthest_from = [&](const Eigen::Vector2d& q) {
+    return static_cast<std::size_t>(std::max_element(cells.begin(), cells.end(), [&](const auto& a, const auto& b) {
+                                      return (a - q).squaredNorm() < (b - q).squaredNorm();
+                                    }) - cells.begin());
+  };
+  std::swap(cells[0], cells[farthest_from(cells[farthest_from(cells[0])])]);  // double sweep: an extreme cell first
+  for (std::size_t i = 1; i < cells.size(); ++i) {
+    std::size_t best = i;
+    for (std::size_t k = i + 1; k < cells.size(); ++k) {
+      if ((cells[k] - cells[i - 1]).squaredNorm() < (cells[best] - cells[i - 1]).squaredNorm()) best = k;
+    }
+    std::swap(cells[i], cells[best]);
+  }
+  return cells;
+}
+
+// n points at equal arc-length steps along a polyline (closed: including the closing segment, last point excluded).
+Eigen::Matrix2Xd Resample(const std::vector<Eigen::Vector2d>& chain, int n, bool closed) {
+  std::vector<double> s{0.0};
+  const std::size_t segments = closed ? chain.size() : chain.size() - 1;
+  for (std::size_t i = 0; i < segments; ++i) s.push_back(s.back() + (chain[(i + 1) % chain.size()] - chain[i]).norm());
+  const double total = s.back();
+  Eigen::Matrix2Xd out(2, n);
+  std::size_t seg = 0;
+  for (int k = 0; k < n; ++k) {
+    const double target = closed ? total * k / n : total * k / (n - 1);
+    while (seg + 1 < s.size() - 1 && s[seg + 1] < target) ++seg;
+    const double len = s[seg + 1] - s[seg];
+    const double a = len > 0 ? (target - s[seg]) / len : 0.0;
+    out.col(k) = (1 - a) * chain[seg] + a * chain[(seg + 1) % chain.size()];
+  }
+  return out;
+}
+
+// Maps row `r` affinely onto [0, length].
+void RescaleRow(Eigen::Matrix2Xd& uv, int r, double length) {
+  Eigen::VectorXd row = uv.row(r).transpose();
+  const double lo = row.minCoeff(), hi = row.maxCoeff();
+  row = (row.array() - lo) / std::max(hi - lo, 1e-300) * length;
+  uv.row(r) = row.transpose();
+}
+
+}  // namespace
+
+BSplineCurve InitialCurveFromQuadtree(const Eigen::Matrix2Xd& points, int num_control, int order, bool closed) {
+  if (points.cols() < 3) throw std::invalid_argument("an initial curve needs at least 3 data points");
+  std::vector<Eigen::Vector2d> cells;
+  for (int level = 1; level <= 16; ++level) {
+    cells = OccupiedCells(points, level);
+    if (static_cast<int>(cells.size()) >= 4 * num_control || static_cast<Eigen::Index>(cells.size()) == points.cols()) break;
+  }
+  if (cells.size() < 2) throw std::invalid_argument("the data points coincide: no initial curve");
+  const Eigen::Matrix2Xd control = Resample(Chain(std::move(cells)), num_control, closed);
+  return BSplineCurve(closed ? UnitSpacedPeriodic(order, num_control) : UnitSpacedClamped(order, num_control), control);
+}
+
+BSplineSurface InitialSurfaceByProjection(const Eigen::Matrix3Xd& points, int nu, int nv, int order,
+                                          SurfaceProjection projection) {
+  const bool periodic = projection == SurfaceProjection::kCylinder;
+  BSplineBasis bu = periodic ? UnitSpacedPeriodic(order, nu) : UnitSpacedClamped(order, nu);
+  BSplineBasis bv = UnitSpacedClamped(order, nv);
+  const Eigen::Index n = points.cols();
+  if (n < 3) throw std::invalid_argument("an initial surface needs at least 3 data points");
+  Eigen::Matrix2Xd uv(2, n);
+  if (periodic) {
+    const Cylinder cyl = FitCylinder(points).shape;
+    const Eigen::Matrix3d frame = FrameWithAxis(cyl.axis_direction);
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const Eigen::Vector3d q = frame.transpose() * (points.col(j) - cyl.axis_point);
+      double angle = std::atan2(q.y(), q.x());
+      if (angle < 0) angle += 2 * M_PI;
+      uv(0, j) = angle / (2 * M_PI) * (bu.hi() - bu.lo());
+      uv(1, j) = q.z();
+    }
+  } else {
+    const Eigen::Vector3d c = points.rowwise().mean();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig((points.colwise() - c) * (points.colwise() - c).transpose());
+    uv.row(0) = eig.eigenvectors().col(2).transpose() * (points.colwise() - c);
+    uv.row(1) = eig.eigenvectors().col(1).transpose() * (points.colwise() - c);
+    RescaleRow(uv, 0, bu.hi() - bu.lo());
+  }
+  RescaleRow(uv, 1, bv.hi() - bv.lo());
+  // Linear least squares for the control points: (B^T B + mu K) P = B^T X, shared by x, y and z.
+  BSplineSurface surface(bu, bv, Eigen::Matrix3Xd::Zero(3, nu * nv));
+  const int m = nu * nv;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(m, 3);
+  std::vector<JacobianEntry> entries;
+  for (Eigen::Index j = 0; j < n; ++j) {
+    surface.ShapeJacobian({uv(0, j), uv(1, j)}, false, entries);
+    for (const JacobianEntry& a : entries) {
+      if (a.index % 3 != 0) continue;
+      const double wa = a.column.x();
+      b.row(a.index / 3) += wa * points.col(j).transpose();
+      for (const JacobianEntry& c : entries) {
+        if (c.index % 3 == 0) A(a.index / 3, c.index / 3) += wa * c.column.x();
+      }
+    }
+  }
+  const Eigen::MatrixXd K = surface.FairnessMatrix({0.0, 1.0});
+  Eigen::MatrixXd k_scalar(m, m);
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < m; ++j) k_scalar(i, j) = K(3 * i, 3 * j);
+  const double mu = 1e-3 * A.trace() / std::max(k_scalar.trace(), 1e-300);
+  const Eigen::MatrixXd control = (A + mu * k_scalar).ldlt().solve(b);
+  return BSplineSurface(bu, bv, control.transpose());
+}
+
+}  // namespace s2m
