@@ -15,7 +15,8 @@ void CheckOrder(int order, int num_control) {
   }
   if (num_control < order) {
     throw std::invalid_argument("a B-spline of order " + std::to_string(order) + " needs at least " +
-                                std::to_string(order) + " control points, got " + std::to_string(num_control));
+                                std::to_string(order) + " control points, got " +
+                                std::to_string(num_control));
   }
 }
 
@@ -76,18 +77,21 @@ BSplineBasis BSplineBasis::Clamped(int order, std::vector<double> knots) {
     }
   }
   for (int i = 1; i < order; ++i) {
-    if (knots[static_cast<std::size_t>(i)] != knots[0] || knots[knots.size() - 1 - static_cast<std::size_t>(i)] != knots.back()) {
+    if (knots[static_cast<std::size_t>(i)] != knots[0] ||
+        knots[knots.size() - 1 - static_cast<std::size_t>(i)] != knots.back()) {
       throw std::invalid_argument("a clamped knot vector repeats its first and last knots `order` (" +
                                   std::to_string(order) + ") times");
     }
   }
   if (!(knots.back() > knots.front())) throw std::invalid_argument("the knot vector spans an empty domain");
-  for (std::size_t i = static_cast<std::size_t>(order); i + static_cast<std::size_t>(order) < knots.size(); ++i) {
+  for (std::size_t i = static_cast<std::size_t>(order); i + static_cast<std::size_t>(order) < knots.size();
+       ++i) {
     std::size_t m = 1;
     while (i + m < knots.size() - static_cast<std::size_t>(order) && knots[i + m] == knots[i]) ++m;
     if (m >= static_cast<std::size_t>(order)) {
-      throw std::invalid_argument("interior knot " + std::to_string(knots[i]) + " has multiplicity " + std::to_string(m) +
-                                  " >= order " + std::to_string(order) + " (the curve would break apart)");
+      throw std::invalid_argument("interior knot " + std::to_string(knots[i]) + " has multiplicity " +
+                                  std::to_string(m) + " >= order " + std::to_string(order) +
+                                  " (the curve would break apart)");
     }
   }
   return BSplineBasis(order, n, false, std::move(knots));
@@ -148,7 +152,8 @@ int BSplineBasis::FindSpan(double t) const {
     const auto it = std::upper_bound(ext_.begin() + order_ - 1, ext_.begin() + num_control_ + 1, t);
     return static_cast<int>(it - ext_.begin()) - 1;
   }
-  const auto it = std::upper_bound(ext_.begin() + ext_offset_, ext_.begin() + ext_offset_ + num_control_ + 1, t);
+  const auto it =
+      std::upper_bound(ext_.begin() + ext_offset_, ext_.begin() + ext_offset_ + num_control_ + 1, t);
   return std::min(static_cast<int>(it - ext_.begin()) - 1, ext_offset_ + num_control_ - 1);
 }
 
@@ -175,7 +180,8 @@ void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
   }
   for (int j = 0; j <= p; ++j) out.values[0][static_cast<std::size_t>(j)] = ndu[j][p];
   const int n_der = std::min(derivatives, std::min(p, kMaxDerivative));
-  for (int k = n_der + 1; k <= derivatives && k <= kMaxDerivative; ++k) out.values[static_cast<std::size_t>(k)].fill(0.0);
+  for (int k = n_der + 1; k <= derivatives && k <= kMaxDerivative; ++k)
+    out.values[static_cast<std::size_t>(k)].fill(0.0);
   double a[2][kMaxOrder];
   for (int r = 0; r <= p; ++r) {
     int s1 = 0, s2 = 1;
@@ -203,7 +209,8 @@ void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
   }
   double factor = p;
   for (int k = 1; k <= n_der; ++k) {
-    for (int j = 0; j <= p; ++j) out.values[static_cast<std::size_t>(k)][static_cast<std::size_t>(j)] *= factor;
+    for (int j = 0; j <= p; ++j)
+      out.values[static_cast<std::size_t>(k)][static_cast<std::size_t>(j)] *= factor;
     factor *= (p - k);
   }
   out.first = periodic_ ? ((span - ext_offset_ - p) % num_control_ + num_control_) % num_control_ : span - p;
@@ -226,7 +233,8 @@ std::vector<double> BSplineBasis::GramMatrix(int derivative) const {
       for (int i = 0; i < order_; ++i) {
         for (int j = 0; j < order_; ++j) {
           const int ci = ControlIndex(v.first, i), cj = ControlIndex(v.first, j);
-          gram[static_cast<std::size_t>(ci * n + cj)] += w * d[static_cast<std::size_t>(i)] * d[static_cast<std::size_t>(j)];
+          gram[static_cast<std::size_t>(ci * n + cj)] +=
+              w * d[static_cast<std::size_t>(i)] * d[static_cast<std::size_t>(j)];
         }
       }
     }

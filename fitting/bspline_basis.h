@@ -12,8 +12,8 @@ class BSplineBasis {
   static constexpr int kMaxOrder = 8;
   static constexpr int kMaxDerivative = 2;
 
-  // Clamped: `knots` has num_control + order entries, non-decreasing, the first and last `order` equal, interior
-  // multiplicities below `order`. Throws std::invalid_argument naming the violated rule.
+  // Clamped: `knots` has num_control + order entries, non-decreasing, the first and last `order` equal,
+  // interior multiplicities below `order`. Throws std::invalid_argument naming the violated rule.
   static BSplineBasis Clamped(int order, std::vector<double> knots);
   static BSplineBasis ClampedUniform(int order, int num_control, double lo = 0.0, double hi = 1.0);
   // Periodic (closed): num_control + 1 strictly increasing breakpoints; the last closes the period.
@@ -55,8 +55,9 @@ class BSplineBasis {
   bool periodic_ = false;
   double lo_ = 0.0, hi_ = 1.0;
   std::vector<double> knots_;
-  std::vector<double> ext_;  // clamped: knots_; periodic: breakpoints extended by order-1 periods' worth each side
-  int ext_offset_ = 0;       // periodic: ext_[ext_offset_] == lo
+  std::vector<double>
+      ext_;             // clamped: knots_; periodic: breakpoints extended by order-1 periods' worth each side
+  int ext_offset_ = 0;  // periodic: ext_[ext_offset_] == lo
 };
 
 }  // namespace s2m

@@ -1,9 +1,8 @@
 #include "fitting/bspline_models.h"
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <stdexcept>
-
-#include <Eigen/Geometry>
 
 namespace s2m {
 namespace {
@@ -23,7 +22,8 @@ ParameterDomain DomainOf(const BSplineBasis& b, int dimension) {
 Eigen::MatrixXd Gram(const BSplineBasis& b, int derivative) {
   const std::vector<double> g = b.GramMatrix(derivative);
   const int n = b.num_control();
-  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(g.data(), n, n);
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(g.data(), n,
+                                                                                                  n);
 }
 
 // K (x) I_s for parameters stacked point by point (index = point * s + coordinate).
@@ -39,7 +39,8 @@ std::vector<double> SpanSamples(const BSplineBasis& b, int per_span) {
   std::vector<double> out;
   const std::vector<double> breaks = b.Breakpoints();
   for (std::size_t s = 0; s + 1 < breaks.size(); ++s) {
-    for (int i = 0; i < per_span; ++i) out.push_back(breaks[s] + (breaks[s + 1] - breaks[s]) * (i + 0.5) / per_span);
+    for (int i = 0; i < per_span; ++i)
+      out.push_back(breaks[s] + (breaks[s + 1] - breaks[s]) * (i + 0.5) / per_span);
   }
   if (!b.periodic()) {
     out.push_back(b.lo());
@@ -50,25 +51,31 @@ std::vector<double> SpanSamples(const BSplineBasis& b, int per_span) {
 
 }  // namespace
 
-// ---- BSplineCurve -------------------------------------------------------------------------------------------------
+// ---- BSplineCurve
+// -------------------------------------------------------------------------------------------------
 
 BSplineCurve::BSplineCurve(BSplineBasis basis, Eigen::MatrixXd control_points)
     : basis_(std::move(basis)), control_(std::move(control_points)) {
-  if (control_.rows() != 2 && control_.rows() != 3) throw std::invalid_argument("a B-spline curve lives in 2D or 3D");
+  if (control_.rows() != 2 && control_.rows() != 3)
+    throw std::invalid_argument("a B-spline curve lives in 2D or 3D");
   if (control_.cols() != basis_.num_control()) {
     throw std::invalid_argument("the basis has " + std::to_string(basis_.num_control()) + " functions but " +
                                 std::to_string(control_.cols()) + " control points were given");
   }
 }
 
-ParameterDomain BSplineCurve::domain() const { return DomainOf(basis_, 1); }
+ParameterDomain BSplineCurve::domain() const {
+  return DomainOf(basis_, 1);
+}
 
 std::string BSplineCurve::parameter_name(int index) const {
   const int s = ambient_dimension();
   return "control point " + std::to_string(index / s) + " " + kAxis[index % s];
 }
 
-Eigen::VectorXd BSplineCurve::parameters() const { return Eigen::Map<const Eigen::VectorXd>(control_.data(), control_.size()); }
+Eigen::VectorXd BSplineCurve::parameters() const {
+  return Eigen::Map<const Eigen::VectorXd>(control_.data(), control_.size());
+}
 
 void BSplineCurve::set_parameters(const Eigen::VectorXd& p) {
   control_ = Eigen::Map<const Eigen::MatrixXd>(p.data(), control_.rows(), control_.cols());
@@ -104,7 +111,9 @@ void BSplineCurve::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Jaco
       JacobianEntry e;
       e.index = point * s + c;
       e.column = v.values[0][static_cast<std::size_t>(i)] * Eigen::Vector3d::Unit(c);
-      e.dcolumn_dt[0] = with_dt ? Eigen::Vector3d(v.values[1][static_cast<std::size_t>(i)] * Eigen::Vector3d::Unit(c)) : Eigen::Vector3d::Zero();
+      e.dcolumn_dt[0] =
+          with_dt ? Eigen::Vector3d(v.values[1][static_cast<std::size_t>(i)] * Eigen::Vector3d::Unit(c))
+                  : Eigen::Vector3d::Zero();
       e.dcolumn_dt[1].setZero();
       out.push_back(e);
     }
@@ -114,7 +123,8 @@ void BSplineCurve::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Jaco
 Eigen::MatrixXd BSplineCurve::FairnessMatrix(const FairnessWeights& w) const {
   if (w.stretch == 0.0 && w.bending == 0.0) return {};
   Eigen::MatrixXd k = Eigen::MatrixXd::Zero(basis_.num_control(), basis_.num_control());
-  // F_1 = integral |C'|^2 = P^T (G1 (x) I) P and F_2 likewise (METHOD.md section 3; Wang et al. 2006, section 5).
+  // F_1 = integral |C'|^2 = P^T (G1 (x) I) P and F_2 likewise (METHOD.md section 3; Wang et al. 2006, section
+  // 5).
   if (w.stretch != 0.0) k += w.stretch * Gram(basis_, 1);
   if (w.bending != 0.0 && basis_.order() > 2) k += w.bending * Gram(basis_, 2);
   return KroneckerIdentity(k, ambient_dimension());
@@ -126,15 +136,16 @@ std::vector<ParamT> BSplineCurve::SampleParameters() const {
   return out;
 }
 
-// ---- BSplineSurface -------------------------------------------------------------------------------------------------
+// ---- BSplineSurface
+// -------------------------------------------------------------------------------------------------
 
 BSplineSurface::BSplineSurface(BSplineBasis basis_u, BSplineBasis basis_v, Eigen::Matrix3Xd control_points)
     : basis_u_(std::move(basis_u)), basis_v_(std::move(basis_v)), control_(std::move(control_points)) {
   if (basis_v_.periodic()) throw std::invalid_argument("B-spline surfaces may be periodic in u only");
   if (control_.cols() != basis_u_.num_control() * basis_v_.num_control()) {
-    throw std::invalid_argument("a " + std::to_string(basis_u_.num_control()) + " x " +
-                                std::to_string(basis_v_.num_control()) + " surface needs that many control points, got " +
-                                std::to_string(control_.cols()));
+    throw std::invalid_argument(
+        "a " + std::to_string(basis_u_.num_control()) + " x " + std::to_string(basis_v_.num_control()) +
+        " surface needs that many control points, got " + std::to_string(control_.cols()));
   }
 }
 
@@ -148,10 +159,13 @@ ParameterDomain BSplineSurface::domain() const {
 
 std::string BSplineSurface::parameter_name(int index) const {
   const int point = index / 3, nv = basis_v_.num_control();
-  return "control point (" + std::to_string(point / nv) + ", " + std::to_string(point % nv) + ") " + kAxis[index % 3];
+  return "control point (" + std::to_string(point / nv) + ", " + std::to_string(point % nv) + ") " +
+         kAxis[index % 3];
 }
 
-Eigen::VectorXd BSplineSurface::parameters() const { return Eigen::Map<const Eigen::VectorXd>(control_.data(), control_.size()); }
+Eigen::VectorXd BSplineSurface::parameters() const {
+  return Eigen::Map<const Eigen::VectorXd>(control_.data(), control_.size());
+}
 
 void BSplineSurface::set_parameters(const Eigen::VectorXd& p) {
   control_ = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, control_.cols());
@@ -220,18 +234,23 @@ void BSplineSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Ja
 
 Eigen::MatrixXd BSplineSurface::FairnessMatrix(const FairnessWeights& w) const {
   if (w.stretch == 0.0 && w.bending == 0.0) return {};
-  const Eigen::MatrixXd u0 = Gram(basis_u_, 0), u1 = Gram(basis_u_, 1), v0 = Gram(basis_v_, 0), v1 = Gram(basis_v_, 1);
-  const Eigen::MatrixXd u2 = basis_u_.order() > 2 ? Gram(basis_u_, 2) : Eigen::MatrixXd::Zero(u0.rows(), u0.cols());
-  const Eigen::MatrixXd v2 = basis_v_.order() > 2 ? Gram(basis_v_, 2) : Eigen::MatrixXd::Zero(v0.rows(), v0.cols());
+  const Eigen::MatrixXd u0 = Gram(basis_u_, 0), u1 = Gram(basis_u_, 1), v0 = Gram(basis_v_, 0),
+                        v1 = Gram(basis_v_, 1);
+  const Eigen::MatrixXd u2 =
+      basis_u_.order() > 2 ? Gram(basis_u_, 2) : Eigen::MatrixXd::Zero(u0.rows(), u0.cols());
+  const Eigen::MatrixXd v2 =
+      basis_v_.order() > 2 ? Gram(basis_v_, 2) : Eigen::MatrixXd::Zero(v0.rows(), v0.cols());
   const Eigen::Index nu = u0.rows(), nv = v0.rows();
   Eigen::MatrixXd k = Eigen::MatrixXd::Zero(nu * nv, nu * nv);
-  // Tensor-product Gram matrices: integral S_uu . S_uu = P^T (G2u (x) G0v) P, etc. (thin plate + membrane energies).
+  // Tensor-product Gram matrices: integral S_uu . S_uu = P^T (G2u (x) G0v) P, etc. (thin plate + membrane
+  // energies).
   for (Eigen::Index a = 0; a < nu; ++a)
     for (Eigen::Index b = 0; b < nu; ++b)
       for (Eigen::Index c = 0; c < nv; ++c)
         for (Eigen::Index d = 0; d < nv; ++d) {
           double e = 0.0;
-          if (w.bending != 0.0) e += w.bending * (u2(a, b) * v0(c, d) + 2.0 * u1(a, b) * v1(c, d) + u0(a, b) * v2(c, d));
+          if (w.bending != 0.0)
+            e += w.bending * (u2(a, b) * v0(c, d) + 2.0 * u1(a, b) * v1(c, d) + u0(a, b) * v2(c, d));
           if (w.stretch != 0.0) e += w.stretch * (u1(a, b) * v0(c, d) + u0(a, b) * v1(c, d));
           k(a * nv + c, b * nv + d) = e;
         }
@@ -246,9 +265,11 @@ std::vector<ParamT> BSplineSurface::SampleParameters() const {
   return out;
 }
 
-// ---- Ellipse3D ------------------------------------------------------------------------------------------------------
+// ---- Ellipse3D
+// ------------------------------------------------------------------------------------------------------
 
-Ellipse3D::Ellipse3D(const Eigen::Vector3d& center, const Eigen::Matrix3d& rotation, double a, double b, bool circle)
+Ellipse3D::Ellipse3D(const Eigen::Vector3d& center, const Eigen::Matrix3d& rotation, double a, double b,
+                     bool circle)
     : center_(center), rotation_(rotation), a_(a), b_(circle ? a : b), circle_(circle) {}
 
 ParameterDomain Ellipse3D::domain() const {
@@ -261,7 +282,8 @@ ParameterDomain Ellipse3D::domain() const {
 }
 
 std::string Ellipse3D::parameter_name(int index) const {
-  static const char* names[] = {"centre x", "centre y", "centre z", "rotation x", "rotation y", "rotation z", "a", "b"};
+  static const char* names[] = {"centre x",   "centre y",   "centre z", "rotation x",
+                                "rotation y", "rotation z", "a",        "b"};
   if (circle_ && index == 6) return "radius";
   return names[index];
 }
@@ -307,8 +329,10 @@ void Ellipse3D::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) c
   out.point = center_ + rotation_ * Eigen::Vector3d(a_ * c, b * s, 0.0);
   out.d1.resize(3, 1);
   out.d2.resize(3, 1);
-  out.d1.col(0) = derivatives >= 1 ? Eigen::Vector3d(rotation_ * Eigen::Vector3d(-a_ * s, b * c, 0.0)) : Eigen::Vector3d::Zero();
-  out.d2.col(0) = derivatives >= 2 ? Eigen::Vector3d(rotation_ * Eigen::Vector3d(-a_ * c, -b * s, 0.0)) : Eigen::Vector3d::Zero();
+  out.d1.col(0) = derivatives >= 1 ? Eigen::Vector3d(rotation_ * Eigen::Vector3d(-a_ * s, b * c, 0.0))
+                                   : Eigen::Vector3d::Zero();
+  out.d2.col(0) = derivatives >= 2 ? Eigen::Vector3d(rotation_ * Eigen::Vector3d(-a_ * c, -b * s, 0.0))
+                                   : Eigen::Vector3d::Zero();
 }
 
 void Ellipse3D::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {

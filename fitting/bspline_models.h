@@ -17,7 +17,9 @@ class BSplineCurve final : public ParametricModel {
 
   std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<BSplineCurve>(*this); }
   void CopyFrom(const ParametricModel& other) override { *this = dynamic_cast<const BSplineCurve&>(other); }
-  std::string name() const override { return basis_.periodic() ? "closed B-spline curve" : "open B-spline curve"; }
+  std::string name() const override {
+    return basis_.periodic() ? "closed B-spline curve" : "open B-spline curve";
+  }
   int ambient_dimension() const override { return static_cast<int>(control_.rows()); }
   ParameterDomain domain() const override;
   int num_parameters() const override { return static_cast<int>(control_.size()); }
@@ -64,11 +66,13 @@ class BSplineSurface final : public ParametricModel {
   Eigen::Matrix3Xd control_;
 };
 
-// A 3D ellipse (or circle) C(t) = c + R (a cos t, b sin t, 0), t in [0, 2 pi). Parameters: centre (3), a rotation
-// increment (3, linearized at zero and applied exactly as R <- R exp([w]x)), then a and b (ellipse) or r (circle).
+// A 3D ellipse (or circle) C(t) = c + R (a cos t, b sin t, 0), t in [0, 2 pi). Parameters: centre (3), a
+// rotation increment (3, linearized at zero and applied exactly as R <- R exp([w]x)), then a and b (ellipse)
+// or r (circle).
 class Ellipse3D final : public ParametricModel {
  public:
-  Ellipse3D(const Eigen::Vector3d& center, const Eigen::Matrix3d& rotation, double a, double b, bool circle = false);
+  Ellipse3D(const Eigen::Vector3d& center, const Eigen::Matrix3d& rotation, double a, double b,
+            bool circle = false);
 
   const Eigen::Vector3d& center() const { return center_; }
   const Eigen::Matrix3d& rotation() const { return rotation_; }

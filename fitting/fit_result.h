@@ -34,7 +34,7 @@ enum class StopReason {
   kObjectiveTolerance,  // relative decrease of the objective below tolerance
   kNoFurtherDecrease,   // damping reached its limit: the objective cannot decrease at machine precision
   kMaxIterations,
-  kTargetReached,       // the caller's target RMS was reached
+  kTargetReached,  // the caller's target RMS was reached
 };
 const char* ToString(StopReason reason);
 

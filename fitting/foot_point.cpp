@@ -1,8 +1,7 @@
 #include "fitting/foot_point.h"
 
-#include <cmath>
-
 #include <Eigen/Dense>
+#include <cmath>
 
 namespace s2m {
 namespace {
@@ -50,7 +49,8 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
       hess(0, 1) = hess(1, 0) = g.d1.col(0).dot(g.d1.col(1)) + r.dot(g.d2.col(1));
       hess(1, 1) = g.d1.col(1).squaredNorm() + r.dot(g.d2.col(2));
     }
-    // Open boundaries: a parameter pinned at its bound with the gradient pushing outwards is fixed (active set).
+    // Open boundaries: a parameter pinned at its bound with the gradient pushing outwards is fixed (active
+    // set).
     std::array<bool, 2> fixed{false, false};
     for (int k = 0; k < m; ++k) {
       const auto i = static_cast<std::size_t>(k);
@@ -68,7 +68,8 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
       }
     }
     if (m == 1) {
-      // Newton when the curvature term keeps f convex along t, else Gauss-Newton (always a descent direction).
+      // Newton when the curvature term keeps f convex along t, else Gauss-Newton (always a descent
+      // direction).
       const double h00 = h(0, 0) > 0 ? h(0, 0) : g.d1.col(0).squaredNorm();
       step[0] = h00 > 0 ? -grad[0] / h00 : 0.0;
     } else {
@@ -90,7 +91,9 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
       Confine(d, trial);
       model.Evaluate(trial, 2, g);
       const double ft = 0.5 * (g.point - x).squaredNorm();
-      if (ft <= f) {
+      // Accept increases at rounding level: near the foot point f stalls before the orthogonality residual
+      // does.
+      if (ft <= f * (1.0 + 1e-13) + 1e-300) {
         improved = true;
         f = ft;
         break;
@@ -106,7 +109,8 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
     const double span = (d.hi[0] - d.lo[0]) + (m > 1 ? d.hi[1] - d.lo[1] : 0.0);
     if (moved <= 1e-15 * span) break;
   }
-  // On an open boundary the orthogonality condition need not hold: record it for the end rule (METHOD.md section 4).
+  // On an open boundary the orthogonality condition need not hold: record it for the end rule (METHOD.md
+  // section 4).
   for (int k = 0; k < m; ++k) {
     const auto i = static_cast<std::size_t>(k);
     if (!d.periodic[i] && (t[i] <= d.lo[i] || t[i] >= d.hi[i])) {
@@ -127,10 +131,12 @@ FootPointSeeds::FootPointSeeds(const ParametricModel& model) : params_(model.Sam
   index_ = NearestIndex(std::move(samples));
 }
 
-ParamT FootPointSeeds::Nearest(const VecS& x) const { return params_[static_cast<std::size_t>(index_.Nearest(To3(x)))]; }
+ParamT FootPointSeeds::Nearest(const VecS& x) const {
+  return params_[static_cast<std::size_t>(index_.Nearest(To3(x)))];
+}
 
-void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& points, std::vector<FootPoint>& feet,
-                       const std::vector<FootPoint>* warm) {
+void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& points,
+                       std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm) {
   const FootPointSeeds seeds(model);
   const ParameterDomain d = model.domain();
   const Eigen::Index n = points.cols();

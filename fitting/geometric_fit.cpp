@@ -1,11 +1,10 @@
 #include "fitting/geometric_fit.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <sstream>
-
-#include <Eigen/Dense>
 
 namespace s2m {
 namespace {
@@ -18,7 +17,8 @@ Eigen::Vector3d To3(const VecS& v) {
   return out;
 }
 
-// The SDM weight of one tangential direction: delta*kappa / (delta*kappa - 1), clamped at 0 (METHOD.md section 2).
+// The SDM weight of one tangential direction: delta*kappa / (delta*kappa - 1), clamped at 0 (METHOD.md
+// section 2).
 double SdmWeight(double delta, double kappa) {
   const double dk = delta * kappa;
   const double denom = dk - 1.0;
@@ -26,8 +26,8 @@ double SdmWeight(double delta, double kappa) {
   return std::max(0.0, dk / denom);
 }
 
-// CDM's squared weight; near a curvature centre (delta*kappa -> 1) the denominator becomes -(1 + |delta kappa|),
-// the rule METHOD.md gives for CDM and GN.
+// CDM's squared weight; near a curvature centre (delta*kappa -> 1) the denominator becomes -(1 + |delta
+// kappa|), the rule METHOD.md gives for CDM and GN.
 double CdmWeight(double delta, double kappa) {
   const double dk = delta * kappa;
   double denom = dk - 1.0;
@@ -42,23 +42,29 @@ Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s) {
   identity.topLeftCorner(s, s).setIdentity();
   Eigen::Matrix3d normal_space = Eigen::Matrix3d::Zero();
   for (int k = 0; k < f.normal_count; ++k) {
-    normal_space += f.normals[static_cast<std::size_t>(k)] * f.normals[static_cast<std::size_t>(k)].transpose();
+    normal_space +=
+        f.normals[static_cast<std::size_t>(k)] * f.normals[static_cast<std::size_t>(k)].transpose();
   }
   switch (term) {
-    case ErrorTerm::kPdm: return identity;
-    case ErrorTerm::kTdm: return f.normals[0] * f.normals[0].transpose();
-    case ErrorTerm::kGtdm: return normal_space;
+    case ErrorTerm::kPdm:
+      return identity;
+    case ErrorTerm::kTdm:
+      return f.normals[0] * f.normals[0].transpose();
+    case ErrorTerm::kGtdm:
+      return normal_space;
     case ErrorTerm::kSdm:
     case ErrorTerm::kCdm: {
       Eigen::Matrix3d m = normal_space;
       for (int k = 0; k < f.tangent_count; ++k) {
         const auto i = static_cast<std::size_t>(k);
-        const double w = term == ErrorTerm::kSdm ? SdmWeight(f.delta, f.curvatures[i]) : CdmWeight(f.delta, f.curvatures[i]);
+        const double w = term == ErrorTerm::kSdm ? SdmWeight(f.delta, f.curvatures[i])
+                                                 : CdmWeight(f.delta, f.curvatures[i]);
         m += w * f.tangents[i] * f.tangents[i].transpose();
       }
       return m;
     }
-    case ErrorTerm::kGn: return identity;  // GN builds its own Jacobian; M is used only for boundary points
+    case ErrorTerm::kGn:
+      return identity;  // GN builds its own Jacobian; M is used only for boundary points
   }
   return identity;
 }
@@ -96,12 +102,13 @@ void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std:
       columns.resize(entries.size());
       for (std::size_t a = 0; a < entries.size(); ++a) columns[a] = entries[a].column;
       if (foot.on_boundary && options.open_end_rule) {
-        // METHOD.md section 4: e_outer = cos(theta) e_PD + (1 - cos(theta)) e_term, theta between the boundary
-        // tangent space and X - s.
+        // METHOD.md section 4: e_outer = cos(theta) e_PD + (1 - cos(theta)) e_term, theta between the
+        // boundary tangent space and X - s.
         const PrincipalFrame f = ComputePrincipalFrame(geo, x);
         const Eigen::Vector3d offset = -residual;
         double tangential = 0.0;
-        for (int k = 0; k < f.tangent_count; ++k) tangential += std::pow(f.tangents[static_cast<std::size_t>(k)].dot(offset), 2);
+        for (int k = 0; k < f.tangent_count; ++k)
+          tangential += std::pow(f.tangents[static_cast<std::size_t>(k)].dot(offset), 2);
         const double cos_theta = offset.norm() > 0 ? std::sqrt(tangential) / offset.norm() : 0.0;
         const ErrorTerm base = gn ? ErrorTerm::kSdm : options.error_term;
         Eigen::Matrix3d identity = Eigen::Matrix3d::Zero();
@@ -119,13 +126,15 @@ void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std:
         }
         const double det = m == 1 ? G(0, 0) : G.determinant();
         if (std::abs(det) > 1e-14 * std::pow(c0.squaredNorm() + c1.squaredNorm(), m)) {
-          const Eigen::Matrix2d Ginv = m == 1 ? Eigen::Matrix2d(Eigen::Matrix2d::Identity() / G(0, 0)) : Eigen::Matrix2d(G.inverse());
+          const Eigen::Matrix2d Ginv =
+              m == 1 ? Eigen::Matrix2d(Eigen::Matrix2d::Identity() / G(0, 0)) : Eigen::Matrix2d(G.inverse());
           for (std::size_t a = 0; a < entries.size(); ++a) {
             Eigen::Vector2d q = Eigen::Vector2d::Zero();
             q[0] = c0.dot(entries[a].column) + residual.dot(entries[a].dcolumn_dt[0]);
             if (m > 1) q[1] = c1.dot(entries[a].column) + residual.dot(entries[a].dcolumn_dt[1]);
             const Eigen::Vector2d w = Ginv * q;
-            columns[a] = entries[a].column - c0 * w[0] - (m > 1 ? Eigen::Vector3d(c1 * w[1]) : Eigen::Vector3d::Zero());
+            columns[a] = entries[a].column - c0 * w[0] -
+                         (m > 1 ? Eigen::Vector3d(c1 * w[1]) : Eigen::Vector3d::Zero());
           }
         }
         M.setZero();
@@ -137,9 +146,10 @@ void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std:
       for (std::size_t a = 0; a < entries.size(); ++a) {
         const Eigen::Vector3d m_col = M * columns[a];
         // The right-hand side is always C_P^T (M r) with the plain C_P (METHOD.md section 2).
-        g_local[entries[a].index] += gn && !foot.on_boundary ? entries[a].column.dot(residual)
-                                                             : entries[a].column.dot(m_residual);
-        for (std::size_t b = 0; b < entries.size(); ++b) h_local(entries[b].index, entries[a].index) += columns[b].dot(m_col);
+        g_local[entries[a].index] +=
+            gn && !foot.on_boundary ? entries[a].column.dot(residual) : entries[a].column.dot(m_residual);
+        for (std::size_t b = 0; b < entries.size(); ++b)
+          h_local(entries[b].index, entries[a].index) += columns[b].dot(m_col);
       }
     }
 #pragma omp critical
@@ -171,7 +181,8 @@ std::string DescribeNullSpace(const ParametricModel& model, const Eigen::MatrixX
   }
   std::vector<Eigen::Index> order(static_cast<std::size_t>(H.rows()));
   for (Eigen::Index i = 0; i < H.rows(); ++i) order[static_cast<std::size_t>(i)] = i;
-  std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return weight[a] > weight[b]; });
+  std::sort(order.begin(), order.end(),
+            [&](Eigen::Index a, Eigen::Index b) { return weight[a] > weight[b]; });
   std::ostringstream names;
   for (std::size_t i = 0; i < std::min<std::size_t>(order.size(), 4); ++i) {
     if (weight[order[i]] < 1e-6) break;
@@ -187,15 +198,17 @@ bool IsSingular(const Eigen::LDLT<Eigen::MatrixXd>& ldlt) {
   return !(d.minCoeff() > 1e-13 * d.maxCoeff());
 }
 
-std::string SingularMessage(const ParametricModel& model, const Eigen::MatrixXd& H, const GeometricFitOptions& options) {
+std::string SingularMessage(const ParametricModel& model, const Eigen::MatrixXd& H,
+                            const GeometricFitOptions& options) {
   int null_count = 0;
   const std::string names = DescribeNullSpace(model, H, null_count);
   const bool curve_in_space = model.domain().dimension == 1 && model.ambient_dimension() == 3;
   return std::string("the ") + ToString(options.error_term) + " normal matrix of the " + model.name() +
-         " is singular (" + std::to_string(std::max(null_count, 1)) + " unconstrained direction(s), mostly " + names +
-         ")" +
+         " is singular (" + std::to_string(std::max(null_count, 1)) + " unconstrained direction(s), mostly " +
+         names + ")" +
          (options.error_term == ErrorTerm::kTdm && curve_in_space
-              ? ": plain TDM constrains only the direction towards each data point, which leaves a curve in 3D free "
+              ? ": plain TDM constrains only the direction towards each data point, which leaves a curve in "
+                "3D free "
                 "to tilt out of planar data; use gtdm or sdm"
               : ": add fairness or data that cover the whole model");
 }
@@ -204,18 +217,25 @@ std::string SingularMessage(const ParametricModel& model, const Eigen::MatrixXd&
 
 const char* ToString(ErrorTerm term) {
   switch (term) {
-    case ErrorTerm::kPdm: return "pdm";
-    case ErrorTerm::kTdm: return "tdm";
-    case ErrorTerm::kSdm: return "sdm";
-    case ErrorTerm::kCdm: return "cdm";
-    case ErrorTerm::kGtdm: return "gtdm";
-    case ErrorTerm::kGn: return "gn";
+    case ErrorTerm::kPdm:
+      return "pdm";
+    case ErrorTerm::kTdm:
+      return "tdm";
+    case ErrorTerm::kSdm:
+      return "sdm";
+    case ErrorTerm::kCdm:
+      return "cdm";
+    case ErrorTerm::kGtdm:
+      return "gtdm";
+    case ErrorTerm::kGn:
+      return "gn";
   }
   return "unknown";
 }
 
 ErrorTerm ErrorTermFromString(const std::string& name) {
-  for (ErrorTerm t : {ErrorTerm::kPdm, ErrorTerm::kTdm, ErrorTerm::kSdm, ErrorTerm::kCdm, ErrorTerm::kGtdm, ErrorTerm::kGn}) {
+  for (ErrorTerm t : {ErrorTerm::kPdm, ErrorTerm::kTdm, ErrorTerm::kSdm, ErrorTerm::kCdm, ErrorTerm::kGtdm,
+                      ErrorTerm::kGn}) {
     if (name == ToString(t)) return t;
   }
   throw std::invalid_argument("unknown error term '" + name + "' (pdm, tdm, sdm, cdm, gtdm, gn)");
@@ -223,14 +243,18 @@ ErrorTerm ErrorTermFromString(const std::string& name) {
 
 const char* ToString(StepControl control) {
   switch (control) {
-    case StepControl::kNone: return "none";
-    case StepControl::kLevenbergMarquardt: return "levenberg-marquardt";
-    case StepControl::kArmijo: return "armijo";
+    case StepControl::kNone:
+      return "none";
+    case StepControl::kLevenbergMarquardt:
+      return "levenberg-marquardt";
+    case StepControl::kArmijo:
+      return "armijo";
   }
   return "unknown";
 }
 
-GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& points, const GeometricFitOptions& options) {
+GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& points,
+                            const GeometricFitOptions& options) {
   const int s = model.ambient_dimension();
   if (points.rows() != s) {
     throw std::invalid_argument("the model lives in " + std::to_string(s) + "D but the points have " +
@@ -238,6 +262,8 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
   }
   if (points.cols() == 0) throw std::invalid_argument("no data points to fit");
   if (!points.allFinite()) throw std::invalid_argument("the data points contain NaN or inf");
+  if (!model.parameters().allFinite())
+    throw std::invalid_argument("the initial " + model.name() + " has NaN or inf parameters");
   const auto start = Clock::now();
   const double n = static_cast<double>(points.cols());
 
@@ -267,7 +293,9 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
   double lambda = options.initial_damping;
   Eigen::MatrixXd H;
   Eigen::VectorXd g;
-  auto rms_of = [&](const std::vector<FootPoint>& ft) { return std::sqrt(2.0 * DataObjective(ft) / n) * norm.scale; };
+  auto rms_of = [&](const std::vector<FootPoint>& ft) {
+    return std::sqrt(2.0 * DataObjective(ft) / n) * norm.scale;
+  };
   double rms = rms_of(feet);
 
   bool last_singular = false;
@@ -279,14 +307,15 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
       H += 2.0 * K;
       g += 2.0 * K * current->parameters();
     }
-    const double g_scale = 1.0 + std::sqrt(2.0 * DataObjective(feet)) * std::sqrt(H.diagonal().cwiseAbs().maxCoeff());
+    const double g_scale =
+        1.0 + std::sqrt(2.0 * DataObjective(feet)) * std::sqrt(H.diagonal().cwiseAbs().maxCoeff());
     if (g.norm() <= options.gradient_tolerance * g_scale) {
       result.stop_reason = StopReason::kGradientTolerance;
       break;
     }
-    // A singular normal matrix means the error term leaves directions unconstrained. Without damping no step can be
-    // taken: say which directions, don't guess. With LM a transient singularity (a far start) is damped, but one that
-    // persists to the end is reported (below) instead of being hidden.
+    // A singular normal matrix means the error term leaves directions unconstrained. Without damping no step
+    // can be taken: say which directions, don't guess. With LM a transient singularity (a far start) is
+    // damped, but one that persists to the end is reported (below) instead of being hidden.
     Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
     last_singular = IsSingular(ldlt);
     if (last_singular && options.step_control != StepControl::kLevenbergMarquardt) {
@@ -342,8 +371,9 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
       }
     }
     if (!accepted) {
-      result.stop_reason = step.norm() <= options.step_tolerance * (1.0 + p_norm) ? StopReason::kStepTolerance
-                                                                                    : StopReason::kNoFurtherDecrease;
+      result.stop_reason = step.norm() <= options.step_tolerance * (1.0 + p_norm)
+                               ? StopReason::kStepTolerance
+                               : StopReason::kNoFurtherDecrease;
       break;
     }
     ++result.iterations;
@@ -359,9 +389,11 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
     result.history.push_back(rec);
     if (options.on_iteration) options.on_iteration(rec);
     if (!std::isfinite(new_rms)) {
-      throw std::runtime_error("the fit diverged (RMS is not finite after iteration " + std::to_string(result.iterations) + ")");
+      throw std::runtime_error("the fit diverged (RMS is not finite after iteration " +
+                               std::to_string(result.iterations) + ")");
     }
-    const double relative_decrease = previous_objective > 0 ? (previous_objective - f) / previous_objective : 0.0;
+    const double relative_decrease =
+        previous_objective > 0 ? (previous_objective - f) / previous_objective : 0.0;
     rms = new_rms;
     if (options.target_rms > 0 && rms <= options.target_rms) {
       result.stop_reason = StopReason::kTargetReached;

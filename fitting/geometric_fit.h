@@ -1,14 +1,13 @@
 #pragma once
 // The fitting engine: minimizes 1/2 sum_j d^2(X_j, C(P; .)) + F_s(P) over the shape parameters P of any
-// ParametricModel by alternating exact foot points and one linear least-squares step on a local quadratic model
-// built with one of the six error terms of METHOD.md section 2 (Wang, Pottmann, Liu, ACM TOG 25 (2006);
+// ParametricModel by alternating exact foot points and one linear least-squares step on a local quadratic
+// model built with one of the six error terms of METHOD.md section 2 (Wang, Pottmann, Liu, ACM TOG 25 (2006);
 // Liu & Wang, GMP 2008).
 
+#include <Eigen/Core>
 #include <functional>
 #include <stdexcept>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "fitting/fit_result.h"
 #include "fitting/foot_point.h"
@@ -22,7 +21,7 @@ enum class ErrorTerm {
   kSdm,   // squared distance: curvature-weighted tangential terms plus the whole normal space (the default)
   kCdm,   // SDM with squared weights: Gauss-Newton without the mixed second derivative
   kGtdm,  // the whole normal space (N.e)^2: TDM generalized to curves in 3D
-  kGn,    // Gauss-Newton with the full implicit-function Jacobian C_P - C_t G^-1 Q (reference, most expensive)
+  kGn,  // Gauss-Newton with the full implicit-function Jacobian C_P - C_t G^-1 Q (reference, most expensive)
 };
 const char* ToString(ErrorTerm term);
 ErrorTerm ErrorTermFromString(const std::string& name);  // "pdm", "tdm", ...; throws std::invalid_argument
@@ -37,17 +36,18 @@ const char* ToString(StepControl control);
 struct GeometricFitOptions {
   ErrorTerm error_term = ErrorTerm::kSdm;
   StepControl step_control = StepControl::kLevenbergMarquardt;
-  // Fairness weights, applied to data normalized into the unit box (METHOD.md section 3): curves alpha (stretch)
-  // and beta (bending); surfaces membrane and thin plate. Paper default for curves: bending 0.001.
+  // Fairness weights, applied to data normalized into the unit box (METHOD.md section 3): curves alpha
+  // (stretch) and beta (bending); surfaces membrane and thin plate. Paper default for curves: bending 0.001.
   FairnessWeights fairness;
-  bool normalize = true;          // scale data and model into the unit box while fitting
-  bool open_end_rule = true;      // METHOD.md section 4 for points whose foot point lies on an open boundary
+  bool normalize = true;      // scale data and model into the unit box while fitting
+  bool open_end_rule = true;  // METHOD.md section 4 for points whose foot point lies on an open boundary
   int max_iterations = 100;
-  double target_rms = 0.0;        // stop as soon as RMS (input units) <= target (0: off)
-  double objective_tolerance = 1e-10;  // stop when the objective's relative decrease in an iteration falls below
+  double target_rms = 0.0;  // stop as soon as RMS (input units) <= target (0: off)
+  double objective_tolerance =
+      1e-10;                      // stop when the objective's relative decrease in an iteration falls below
   double step_tolerance = 1e-12;  // on |D| / (1 + |P|), normalized units
   double gradient_tolerance = 1e-13;  // on |g| / (1 + sum |C_P^T r|), normalized units
-  double initial_damping = 1e-4;  // LM lambda relative to diag(H)
+  double initial_damping = 1e-4;      // LM lambda relative to diag(H)
   double armijo_c = 1e-4;
   // Called after every iteration (progress on long fits).
   std::function<void(const IterationRecord&)> on_iteration;
@@ -61,8 +61,8 @@ struct GeometricFitResult {
   std::vector<FootPoint> foot_points;  // of the final model, distances in input units
 };
 
-// Thrown when the normal matrix of the chosen error term is singular (e.g. plain TDM for a curve in 3D fitted to
-// planar data): the message names the unconstrained parameters instead of letting damping hide them.
+// Thrown when the normal matrix of the chosen error term is singular (e.g. plain TDM for a curve in 3D fitted
+// to planar data): the message names the unconstrained parameters instead of letting damping hide them.
 class SingularSystemError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;

@@ -1,11 +1,10 @@
 #include "fitting/initial_models.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <stdexcept>
-
-#include <Eigen/Dense>
 
 #include "fitting/primitive_fit.h"
 
@@ -29,7 +28,8 @@ std::vector<Eigen::Vector2d> OccupiedCells(const Eigen::Matrix2Xd& p, int level)
   for (Eigen::Index j = 0; j < p.cols(); ++j) {
     const auto ix = static_cast<long>(std::min(cells - 1, std::floor((p(0, j) - lo.x()) / side * cells)));
     const auto iy = static_cast<long>(std::min(cells - 1, std::floor((p(1, j) - lo.y()) / side * cells)));
-    auto& cell = grid[{ix, iy}];
+    auto [it, inserted] = grid.try_emplace({ix, iy}, Eigen::Vector2d::Zero(), 0);
+    auto& cell = it->second;
     cell.first += p.col(j);
     ++cell.second;
   }
@@ -41,11 +41,14 @@ std::vector<Eigen::Vector2d> OccupiedCells(const Eigen::Matrix2Xd& p, int level)
 // Orders the cell centroids into a chain by nearest neighbours, starting from an end of the point set.
 std::vector<Eigen::Vector2d> Chain(std::vector<Eigen::Vector2d> cells) {
   auto farthest_from = [&](const Eigen::Vector2d& q) {
-    return static_cast<std::size_t>(std::max_element(cells.begin(), cells.end(), [&](const auto& a, const auto& b) {
-                                      return (a - q).squaredNorm() < (b - q).squaredNorm();
-                                    }) - cells.begin());
+    return static_cast<std::size_t>(std::max_element(cells.begin(), cells.end(),
+                                                     [&](const auto& a, const auto& b) {
+                                                       return (a - q).squaredNorm() < (b - q).squaredNorm();
+                                                     }) -
+                                    cells.begin());
   };
-  std::swap(cells[0], cells[farthest_from(cells[farthest_from(cells[0])])]);  // double sweep: an extreme cell first
+  std::swap(cells[0],
+            cells[farthest_from(cells[farthest_from(cells[0])])]);  // double sweep: an extreme cell first
   for (std::size_t i = 1; i < cells.size(); ++i) {
     std::size_t best = i;
     for (std::size_t k = i + 1; k < cells.size(); ++k) {
@@ -56,11 +59,13 @@ std::vector<Eigen::Vector2d> Chain(std::vector<Eigen::Vector2d> cells) {
   return cells;
 }
 
-// n points at equal arc-length steps along a polyline (closed: including the closing segment, last point excluded).
+// n points at equal arc-length steps along a polyline (closed: including the closing segment, last point
+// excluded).
 Eigen::Matrix2Xd Resample(const std::vector<Eigen::Vector2d>& chain, int n, bool closed) {
   std::vector<double> s{0.0};
   const std::size_t segments = closed ? chain.size() : chain.size() - 1;
-  for (std::size_t i = 0; i < segments; ++i) s.push_back(s.back() + (chain[(i + 1) % chain.size()] - chain[i]).norm());
+  for (std::size_t i = 0; i < segments; ++i)
+    s.push_back(s.back() + (chain[(i + 1) % chain.size()] - chain[i]).norm());
   const double total = s.back();
   Eigen::Matrix2Xd out(2, n);
   std::size_t seg = 0;
@@ -84,16 +89,20 @@ void RescaleRow(Eigen::Matrix2Xd& uv, int r, double length) {
 
 }  // namespace
 
-BSplineCurve InitialCurveFromQuadtree(const Eigen::Matrix2Xd& points, int num_control, int order, bool closed) {
+BSplineCurve InitialCurveFromQuadtree(const Eigen::Matrix2Xd& points, int num_control, int order,
+                                      bool closed) {
   if (points.cols() < 3) throw std::invalid_argument("an initial curve needs at least 3 data points");
   std::vector<Eigen::Vector2d> cells;
   for (int level = 1; level <= 16; ++level) {
     cells = OccupiedCells(points, level);
-    if (static_cast<int>(cells.size()) >= 4 * num_control || static_cast<Eigen::Index>(cells.size()) == points.cols()) break;
+    if (static_cast<int>(cells.size()) >= 4 * num_control ||
+        static_cast<Eigen::Index>(cells.size()) == points.cols())
+      break;
   }
   if (cells.size() < 2) throw std::invalid_argument("the data points coincide: no initial curve");
   const Eigen::Matrix2Xd control = Resample(Chain(std::move(cells)), num_control, closed);
-  return BSplineCurve(closed ? UnitSpacedPeriodic(order, num_control) : UnitSpacedClamped(order, num_control), control);
+  return BSplineCurve(closed ? UnitSpacedPeriodic(order, num_control) : UnitSpacedClamped(order, num_control),
+                      control);
 }
 
 BSplineSurface InitialSurfaceByProjection(const Eigen::Matrix3Xd& points, int nu, int nv, int order,
@@ -116,7 +125,8 @@ BSplineSurface InitialSurfaceByProjection(const Eigen::Matrix3Xd& points, int nu
     }
   } else {
     const Eigen::Vector3d c = points.rowwise().mean();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig((points.colwise() - c) * (points.colwise() - c).transpose());
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig((points.colwise() - c) *
+                                                       (points.colwise() - c).transpose());
     uv.row(0) = eig.eigenvectors().col(2).transpose() * (points.colwise() - c);
     uv.row(1) = eig.eigenvectors().col(1).transpose() * (points.colwise() - c);
     RescaleRow(uv, 0, bu.hi() - bu.lo());

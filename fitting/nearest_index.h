@@ -2,9 +2,8 @@
 // A static k-d tree over 3D points (2D data use z = 0) for nearest-sample queries: seeds foot-point searches
 // (METHOD.md section 10). Built once per iteration over samples of the current model.
 
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 namespace s2m {
 
@@ -18,8 +17,8 @@ class NearestIndex {
 
  private:
   struct Node {
-    int begin, end;   // range in order_
-    int axis = -1;    // -1 for a leaf
+    int begin, end;  // range in order_
+    int axis = -1;   // -1 for a leaf
     double split = 0;
     int left = -1, right = -1;
   };

@@ -1,9 +1,8 @@
 #include "fitting/parametric_model.h"
 
-#include <cmath>
-
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
+#include <cmath>
 
 namespace s2m {
 namespace {
@@ -31,7 +30,8 @@ PrincipalFrame ComputePrincipalFrame(const LocalGeometry& g, const VecS& data_po
     const Eigen::Vector3d c1 = To3(g.d1.col(0)), c2 = To3(g.d2.col(0));
     const double speed = c1.norm();
     const Eigen::Vector3d t = speed > 0 ? Eigen::Vector3d(c1 / speed) : Eigen::Vector3d::UnitX();
-    const Eigen::Vector3d k = speed > 0 ? Eigen::Vector3d((c2 - c2.dot(t) * t) / (speed * speed)) : Eigen::Vector3d::Zero();
+    const Eigen::Vector3d k =
+        speed > 0 ? Eigen::Vector3d((c2 - c2.dot(t) * t) / (speed * speed)) : Eigen::Vector3d::Zero();
     f.tangent_count = 1;
     f.tangents[0] = t;
     Eigen::Vector3d normal_offset = offset - offset.dot(t) * t;
@@ -54,11 +54,13 @@ PrincipalFrame ComputePrincipalFrame(const LocalGeometry& g, const VecS& data_po
   // fundamental forms); I-orthonormal eigenvectors give orthonormal principal directions T = C_t v.
   const Eigen::Vector3d su = To3(g.d1.col(0)), sv = To3(g.d1.col(1));
   Eigen::Vector3d n = su.cross(sv);
-  n = n.norm() > 0 ? Eigen::Vector3d(n.normalized()) : AnyPerpendicular(su.norm() > 0 ? su.normalized() : Eigen::Vector3d::UnitX());
+  n = n.norm() > 0 ? Eigen::Vector3d(n.normalized())
+                   : AnyPerpendicular(su.norm() > 0 ? su.normalized() : Eigen::Vector3d::UnitX());
   if (n.dot(offset) < 0) n = -n;
   Eigen::Matrix2d first, second;
   first << su.dot(su), su.dot(sv), su.dot(sv), sv.dot(sv);
-  second << n.dot(To3(g.d2.col(0))), n.dot(To3(g.d2.col(1))), n.dot(To3(g.d2.col(1))), n.dot(To3(g.d2.col(2)));
+  second << n.dot(To3(g.d2.col(0))), n.dot(To3(g.d2.col(1))), n.dot(To3(g.d2.col(1))),
+      n.dot(To3(g.d2.col(2)));
   f.tangent_count = 2;
   f.normal_count = 1;
   f.normals[0] = n;

@@ -1,13 +1,12 @@
 #pragma once
-// The model interface of the fitting engine: a parametric family C(P; t) with shape parameters P (r numbers) and
-// location parameters t (m = 1 for curves, 2 for surfaces) in R^s (s = 2 or 3). METHOD.md section 1.
+// The model interface of the fitting engine: a parametric family C(P; t) with shape parameters P (r numbers)
+// and location parameters t (m = 1 for curves, 2 for surfaces) in R^s (s = 2 or 3). METHOD.md section 1.
 
+#include <Eigen/Core>
 #include <array>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace s2m {
 
@@ -25,21 +24,22 @@ struct ParameterDomain {
 
 // Point and derivatives in t at one parameter value.
 struct LocalGeometry {
-  VecS point;   // C(t)
-  MatS d1;      // s x m: columns dC/dt_k
-  MatS d2;      // s x (1 or 3): d2C/dt^2 (curves); C_uu, C_uv, C_vv (surfaces)
+  VecS point;  // C(t)
+  MatS d1;     // s x m: columns dC/dt_k
+  MatS d2;     // s x (1 or 3): d2C/dt^2 (curves); C_uu, C_uv, C_vv (surfaces)
 };
 
 // One non-zero column of the shape Jacobian dC/dP at fixed t, and its t-derivatives (for GN's mixed term).
 struct JacobianEntry {
-  int index = 0;                  // shape parameter index
-  Eigen::Vector3d column;         // dC/dP_index (first s entries used)
+  int index = 0;                              // shape parameter index
+  Eigen::Vector3d column;                     // dC/dP_index (first s entries used)
   std::array<Eigen::Vector3d, 2> dcolumn_dt;  // d/dt_k of the column
 };
 
 struct FairnessWeights {
-  double stretch = 0.0;     // curves: alpha * integral |C'|^2; surfaces: membrane integral |S_u|^2 + |S_v|^2
-  double bending = 0.0;     // curves: beta * integral |C''|^2; surfaces: thin plate |S_uu|^2 + 2|S_uv|^2 + |S_vv|^2
+  double stretch = 0.0;  // curves: alpha * integral |C'|^2; surfaces: membrane integral |S_u|^2 + |S_v|^2
+  double bending =
+      0.0;  // curves: beta * integral |C''|^2; surfaces: thin plate |S_uu|^2 + 2|S_uv|^2 + |S_vv|^2
 };
 
 class ParametricModel {
@@ -52,12 +52,12 @@ class ParametricModel {
 
   virtual int ambient_dimension() const = 0;  // s
   virtual ParameterDomain domain() const = 0;
-  virtual int num_parameters() const = 0;     // r
+  virtual int num_parameters() const = 0;  // r
   virtual std::string parameter_name(int index) const = 0;
   virtual Eigen::VectorXd parameters() const = 0;
   virtual void set_parameters(const Eigen::VectorXd& p) = 0;
-  // Applies a step D of the linearized problem. Models whose parameters enter non-linearly (rotations) linearize at
-  // the current value and override this (METHOD.md section 6, last item); the default adds D.
+  // Applies a step D of the linearized problem. Models whose parameters enter non-linearly (rotations)
+  // linearize at the current value and override this (METHOD.md section 6, last item); the default adds D.
   virtual void ApplyStep(const Eigen::VectorXd& step) { set_parameters(parameters() + step); }
   // Maps the model by x -> scale * x + offset (data normalization into the unit box and back).
   virtual void ApplySimilarity(double scale, const VecS& offset) = 0;
@@ -76,8 +76,8 @@ class ParametricModel {
 };
 
 // The principal frame of the model at a foot point, oriented towards a data point X (METHOD.md section 2):
-// unit tangents T_k with signed curvatures kappa_k w.r.t. the unit normal n, an orthonormal basis of the normal space,
-// and delta = n.(X - s) >= 0.
+// unit tangents T_k with signed curvatures kappa_k w.r.t. the unit normal n, an orthonormal basis of the
+// normal space, and delta = n.(X - s) >= 0.
 struct PrincipalFrame {
   int tangent_count = 1;
   std::array<Eigen::Vector3d, 2> tangents;
