@@ -8,23 +8,13 @@
 #include "acquisition/nist_reference.h"
 #include "acquisition/point_cloud_io.h"
 #include "apps/commands.h"
+#include "apps/fit_options.h"
 #include "apps/output.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_fit.h"
 
 namespace s2m::app {
 namespace {
-
-struct FitOptions {
-  std::string file;
-  std::string model;
-  std::string method = "tdm";
-  std::string reference;
-  std::string history;
-  std::string units;
-  int max_iterations = 200;
-  bool json = false;
-};
 
 // One named result value with its uncertainty, for both text and JSON output.
 struct Row {
@@ -181,11 +171,35 @@ Runner AddFitCommand(CLI::App& app) {
   cmd->add_option("file", o->file, "Input: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds")->required();
   cmd->add_option("--model,-m", o->model, "Model to fit")
       ->required()
-      ->check(CLI::IsMember({"plane", "sphere", "cylinder", "cone"}));
+      ->check(CLI::IsMember({"plane", "sphere", "cylinder", "cone", "bspline-curve", "bspline-surface"}));
   cmd->add_option("--method", o->method,
-                  "Error term per iteration: tdm (Gauss-Newton) or sdm (curvature-aware)")
+                  "Error term per iteration: pdm, tdm, sdm, cdm, gtdm or gn (primitives: tdm or sdm). "
+                  "Default: tdm for primitives, sdm for splines")
+      ->check(CLI::IsMember({"pdm", "tdm", "sdm", "cdm", "gtdm", "gn"}));
+  cmd->add_option("--control-points", o->control_points,
+                  "Splines: control points, N for a curve, NUxNV for a surface (default 12 / 8x8)");
+  cmd->add_option("--order", o->order, "Splines: order (degree + 1)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"tdm", "sdm"}));
+      ->check(CLI::Range(2, 8));
+  cmd->add_flag(
+      "--closed", o->closed,
+      "bspline-curve: closed (periodic) curve; bspline-surface: periodic in u over a fitted cylinder");
+  cmd->add_option("--stretch", o->stretch,
+                  "Splines: fairness weight of the stretch (membrane) energy, unit box")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--bending", o->bending,
+                  "Splines: fairness weight of the bending (thin plate) energy, unit box")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--step-control", o->step_control, "Splines: lm (Levenberg-Marquardt), armijo or none")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"lm", "armijo", "none"}));
+  cmd->add_option(
+      "--output,-o", o->output,
+      "Splines: write PREFIX.json (control points, knots), PREFIX.ply (samples), PREFIX_history.csv");
+  cmd->add_option("--contour", o->contour, "Glyph (.glif) inputs: which contour to fit")
+      ->capture_default_str();
   cmd->add_option("--max-iterations", o->max_iterations, "Iteration cap")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
@@ -194,6 +208,13 @@ Runner AddFitCommand(CLI::App& app) {
   cmd->add_option("--units", o->units, "Declare the input's units (e.g. mm) when the file does not say");
   cmd->add_flag("--json", o->json, "Machine-readable output (schema scan2model.fit/1, docs/cli.md)");
   return [o]() {
+    if (o->model == "bspline-curve" || o->model == "bspline-surface") return RunSplineFit(*o);
+    if (o->method.empty()) o->method = "tdm";
+    if (o->method != "tdm" && o->method != "sdm") {
+      std::cerr << "scan2model fit: error: --method " << o->method
+                << " applies to splines; primitives use tdm or sdm\n";
+      return int{kUsage};
+    }
     try {
       const PointCloudFormat format = DetectFormat(o->file);
       Scan scan = ReadPointCloud(o->file, format);

@@ -1,0 +1,33 @@
+#pragma once
+// Options of `scan2model fit`, shared by the primitive and the spline paths.
+
+#include <string>
+
+#include "registration/scan.h"
+
+namespace s2m::app {
+
+struct FitOptions {
+  std::string file;
+  std::string model;
+  std::string method;  // default per model family: tdm for primitives, sdm for splines
+  std::string reference;
+  std::string history;
+  std::string units;
+  int max_iterations = 200;
+  bool json = false;
+  // Splines.
+  std::string control_points;  // curve: "N"; surface: "NUxNV"
+  int order = 4;
+  bool closed = false;  // closed (periodic) curve; for surfaces: periodic in u over a fitted cylinder
+  double stretch = 0.0;
+  double bending = 1e-3;
+  std::string step_control = "lm";
+  std::string output;  // prefix for PREFIX.json, PREFIX.ply, PREFIX_history.csv
+  int contour = 0;     // .glif inputs: which contour
+};
+
+// Runs a B-spline curve or surface fit; returns the exit code.
+int RunSplineFit(const FitOptions& options);
+
+}  // namespace s2m::app

@@ -1,0 +1,268 @@
+// `scan2model fit --model bspline-curve|bspline-surface`: the fitting engine from the command line.
+
+#include <unistd.h>
+
+#include <Eigen/Eigenvalues>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+
+#include "acquisition/format_error.h"
+#include "acquisition/glyph_outline.h"
+#include "acquisition/point_cloud_io.h"
+#include "apps/commands.h"
+#include "apps/fit_options.h"
+#include "apps/output.h"
+#include "fitting/geometric_fit.h"
+#include "fitting/initial_models.h"
+
+namespace s2m::app {
+namespace {
+
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+std::pair<int, int> ParseControlPoints(const std::string& text, bool surface) {
+  if (text.empty()) return surface ? std::pair{8, 8} : std::pair{12, 0};
+  try {
+    const std::size_t x = text.find('x');
+    if (surface) {
+      if (x == std::string::npos) throw UsageError("");
+      return {std::stoi(text.substr(0, x)), std::stoi(text.substr(x + 1))};
+    }
+    if (x != std::string::npos) throw UsageError("");
+    return {std::stoi(text), 0};
+  } catch (const std::exception&) {
+    throw UsageError("--control-points '" + text + "': expected " +
+                     (surface ? "NUxNV (e.g. 8x6)" : "a count (e.g. 12)"));
+  }
+}
+
+StepControl ParseStepControl(const std::string& s) {
+  if (s == "none") return StepControl::kNone;
+  if (s == "armijo") return StepControl::kArmijo;
+  return StepControl::kLevenbergMarquardt;
+}
+
+// Points of the input: a point cloud, or one contour of a .glif glyph (2D).
+Eigen::MatrixXd ReadInput(const FitOptions& o, std::string& format, std::string& units) {
+  if (std::filesystem::path(o.file).extension() == ".glif") {
+    const auto contours = ReadGlifContours(o.file);
+    if (o.contour < 0 || o.contour >= static_cast<int>(contours.size())) {
+      throw UsageError("--contour " + std::to_string(o.contour) + ": the glyph has " +
+                       std::to_string(contours.size()) + " contours");
+    }
+    format = "glif";
+    units = "font units";
+    return contours[static_cast<std::size_t>(o.contour)];
+  }
+  const PointCloudFormat f = DetectFormat(o.file);
+  const Scan scan = ReadPointCloud(o.file, f);
+  for (const std::string& note : scan.metadata.notes) std::cerr << "scan2model fit: note: " << note << "\n";
+  format = ToString(f);
+  units = scan.units;
+  return scan.points;
+}
+
+// A curve's initial model: quadtree chain in the data's plane (2D data as is; 3D data on their best-fit
+// plane).
+std::unique_ptr<ParametricModel> InitialCurve(const Eigen::MatrixXd& points, int n, int order, bool closed) {
+  if (points.rows() == 2)
+    return std::make_unique<BSplineCurve>(InitialCurveFromQuadtree(points, n, order, closed));
+  const Eigen::Vector3d c = points.rowwise().mean();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig((points.colwise() - c) *
+                                                     (points.colwise() - c).transpose());
+  Eigen::Matrix<double, 3, 2> plane;
+  plane << eig.eigenvectors().col(2), eig.eigenvectors().col(1);
+  const Eigen::Matrix2Xd flat = plane.transpose() * (points.colwise() - c);
+  const BSplineCurve curve2d = InitialCurveFromQuadtree(flat, n, order, closed);
+  const Eigen::MatrixXd control = (plane * curve2d.control_points()).colwise() + c;
+  return std::make_unique<BSplineCurve>(curve2d.basis(), control);
+}
+
+nlohmann::json BasisJson(const BSplineBasis& b) {
+  return {
+      {"order", b.order()}, {"periodic", b.periodic()}, {"knots", b.knots()}, {"domain", {b.lo(), b.hi()}}};
+}
+
+// Samples of the fitted model (curve: 20 per knot span; surface: 10 x 10 per patch) for the PLY output.
+Eigen::Matrix3Xd Samples(const ParametricModel& model) {
+  const ParameterDomain d = model.domain();
+  std::vector<Eigen::Vector3d> out;
+  LocalGeometry g;
+  auto add = [&](double u, double v) {
+    model.Evaluate({u, v}, 0, g);
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    p.head(g.point.size()) = g.point;
+    out.push_back(p);
+  };
+  if (d.dimension == 1) {
+    const int n = 20 * static_cast<int>(std::ceil(d.hi[0] - d.lo[0]));
+    for (int i = 0; i <= n; ++i) add(d.lo[0] + (d.hi[0] - d.lo[0]) * i / n, 0.0);
+  } else {
+    const int nu = 10 * static_cast<int>(std::ceil(d.hi[0] - d.lo[0])),
+              nv = 10 * static_cast<int>(std::ceil(d.hi[1] - d.lo[1]));
+    for (int i = 0; i <= nu; ++i)
+      for (int j = 0; j <= nv; ++j)
+        add(d.lo[0] + (d.hi[0] - d.lo[0]) * i / nu, d.lo[1] + (d.hi[1] - d.lo[1]) * j / nv);
+  }
+  Eigen::Matrix3Xd m(3, static_cast<Eigen::Index>(out.size()));
+  for (std::size_t i = 0; i < out.size(); ++i) m.col(static_cast<Eigen::Index>(i)) = out[i];
+  return m;
+}
+
+void WriteText(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".partial";
+  {
+    std::ofstream out(tmp);
+    out << text;
+    if (!out) throw FormatError(path, "", "cannot write");
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+}  // namespace
+
+int RunSplineFit(const FitOptions& o) {
+  const bool surface = o.model == "bspline-surface";
+  try {
+    const auto [n1, n2] = ParseControlPoints(o.control_points, surface);
+    std::string format, units;
+    const Eigen::MatrixXd points = ReadInput(o, format, units);
+    const std::string units_out = o.units.empty() ? units : o.units;
+    if (surface && points.rows() != 3) throw UsageError("a B-spline surface needs 3D points");
+    std::unique_ptr<ParametricModel> model;
+    Eigen::MatrixXd data = points;
+    if (surface) {
+      model = std::make_unique<BSplineSurface>(InitialSurfaceByProjection(
+          points, n1, n2, o.order, o.closed ? SurfaceProjection::kCylinder : SurfaceProjection::kPlane));
+    } else {
+      // Planar input with constant z is fitted in 2D (TDM is then well posed); otherwise as a curve in space.
+      if (points.rows() == 3 && (points.row(2).array() == points(2, 0)).all()) data = points.topRows(2);
+      model = InitialCurve(data, n1, o.order, o.closed);
+    }
+    GeometricFitOptions options;
+    options.error_term = ErrorTermFromString(o.method.empty() ? "sdm" : o.method);
+    options.step_control = ParseStepControl(o.step_control);
+    options.fairness = {o.stretch, o.bending};
+    options.max_iterations = o.max_iterations;
+    const bool progress = !o.json && isatty(STDERR_FILENO);
+    if (progress) {
+      options.on_iteration = [](const IterationRecord& r) {
+        std::cerr << "\r  iteration " << std::setw(4) << r.iteration << "  RMS " << std::setw(12)
+                  << Format(r.rms, 6) << "  max " << std::setw(12) << Format(r.max_distance, 6) << std::flush;
+      };
+    }
+    const auto start = std::chrono::steady_clock::now();
+    const GeometricFitResult r = FitModel(*model, data, options);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (progress) std::cerr << "\n";
+
+    nlohmann::json j;
+    j["schema"] = "scan2model.bspline/1";
+    j["input"] = {{"file", o.file}, {"format", format}, {"points", points.cols()}, {"units", units_out}};
+    j["model"] = o.model;
+    j["method"] = ToString(options.error_term);
+    j["step_control"] = ToString(options.step_control);
+    j["fairness"] = {{"stretch", o.stretch}, {"bending", o.bending}};
+    if (surface) {
+      const auto& s = dynamic_cast<const BSplineSurface&>(*model);
+      j["basis_u"] = BasisJson(s.basis_u());
+      j["basis_v"] = BasisJson(s.basis_v());
+      j["control_grid"] = {s.basis_u().num_control(), s.basis_v().num_control()};
+      std::vector<std::vector<double>> cp;
+      for (Eigen::Index i = 0; i < s.control_points().cols(); ++i)
+        cp.push_back({s.control_points()(0, i), s.control_points()(1, i), s.control_points()(2, i)});
+      j["control_points"] = cp;
+    } else {
+      const auto& c = dynamic_cast<const BSplineCurve&>(*model);
+      j["basis"] = BasisJson(c.basis());
+      std::vector<std::vector<double>> cp;
+      for (Eigen::Index i = 0; i < c.control_points().cols(); ++i) {
+        const Eigen::VectorXd col = c.control_points().col(i);
+        cp.emplace_back(col.data(), col.data() + col.size());
+      }
+      j["control_points"] = cp;
+    }
+    j["residuals"] = {
+        {"count", r.residuals.count}, {"rms", r.residuals.rms}, {"max_abs", r.residuals.max_abs}};
+    j["iterations"] = r.iterations;
+    j["stop_reason"] = ToString(r.stop_reason);
+    j["seconds"] = seconds;
+    j["history"] = nlohmann::json::array();
+    for (const IterationRecord& h : r.history) {
+      j["history"].push_back({{"iteration", h.iteration},
+                              {"rms", h.rms},
+                              {"max_distance", h.max_distance},
+                              {"objective", h.objective},
+                              {"damping", h.damping},
+                              {"step_norm", h.step_norm},
+                              {"seconds", h.seconds}});
+    }
+    std::string history_path = o.history;
+    if (!o.output.empty()) {
+      WriteText(o.output + ".json", j.dump(2) + "\n");
+      Scan samples;
+      samples.points = Samples(*model);
+      samples.units = units_out;
+      WritePly(o.output + ".ply", samples);
+      if (history_path.empty()) history_path = o.output + "_history.csv";
+    }
+    if (!history_path.empty()) {
+      std::ostringstream csv;
+      csv.precision(17);
+      csv << "iteration,rms,max_distance,objective,damping,step_norm,seconds\n";
+      for (const IterationRecord& h : r.history) {
+        csv << h.iteration << ',' << h.rms << ',' << h.max_distance << ',' << h.objective << ',' << h.damping
+            << ',' << h.step_norm << ',' << h.seconds << '\n';
+      }
+      WriteText(history_path, csv.str());
+    }
+    if (o.json) {
+      std::cout << j.dump(2) << "\n";
+      return kOk;
+    }
+    std::cout << "scan2model fit: " << model->name() << " (" << model->num_parameters() << " parameters) to "
+              << points.cols() << " points of " << o.file << " (" << format << ", units " << units_out
+              << ")\n\n"
+              << "  method            " << ToString(options.error_term) << " + "
+              << ToString(options.step_control) << ", fairness stretch " << o.stretch << " bending "
+              << o.bending << "\n"
+              << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
+              << Format(r.residuals.max_abs, 6) << "\n"
+              << "  solver            " << r.iterations << " iterations, stopped: " << ToString(r.stop_reason)
+              << ", " << Format(seconds * 1e3, 4) << " ms\n";
+    if (!o.output.empty()) {
+      std::cout << "  written           " << o.output << ".json, " << o.output << ".ply, " << history_path
+                << "\n";
+    }
+    return kOk;
+  } catch (const UsageError& e) {
+    std::cerr << "scan2model fit: error: " << e.what() << "\n";
+    return kUsage;
+  } catch (const FormatError& e) {
+    std::cerr << "scan2model fit: error: " << e.what() << "\n";
+    if (o.json)
+      std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
+                                  {"error", e.what()},
+                                  {"exit_code", kInputError}}
+                       .dump(2)
+                << "\n";
+    return kInputError;
+  } catch (const std::exception& e) {  // singular systems, degenerate data, invalid knots
+    std::cerr << "scan2model fit: error: " << o.file << ": " << e.what() << "\n";
+    if (o.json)
+      std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
+                                  {"error", o.file + ": " + e.what()},
+                                  {"exit_code", kFitError}}
+                       .dump(2)
+                << "\n";
+    return kFitError;
+  }
+}
+
+}  // namespace s2m::app
