@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <sstream>
 
 namespace s2m {
@@ -166,19 +167,42 @@ double DataObjective(const std::vector<FootPoint>& feet) {
   return f;
 }
 
-// Names the parameters that dominate the null space of H (for the singular-system message).
-std::string DescribeNullSpace(const ParametricModel& model, const Eigen::MatrixXd& H, int& null_count) {
+// LDLT with diagonal pivoting reveals the rank of a positive semidefinite matrix: tiny trailing pivots.
+bool IsSingular(const Eigen::LDLT<Eigen::MatrixXd>& ldlt) {
+  if (ldlt.info() != Eigen::Success) return true;
+  const Eigen::VectorXd d = ldlt.vectorD().cwiseAbs();
+  return !(d.minCoeff() > 1e-13 * d.maxCoeff());
+}
+
+// When H is singular, tells apart harmless null directions from harmful ones. Moving control points along the
+// model (re-parametrization, e.g. sliding along a straight segment or a flat patch) changes no distance and
+// may stay free. A null direction that moves model points across the normal space, which the
+// full-normal-space (GTDM) matrix sees, is a shape change the error term cannot observe: that is reported,
+// naming the parameters it moves most.
+std::optional<std::string> UnobservableShape(const ParametricModel& model, const Eigen::MatrixXd& y,
+                                             const std::vector<FootPoint>& feet,
+                                             const GeometricFitOptions& options, const Eigen::MatrixXd& H,
+                                             const Eigen::MatrixXd& K) {
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(H);
   const Eigen::VectorXd values = eig.eigenvalues();
   const double top = std::max(values.cwiseAbs().maxCoeff(), 1e-300);
+  GeometricFitOptions normal_space = options;
+  normal_space.error_term = ErrorTerm::kGtdm;
+  Eigen::MatrixXd Hn;
+  Eigen::VectorXd unused;
+  Assemble(model, y, feet, normal_space, Hn, unused);
+  if (K.size() > 0) Hn += 2.0 * K;
+  const double top_n = std::max(Hn.diagonal().cwiseAbs().maxCoeff(), 1e-300);
   Eigen::VectorXd weight = Eigen::VectorXd::Zero(H.rows());
-  null_count = 0;
+  int count = 0;
   for (Eigen::Index k = 0; k < values.size(); ++k) {
-    if (values[k] <= 1e-12 * top) {
-      ++null_count;
-      weight += eig.eigenvectors().col(k).cwiseAbs2();
-    }
+    if (values[k] > 1e-12 * top) continue;
+    const Eigen::VectorXd v = eig.eigenvectors().col(k);
+    if (v.dot(Hn * v) <= 1e-8 * top_n) continue;  // re-parametrization only
+    ++count;
+    weight += v.cwiseAbs2();
   }
+  if (count == 0) return std::nullopt;
   std::vector<Eigen::Index> order(static_cast<std::size_t>(H.rows()));
   for (Eigen::Index i = 0; i < H.rows(); ++i) order[static_cast<std::size_t>(i)] = i;
   std::sort(order.begin(), order.end(),
@@ -188,29 +212,15 @@ std::string DescribeNullSpace(const ParametricModel& model, const Eigen::MatrixX
     if (weight[order[i]] < 1e-6) break;
     names << (i ? ", " : "") << model.parameter_name(static_cast<int>(order[i]));
   }
-  return names.str();
-}
-
-// LDLT with diagonal pivoting reveals the rank of a positive semidefinite matrix: tiny trailing pivots.
-bool IsSingular(const Eigen::LDLT<Eigen::MatrixXd>& ldlt) {
-  if (ldlt.info() != Eigen::Success) return true;
-  const Eigen::VectorXd d = ldlt.vectorD().cwiseAbs();
-  return !(d.minCoeff() > 1e-13 * d.maxCoeff());
-}
-
-std::string SingularMessage(const ParametricModel& model, const Eigen::MatrixXd& H,
-                            const GeometricFitOptions& options) {
-  int null_count = 0;
-  const std::string names = DescribeNullSpace(model, H, null_count);
   const bool curve_in_space = model.domain().dimension == 1 && model.ambient_dimension() == 3;
   return std::string("the ") + ToString(options.error_term) + " normal matrix of the " + model.name() +
-         " is singular (" + std::to_string(std::max(null_count, 1)) + " unconstrained direction(s), mostly " +
-         names + ")" +
+         " is singular: " + std::to_string(count) + " shape direction(s) it cannot observe, mostly " +
+         names.str() +
          (options.error_term == ErrorTerm::kTdm && curve_in_space
-              ? ": plain TDM constrains only the direction towards each data point, which leaves a curve in "
+              ? ". Plain TDM constrains only the direction towards each data point, which leaves a curve in "
                 "3D free "
                 "to tilt out of planar data; use gtdm or sdm"
-              : ": add fairness or data that cover the whole model");
+              : ". Add fairness or data that cover the whole model");
 }
 
 }  // namespace
@@ -298,7 +308,7 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
   };
   double rms = rms_of(feet);
 
-  bool last_singular = false;
+  bool last_singular = false, checked_singular = false;
   result.stop_reason = StopReason::kMaxIterations;
   if (options.target_rms > 0 && rms <= options.target_rms) result.stop_reason = StopReason::kTargetReached;
   while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
@@ -318,8 +328,10 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
     // damped, but one that persists to the end is reported (below) instead of being hidden.
     Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
     last_singular = IsSingular(ldlt);
-    if (last_singular && options.step_control != StepControl::kLevenbergMarquardt) {
-      throw SingularSystemError(SingularMessage(*current, H, options));
+    if (last_singular && options.step_control != StepControl::kLevenbergMarquardt && !checked_singular) {
+      checked_singular = true;  // classify once: the eigen-decomposition is not for every iteration
+      if (auto message = UnobservableShape(*current, y, feet, options, H, K))
+        throw SingularSystemError(*message);
     }
     Eigen::VectorXd step;
     const double previous_objective = f;
@@ -404,7 +416,10 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
     }
   }
 
-  if (last_singular) throw SingularSystemError(SingularMessage(*current, H, options));
+  if (last_singular) {
+    if (auto message = UnobservableShape(*current, y, feet, options, H, K))
+      throw SingularSystemError(*message);
+  }
   current->ApplySimilarity(norm.scale, norm.offset);
   model.CopyFrom(*current);
   Eigen::VectorXd d(static_cast<Eigen::Index>(feet.size()));

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -120,6 +122,80 @@ TEST(Cli, DegenerateDataExitsWithFour) {
   EXPECT_EQ(r.exit_code, 4);
   EXPECT_NE(r.out.find("coplanar"), std::string::npos) << r.out;
   std::filesystem::remove(flat);
+}
+
+// Writes `points` (one "x y z" line each) to a temporary .xyz file.
+std::string WriteXyz(const std::string& name, const std::vector<std::array<double, 3>>& points) {
+  const auto path = std::filesystem::temp_directory_path() / name;
+  std::ofstream out(path);
+  out.precision(17);
+  for (const auto& p : points) out << p[0] << ' ' << p[1] << ' ' << p[2] << '\n';
+  return path.string();
+}
+
+TEST(Cli, FitsAClosedBSplineCurveAndWritesItsFiles) {
+  std::vector<std::array<double, 3>> pts;
+  for (int i = 0; i < 80; ++i)
+    pts.push_back({3 + 2 * std::cos(i * M_PI / 40), -1 + std::sin(i * M_PI / 40), 5.0});
+  const std::string file = WriteXyz("s2m_cli_ellipse.xyz", pts);
+  const auto prefix = (std::filesystem::temp_directory_path() / "s2m_cli_curve").string();
+  const Result r = RunCli(
+      "fit --model bspline-curve --closed --control-points 10 --json -o " + prefix + " " + file, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto doc = nlohmann::json::parse(r.out);
+  EXPECT_EQ(doc["schema"], "scan2model.bspline/1");
+  EXPECT_EQ(doc["method"], "sdm");
+  EXPECT_EQ(doc["basis"]["periodic"], true);
+  EXPECT_EQ(doc["control_points"].size(), 10u);
+  EXPECT_EQ(doc["control_points"][0].size(), 2u);  // constant z: fitted in the plane
+  EXPECT_LT(doc["residuals"]["rms"].get<double>(), 1e-3);
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(prefix + ".json"))["control_points"].size(), 10u);
+  const Result info = RunCli("info --json " + prefix + ".ply", false);
+  ASSERT_EQ(info.exit_code, 0) << info.out;
+  EXPECT_GT(nlohmann::json::parse(info.out)["points"].get<int>(), 100);
+  std::ifstream csv(prefix + "_history.csv");
+  std::string header;
+  std::getline(csv, header);
+  EXPECT_EQ(header, "iteration,rms,max_distance,objective,damping,step_norm,seconds");
+  for (const char* ext : {".json", ".ply", "_history.csv"}) std::filesystem::remove(prefix + ext);
+  std::filesystem::remove(file);
+}
+
+TEST(Cli, FitsABSplineSurface) {
+  std::vector<std::array<double, 3>> pts;
+  for (int i = 0; i < 30; ++i)
+    for (int j = 0; j < 30; ++j) {
+      const double x = -1 + 2.0 * i / 29, y = -1 + 2.0 * j / 29;
+      pts.push_back({x, y, 0.2 * x * x - 0.1 * y});
+    }
+  const std::string file = WriteXyz("s2m_cli_sheet.xyz", pts);
+  const Result r = RunCli(
+      "fit --model bspline-surface --control-points 5x5 --bending 0 --max-iterations 20 --json " + file,
+      false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto doc = nlohmann::json::parse(r.out);
+  EXPECT_EQ(doc["control_grid"][0], 5);
+  EXPECT_EQ(doc["control_points"].size(), 25u);
+  EXPECT_LT(doc["residuals"]["rms"].get<double>(),
+            1e-6);  // a quadratic sheet is exactly a cubic spline surface
+  std::filesystem::remove(file);
+}
+
+TEST(Cli, SplineOptionErrors) {
+  EXPECT_EQ(RunCli("fit --model bspline-surface --control-points 12 " + Data("cyl1.ds")).exit_code, 2);
+  EXPECT_EQ(RunCli("fit --model cylinder --method gn " + Data("cyl1.ds")).exit_code, 2);
+  // Plain TDM on a curve in space fitted to planar (tilted) data: the singular system is reported, not
+  // hidden.
+  std::vector<std::array<double, 3>> pts;
+  for (int i = 0; i < 60; ++i) {
+    const double a = i * M_PI / 30;
+    pts.push_back({std::cos(a), 2 * std::sin(a), 0.5 * std::cos(a)});
+  }
+  const std::string file = WriteXyz("s2m_cli_tilted.xyz", pts);
+  const Result r = RunCli("fit --model bspline-curve --closed --method tdm --step-control none " + file);
+  EXPECT_EQ(r.exit_code, 4) << r.out;
+  EXPECT_NE(r.out.find("singular"), std::string::npos) << r.out;
+  std::filesystem::remove(file);
 }
 
 }  // namespace

@@ -97,6 +97,9 @@ struct NamedFactory {
   std::string name;
   ModelFactory make;
 };
+void PrintTo(const NamedFactory& f, std::ostream* os) {
+  *os << f.name;
+}
 
 std::vector<NamedFactory> Models() {
   return {

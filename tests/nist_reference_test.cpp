@@ -23,6 +23,10 @@ struct Case {
   std::filesystem::path data, fit;  // .ds and .fit
 };
 
+void PrintTo(const Case& c, std::ostream* os) {
+  *os << c.name;
+}
+
 std::string Kind(const std::string& name) {
   return name.substr(0, 3);
 }
