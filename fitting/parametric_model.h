@@ -73,6 +73,13 @@ class ParametricModel {
   }
   // Parameter values whose model points seed the foot-point search (spread over the whole domain).
   virtual std::vector<ParamT> SampleParameters() const = 0;
+  // Models with closed-form foot points (primitives, METHOD.md section 10) fill t and return true; the engine
+  // then skips the sample search and Newton.
+  virtual bool ClosedFormFootPoint(const VecS& x, ParamT& t) const {
+    (void)x;
+    (void)t;
+    return false;
+  }
 };
 
 // The principal frame of the model at a foot point, oriented towards a data point X (METHOD.md section 2):

@@ -56,7 +56,7 @@ double SdmWeight(double delta, double kappa) {
 // section 3), and the SDM term adds beta_k (T_k^T C_P)^T (T_k^T C_P) with C_P the motion of the model point
 // at a fixed surface parameter.
 
-struct SphereModel {
+struct SphereLocal {
   using Shape = Sphere;
   static constexpr int kParams = 4;
   // User-facing uncertainties: which local parameters (summed in quadrature) and whether the result is a
@@ -98,7 +98,7 @@ struct SphereModel {
   }
 };
 
-struct CylinderModel {
+struct CylinderLocal {
   using Shape = Cylinder;
   static constexpr int kParams = 5;
   static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix<double, 5, 5>& cov,
@@ -153,7 +153,7 @@ struct CylinderModel {
   }
 };
 
-struct ConeModel {
+struct ConeLocal {
   using Shape = Cone;
   static constexpr int kParams = 6;
   static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix<double, 6, 6>& cov,
@@ -518,7 +518,7 @@ PrimitiveFit<Sphere> RefineSphere(const Eigen::Matrix3Xd& points, const Sphere& 
                                   const PrimitiveFitOptions& options) {
   const NormalizedData data = Normalize(points, 4, "sphere");
   const Sphere start{(initial.center - data.offset) / data.scale, initial.radius / data.scale};
-  PrimitiveFit<Sphere> fit = Solve<SphereModel>(data.points, start, options, data.scale);
+  PrimitiveFit<Sphere> fit = Solve<SphereLocal>(data.points, start, options, data.scale);
   Finish(fit, data, points);
   return fit;
 }
@@ -526,7 +526,7 @@ PrimitiveFit<Sphere> RefineSphere(const Eigen::Matrix3Xd& points, const Sphere& 
 PrimitiveFit<Sphere> FitSphere(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
   const NormalizedData data = Normalize(points, 4, "sphere");
   PrimitiveFit<Sphere> fit =
-      Solve<SphereModel>(data.points, AlgebraicSphere(data.points), options, data.scale);
+      Solve<SphereLocal>(data.points, AlgebraicSphere(data.points), options, data.scale);
   Finish(fit, data, points);
   return fit;
 }
@@ -536,7 +536,7 @@ PrimitiveFit<Cylinder> RefineCylinder(const Eigen::Matrix3Xd& points, const Cyli
   const NormalizedData data = Normalize(points, 5, "cylinder");
   Cylinder start{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
                  initial.radius / data.scale};
-  PrimitiveFit<Cylinder> fit = Solve<CylinderModel>(data.points, start, options, data.scale);
+  PrimitiveFit<Cylinder> fit = Solve<CylinderLocal>(data.points, start, options, data.scale);
   Finish(fit, data, points);
   return fit;
 }
@@ -544,7 +544,7 @@ PrimitiveFit<Cylinder> RefineCylinder(const Eigen::Matrix3Xd& points, const Cyli
 PrimitiveFit<Cylinder> FitCylinder(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
   const NormalizedData data = Normalize(points, 5, "cylinder");
   PrimitiveFit<Cylinder> fit =
-      FitWithDirectionSearch<CylinderModel>(data, options, CylinderForDirection, "cylinder");
+      FitWithDirectionSearch<CylinderLocal>(data, options, CylinderForDirection, "cylinder");
   Finish(fit, data, points);
   return fit;
 }
@@ -554,14 +554,14 @@ PrimitiveFit<Cone> RefineCone(const Eigen::Matrix3Xd& points, const Cone& initia
   const NormalizedData data = Normalize(points, 6, "cone");
   Cone start{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
              initial.half_angle, initial.radius / data.scale};
-  PrimitiveFit<Cone> fit = Solve<ConeModel>(data.points, start, options, data.scale);
+  PrimitiveFit<Cone> fit = Solve<ConeLocal>(data.points, start, options, data.scale);
   Finish(fit, data, points);
   return fit;
 }
 
 PrimitiveFit<Cone> FitCone(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
   const NormalizedData data = Normalize(points, 6, "cone");
-  PrimitiveFit<Cone> fit = FitWithDirectionSearch<ConeModel>(data, options, ConeForDirection, "cone");
+  PrimitiveFit<Cone> fit = FitWithDirectionSearch<ConeLocal>(data, options, ConeForDirection, "cone");
   Finish(fit, data, points);
   return fit;
 }
@@ -578,22 +578,22 @@ Eigen::MatrixXd JacobianOf(const typename Model::Shape& s, const Eigen::Matrix3X
 }  // namespace
 
 Eigen::MatrixXd DistanceJacobian(const Sphere& s, const Eigen::Matrix3Xd& p) {
-  return JacobianOf<SphereModel>(s, p);
+  return JacobianOf<SphereLocal>(s, p);
 }
 Eigen::MatrixXd DistanceJacobian(const Cylinder& s, const Eigen::Matrix3Xd& p) {
-  return JacobianOf<CylinderModel>(s, p);
+  return JacobianOf<CylinderLocal>(s, p);
 }
 Eigen::MatrixXd DistanceJacobian(const Cone& s, const Eigen::Matrix3Xd& p) {
-  return JacobianOf<ConeModel>(s, p);
+  return JacobianOf<ConeLocal>(s, p);
 }
 Sphere ApplyIncrement(const Sphere& s, const Eigen::VectorXd& delta) {
-  return SphereModel::Update(s, delta);
+  return SphereLocal::Update(s, delta);
 }
 Cylinder ApplyIncrement(const Cylinder& s, const Eigen::VectorXd& delta) {
-  return CylinderModel::Update(s, delta);
+  return CylinderLocal::Update(s, delta);
 }
 Cone ApplyIncrement(const Cone& s, const Eigen::VectorXd& delta) {
-  return ConeModel::Update(s, delta);
+  return ConeLocal::Update(s, delta);
 }
 
 }  // namespace s2m

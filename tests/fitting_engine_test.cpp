@@ -10,9 +10,13 @@
 #include <random>
 
 #include "acquisition/glyph_outline.h"
+#include "acquisition/nist_reference.h"
+#include "acquisition/point_cloud_io.h"
 #include "fitting/bspline_models.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
+#include "fitting/primitive_compare.h"
+#include "fitting/primitive_models.h"
 #include "test_paths.h"
 
 namespace s2m {
@@ -142,6 +146,16 @@ std::vector<NamedFactory> Models() {
              Eigen::Vector3d(1, 2, 3),
              Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix(), 2.0, 0.7);
        }},
+      {"cylinder_model",
+       [] {
+         return std::make_unique<CylinderModel>(
+             Cylinder{{1, 2, 3}, Eigen::Vector3d(1, -1, 2).normalized(), 1.5});
+       }},
+      {"sphere_model",
+       [] {
+         return std::make_unique<SphereModel>(
+             Sphere{{1, -2, 0.5}, 2.0}, Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 0, 0)).toRotationMatrix());
+       }},
       {"circle_3d",
        [] {
          return std::make_unique<Ellipse3D>(Eigen::Vector3d(0, 0, 1), Eigen::Matrix3d::Identity(), 1.5, 1.5,
@@ -155,9 +169,14 @@ class ModelFamily : public ::testing::TestWithParam<NamedFactory> {
   std::vector<ParamT> TestParameters(const ParametricModel& m) {
     const ParameterDomain d = m.domain();
     std::vector<ParamT> ts;
+    // Within a band of width at most 4 around the domain's middle (the cylinder's axial range is unbounded).
+    auto at = [&](int k, double fraction) {
+      const auto i = static_cast<std::size_t>(k);
+      const double span = std::min(d.hi[i] - d.lo[i], 4.0);
+      return 0.5 * (d.lo[i] + d.hi[i]) + (fraction - 0.5) * span;
+    };
     for (double a : {0.13, 0.41, 0.77})
-      for (double b : {0.21, 0.66})
-        ts.push_back({d.lo[0] + a * (d.hi[0] - d.lo[0]), d.lo[1] + b * (d.hi[1] - d.lo[1])});
+      for (double b : {0.21, 0.66}) ts.push_back({at(0, a), at(1, b)});
     return ts;
   }
 };
@@ -577,6 +596,40 @@ TEST(GeometricFit, GlyphOutlinesFitByClosedCubicSplines) {
       EXPECT_LT(r.residuals.rms, 2.5e-4 * diagonal)
           << glyph << " contour with " << contour.cols() << " samples";
     }
+  }
+}
+
+TEST(GeometricFit, PrimitivesPlugIntoTheEngineAndReachTheNistReference) {
+  // The engine with closed-form foot points reproduces the certified fits from a perturbed start, for every
+  // error term that sees the normal direction.
+  const Scan cyl = ReadPointCloud(test::TestData("nist/cyl1.ds"));
+  const Cylinder cyl_ref = ReadNistCylinderFit(test::TestData("nist/cyl1.fit"));
+  const Scan sph = ReadPointCloud(test::TestData("nist/sph1.ds"));
+  const Sphere sph_ref = ReadNistSphereFit(test::TestData("nist/sph1.fit"));
+  const double cyl_extent = ComputeBounds(cyl.points).diagonal(),
+               sph_extent = ComputeBounds(sph.points).diagonal();
+  for (ErrorTerm term : {ErrorTerm::kTdm, ErrorTerm::kSdm, ErrorTerm::kGn}) {
+    GeometricFitOptions o;
+    o.error_term = term;
+    o.max_iterations = 200;
+    o.objective_tolerance = 0.0;  // certified accuracy: stop on the step or gradient only
+    Cylinder start = cyl_ref;
+    start.axis_point += Eigen::Vector3d(0.5, -0.3, 0.2);
+    start.axis_direction = (start.axis_direction + Eigen::Vector3d(0.02, 0.03, -0.01)).normalized();
+    start.radius *= 1.02;
+    CylinderModel cylinder(start);
+    FitModel(cylinder, cyl.points, o);
+    const PrimitiveDeviation dc = Compare(cylinder.shape(), cyl_ref);
+    EXPECT_LT(dc.position / cyl_extent, 1e-8) << ToString(term);
+    EXPECT_LT(dc.direction, 1e-8) << ToString(term);
+    EXPECT_LT(dc.size / cyl_extent, 1e-8) << ToString(term);
+    // Poles of the sphere's parametrization away from the data (NIST sph1 is a cap around -z of its centre).
+    SphereModel sphere({sph_ref.center + Eigen::Vector3d(0.3, 0.2, -0.4), sph_ref.radius * 0.97},
+                       Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()).toRotationMatrix());
+    FitModel(sphere, sph.points, o);
+    const PrimitiveDeviation ds = Compare(sphere.shape(), sph_ref);
+    EXPECT_LT(ds.position / sph_extent, 1e-8) << ToString(term);
+    EXPECT_LT(ds.size / sph_extent, 1e-8) << ToString(term);
   }
 }
 

@@ -1,0 +1,183 @@
+#include "fitting/primitive_models.h"
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+namespace s2m {
+namespace {
+// The cylinder's axial parameter range: the engine works in the unit box, so this is effectively unbounded.
+constexpr double kAxialRange = 1e6;
+
+void AddEntry(std::vector<JacobianEntry>& out, int index, const Eigen::Vector3d& column,
+              const Eigen::Vector3d& d0, const Eigen::Vector3d& d1) {
+  JacobianEntry e;
+  e.index = index;
+  e.column = column;
+  e.dcolumn_dt = {d0, d1};
+  out.push_back(e);
+}
+}  // namespace
+
+// ---- CylinderModel
+// ---------------------------------------------------------------------------------------------
+
+CylinderModel::CylinderModel(const Cylinder& c)
+    : point_(c.axis_point), frame_(FrameWithAxis(c.axis_direction.normalized())), radius_(c.radius) {}
+
+Cylinder CylinderModel::shape() const {
+  return {point_, frame_.col(2), radius_};
+}
+
+ParameterDomain CylinderModel::domain() const {
+  ParameterDomain d;
+  d.dimension = 2;
+  d.lo = {0.0, -kAxialRange};
+  d.hi = {2 * M_PI, kAxialRange};
+  d.periodic = {true, false};
+  return d;
+}
+
+std::string CylinderModel::parameter_name(int index) const {
+  static const char* names[] = {"axis point x", "axis point y", "axis point z", "rotation x",
+                                "rotation y",   "rotation z",   "radius"};
+  return names[index];
+}
+
+Eigen::VectorXd CylinderModel::parameters() const {
+  Eigen::VectorXd p = Eigen::VectorXd::Zero(7);
+  p.head<3>() = point_;
+  p[6] = radius_;
+  return p;
+}
+
+void CylinderModel::set_parameters(const Eigen::VectorXd& p) {
+  point_ = p.head<3>();
+  const Eigen::Vector3d w = p.segment<3>(3);
+  if (w.norm() > 0) frame_ = frame_ * Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+  radius_ = p[6];
+}
+
+void CylinderModel::ApplySimilarity(double scale, const VecS& offset) {
+  point_ = scale * point_ + Eigen::Vector3d(offset);
+  radius_ *= scale;
+}
+
+void CylinderModel::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+  const double c = std::cos(t[0]), s = std::sin(t[0]);
+  out.point = point_ + frame_ * Eigen::Vector3d(radius_ * c, radius_ * s, t[1]);
+  out.d1.setZero(3, 2);
+  out.d2.setZero(3, 3);
+  if (derivatives >= 1) {
+    out.d1.col(0) = frame_ * Eigen::Vector3d(-radius_ * s, radius_ * c, 0.0);
+    out.d1.col(1) = frame_.col(2);
+  }
+  if (derivatives >= 2) out.d2.col(0) = frame_ * Eigen::Vector3d(-radius_ * c, -radius_ * s, 0.0);
+}
+
+void CylinderModel::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {
+  out.clear();
+  const double c = std::cos(t[0]), s = std::sin(t[0]);
+  const Eigen::Vector3d q(radius_ * c, radius_ * s, t[1]), dq0(-radius_ * s, radius_ * c, 0.0), dq1(0, 0, 1);
+  const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) AddEntry(out, k, Eigen::Vector3d::Unit(k), zero, zero);
+  for (int k = 0; k < 3; ++k) {  // d/dw_k of R exp([w]x) q at w = 0: R (e_k x q)
+    const Eigen::Vector3d e = Eigen::Vector3d::Unit(k);
+    AddEntry(out, 3 + k, frame_ * e.cross(q), with_dt ? Eigen::Vector3d(frame_ * e.cross(dq0)) : zero,
+             with_dt ? Eigen::Vector3d(frame_ * e.cross(dq1)) : zero);
+  }
+  AddEntry(out, 6, frame_ * Eigen::Vector3d(c, s, 0.0),
+           with_dt ? Eigen::Vector3d(frame_ * Eigen::Vector3d(-s, c, 0.0)) : zero, zero);
+}
+
+std::vector<ParamT> CylinderModel::SampleParameters() const {
+  std::vector<ParamT> out;
+  for (int i = 0; i < 64; ++i)
+    for (int j = -8; j <= 8; ++j) out.push_back({2 * M_PI * i / 64, 0.25 * j});
+  return out;
+}
+
+bool CylinderModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
+  const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - point_);
+  t = {std::atan2(q.y(), q.x()), q.z()};
+  if (t[0] < 0) t[0] += 2 * M_PI;
+  return true;
+}
+
+// ---- SphereModel
+// -----------------------------------------------------------------------------------------------
+
+SphereModel::SphereModel(const Sphere& sphere, const Eigen::Matrix3d& frame)
+    : center_(sphere.center), frame_(frame), radius_(sphere.radius) {}
+
+ParameterDomain SphereModel::domain() const {
+  ParameterDomain d;
+  d.dimension = 2;
+  d.lo = {0.0, -M_PI / 2};
+  d.hi = {2 * M_PI, M_PI / 2};
+  d.periodic = {true, false};
+  return d;
+}
+
+std::string SphereModel::parameter_name(int index) const {
+  static const char* names[] = {"centre x", "centre y", "centre z", "radius"};
+  return names[index];
+}
+
+Eigen::VectorXd SphereModel::parameters() const {
+  Eigen::VectorXd p(4);
+  p << center_, radius_;
+  return p;
+}
+
+void SphereModel::set_parameters(const Eigen::VectorXd& p) {
+  center_ = p.head<3>();
+  radius_ = p[3];
+}
+
+void SphereModel::ApplySimilarity(double scale, const VecS& offset) {
+  center_ = scale * center_ + Eigen::Vector3d(offset);
+  radius_ *= scale;
+}
+
+void SphereModel::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+  const double ct = std::cos(t[0]), st = std::sin(t[0]), cp = std::cos(t[1]), sp = std::sin(t[1]);
+  const Eigen::Vector3d u(cp * ct, cp * st, sp);
+  out.point = center_ + radius_ * (frame_ * u);
+  out.d1.setZero(3, 2);
+  out.d2.setZero(3, 3);
+  if (derivatives >= 1) {
+    out.d1.col(0) = radius_ * (frame_ * Eigen::Vector3d(-cp * st, cp * ct, 0.0));
+    out.d1.col(1) = radius_ * (frame_ * Eigen::Vector3d(-sp * ct, -sp * st, cp));
+  }
+  if (derivatives >= 2) {
+    out.d2.col(0) = radius_ * (frame_ * Eigen::Vector3d(-cp * ct, -cp * st, 0.0));
+    out.d2.col(1) = radius_ * (frame_ * Eigen::Vector3d(sp * st, -sp * ct, 0.0));
+    out.d2.col(2) = radius_ * (frame_ * Eigen::Vector3d(-cp * ct, -cp * st, -sp));
+  }
+}
+
+void SphereModel::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {
+  out.clear();
+  const double ct = std::cos(t[0]), st = std::sin(t[0]), cp = std::cos(t[1]), sp = std::sin(t[1]);
+  const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) AddEntry(out, k, Eigen::Vector3d::Unit(k), zero, zero);
+  AddEntry(out, 3, frame_ * Eigen::Vector3d(cp * ct, cp * st, sp),
+           with_dt ? Eigen::Vector3d(frame_ * Eigen::Vector3d(-cp * st, cp * ct, 0.0)) : zero,
+           with_dt ? Eigen::Vector3d(frame_ * Eigen::Vector3d(-sp * ct, -sp * st, cp)) : zero);
+}
+
+std::vector<ParamT> SphereModel::SampleParameters() const {
+  std::vector<ParamT> out;
+  for (int i = 0; i < 32; ++i)
+    for (int j = -7; j <= 7; ++j) out.push_back({2 * M_PI * i / 32, M_PI / 2 * j / 8});
+  return out;
+}
+
+bool SphereModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
+  const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - center_);
+  t = {std::atan2(q.y(), q.x()), std::atan2(q.z(), std::hypot(q.x(), q.y()))};
+  if (t[0] < 0) t[0] += 2 * M_PI;
+  return true;
+}
+
+}  // namespace s2m

@@ -1,0 +1,68 @@
+#pragma once
+// Primitives as models of the fitting engine (closed-form foot points): the same surfaces as primitive_fit.h,
+// here parametrized globally so that the engine's error terms, step control and, later, the joint solver can
+// use them.
+
+#include "fitting/parametric_model.h"
+#include "fitting/primitives.h"
+
+namespace s2m {
+
+// C(theta, h) = p + R (r cos theta, r sin theta, h), R's third column the axis. Parameters: axis point p (3),
+// a rotation increment of the frame (3, linearized at zero, applied exactly), radius r. The axial shift of p
+// and the rotation about the axis are gauge freedoms (re-parametrizations), left to the damping.
+class CylinderModel final : public ParametricModel {
+ public:
+  explicit CylinderModel(const Cylinder& cylinder);
+  Cylinder shape() const;
+
+  std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<CylinderModel>(*this); }
+  void CopyFrom(const ParametricModel& other) override { *this = dynamic_cast<const CylinderModel&>(other); }
+  std::string name() const override { return "cylinder"; }
+  int ambient_dimension() const override { return 3; }
+  ParameterDomain domain() const override;
+  int num_parameters() const override { return 7; }
+  std::string parameter_name(int index) const override;
+  Eigen::VectorXd parameters() const override;
+  void set_parameters(const Eigen::VectorXd& p) override;
+  void ApplySimilarity(double scale, const VecS& offset) override;
+  void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
+  void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  std::vector<ParamT> SampleParameters() const override;
+  bool ClosedFormFootPoint(const VecS& x, ParamT& t) const override;
+
+ private:
+  Eigen::Vector3d point_;
+  Eigen::Matrix3d frame_;
+  double radius_;
+};
+
+// C(theta, phi) = c + r (cos phi cos theta, cos phi sin theta, sin phi) in a frame R whose poles (+-z) should
+// lie away from the data (the parametrization is singular there). Parameters: centre (3), radius.
+class SphereModel final : public ParametricModel {
+ public:
+  explicit SphereModel(const Sphere& sphere, const Eigen::Matrix3d& frame = Eigen::Matrix3d::Identity());
+  Sphere shape() const { return {center_, radius_}; }
+
+  std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<SphereModel>(*this); }
+  void CopyFrom(const ParametricModel& other) override { *this = dynamic_cast<const SphereModel&>(other); }
+  std::string name() const override { return "sphere"; }
+  int ambient_dimension() const override { return 3; }
+  ParameterDomain domain() const override;
+  int num_parameters() const override { return 4; }
+  std::string parameter_name(int index) const override;
+  Eigen::VectorXd parameters() const override;
+  void set_parameters(const Eigen::VectorXd& p) override;
+  void ApplySimilarity(double scale, const VecS& offset) override;
+  void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
+  void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  std::vector<ParamT> SampleParameters() const override;
+  bool ClosedFormFootPoint(const VecS& x, ParamT& t) const override;
+
+ private:
+  Eigen::Vector3d center_;
+  Eigen::Matrix3d frame_;
+  double radius_;
+};
+
+}  // namespace s2m
