@@ -198,6 +198,9 @@ Runner AddFitCommand(CLI::App& app) {
   cmd->add_option(
       "--output,-o", o->output,
       "Splines: write PREFIX.json (control points, knots), PREFIX.ply (samples), PREFIX_history.csv");
+  cmd->add_option(
+      "--initial", o->initial,
+      "Splines: start from this curve or surface (a scan2model.bspline/1 JSON, e.g. an earlier PREFIX.json)");
   cmd->add_option("--contour", o->contour, "Glyph (.glif) inputs: which contour to fit")
       ->capture_default_str();
   cmd->add_option("--max-iterations", o->max_iterations, "Iteration cap")

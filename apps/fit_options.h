@@ -23,8 +23,9 @@ struct FitOptions {
   double stretch = 0.0;
   double bending = 1e-3;
   std::string step_control = "lm";
-  std::string output;  // prefix for PREFIX.json, PREFIX.ply, PREFIX_history.csv
-  int contour = 0;     // .glif inputs: which contour
+  std::string output;   // prefix for PREFIX.json, PREFIX.ply, PREFIX_history.csv
+  int contour = 0;      // .glif inputs: which contour
+  std::string initial;  // a scan2model.bspline/1 JSON to start from instead of the automatic initial model
 };
 
 // Runs a B-spline curve or surface fit; returns the exit code.

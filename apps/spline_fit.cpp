@@ -84,6 +84,47 @@ std::unique_ptr<ParametricModel> InitialCurve(const Eigen::MatrixXd& points, int
   return std::make_unique<BSplineCurve>(curve2d.basis(), control);
 }
 
+BSplineBasis BasisFromJson(const nlohmann::json& j) {
+  const int order = j.at("order").get<int>();
+  std::vector<double> knots = j.at("knots").get<std::vector<double>>();
+  return j.at("periodic").get<bool>() ? BSplineBasis::Periodic(order, std::move(knots))
+                                      : BSplineBasis::Clamped(order, std::move(knots));
+}
+
+Eigen::MatrixXd ControlPointsFromJson(const nlohmann::json& j) {
+  const auto rows = j.get<std::vector<std::vector<double>>>();
+  if (rows.empty()) throw std::invalid_argument("no control points");
+  Eigen::MatrixXd m(static_cast<Eigen::Index>(rows.front().size()), static_cast<Eigen::Index>(rows.size()));
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (rows[i].size() != rows.front().size())
+      throw std::invalid_argument("control points of different dimensions");
+    for (std::size_t c = 0; c < rows[i].size(); ++c)
+      m(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(i)) = rows[i][c];
+  }
+  return m;
+}
+
+// A user-given initial curve or surface: a scan2model.bspline/1 document (METHOD.md section 8).
+std::unique_ptr<ParametricModel> ReadInitialModel(const std::string& path, bool surface) {
+  try {
+    std::ifstream in(path);
+    if (!in) throw std::invalid_argument("cannot open");
+    const nlohmann::json j = nlohmann::json::parse(in);
+    if (j.value("schema", "") != "scan2model.bspline/1")
+      throw std::invalid_argument("not a scan2model.bspline/1 document");
+    if (surface) {
+      const Eigen::MatrixXd cp = ControlPointsFromJson(j.at("control_points"));
+      if (cp.rows() != 3) throw std::invalid_argument("surface control points must be 3D");
+      return std::make_unique<BSplineSurface>(BasisFromJson(j.at("basis_u")), BasisFromJson(j.at("basis_v")),
+                                              cp);
+    }
+    return std::make_unique<BSplineCurve>(BasisFromJson(j.at("basis")),
+                                          ControlPointsFromJson(j.at("control_points")));
+  } catch (const std::exception& e) {  // JSON syntax, missing members, invalid knot vectors
+    throw FormatError(path, "", std::string("unusable initial model: ") + e.what());
+  }
+}
+
 nlohmann::json BasisJson(const BSplineBasis& b) {
   return {
       {"order", b.order()}, {"periodic", b.periodic()}, {"knots", b.knots()}, {"domain", {b.lo(), b.hi()}}};
@@ -138,12 +179,19 @@ int RunSplineFit(const FitOptions& o) {
     std::unique_ptr<ParametricModel> model;
     Eigen::MatrixXd data = points;
     if (surface) {
-      model = std::make_unique<BSplineSurface>(InitialSurfaceByProjection(
-          points, n1, n2, o.order, o.closed ? SurfaceProjection::kCylinder : SurfaceProjection::kPlane));
+      model = !o.initial.empty() ? ReadInitialModel(o.initial, true)
+                                 : std::make_unique<BSplineSurface>(InitialSurfaceByProjection(
+                                       points, n1, n2, o.order,
+                                       o.closed ? SurfaceProjection::kCylinder : SurfaceProjection::kPlane));
     } else {
       // Planar input with constant z is fitted in 2D (TDM is then well posed); otherwise as a curve in space.
       if (points.rows() == 3 && (points.row(2).array() == points(2, 0)).all()) data = points.topRows(2);
-      model = InitialCurve(data, n1, o.order, o.closed);
+      model =
+          !o.initial.empty() ? ReadInitialModel(o.initial, false) : InitialCurve(data, n1, o.order, o.closed);
+      if (model->ambient_dimension() != data.rows()) {
+        throw UsageError("the initial curve is " + std::to_string(model->ambient_dimension()) +
+                         "D but the data are " + std::to_string(data.rows()) + "D");
+      }
     }
     GeometricFitOptions options;
     options.error_term = ErrorTermFromString(o.method.empty() ? "sdm" : o.method);

@@ -157,7 +157,22 @@ TEST(Cli, FitsAClosedBSplineCurveAndWritesItsFiles) {
   std::string header;
   std::getline(csv, header);
   EXPECT_EQ(header, "iteration,rms,max_distance,objective,damping,step_norm,seconds");
-  for (const char* ext : {".json", ".ply", "_history.csv"}) std::filesystem::remove(prefix + ext);
+  // A user-given initial curve: the fitted curve itself, so the first iteration is already at the earlier
+  // RMS.
+  const Result again =
+      RunCli("fit --model bspline-curve --json --initial " + prefix + ".json " + file, false);
+  ASSERT_EQ(again.exit_code, 0) << again.out;
+  const auto again_doc = nlohmann::json::parse(again.out);
+  EXPECT_EQ(again_doc["control_points"].size(), 10u);
+  EXPECT_LE(again_doc["history"][0]["rms"].get<double>(), 1.0001 * doc["residuals"]["rms"].get<double>());
+  std::ofstream(prefix + "_bad.json")
+      << R"({"schema": "scan2model.bspline/1", "basis": {"order": 4, "periodic": false,
+      "knots": [0, 0, 0, 1, 1, 1, 1]}, "control_points": [[0, 0], [1, 0], [2, 1]]})";
+  const Result bad = RunCli("fit --model bspline-curve --initial " + prefix + "_bad.json " + file);
+  EXPECT_EQ(bad.exit_code, 3) << bad.out;
+  EXPECT_NE(bad.out.find("unusable initial model"), std::string::npos) << bad.out;
+  for (const char* ext : {".json", ".ply", "_history.csv", "_bad.json"})
+    std::filesystem::remove(prefix + ext);
   std::filesystem::remove(file);
 }
 
