@@ -61,18 +61,6 @@ Cone ReadReference(const std::string& f, const Cone&) {
   return ReadNistConeFit(f);
 }
 
-void WriteHistory(const std::string& path, const std::vector<IterationRecord>& history) {
-  std::ofstream out(path);
-  if (!out) throw FormatError(path, "", "cannot create the history file");
-  out.precision(17);
-  out << "iteration,rms,max_distance,objective,damping,step_norm,seconds\n";
-  for (const IterationRecord& r : history) {
-    out << r.iteration << ',' << r.rms << ',' << r.max_distance << ',' << r.objective << ',' << r.damping
-        << ',' << r.step_norm << ',' << r.seconds << '\n';
-  }
-  if (!out) throw FormatError(path, "", "write failed");
-}
-
 template <class Shape, class FitFn>
 int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, FitFn fit_fn) {
   PrimitiveFitOptions options;
@@ -86,7 +74,7 @@ int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, Fit
 
   std::optional<PrimitiveDeviation> deviation;
   if (!o.reference.empty()) deviation = Compare(fit.shape, ReadReference(o.reference, fit.shape));
-  if (!o.history.empty()) WriteHistory(o.history, fit.history);
+  if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(fit.history));
 
   if (o.json) {
     nlohmann::json j;
@@ -107,16 +95,7 @@ int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, Fit
     j["iterations"] = fit.iterations;
     j["stop_reason"] = ToString(fit.stop_reason);
     j["seconds"] = seconds;
-    j["history"] = nlohmann::json::array();
-    for (const IterationRecord& r : fit.history) {
-      j["history"].push_back({{"iteration", r.iteration},
-                              {"rms", r.rms},
-                              {"max_distance", r.max_distance},
-                              {"objective", r.objective},
-                              {"damping", r.damping},
-                              {"step_norm", r.step_norm},
-                              {"seconds", r.seconds}});
-    }
+    j["history"] = HistoryJson(fit.history);
     if (deviation) {
       j["reference"] = {{"file", o.reference},
                         {"extent", extent},
@@ -234,23 +213,9 @@ Runner AddFitCommand(CLI::App& app) {
                                 [](const auto& p, const auto& opt) { return FitCylinder(p, opt); });
       return RunFit<Cone>(*o, scan, f, [](const auto& p, const auto& opt) { return FitCone(p, opt); });
     } catch (const FormatError& e) {
-      std::cerr << "scan2model fit: error: " << e.what() << "\n";
-      if (o->json)
-        std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
-                                    {"error", e.what()},
-                                    {"exit_code", kInputError}}
-                         .dump(2)
-                  << "\n";
-      return int{kInputError};
+      return ReportError("fit", e.what(), kInputError, o->json);
     } catch (const FitError& e) {
-      std::cerr << "scan2model fit: error: " << o->file << ": " << e.what() << "\n";
-      if (o->json)
-        std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
-                                    {"error", o->file + ": " + e.what()},
-                                    {"exit_code", kFitError}}
-                         .dump(2)
-                  << "\n";
-      return int{kFitError};
+      return ReportError("fit", o->file + ": " + e.what(), kFitError, o->json);
     }
   };
 }

@@ -43,14 +43,7 @@ Runner AddInfoCommand(CLI::App& app) {
       for (const std::string& note : scan.metadata.notes) std::cout << "  note      " << note << "\n";
       return int{kOk};
     } catch (const FormatError& e) {
-      std::cerr << "scan2model info: error: " << e.what() << "\n";
-      if (options->json)
-        std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
-                                    {"error", e.what()},
-                                    {"exit_code", kInputError}}
-                         .dump(2)
-                  << "\n";
-      return int{kInputError};
+      return ReportError("info", e.what(), kInputError, options->json);
     }
   };
 }

@@ -1,6 +1,11 @@
 #include "apps/output.h"
 
+#include <filesystem>
+#include <fstream>
+#include <iostream>
 #include <sstream>
+
+#include "acquisition/format_error.h"
 
 namespace s2m::app {
 
@@ -42,6 +47,55 @@ nlohmann::json DescribeScan(const Scan& scan, const std::string& file, const std
   j["world_T_scan"] = ToJson(scan.world_T_scan.matrix());
   j["notes"] = scan.metadata.notes;
   return j;
+}
+
+nlohmann::json HistoryJson(const std::vector<IterationRecord>& history) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const IterationRecord& r : history) {
+    out.push_back({{"iteration", r.iteration},
+                   {"rms", r.rms},
+                   {"max_distance", r.max_distance},
+                   {"objective", r.objective},
+                   {"damping", r.damping},
+                   {"step_norm", r.step_norm},
+                   {"seconds", r.seconds}});
+  }
+  return out;
+}
+
+std::string HistoryCsv(const std::vector<IterationRecord>& history) {
+  std::ostringstream csv;
+  csv.precision(17);
+  csv << "iteration,rms,max_distance,objective,damping,step_norm,seconds\n";
+  for (const IterationRecord& r : history) {
+    csv << r.iteration << ',' << r.rms << ',' << r.max_distance << ',' << r.objective << ',' << r.damping
+        << ',' << r.step_norm << ',' << r.seconds << '\n';
+  }
+  return csv.str();
+}
+
+void WriteTextAtomically(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".partial";
+  {
+    std::ofstream out(tmp);
+    out << text;
+    if (!out) throw FormatError(path, "", "cannot write");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw FormatError(path, "", "cannot move the finished file into place: " + ec.message());
+}
+
+int ReportError(const std::string& command, const std::string& message, int exit_code, bool json) {
+  std::cerr << "scan2model " << command << ": error: " << message << "\n";
+  if (json) {
+    std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
+                                {"error", message},
+                                {"exit_code", exit_code}}
+                     .dump(2)
+              << "\n";
+  }
+  return exit_code;
 }
 
 }  // namespace s2m::app

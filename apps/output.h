@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "fitting/fit_result.h"
 #include "registration/scan.h"
 
 namespace s2m::app {
@@ -16,5 +17,15 @@ std::string Format(const Eigen::Vector3d& v, int digits = 12);
 std::string Format(double value, int digits = 12);
 // Describes the input file: points, normals, units, bounds.
 nlohmann::json DescribeScan(const Scan& scan, const std::string& file, const std::string& format);
+
+// The per-iteration history as JSON (an array of objects) and as CSV (with a header line).
+nlohmann::json HistoryJson(const std::vector<IterationRecord>& history);
+std::string HistoryCsv(const std::vector<IterationRecord>& history);
+// Writes beside the target, then renames, so that a crash never leaves a half-written file under the final
+// name. Throws FormatError naming the file when it cannot be written.
+void WriteTextAtomically(const std::string& path, const std::string& text);
+// A failure: the message on standard error and, with --json, a scan2model.error/1 document on standard
+// output.
+int ReportError(const std::string& command, const std::string& message, int exit_code, bool json);
 
 }  // namespace s2m::app

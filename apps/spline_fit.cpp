@@ -156,16 +156,6 @@ Eigen::Matrix3Xd Samples(const ParametricModel& model) {
   return m;
 }
 
-void WriteText(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".partial";
-  {
-    std::ofstream out(tmp);
-    out << text;
-    if (!out) throw FormatError(path, "", "cannot write");
-  }
-  std::filesystem::rename(tmp, path);
-}
-
 }  // namespace
 
 int RunSplineFit(const FitOptions& o) {
@@ -241,35 +231,17 @@ int RunSplineFit(const FitOptions& o) {
     j["iterations"] = r.iterations;
     j["stop_reason"] = ToString(r.stop_reason);
     j["seconds"] = seconds;
-    j["history"] = nlohmann::json::array();
-    for (const IterationRecord& h : r.history) {
-      j["history"].push_back({{"iteration", h.iteration},
-                              {"rms", h.rms},
-                              {"max_distance", h.max_distance},
-                              {"objective", h.objective},
-                              {"damping", h.damping},
-                              {"step_norm", h.step_norm},
-                              {"seconds", h.seconds}});
-    }
+    j["history"] = HistoryJson(r.history);
     std::string history_path = o.history;
     if (!o.output.empty()) {
-      WriteText(o.output + ".json", j.dump(2) + "\n");
+      WriteTextAtomically(o.output + ".json", j.dump(2) + "\n");
       Scan samples;
       samples.points = Samples(*model);
       samples.units = units_out;
       WritePly(o.output + ".ply", samples);
       if (history_path.empty()) history_path = o.output + "_history.csv";
     }
-    if (!history_path.empty()) {
-      std::ostringstream csv;
-      csv.precision(17);
-      csv << "iteration,rms,max_distance,objective,damping,step_norm,seconds\n";
-      for (const IterationRecord& h : r.history) {
-        csv << h.iteration << ',' << h.rms << ',' << h.max_distance << ',' << h.objective << ',' << h.damping
-            << ',' << h.step_norm << ',' << h.seconds << '\n';
-      }
-      WriteText(history_path, csv.str());
-    }
+    if (!history_path.empty()) WriteTextAtomically(history_path, HistoryCsv(r.history));
     if (o.json) {
       std::cout << j.dump(2) << "\n";
       return kOk;
@@ -290,26 +262,11 @@ int RunSplineFit(const FitOptions& o) {
     }
     return kOk;
   } catch (const UsageError& e) {
-    std::cerr << "scan2model fit: error: " << e.what() << "\n";
-    return kUsage;
+    return ReportError("fit", e.what(), kUsage, o.json);
   } catch (const FormatError& e) {
-    std::cerr << "scan2model fit: error: " << e.what() << "\n";
-    if (o.json)
-      std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
-                                  {"error", e.what()},
-                                  {"exit_code", kInputError}}
-                       .dump(2)
-                << "\n";
-    return kInputError;
+    return ReportError("fit", e.what(), kInputError, o.json);
   } catch (const std::exception& e) {  // singular systems, degenerate data, invalid knots
-    std::cerr << "scan2model fit: error: " << o.file << ": " << e.what() << "\n";
-    if (o.json)
-      std::cout << nlohmann::json{{"schema", "scan2model.error/1"},
-                                  {"error", o.file + ": " + e.what()},
-                                  {"exit_code", kFitError}}
-                       .dump(2)
-                << "\n";
-    return kFitError;
+    return ReportError("fit", o.file + ": " + e.what(), kFitError, o.json);
   }
 }
 

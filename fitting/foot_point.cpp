@@ -6,12 +6,6 @@
 namespace s2m {
 namespace {
 
-Eigen::Vector3d To3(const VecS& v) {
-  Eigen::Vector3d out = Eigen::Vector3d::Zero();
-  out.head(v.size()) = v;
-  return out;
-}
-
 // Brings t into the domain: wraps periodic directions, clamps open ones.
 void Confine(const ParameterDomain& d, ParamT& t) {
   for (int k = 0; k < d.dimension; ++k) {

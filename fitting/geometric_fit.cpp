@@ -12,21 +12,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-Eigen::Vector3d To3(const VecS& v) {
-  Eigen::Vector3d out = Eigen::Vector3d::Zero();
-  out.head(v.size()) = v;
-  return out;
-}
-
-// The SDM weight of one tangential direction: delta*kappa / (delta*kappa - 1), clamped at 0 (METHOD.md
-// section 2).
-double SdmWeight(double delta, double kappa) {
-  const double dk = delta * kappa;
-  const double denom = dk - 1.0;
-  if (std::abs(denom) < 1e-12) return 0.0;
-  return std::max(0.0, dk / denom);
-}
-
 // CDM's squared weight; near a curvature centre (delta*kappa -> 1) the denominator becomes -(1 + |delta
 // kappa|), the rule METHOD.md gives for CDM and GN.
 double CdmWeight(double delta, double kappa) {

@@ -6,11 +6,6 @@
 
 namespace s2m {
 namespace {
-Eigen::Vector3d To3(const VecS& v) {
-  Eigen::Vector3d out = Eigen::Vector3d::Zero();
-  out.head(v.size()) = v;
-  return out;
-}
 
 // Any unit vector orthogonal to u (3D).
 Eigen::Vector3d AnyPerpendicular(const Eigen::Vector3d& u) {

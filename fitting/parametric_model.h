@@ -16,6 +16,23 @@ using VecS = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAmbient, 1>;
 using MatS = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxAmbient, kMaxAmbient>;
 using ParamT = std::array<double, 2>;  // t (surfaces use both entries)
 
+// A point of the model's space padded to 3D (z = 0 for planar models).
+inline Eigen::Vector3d To3(const VecS& v) {
+  Eigen::Vector3d out = Eigen::Vector3d::Zero();
+  out.head(v.size()) = v;
+  return out;
+}
+
+// The SDM weight of one tangential direction, delta*kappa / (delta*kappa - 1) clamped at 0 (METHOD.md section
+// 2; Wang, Pottmann, Liu, ACM TOG 25 (2006), eq. 9), with kappa signed w.r.t. the unit normal n and delta =
+// n.(X - s).
+inline double SdmWeight(double delta, double kappa) {
+  const double dk = delta * kappa;
+  const double denom = dk - 1.0;
+  if (denom > -1e-12 && denom < 1e-12) return 0.0;
+  return dk / denom > 0.0 ? dk / denom : 0.0;
+}
+
 struct ParameterDomain {
   int dimension = 1;  // m
   std::array<double, 2> lo{0.0, 0.0}, hi{1.0, 1.0};

@@ -13,6 +13,8 @@
 #include <optional>
 #include <string>
 
+#include "fitting/parametric_model.h"
+
 namespace s2m {
 namespace {
 
@@ -42,13 +44,25 @@ NormalizedData Normalize(const Eigen::Matrix3Xd& points, Eigen::Index min_points
   return n;
 }
 
-// SDM weight of one tangential direction (METHOD.md section 2; Wang, Pottmann, Liu, TOG 2006, eq. 9):
-// beta = max(0, delta*kappa / (delta*kappa - 1)), kappa signed w.r.t. the unit normal n, delta = n.(X - s).
-double SdmWeight(double delta, double kappa) {
-  const double dk = delta * kappa;
-  const double denom = dk - 1.0;
-  if (std::abs(denom) < 1e-12) return 0.0;
-  return std::max(0.0, dk / denom);
+// Coordinates of y in the frame whose z axis is an axis through `point`: distance from the axis, the
+// direction (cos, sin) around it and the axial position.
+struct AxisCoordinates {
+  double rho, cos, sin, z;
+};
+AxisCoordinates InAxisFrame(const Eigen::Matrix3d& frame, const Eigen::Vector3d& point,
+                            const Eigen::Vector3d& y) {
+  const Eigen::Vector3d v = frame.transpose() * (y - point);
+  const double rho = std::hypot(v[0], v[1]);
+  return {rho, rho > 0 ? v[0] / rho : 1.0, rho > 0 ? v[1] / rho : 0.0, v[2]};
+}
+
+// Applies the axis increments (u1, u2, a1, b1) of the local parametrization: the axis point moves by (u1, u2,
+// 0), the direction becomes (a1, b1, 1), both in the frame of the current axis.
+void MoveAxis(const Eigen::Vector3d& point, const Eigen::Vector3d& direction, const Eigen::VectorXd& delta,
+              Eigen::Vector3d& new_point, Eigen::Vector3d& new_direction) {
+  const Eigen::Matrix3d frame = FrameWithAxis(direction);
+  new_point = point + frame * Eigen::Vector3d(delta[0], delta[1], 0.0);
+  new_direction = (frame * Eigen::Vector3d(delta[2], delta[3], 1.0)).normalized();
 }
 
 // ---- Models: closed-form foot points, TDM rows d(distance)/d(params) and SDM tangential rows
@@ -123,11 +137,7 @@ struct CylinderLocal {
     const double kappa = -1.0 / s.radius;
     Eigen::Matrix<double, kParams, 1> t;
     for (Eigen::Index i = 0; i < n; ++i) {
-      const Eigen::Vector3d v = frame.transpose() * (y.col(i) - s.axis_point);
-      const double rho = std::hypot(v[0], v[1]);
-      const double c = rho > 0 ? v[0] / rho : 1.0;
-      const double sn = rho > 0 ? v[1] / rho : 0.0;
-      const double z = v[2];
+      const auto [rho, c, sn, z] = InAxisFrame(frame, s.axis_point, y.col(i));
       d[i] = rho - s.radius;
       J.row(i) << -c, -sn, -c * z, -sn * z, -1.0;
       if (sdm) {
@@ -143,10 +153,8 @@ struct CylinderLocal {
   }
 
   static Cylinder Update(const Cylinder& s, const Eigen::VectorXd& delta) {
-    const Eigen::Matrix3d frame = FrameWithAxis(s.axis_direction);
     Cylinder out;
-    out.axis_point = s.axis_point + frame * Eigen::Vector3d(delta[0], delta[1], 0.0);
-    out.axis_direction = (frame * Eigen::Vector3d(delta[2], delta[3], 1.0)).normalized();
+    MoveAxis(s.axis_point, s.axis_direction, delta, out.axis_point, out.axis_direction);
     out.radius = s.radius + delta[4];
     MoveAxisPointNear(out, Eigen::Vector3d::Zero());
     return out;
@@ -182,11 +190,7 @@ struct ConeLocal {
     T.setZero();
     Eigen::Matrix<double, kParams, 1> t;
     for (Eigen::Index i = 0; i < n; ++i) {
-      const Eigen::Vector3d v = frame.transpose() * (y.col(i) - s.axis_point);
-      const double rho = std::hypot(v[0], v[1]);
-      const double c = rho > 0 ? v[0] / rho : 1.0;
-      const double sn = rho > 0 ? v[1] / rho : 0.0;
-      const double z = v[2];
+      const auto [rho, c, sn, z] = InAxisFrame(frame, s.axis_point, y.col(i));
       d[i] = rho * cpsi - z * spsi - offset;
       const double dpsi = -rho * spsi - z * cpsi;
       J.row(i) << -cpsi * c, -cpsi * sn, c * dpsi, sn * dpsi, dpsi, -1.0;
@@ -208,10 +212,8 @@ struct ConeLocal {
   }
 
   static Cone Update(const Cone& s, const Eigen::VectorXd& delta) {
-    const Eigen::Matrix3d frame = FrameWithAxis(s.axis_direction);
     Cone out;
-    out.axis_point = s.axis_point + frame * Eigen::Vector3d(delta[0], delta[1], 0.0);
-    out.axis_direction = (frame * Eigen::Vector3d(delta[2], delta[3], 1.0)).normalized();
+    MoveAxis(s.axis_point, s.axis_direction, delta, out.axis_point, out.axis_direction);
     out.half_angle = s.half_angle + delta[4];
     out.radius = (s.radius * std::cos(s.half_angle) + delta[5]) / std::cos(out.half_angle);
     if (out.half_angle < 0) {  // the same cone, opening the other way
