@@ -22,39 +22,6 @@ double CdmWeight(double delta, double kappa) {
   return w * w;
 }
 
-// The 3x3 matrix M of the quadratic error term e^T M e of one data point (first s rows/cols used).
-Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s) {
-  Eigen::Matrix3d identity = Eigen::Matrix3d::Zero();
-  identity.topLeftCorner(s, s).setIdentity();
-  Eigen::Matrix3d normal_space = Eigen::Matrix3d::Zero();
-  for (int k = 0; k < f.normal_count; ++k) {
-    normal_space +=
-        f.normals[static_cast<std::size_t>(k)] * f.normals[static_cast<std::size_t>(k)].transpose();
-  }
-  switch (term) {
-    case ErrorTerm::kPdm:
-      return identity;
-    case ErrorTerm::kTdm:
-      return f.normals[0] * f.normals[0].transpose();
-    case ErrorTerm::kGtdm:
-      return normal_space;
-    case ErrorTerm::kSdm:
-    case ErrorTerm::kCdm: {
-      Eigen::Matrix3d m = normal_space;
-      for (int k = 0; k < f.tangent_count; ++k) {
-        const auto i = static_cast<std::size_t>(k);
-        const double w = term == ErrorTerm::kSdm ? SdmWeight(f.delta, f.curvatures[i])
-                                                 : CdmWeight(f.delta, f.curvatures[i]);
-        m += w * f.tangents[i] * f.tangents[i].transpose();
-      }
-      return m;
-    }
-    case ErrorTerm::kGn:
-      return identity;  // GN builds its own Jacobian; M is used only for boundary points
-  }
-  return identity;
-}
-
 struct Normalization {
   VecS offset;
   double scale = 1.0;
@@ -209,6 +176,38 @@ std::optional<std::string> UnobservableShape(const ParametricModel& model, const
 }
 
 }  // namespace
+
+Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s) {
+  Eigen::Matrix3d identity = Eigen::Matrix3d::Zero();
+  identity.topLeftCorner(s, s).setIdentity();
+  Eigen::Matrix3d normal_space = Eigen::Matrix3d::Zero();
+  for (int k = 0; k < f.normal_count; ++k) {
+    normal_space +=
+        f.normals[static_cast<std::size_t>(k)] * f.normals[static_cast<std::size_t>(k)].transpose();
+  }
+  switch (term) {
+    case ErrorTerm::kPdm:
+      return identity;
+    case ErrorTerm::kTdm:
+      return f.normals[0] * f.normals[0].transpose();
+    case ErrorTerm::kGtdm:
+      return normal_space;
+    case ErrorTerm::kSdm:
+    case ErrorTerm::kCdm: {
+      Eigen::Matrix3d m = normal_space;
+      for (int k = 0; k < f.tangent_count; ++k) {
+        const auto i = static_cast<std::size_t>(k);
+        const double w = term == ErrorTerm::kSdm ? SdmWeight(f.delta, f.curvatures[i])
+                                                 : CdmWeight(f.delta, f.curvatures[i]);
+        m += w * f.tangents[i] * f.tangents[i].transpose();
+      }
+      return m;
+    }
+    case ErrorTerm::kGn:
+      return identity;  // GN builds its own Jacobian; M is used only for boundary points
+  }
+  return identity;
+}
 
 const char* ToString(ErrorTerm term) {
   switch (term) {

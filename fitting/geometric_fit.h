@@ -24,6 +24,10 @@ enum class ErrorTerm {
   kGn,  // Gauss-Newton with the full implicit-function Jacobian C_P - C_t G^-1 Q (reference, most expensive)
 };
 const char* ToString(ErrorTerm term);
+
+// The 3x3 matrix M of the quadratic error term e^T M e of one data point in the principal frame `f` at its foot point
+// (first s rows and columns used). For kGn, which builds its own Jacobian, the identity.
+Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s);
 ErrorTerm ErrorTermFromString(const std::string& name);  // "pdm", "tdm", ...; throws std::invalid_argument
 
 enum class StepControl {

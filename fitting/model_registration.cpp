@@ -1,0 +1,118 @@
+#include "fitting/model_registration.h"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "fitting/foot_point.h"
+#include "registration/rigid_step.h"
+
+namespace s2m {
+namespace {
+
+double MeanSquare(const std::vector<FootPoint>& feet) {
+  double sum = 0.0;
+  for (const FootPoint& f : feet) sum += f.distance * f.distance;
+  return sum / static_cast<double>(feet.size());
+}
+
+}  // namespace
+
+ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eigen::Matrix3Xd& scan_points,
+                                        const RigidMotion& initial, const ModelRegistrationOptions& options) {
+  if (model.ambient_dimension() != 3) throw std::invalid_argument("rigid registration needs a model in 3D");
+  if (scan_points.cols() == 0) throw std::invalid_argument("no scan points to register");
+  if (!scan_points.allFinite()) throw std::invalid_argument("the scan points contain NaN or inf");
+  const auto start = std::chrono::steady_clock::now();
+  const double size =
+      std::max((scan_points.rowwise().maxCoeff() - scan_points.rowwise().minCoeff()).norm(), 1e-300);
+
+  ModelRegistrationResult result;
+  result.model_T_scan = initial;
+  Eigen::Matrix3Xd current = initial.apply(scan_points);
+  std::vector<FootPoint> feet, trial_feet;
+  ComputeFootPoints(model, current, feet);
+  double mean_square = MeanSquare(feet);
+  double lambda = options.damping ? 1e-6 : 0.0;
+  LocalGeometry geo;
+  result.stop_reason = StopReason::kMaxIterations;
+  if (options.target_rms > 0 && std::sqrt(mean_square) <= options.target_rms)
+    result.stop_reason = StopReason::kTargetReached;
+
+  while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
+    RigidNormalEquations eq;
+    for (Eigen::Index j = 0; j < current.cols(); ++j) {
+      const FootPoint& f = feet[static_cast<std::size_t>(j)];
+      model.Evaluate(f.t, 2, geo);
+      const PrincipalFrame frame = ComputePrincipalFrame(geo, current.col(j));
+      // GN's implicit-function Jacobian is for shape parameters; for a rigid motion of the data SDM is its
+      // analogue.
+      const ErrorTerm term = options.error_term == ErrorTerm::kGn ? ErrorTerm::kSdm : options.error_term;
+      eq.Add({current.col(j), To3(geo.point), ErrorMatrix(term, frame, 3),
+              1.0 / static_cast<double>(current.cols())});
+    }
+    bool accepted = false;
+    Eigen::Matrix<double, 6, 1> velocity;
+    RigidMotion step;
+    while (true) {
+      velocity = SolveRigidVelocity(eq, lambda);
+      step = RigidMotion::FromHelicalVelocity(velocity.head<3>(), velocity.tail<3>());
+      const RigidMotion trial = step * result.model_T_scan;
+      const Eigen::Matrix3Xd moved = trial.apply(scan_points);  // from the original scan: no drift
+      ComputeFootPoints(model, moved, trial_feet, &feet);
+      const double trial_mean_square = MeanSquare(trial_feet);
+      if (!options.damping || trial_mean_square < mean_square) {
+        result.model_T_scan = trial;
+        current = moved;
+        feet.swap(trial_feet);
+        mean_square = trial_mean_square;
+        lambda = options.damping ? std::max(lambda * 0.1, 1e-12) : 0.0;
+        accepted = true;
+        break;
+      }
+      lambda *= 10.0;
+      if (lambda > 1e12) break;
+    }
+    if (!accepted) {
+      result.stop_reason = StopReason::kNoFurtherDecrease;
+      break;
+    }
+    ++result.iterations;
+    IterationRecord rec;
+    rec.iteration = result.iterations;
+    rec.rms = std::sqrt(mean_square);
+    for (const FootPoint& f : feet) rec.max_distance = std::max(rec.max_distance, f.distance);
+    rec.objective = 0.5 * mean_square;
+    rec.damping = lambda;
+    rec.step_norm = velocity.norm();
+    rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    result.history.push_back(rec);
+    if (options.target_rms > 0 && rec.rms <= options.target_rms) {
+      result.stop_reason = StopReason::kTargetReached;
+    } else if (step.angle() <= options.rotation_tolerance &&
+               step.translation().norm() <= options.translation_tolerance * size) {
+      result.stop_reason = StopReason::kStepTolerance;
+    }
+  }
+  result.model_T_scan.normalize();
+  Eigen::VectorXd d(static_cast<Eigen::Index>(feet.size()));
+  for (std::size_t j = 0; j < feet.size(); ++j) d[static_cast<Eigen::Index>(j)] = feet[j].distance;
+  result.residuals = ComputeResidualStatistics(d);
+  return result;
+}
+
+std::vector<ModelRegistrationResult> RegisterScansToModel(const ParametricModel& model,
+                                                          const RigidMotion& world_T_model, ScanSet& scans,
+                                                          const ModelRegistrationOptions& options) {
+  std::vector<ModelRegistrationResult> results;
+  const RigidMotion model_T_world = world_T_model.inverse();
+  for (Scan& scan : scans.scans) {
+    ModelRegistrationResult r =
+        RegisterToModel(model, scan.points, model_T_world * scan.world_T_scan, options);
+    scan.world_T_scan = world_T_model * r.model_T_scan;
+    results.push_back(std::move(r));
+  }
+  return results;
+}
+
+}  // namespace s2m

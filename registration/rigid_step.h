@@ -1,0 +1,34 @@
+#pragma once
+// One linearized rigid-registration step (METHOD.md section 5; Liu, Pottmann, Wang, CAD 38(6) 2006, section
+// 3): a small motion of a point about its current position x is x' = x + cbar + c x x. With each point's
+// quadratic error term (x' - s)^T M (x' - s) frozen at its model point s, the motion (c, cbar) solves a 6x6
+// linear system. PDM (M = I) is classic ICP, TDM (M = n n^T) point-to-plane ICP (Chen-Medioni), SDM adds
+// curvature-weighted tangents.
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "registration/rigid_motion.h"
+
+namespace s2m {
+
+struct PointConstraint {
+  Eigen::Vector3d x;       // current position of the data point
+  Eigen::Vector3d target;  // its model point s
+  Eigen::Matrix3d M;       // the error term's matrix
+  double weight = 1.0;
+};
+
+// The normal equations sum w A^T M A [c; cbar] = -sum w A^T M (x - s), A = [-[x]x  I], accumulated point by
+// point.
+struct RigidNormalEquations {
+  Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();  // sum w A^T M (x - s)
+  void Add(const PointConstraint& p);
+  void Add(const RigidNormalEquations& other);
+};
+
+// The velocity (c, cbar) minimizing the linearized error, with Levenberg-Marquardt damping lambda * diag(H).
+Eigen::Matrix<double, 6, 1> SolveRigidVelocity(const RigidNormalEquations& eq, double damping = 0.0);
+
+}  // namespace s2m
