@@ -126,6 +126,7 @@ int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, Fit
             << "  solver            " << ToString(options.method) << " + Levenberg-Marquardt, "
             << fit.iterations << " iterations, stopped: " << ToString(fit.stop_reason) << ", "
             << Format(seconds * 1e3, 3) << " ms\n";
+  if (o.verbose) std::cout << HistoryTable(fit.history);
   if (deviation) {
     std::cout << "\n  against reference " << o.reference << " (relative to the data's extent "
               << Format(extent, 6) << ")\n"
@@ -188,6 +189,8 @@ Runner AddFitCommand(CLI::App& app) {
   cmd->add_option("--reference", o->reference, "A NIST .fit reference file to compare the result with");
   cmd->add_option("--history", o->history, "Write the per-iteration history to this CSV file");
   cmd->add_option("--units", o->units, "Declare the input's units (e.g. mm) when the file does not say");
+  cmd->add_flag("--verbose,-v", o->verbose,
+                "Print the per-iteration history (RMS, max distance, damping, step, time)");
   cmd->add_flag("--json", o->json, "Machine-readable output (schema scan2model.fit/1, docs/cli.md)");
   return [o]() {
     if (o->model == "bspline-curve" || o->model == "bspline-surface") return RunSplineFit(*o);

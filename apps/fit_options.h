@@ -16,6 +16,7 @@ struct FitOptions {
   std::string units;
   int max_iterations = 200;
   bool json = false;
+  bool verbose = false;  // print the per-iteration history table
   // Splines.
   std::string control_points;  // curve: "N"; surface: "NUxNV"
   int order = 4;

@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <iostream>
 #include <sstream>
 
@@ -72,6 +73,17 @@ std::string HistoryCsv(const std::vector<IterationRecord>& history) {
         << ',' << r.step_norm << ',' << r.seconds << '\n';
   }
   return csv.str();
+}
+
+std::string HistoryTable(const std::vector<IterationRecord>& history) {
+  std::ostringstream t;
+  t << "\n  iteration           RMS   max distance    damping       step    time (ms)\n";
+  for (const IterationRecord& r : history) {
+    t << "  " << std::setw(9) << r.iteration << std::setw(14) << Format(r.rms, 6) << std::setw(15)
+      << Format(r.max_distance, 6) << std::setw(11) << Format(r.damping, 2) << std::setw(11)
+      << Format(r.step_norm, 3) << std::setw(13) << Format(r.seconds * 1e3, 4) << "\n";
+  }
+  return t.str();
 }
 
 void WriteTextAtomically(const std::string& path, const std::string& text) {

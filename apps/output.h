@@ -21,6 +21,8 @@ nlohmann::json DescribeScan(const Scan& scan, const std::string& file, const std
 // The per-iteration history as JSON (an array of objects) and as CSV (with a header line).
 nlohmann::json HistoryJson(const std::vector<IterationRecord>& history);
 std::string HistoryCsv(const std::vector<IterationRecord>& history);
+// The history as an aligned text table (iteration, RMS, max distance, damping, step, time).
+std::string HistoryTable(const std::vector<IterationRecord>& history);
 // Writes beside the target, then renames, so that a crash never leaves a half-written file under the final
 // name. Throws FormatError naming the file when it cannot be written.
 void WriteTextAtomically(const std::string& path, const std::string& text);

@@ -256,6 +256,7 @@ int RunSplineFit(const FitOptions& o) {
               << Format(r.residuals.max_abs, 6) << "\n"
               << "  solver            " << r.iterations << " iterations, stopped: " << ToString(r.stop_reason)
               << ", " << Format(seconds * 1e3, 4) << " ms\n";
+    if (o.verbose) std::cout << HistoryTable(r.history);
     if (!o.output.empty()) {
       std::cout << "  written           " << o.output << ".json, " << o.output << ".ply, " << history_path
                 << "\n";

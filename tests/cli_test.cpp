@@ -91,6 +91,8 @@ TEST(Cli, FitWritesTheIterationHistory) {
   const Result r = RunCli("fit --model cone " + Data("con1.ds") + " --history " + csv.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("apex_angle_deg"), std::string::npos);
+  const Result verbose = RunCli("fit -v --model cone " + Data("con1.ds"));
+  EXPECT_NE(verbose.out.find("iteration           RMS"), std::string::npos) << verbose.out;
   std::ifstream in(csv);
   std::string header;
   std::getline(in, header);
