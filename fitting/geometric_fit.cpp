@@ -265,7 +265,7 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
   Normalization norm;
   norm.offset = VecS::Zero(s);
   if (options.normalize) {
-    norm.offset = points.rowwise().mean();
+    if (model.SupportsTranslation()) norm.offset = points.rowwise().mean();
     const double half = 0.5 * (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).maxCoeff();
     norm.scale = half > 0 ? half : 1.0;
   }

@@ -15,6 +15,8 @@ constexpr int kMaxAmbient = 3;
 using VecS = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAmbient, 1>;
 using MatS = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxAmbient, kMaxAmbient>;
 using ParamT = std::array<double, 2>;  // t (surfaces use both entries)
+// A rigid-motion velocity (c, cbar) of METHOD.md section 5: rotation c, then translation cbar.
+using Motion6 = Eigen::Matrix<double, 6, 1>;
 
 // A point of the model's space padded to 3D (z = 0 for planar models).
 inline Eigen::Vector3d To3(const VecS& v) {
@@ -78,6 +80,15 @@ class ParametricModel {
   virtual void ApplyStep(const Eigen::VectorXd& step) { set_parameters(parameters() + step); }
   // Maps the model by x -> scale * x + offset (data normalization into the unit box and back).
   virtual void ApplySimilarity(double scale, const VecS& offset) = 0;
+  // False for models tied to their own frame (kinematic surfaces: the axis is the frame's z axis): data are
+  // then normalized by scale alone.
+  virtual bool SupportsTranslation() const { return true; }
+  // Gauge of the joint solver (METHOD.md section 6): rigid-motion velocities of one scan the model is
+  // invariant to (e.g. rotation about the axis of a surface of revolution), and velocities that, applied to
+  // all scans together, a change of shape absorbs (a common translation along that axis). Both are removed
+  // from the unknowns.
+  virtual std::vector<Motion6> InvariantMotions() const { return {}; }
+  virtual std::vector<Motion6> CommonMotionsAbsorbedByShape() const { return {}; }
 
   // C and its t-derivatives up to `derivatives` (0, 1 or 2) at t (wrapped/clamped into the domain).
   virtual void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const = 0;

@@ -15,6 +15,7 @@
 #include "fitting/bspline_models.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
+#include "fitting/kinematic_surfaces.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_models.h"
 #include "test_paths.h"
@@ -155,6 +156,20 @@ std::vector<NamedFactory> Models() {
        [] {
          return std::make_unique<SphereModel>(
              Sphere{{1, -2, 0.5}, 2.0}, Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 0, 0)).toRotationMatrix());
+       }},
+      {"revolution",
+       [] {
+         Eigen::Matrix2Xd profile(2, 6);
+         profile << 1.0, 1.4, 1.8, 1.5, 1.2, 1.6, 0.0, 0.5, 1.2, 2.0, 2.6, 3.2;
+         return std::make_unique<KinematicSurface>(
+             KinematicSurface::Revolution(UnitSpacedClamped(4, 6), profile));
+       }},
+      {"helical",
+       [] {
+         Eigen::Matrix2Xd profile(2, 5);
+         profile << 0.5, 0.8, 1.0, 0.9, 0.6, -0.2, -0.1, 0.0, 0.1, 0.2;
+         return std::make_unique<KinematicSurface>(
+             KinematicSurface::Helical(UnitSpacedClamped(3, 5), profile, 0.15, 2.0));
        }},
       {"circle_3d",
        [] {

@@ -1,0 +1,183 @@
+#include "fitting/kinematic_surfaces.h"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace s2m {
+
+KinematicSurface::KinematicSurface(BSplineBasis basis, Eigen::Matrix2Xd profile, bool helical, double pitch,
+                                   double turns)
+    : basis_(std::move(basis)),
+      profile_(std::move(profile)),
+      helical_(helical),
+      pitch_(pitch),
+      turns_(turns) {
+  if (basis_.periodic())
+    throw std::invalid_argument("the generatrix of a kinematic surface is an open curve");
+  if (profile_.cols() != basis_.num_control()) {
+    throw std::invalid_argument("the generatrix basis has " + std::to_string(basis_.num_control()) +
+                                " functions but " + std::to_string(profile_.cols()) +
+                                " profile points were given");
+  }
+  if (helical_ && !(turns_ > 0))
+    throw std::invalid_argument("a helical surface needs a positive number of turns");
+}
+
+KinematicSurface KinematicSurface::Revolution(BSplineBasis basis, Eigen::Matrix2Xd profile) {
+  return KinematicSurface(std::move(basis), std::move(profile), false, 0.0, 1.0);
+}
+
+KinematicSurface KinematicSurface::Helical(BSplineBasis basis, Eigen::Matrix2Xd profile, double pitch,
+                                           double turns) {
+  return KinematicSurface(std::move(basis), std::move(profile), true, pitch, turns);
+}
+
+Eigen::Vector2d KinematicSurface::ProfilePoint(double u) const {
+  BSplineBasis::Values b;
+  basis_.Evaluate(u, 0, b);
+  Eigen::Vector2d p = Eigen::Vector2d::Zero();
+  for (int i = 0; i < basis_.order(); ++i)
+    p += b.values[0][static_cast<std::size_t>(i)] * profile_.col(basis_.ControlIndex(b.first, i));
+  return p;
+}
+
+ParameterDomain KinematicSurface::domain() const {
+  ParameterDomain d;
+  d.dimension = 2;
+  d.lo = {basis_.lo(), helical_ ? -M_PI * turns_ : 0.0};
+  d.hi = {basis_.hi(), helical_ ? M_PI * turns_ : 2 * M_PI};
+  d.periodic = {false, !helical_};
+  return d;
+}
+
+std::string KinematicSurface::parameter_name(int index) const {
+  if (index == static_cast<int>(profile_.size())) return "pitch";
+  return std::string(index % 2 == 0 ? "radius" : "height") + " of profile point " + std::to_string(index / 2);
+}
+
+Eigen::VectorXd KinematicSurface::parameters() const {
+  Eigen::VectorXd p(num_parameters());
+  p.head(profile_.size()) = Eigen::Map<const Eigen::VectorXd>(profile_.data(), profile_.size());
+  if (helical_) p[profile_.size()] = pitch_;
+  return p;
+}
+
+void KinematicSurface::set_parameters(const Eigen::VectorXd& p) {
+  profile_ = Eigen::Map<const Eigen::Matrix2Xd>(p.data(), 2, profile_.cols());
+  if (helical_) pitch_ = p[profile_.size()];
+}
+
+void KinematicSurface::ApplySimilarity(double scale, const VecS& offset) {
+  if (offset.size() >= 2 && (offset[0] != 0.0 || offset[1] != 0.0)) {
+    throw std::logic_error(
+        "a kinematic surface is tied to its frame: only shifts along its axis are representable");
+  }
+  profile_ *= scale;
+  if (offset.size() == 3) profile_.row(1).array() += offset[2];
+  pitch_ *= scale;
+}
+
+void KinematicSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+  BSplineBasis::Values b;
+  basis_.Evaluate(t[0], derivatives, b);
+  Eigen::Matrix<double, 2, 3> rz = Eigen::Matrix<double, 2, 3>::Zero();  // columns: value, d/du, d2/du2
+  for (int i = 0; i < basis_.order(); ++i) {
+    const Eigen::Vector2d q = profile_.col(basis_.ControlIndex(b.first, i));
+    for (int d = 0; d <= std::min(derivatives, 2); ++d)
+      rz.col(d) += b.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(i)] * q;
+  }
+  const double v = t[1], c = std::cos(v), s = std::sin(v);
+  const double r = rz(0, 0), z = rz(1, 0), r1 = rz(0, 1), z1 = rz(1, 1), r2 = rz(0, 2), z2 = rz(1, 2);
+  out.point = Eigen::Vector3d(r * c, r * s, z + pitch_ * v);
+  out.d1.setZero(3, 2);
+  out.d2.setZero(3, 3);
+  if (derivatives >= 1) {
+    out.d1.col(0) = Eigen::Vector3d(r1 * c, r1 * s, z1);
+    out.d1.col(1) = Eigen::Vector3d(-r * s, r * c, pitch_);
+  }
+  if (derivatives >= 2) {
+    out.d2.col(0) = Eigen::Vector3d(r2 * c, r2 * s, z2);
+    out.d2.col(1) = Eigen::Vector3d(-r1 * s, r1 * c, 0.0);
+    out.d2.col(2) = Eigen::Vector3d(-r * c, -r * s, 0.0);
+  }
+}
+
+void KinematicSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {
+  out.clear();
+  BSplineBasis::Values b;
+  basis_.Evaluate(t[0], with_dt ? 1 : 0, b);
+  const double v = t[1], c = std::cos(v), s = std::sin(v);
+  for (int i = 0; i < basis_.order(); ++i) {
+    const int k = basis_.ControlIndex(b.first, i);
+    const double w = b.values[0][static_cast<std::size_t>(i)];
+    const double dw = with_dt ? b.values[1][static_cast<std::size_t>(i)] : 0.0;
+    JacobianEntry radius, height;
+    radius.index = 2 * k;
+    radius.column = w * Eigen::Vector3d(c, s, 0.0);
+    radius.dcolumn_dt = {
+        Eigen::Vector3d(dw * Eigen::Vector3d(c, s, 0.0)),
+        with_dt ? Eigen::Vector3d(w * Eigen::Vector3d(-s, c, 0.0)) : Eigen::Vector3d::Zero()};
+    height.index = 2 * k + 1;
+    height.column = w * Eigen::Vector3d::UnitZ();
+    height.dcolumn_dt = {Eigen::Vector3d(dw * Eigen::Vector3d::UnitZ()), Eigen::Vector3d::Zero()};
+    out.push_back(radius);
+    out.push_back(height);
+  }
+  if (helical_) {
+    JacobianEntry pitch;
+    pitch.index = static_cast<int>(profile_.size());
+    pitch.column = Eigen::Vector3d(0.0, 0.0, v);
+    pitch.dcolumn_dt = {Eigen::Vector3d::Zero(),
+                        with_dt ? Eigen::Vector3d(Eigen::Vector3d::UnitZ()) : Eigen::Vector3d::Zero()};
+    out.push_back(pitch);
+  }
+}
+
+Eigen::MatrixXd KinematicSurface::FairnessMatrix(const FairnessWeights& w) const {
+  if (w.stretch == 0.0 && w.bending == 0.0) return {};
+  const int n = basis_.num_control();
+  auto gram = [&](int derivative) {
+    const std::vector<double> g = basis_.GramMatrix(derivative);
+    return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(g.data(),
+                                                                                                    n, n)
+        .eval();
+  };
+  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(n, n);
+  // Fairness of the generatrix (r(u), z(u)) as a plane curve (METHOD.md section 3).
+  if (w.stretch != 0.0) k += w.stretch * gram(1);
+  if (w.bending != 0.0 && basis_.order() > 2) k += w.bending * gram(2);
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(num_parameters(), num_parameters());
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      for (int c = 0; c < 2; ++c) out(2 * i + c, 2 * j + c) = k(i, j);
+  return out;
+}
+
+std::vector<ParamT> KinematicSurface::SampleParameters() const {
+  std::vector<ParamT> out;
+  const ParameterDomain d = domain();
+  const std::vector<double> breaks = basis_.Breakpoints();
+  const int angles = helical_ ? static_cast<int>(48 * turns_) : 48;
+  for (std::size_t s = 0; s + 1 < breaks.size(); ++s)
+    for (int i = 0; i <= 8; ++i) {
+      const double u = breaks[s] + (breaks[s + 1] - breaks[s]) * i / 8;
+      for (int a = 0; a < angles; ++a) out.push_back({u, d.lo[1] + (d.hi[1] - d.lo[1]) * (a + 0.5) / angles});
+    }
+  return out;
+}
+
+std::vector<Motion6> KinematicSurface::InvariantMotions() const {
+  // A rotation about the axis (with the screw's axial advance for helical surfaces) maps the surface onto
+  // itself.
+  Motion6 screw;
+  screw << 0, 0, 1, 0, 0, pitch_;
+  return {screw};
+}
+
+std::vector<Motion6> KinematicSurface::CommonMotionsAbsorbedByShape() const {
+  Motion6 axial;
+  axial << 0, 0, 0, 0, 0, 1;  // every z_k shifts with a common axial translation of all scans
+  return {axial};
+}
+
+}  // namespace s2m

@@ -1,0 +1,59 @@
+#pragma once
+// Kinematic surfaces with a B-spline generatrix (METHOD.md section 7; Liu, Pottmann, Wang, CAD 38(6) 2006,
+// section 4): surfaces of revolution (pots) and helical surfaces (drills), in their own adapted frame whose z
+// axis is the axis:  x(u, v) = sum_k (r_k cos v, r_k sin v, z_k) B_k(u) + (0, 0, p v),  p = 0 for revolution.
+
+#include "fitting/bspline_basis.h"
+#include "fitting/parametric_model.h"
+
+namespace s2m {
+
+class KinematicSurface final : public ParametricModel {
+ public:
+  // Surface of revolution: profile control points (r_k, z_k) as the columns of a 2 x n matrix.
+  static KinematicSurface Revolution(BSplineBasis basis, Eigen::Matrix2Xd profile);
+  // Helical surface with pitch p (axial advance per radian), v in [-pi turns, pi turns]. The pitch is a
+  // parameter.
+  static KinematicSurface Helical(BSplineBasis basis, Eigen::Matrix2Xd profile, double pitch, double turns);
+
+  const BSplineBasis& basis() const { return basis_; }
+  const Eigen::Matrix2Xd& profile() const { return profile_; }
+  double pitch() const { return pitch_; }
+  bool helical() const { return helical_; }
+  // Radius and height of the generatrix at u.
+  Eigen::Vector2d ProfilePoint(double u) const;
+
+  std::unique_ptr<ParametricModel> Clone() const override {
+    return std::make_unique<KinematicSurface>(*this);
+  }
+  void CopyFrom(const ParametricModel& other) override {
+    *this = dynamic_cast<const KinematicSurface&>(other);
+  }
+  std::string name() const override { return helical_ ? "helical surface" : "surface of revolution"; }
+  int ambient_dimension() const override { return 3; }
+  ParameterDomain domain() const override;
+  int num_parameters() const override { return static_cast<int>(profile_.size()) + (helical_ ? 1 : 0); }
+  std::string parameter_name(int index) const override;
+  Eigen::VectorXd parameters() const override;
+  void set_parameters(const Eigen::VectorXd& p) override;
+  // The axis is the frame's z axis: only scaling and shifts along z are representable (see
+  // SupportsTranslation).
+  void ApplySimilarity(double scale, const VecS& offset) override;
+  bool SupportsTranslation() const override { return false; }
+  void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
+  void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  Eigen::MatrixXd FairnessMatrix(const FairnessWeights& weights) const override;
+  std::vector<ParamT> SampleParameters() const override;
+  std::vector<Motion6> InvariantMotions() const override;
+  std::vector<Motion6> CommonMotionsAbsorbedByShape() const override;
+
+ private:
+  KinematicSurface(BSplineBasis basis, Eigen::Matrix2Xd profile, bool helical, double pitch, double turns);
+  BSplineBasis basis_;
+  Eigen::Matrix2Xd profile_;  // rows: r, z
+  bool helical_ = false;
+  double pitch_ = 0.0;
+  double turns_ = 1.0;
+};
+
+}  // namespace s2m
