@@ -1,0 +1,246 @@
+#include "fitting/joint_fit.h"
+
+#include <Eigen/Dense>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "fitting/foot_point.h"
+
+namespace s2m {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// An orthonormal basis (6 x q) of the motions left once the gauge directions are removed.
+Eigen::MatrixXd GaugeComplement(const std::vector<Motion6>& gauge) {
+  if (gauge.empty()) return Eigen::MatrixXd::Identity(6, 6);
+  Eigen::MatrixXd g(6, static_cast<Eigen::Index>(gauge.size()));
+  for (std::size_t i = 0; i < gauge.size(); ++i) g.col(static_cast<Eigen::Index>(i)) = gauge[i];
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr(g);
+  const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(6, 6);
+  return q.rightCols(6 - g.cols());
+}
+
+// The linearized motion of a point x: x' = x + cbar + c x x = x + A [c; cbar], A = [-[x]x  I].
+Eigen::Matrix<double, 3, 6> MotionJacobian(const Eigen::Vector3d& x) {
+  Eigen::Matrix<double, 3, 6> a;
+  a << 0.0, x.z(), -x.y(), 1.0, 0.0, 0.0,  //
+      -x.z(), 0.0, x.x(), 0.0, 1.0, 0.0,   //
+      x.y(), -x.x(), 0.0, 0.0, 0.0, 1.0;
+  return a;
+}
+
+struct State {
+  std::unique_ptr<ParametricModel> model;
+  std::vector<RigidMotion> poses;
+  std::vector<Eigen::Matrix3Xd> current;  // scan points in the model frame
+  std::vector<std::vector<FootPoint>> feet;
+  double objective = 0.0;
+  double rms = 0.0;  // normalized units
+};
+
+}  // namespace
+
+JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
+                          std::vector<RigidMotion> model_T_scan, const JointFitOptions& options) {
+  const std::size_t K = scans.size();
+  if (K == 0) throw std::invalid_argument("no scans to fit");
+  if (model_T_scan.size() != K) throw std::invalid_argument("one initial pose per scan is needed");
+  if (model.ambient_dimension() != 3) throw std::invalid_argument("the joint fit needs a model in 3D");
+  Eigen::Index total = 0;
+  for (const auto& s : scans) {
+    if (s.cols() == 0) throw std::invalid_argument("a scan has no points");
+    if (!s.allFinite()) throw std::invalid_argument("a scan contains NaN or inf coordinates");
+    total += s.cols();
+  }
+  const auto start = Clock::now();
+
+  // Scale into the unit box (no translation: the model may be tied to its frame).
+  double scale = 0.0;
+  for (std::size_t k = 0; k < K; ++k) {
+    const Eigen::Matrix3Xd p = model_T_scan[k].apply(scans[k]);
+    scale = std::max(scale, p.cwiseAbs().maxCoeff());
+  }
+  scale = scale > 0 ? scale : 1.0;
+  std::vector<Eigen::Matrix3Xd> data(K);
+  State state;
+  state.model = model.Clone();
+  state.model->ApplySimilarity(1.0 / scale, VecS::Zero(3));
+  for (std::size_t k = 0; k < K; ++k) {
+    data[k] = scans[k] / scale;
+    state.poses.push_back(RigidMotion(model_T_scan[k].rotation(), model_T_scan[k].translation() / scale));
+  }
+  std::vector<double> weights(K, 1.0);
+  for (std::size_t k = 0; k < K; ++k)
+    weights[k] = options.scan_weights ? 1.0 / static_cast<double>(data[k].cols()) : 1.0;
+  const Eigen::MatrixXd K_fair = state.model->FairnessMatrix(options.fairness);
+  const Eigen::MatrixXd B_scan = GaugeComplement(state.model->InvariantMotions());
+  std::vector<Motion6> first_gauge = state.model->InvariantMotions();
+  for (const Motion6& m : state.model->CommonMotionsAbsorbedByShape()) first_gauge.push_back(m);
+  const Eigen::MatrixXd B_first = GaugeComplement(first_gauge);
+
+  auto evaluate = [&](State& s, const State* warm) {
+    s.current.resize(K);
+    s.feet.resize(K);
+    double sum = 0.0, sum_sq = 0.0;
+    for (std::size_t k = 0; k < K; ++k) {
+      s.current[k] = s.poses[k].apply(data[k]);
+      ComputeFootPoints(*s.model, s.current[k], s.feet[k], warm ? &warm->feet[k] : nullptr);
+      double scan_sq = 0.0;
+      for (const FootPoint& f : s.feet[k]) scan_sq += f.distance * f.distance;
+      sum += 0.5 * weights[k] * scan_sq;
+      sum_sq += scan_sq;
+    }
+    if (K_fair.size() > 0) {
+      const Eigen::VectorXd p = s.model->parameters();
+      sum += p.dot(K_fair * p);
+    }
+    s.objective = sum;
+    s.rms = std::sqrt(sum_sq / static_cast<double>(total));
+  };
+  evaluate(state, nullptr);
+
+  JointFitResult result;
+  double lambda = 1e-6;
+  bool shared = (options.shared_motion_iterations > 0 || !options.per_scan_motions) && K > 1;
+  const int r = state.model->num_parameters();
+  LocalGeometry geo;
+  std::vector<JacobianEntry> entries;
+  result.stop_reason = StopReason::kMaxIterations;
+  if (options.target_rms > 0 && state.rms * scale <= options.target_rms)
+    result.stop_reason = StopReason::kTargetReached;
+
+  while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
+    // Blocks: one shared motion in stage 1, one per scan in stage 2; block 0 also carries the common gauge.
+    const std::size_t blocks = shared ? 1 : K;
+    std::vector<Eigen::MatrixXd> basis(blocks), h_bb(blocks), h_db(blocks);
+    std::vector<Eigen::VectorXd> g_b(blocks);
+    for (std::size_t b = 0; b < blocks; ++b) {
+      basis[b] = b == 0 ? B_first : B_scan;
+      const Eigen::Index q = basis[b].cols();
+      h_bb[b] = Eigen::MatrixXd::Zero(q, q);
+      h_db[b] = Eigen::MatrixXd::Zero(r, q);
+      g_b[b] = Eigen::VectorXd::Zero(q);
+    }
+    Eigen::MatrixXd h_dd = Eigen::MatrixXd::Zero(r, r);
+    Eigen::VectorXd g_d = Eigen::VectorXd::Zero(r);
+    for (std::size_t k = 0; k < K; ++k) {
+      const std::size_t b = shared ? 0 : k;
+      const double w = weights[k];
+      for (Eigen::Index j = 0; j < state.current[k].cols(); ++j) {
+        const FootPoint& f = state.feet[k][static_cast<std::size_t>(j)];
+        const Eigen::Vector3d x = state.current[k].col(j);
+        state.model->Evaluate(f.t, 2, geo);
+        state.model->ShapeJacobian(f.t, false, entries);
+        const Eigen::Vector3d s = To3(geo.point);
+        const Eigen::Matrix3d M = ErrorMatrix(options.error_term, ComputePrincipalFrame(geo, x), 3);
+        const Eigen::Vector3d e0 = x - s;
+        const Eigen::MatrixXd ab = MotionJacobian(x) * basis[b];  // 3 x q
+        const Eigen::MatrixXd m_ab = M * ab;
+        h_bb[b].noalias() += w * ab.transpose() * m_ab;
+        g_b[b].noalias() += w * m_ab.transpose() * e0;
+        for (const JacobianEntry& a : entries) {
+          const Eigen::Vector3d m_col = M * a.column;
+          g_d[a.index] -= w * m_col.dot(e0);
+          h_db[b].row(a.index).noalias() -= w * (a.column.transpose() * m_ab);
+          for (const JacobianEntry& c : entries) h_dd(c.index, a.index) += w * c.column.dot(m_col);
+        }
+      }
+    }
+    if (K_fair.size() > 0) {
+      h_dd += 2.0 * K_fair;
+      g_d += 2.0 * K_fair * state.model->parameters();
+    }
+    // Levenberg-Marquardt on the whole block-arrow system, solved by eliminating the motion blocks (Schur).
+    bool accepted = false;
+    State trial;
+    Eigen::VectorXd step_d;
+    std::vector<Eigen::VectorXd> step_b(blocks);
+    const double floor = 1e-9 * std::max(h_dd.diagonal().cwiseAbs().maxCoeff(), 1e-300);
+    while (true) {
+      Eigen::MatrixXd S = h_dd;
+      S.diagonal() += lambda * h_dd.diagonal().cwiseAbs().cwiseMax(floor);
+      Eigen::VectorXd rhs = -g_d;
+      std::vector<Eigen::LDLT<Eigen::MatrixXd>> inv(blocks);
+      for (std::size_t b = 0; b < blocks; ++b) {
+        Eigen::MatrixXd hb = h_bb[b];
+        hb.diagonal() += lambda * h_bb[b].diagonal().cwiseAbs().cwiseMax(
+                                      1e-9 * h_bb[b].diagonal().cwiseAbs().maxCoeff() + 1e-300);
+        inv[b].compute(hb);
+        S.noalias() -= h_db[b] * inv[b].solve(h_db[b].transpose());
+        rhs.noalias() += h_db[b] * inv[b].solve(g_b[b]);
+      }
+      step_d = S.ldlt().solve(rhs);
+      for (std::size_t b = 0; b < blocks; ++b)
+        step_b[b] = inv[b].solve(-g_b[b] - h_db[b].transpose() * step_d);
+      trial.model = state.model->Clone();
+      trial.model->ApplyStep(step_d);
+      trial.poses = state.poses;
+      for (std::size_t k = 0; k < K; ++k) {
+        const std::size_t b = shared ? 0 : k;
+        const Motion6 v = basis[b] * step_b[b];
+        trial.poses[k] = RigidMotion::FromHelicalVelocity(v.head<3>(), v.tail<3>()) * state.poses[k];
+      }
+      evaluate(trial, &state);
+      if (trial.objective < state.objective) {
+        accepted = true;
+        break;
+      }
+      lambda *= 10.0;
+      if (lambda > 1e12) break;
+    }
+    if (!accepted) {
+      if (shared && options.per_scan_motions) {  // stage 1 cannot improve further: free the per-scan motions
+        shared = false;
+        continue;
+      }
+      result.stop_reason = StopReason::kNoFurtherDecrease;
+      break;
+    }
+    const double relative = (state.objective - trial.objective) / state.objective;
+    state = std::move(trial);
+    lambda = std::max(lambda * 0.1, 1e-12);
+    ++result.iterations;
+    if (shared) ++result.shared_iterations;
+    IterationRecord rec;
+    rec.iteration = result.iterations;
+    rec.rms = state.rms * scale;
+    for (const auto& feet : state.feet)
+      for (const FootPoint& f : feet) rec.max_distance = std::max(rec.max_distance, f.distance * scale);
+    rec.objective = state.objective;
+    rec.damping = lambda;
+    rec.step_norm = step_d.norm();
+    rec.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    result.history.push_back(rec);
+    if (options.target_rms > 0 && rec.rms <= options.target_rms) {
+      result.stop_reason = StopReason::kTargetReached;
+    } else if (shared && options.per_scan_motions &&
+               (result.shared_iterations >= options.shared_motion_iterations || relative < 1e-6)) {
+      shared = false;
+    } else if ((!shared || !options.per_scan_motions) && relative <= options.objective_tolerance) {
+      result.stop_reason = StopReason::kObjectiveTolerance;
+    }
+  }
+
+  state.model->ApplySimilarity(scale, VecS::Zero(3));
+  model.CopyFrom(*state.model);
+  result.model_T_scan.clear();
+  Eigen::VectorXd all(total);
+  Eigen::Index offset = 0;
+  for (std::size_t k = 0; k < K; ++k) {
+    RigidMotion pose(state.poses[k].rotation(), state.poses[k].translation() * scale);
+    pose.normalize();
+    result.model_T_scan.push_back(pose);
+    Eigen::VectorXd d(static_cast<Eigen::Index>(state.feet[k].size()));
+    for (std::size_t j = 0; j < state.feet[k].size(); ++j)
+      d[static_cast<Eigen::Index>(j)] = state.feet[k][j].distance * scale;
+    result.per_scan.push_back(ComputeResidualStatistics(d));
+    all.segment(offset, d.size()) = d;
+    offset += d.size();
+  }
+  result.residuals = ComputeResidualStatistics(all);
+  return result;
+}
+
+}  // namespace s2m

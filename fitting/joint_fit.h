@@ -1,0 +1,50 @@
+#pragma once
+// Joint registration and fitting (METHOD.md section 6; Liu, Pottmann, Wang, CAD 38(6) 2006, section 5): one
+// rigid motion per scan and the model's shape parameters are solved TOGETHER, one linear solve per iteration.
+//
+// Per iteration, with frames and error terms frozen at the current foot points, F = sum_k w_k sum_j e^T M e
+// with e = x + cbar_k + c_k x x - s_+ is quadratic in (D, c_1, cbar_1, ..., c_K, cbar_K). Its normal matrix
+// has block-arrow structure (shape block, one 6x6 block per scan, dense coupling); the scan blocks are
+// eliminated by Schur complement, so the cost per iteration is linear in the number of points. Scans then
+// move by their exact helical motions. Gauge: motion directions the model is invariant to
+// (ParametricModel::InvariantMotions) are removed from every scan, and common motions a change of shape
+// absorbs (CommonMotionsAbsorbedByShape) from the first scan only. Staging: all scans first share one motion
+// (the initially registered cloud), then each scan gets its own.
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "fitting/fit_result.h"
+#include "fitting/geometric_fit.h"
+#include "fitting/parametric_model.h"
+#include "registration/rigid_motion.h"
+
+namespace s2m {
+
+struct JointFitOptions {
+  ErrorTerm error_term = ErrorTerm::kSdm;
+  int max_iterations = 100;          // both stages together
+  int shared_motion_iterations = 5;  // stage 1 length (0: start with per-scan motions)
+  bool per_scan_motions = true;  // false: stay in stage 1, i.e. fit the initially registered cloud (baseline)
+  FairnessWeights fairness;      // on data scaled into the unit box
+  bool scan_weights = true;      // w_k = 1 / N_k (each scan counts the same), else 1
+  double objective_tolerance = 1e-12;  // stop (in stage 2) when the relative decrease falls below this
+  double target_rms = 0.0;             // stop as soon as the RMS (input units) reaches this (0: off)
+};
+
+struct JointFitResult {
+  std::vector<RigidMotion> model_T_scan;  // per scan: maps the scan's coordinates into the model frame
+  ResidualStatistics residuals;           // all points, input units
+  std::vector<ResidualStatistics> per_scan;
+  int iterations = 0;
+  int shared_iterations = 0;  // how many of them used one shared motion
+  StopReason stop_reason = StopReason::kMaxIterations;
+  std::vector<IterationRecord> history;
+};
+
+// Fits `model` (updated in place) and the scans' poses together. `scans` are in their own coordinates,
+// `model_T_scan` their initial poses (e.g. device or turntable poses, or a coarse registration).
+JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
+                          std::vector<RigidMotion> model_T_scan, const JointFitOptions& options = {});
+
+}  // namespace s2m
