@@ -111,84 +111,129 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   if (options.target_rms > 0 && state.rms * scale <= options.target_rms)
     result.stop_reason = StopReason::kTargetReached;
 
-  while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
-    // Blocks: one shared motion in stage 1, one per scan in stage 2; block 0 also carries the common gauge.
-    const std::size_t blocks = shared ? 1 : K;
-    std::vector<Eigen::MatrixXd> basis(blocks), h_bb(blocks), h_db(blocks);
-    std::vector<Eigen::VectorXd> g_b(blocks);
+  // The block-arrow normal equations at the current foot points: shape block (h_dd, g_d), one motion block
+  // per scan (or one shared block), coupling h_db. Motions are in the gauge-reduced bases.
+  struct System {
+    std::vector<Eigen::MatrixXd> basis, h_bb, h_db;
+    std::vector<Eigen::VectorXd> g_b;
+    Eigen::MatrixXd h_dd;
+    Eigen::VectorXd g_d;
+  };
+  auto assemble = [&](const State& st, bool one_motion) {
+    System sys;
+    const std::size_t blocks = one_motion ? 1 : K;
     for (std::size_t b = 0; b < blocks; ++b) {
-      basis[b] = b == 0 ? B_first : B_scan;
-      const Eigen::Index q = basis[b].cols();
-      h_bb[b] = Eigen::MatrixXd::Zero(q, q);
-      h_db[b] = Eigen::MatrixXd::Zero(r, q);
-      g_b[b] = Eigen::VectorXd::Zero(q);
+      sys.basis.push_back(b == 0 ? B_first : B_scan);
+      const Eigen::Index q = sys.basis[b].cols();
+      sys.h_bb.push_back(Eigen::MatrixXd::Zero(q, q));
+      sys.h_db.push_back(Eigen::MatrixXd::Zero(r, q));
+      sys.g_b.push_back(Eigen::VectorXd::Zero(q));
     }
-    Eigen::MatrixXd h_dd = Eigen::MatrixXd::Zero(r, r);
-    Eigen::VectorXd g_d = Eigen::VectorXd::Zero(r);
+    sys.h_dd = Eigen::MatrixXd::Zero(r, r);
+    sys.g_d = Eigen::VectorXd::Zero(r);
     for (std::size_t k = 0; k < K; ++k) {
-      const std::size_t b = shared ? 0 : k;
+      const std::size_t b = one_motion ? 0 : k;
       const double w = weights[k];
-      for (Eigen::Index j = 0; j < state.current[k].cols(); ++j) {
-        const FootPoint& f = state.feet[k][static_cast<std::size_t>(j)];
-        const Eigen::Vector3d x = state.current[k].col(j);
-        state.model->Evaluate(f.t, 2, geo);
-        state.model->ShapeJacobian(f.t, false, entries);
-        const Eigen::Vector3d s = To3(geo.point);
+      for (Eigen::Index j = 0; j < st.current[k].cols(); ++j) {
+        const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
+        const Eigen::Vector3d x = st.current[k].col(j);
+        st.model->Evaluate(f.t, 2, geo);
+        st.model->ShapeJacobian(f.t, false, entries);
         const Eigen::Matrix3d M = ErrorMatrix(options.error_term, ComputePrincipalFrame(geo, x), 3);
-        const Eigen::Vector3d e0 = x - s;
-        const Eigen::MatrixXd ab = MotionJacobian(x) * basis[b];  // 3 x q
+        const Eigen::Vector3d e0 = x - To3(geo.point);
+        const Eigen::MatrixXd ab = MotionJacobian(x) * sys.basis[b];  // 3 x q
         const Eigen::MatrixXd m_ab = M * ab;
-        h_bb[b].noalias() += w * ab.transpose() * m_ab;
-        g_b[b].noalias() += w * m_ab.transpose() * e0;
+        sys.h_bb[b].noalias() += w * ab.transpose() * m_ab;
+        sys.g_b[b].noalias() += w * m_ab.transpose() * e0;
         for (const JacobianEntry& a : entries) {
           const Eigen::Vector3d m_col = M * a.column;
-          g_d[a.index] -= w * m_col.dot(e0);
-          h_db[b].row(a.index).noalias() -= w * (a.column.transpose() * m_ab);
-          for (const JacobianEntry& c : entries) h_dd(c.index, a.index) += w * c.column.dot(m_col);
+          sys.g_d[a.index] -= w * m_col.dot(e0);
+          sys.h_db[b].row(a.index).noalias() -= w * (a.column.transpose() * m_ab);
+          for (const JacobianEntry& c : entries) sys.h_dd(c.index, a.index) += w * c.column.dot(m_col);
         }
       }
     }
     if (K_fair.size() > 0) {
-      h_dd += 2.0 * K_fair;
-      g_d += 2.0 * K_fair * state.model->parameters();
+      sys.h_dd += 2.0 * K_fair;
+      sys.g_d += 2.0 * K_fair * st.model->parameters();
     }
-    // Levenberg-Marquardt on the whole block-arrow system, solved by eliminating the motion blocks (Schur).
-    bool accepted = false;
-    State trial;
-    Eigen::VectorXd step_d;
-    std::vector<Eigen::VectorXd> step_b(blocks);
-    const double floor = 1e-9 * std::max(h_dd.diagonal().cwiseAbs().maxCoeff(), 1e-300);
+    return sys;
+  };
+
+  // Damps a block with lambda * max(diag, floor): the floor keeps damping effective in near-null directions.
+  auto damped = [](const Eigen::MatrixXd& h, double damping) {
+    Eigen::MatrixXd a = h;
+    const double floor = 1e-9 * h.diagonal().cwiseAbs().maxCoeff() + 1e-300;
+    a.diagonal() += damping * h.diagonal().cwiseAbs().cwiseMax(floor);
+    return a;
+  };
+
+  enum class Unknowns { kAll, kMotions, kShape };
+  // One Levenberg-Marquardt step on the chosen unknowns (all: the joint method; motions or shape alone: the
+  // two half-steps of the alternating baseline). Returns false when no damping gives a decrease.
+  double last_step_norm = 0.0;
+  auto step = [&](const System& sys, Unknowns which, double& damping, State& trial) {
+    const std::size_t blocks = sys.basis.size();
     while (true) {
-      Eigen::MatrixXd S = h_dd;
-      S.diagonal() += lambda * h_dd.diagonal().cwiseAbs().cwiseMax(floor);
-      Eigen::VectorXd rhs = -g_d;
+      Eigen::VectorXd step_d = Eigen::VectorXd::Zero(r);
+      std::vector<Eigen::VectorXd> step_b(blocks);
       std::vector<Eigen::LDLT<Eigen::MatrixXd>> inv(blocks);
-      for (std::size_t b = 0; b < blocks; ++b) {
-        Eigen::MatrixXd hb = h_bb[b];
-        hb.diagonal() += lambda * h_bb[b].diagonal().cwiseAbs().cwiseMax(
-                                      1e-9 * h_bb[b].diagonal().cwiseAbs().maxCoeff() + 1e-300);
-        inv[b].compute(hb);
-        S.noalias() -= h_db[b] * inv[b].solve(h_db[b].transpose());
-        rhs.noalias() += h_db[b] * inv[b].solve(g_b[b]);
+      for (std::size_t b = 0; b < blocks; ++b) inv[b].compute(damped(sys.h_bb[b], damping));
+      if (which == Unknowns::kAll) {
+        // Schur complement: eliminate every motion block, solve for the shape, back-substitute.
+        Eigen::MatrixXd S = damped(sys.h_dd, damping);
+        Eigen::VectorXd rhs = -sys.g_d;
+        for (std::size_t b = 0; b < blocks; ++b) {
+          S.noalias() -= sys.h_db[b] * inv[b].solve(sys.h_db[b].transpose());
+          rhs.noalias() += sys.h_db[b] * inv[b].solve(sys.g_b[b]);
+        }
+        step_d = S.ldlt().solve(rhs);
+      } else if (which == Unknowns::kShape) {
+        step_d = damped(sys.h_dd, damping).ldlt().solve(-sys.g_d);
       }
-      step_d = S.ldlt().solve(rhs);
-      for (std::size_t b = 0; b < blocks; ++b)
-        step_b[b] = inv[b].solve(-g_b[b] - h_db[b].transpose() * step_d);
+      for (std::size_t b = 0; b < blocks; ++b) {
+        step_b[b] = which == Unknowns::kShape
+                        ? Eigen::VectorXd::Zero(sys.basis[b].cols())
+                        : Eigen::VectorXd(inv[b].solve(-sys.g_b[b] - sys.h_db[b].transpose() * step_d));
+      }
       trial.model = state.model->Clone();
       trial.model->ApplyStep(step_d);
       trial.poses = state.poses;
       for (std::size_t k = 0; k < K; ++k) {
-        const std::size_t b = shared ? 0 : k;
-        const Motion6 v = basis[b] * step_b[b];
+        const std::size_t b = blocks == 1 ? 0 : k;
+        const Motion6 v = sys.basis[b] * step_b[b];
         trial.poses[k] = RigidMotion::FromHelicalVelocity(v.head<3>(), v.tail<3>()) * state.poses[k];
       }
       evaluate(trial, &state);
       if (trial.objective < state.objective) {
-        accepted = true;
-        break;
+        last_step_norm = step_d.norm();
+        damping = std::max(damping * 0.1, 1e-12);
+        return true;
       }
-      lambda *= 10.0;
-      if (lambda > 1e12) break;
+      damping *= 10.0;
+      if (damping > 1e12) return false;
+    }
+  };
+
+  double lambda_shape = lambda;  // the alternating baseline damps its two half-steps separately
+  while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
+    State trial;
+    bool accepted = false;
+    const double objective_before = state.objective;
+    if (!options.alternating) {
+      accepted = step(assemble(state, shared), Unknowns::kAll, lambda, trial);
+      if (accepted) state = std::move(trial);
+    } else {
+      // Alternating baseline: a registration step (motions, model fixed), then a fitting step (model, poses
+      // fixed).
+      if (step(assemble(state, shared), Unknowns::kMotions, lambda, trial)) {
+        state = std::move(trial);
+        accepted = true;
+      }
+      if (step(assemble(state, shared), Unknowns::kShape, lambda_shape, trial)) {
+        state = std::move(trial);
+        accepted = true;
+      }
     }
     if (!accepted) {
       if (shared && options.per_scan_motions) {  // stage 1 cannot improve further: free the per-scan motions
@@ -198,9 +243,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
       result.stop_reason = StopReason::kNoFurtherDecrease;
       break;
     }
-    const double relative = (state.objective - trial.objective) / state.objective;
-    state = std::move(trial);
-    lambda = std::max(lambda * 0.1, 1e-12);
+    const double relative = (objective_before - state.objective) / objective_before;
     ++result.iterations;
     if (shared) ++result.shared_iterations;
     IterationRecord rec;
@@ -210,7 +253,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
       for (const FootPoint& f : feet) rec.max_distance = std::max(rec.max_distance, f.distance * scale);
     rec.objective = state.objective;
     rec.damping = lambda;
-    rec.step_norm = step_d.norm();
+    rec.step_norm = last_step_norm;
     rec.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     result.history.push_back(rec);
     if (options.target_rms > 0 && rec.rms <= options.target_rms) {

@@ -26,8 +26,11 @@ struct JointFitOptions {
   int max_iterations = 100;          // both stages together
   int shared_motion_iterations = 5;  // stage 1 length (0: start with per-scan motions)
   bool per_scan_motions = true;  // false: stay in stage 1, i.e. fit the initially registered cloud (baseline)
-  FairnessWeights fairness;      // on data scaled into the unit box
-  bool scan_weights = true;      // w_k = 1 / N_k (each scan counts the same), else 1
+  // The alternating baseline of METHOD.md section 6: per iteration one registration step (motions only), then
+  // one fitting step (shape only), instead of one joint step. Converges linearly (zig-zag).
+  bool alternating = false;
+  FairnessWeights fairness;            // on data scaled into the unit box
+  bool scan_weights = true;            // w_k = 1 / N_k (each scan counts the same), else 1
   double objective_tolerance = 1e-12;  // stop (in stage 2) when the relative decrease falls below this
   double target_rms = 0.0;             // stop as soon as the RMS (input units) reaches this (0: off)
 };

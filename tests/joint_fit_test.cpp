@@ -107,6 +107,23 @@ TEST(JointFit, PerScanMotionsBeatFittingThePreRegisteredCloud) {
   EXPECT_LT(rms_joint, 1.2 * 0.002);  // down to the noise
 }
 
+TEST(JointFit, JointNeedsFewerIterationsThanAlternatingToTheSameRms) {
+  const PotScans views = ScanPot(TruePot(), 0.0);
+  int iterations[2];
+  for (int alternating = 0; alternating < 2; ++alternating) {
+    KinematicSurface pot = StartingProfile();
+    JointFitOptions o;
+    o.alternating = alternating == 1;
+    o.target_rms = 1e-6;
+    o.max_iterations = 200;
+    const JointFitResult r = FitJointly(pot, views.scans, views.initial, o);
+    ASSERT_EQ(r.stop_reason, StopReason::kTargetReached) << (alternating ? "alternating" : "joint");
+    iterations[alternating] = r.iterations;
+  }
+  EXPECT_GE(iterations[1], 2 * iterations[0])
+      << "joint " << iterations[0] << ", alternating " << iterations[1];
+}
+
 TEST(JointFit, RejectsBadInput) {
   KinematicSurface pot = StartingProfile();
   EXPECT_THROW(FitJointly(pot, {}, {}), std::invalid_argument);
