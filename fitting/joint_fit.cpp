@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "fitting/foot_point.h"
 
@@ -75,10 +76,12 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   for (std::size_t k = 0; k < K; ++k)
     weights[k] = options.scan_weights ? 1.0 / static_cast<double>(data[k].cols()) : 1.0;
   const Eigen::MatrixXd K_fair = state.model->FairnessMatrix(options.fairness);
-  const Eigen::MatrixXd B_scan = GaugeComplement(state.model->InvariantMotions());
+  const Eigen::MatrixXd B_scan = options.remove_gauge ? GaugeComplement(state.model->InvariantMotions())
+                                                      : Eigen::MatrixXd::Identity(6, 6);
   std::vector<Motion6> first_gauge = state.model->InvariantMotions();
   for (const Motion6& m : state.model->CommonMotionsAbsorbedByShape()) first_gauge.push_back(m);
-  const Eigen::MatrixXd B_first = GaugeComplement(first_gauge);
+  const Eigen::MatrixXd B_first =
+      options.remove_gauge ? GaugeComplement(first_gauge) : Eigen::MatrixXd::Identity(6, 6);
 
   auto evaluate = [&](State& s, const State* warm) {
     s.current.resize(K);
@@ -119,7 +122,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     Eigen::MatrixXd h_dd;
     Eigen::VectorXd g_d;
   };
-  auto assemble = [&](const State& st, bool one_motion) {
+  auto assemble = [&](const State& st, bool one_motion, ErrorTerm term) {
     System sys;
     const std::size_t blocks = one_motion ? 1 : K;
     for (std::size_t b = 0; b < blocks; ++b) {
@@ -139,7 +142,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
         const Eigen::Vector3d x = st.current[k].col(j);
         st.model->Evaluate(f.t, 2, geo);
         st.model->ShapeJacobian(f.t, false, entries);
-        const Eigen::Matrix3d M = ErrorMatrix(options.error_term, ComputePrincipalFrame(geo, x), 3);
+        const Eigen::Matrix3d M = ErrorMatrix(term, ComputePrincipalFrame(geo, x), 3);
         const Eigen::Vector3d e0 = x - To3(geo.point);
         const Eigen::MatrixXd ab = MotionJacobian(x) * sys.basis[b];  // 3 x q
         const Eigen::MatrixXd m_ab = M * ab;
@@ -221,16 +224,16 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     bool accepted = false;
     const double objective_before = state.objective;
     if (!options.alternating) {
-      accepted = step(assemble(state, shared), Unknowns::kAll, lambda, trial);
+      accepted = step(assemble(state, shared, options.error_term), Unknowns::kAll, lambda, trial);
       if (accepted) state = std::move(trial);
     } else {
       // Alternating baseline: a registration step (motions, model fixed), then a fitting step (model, poses
       // fixed).
-      if (step(assemble(state, shared), Unknowns::kMotions, lambda, trial)) {
+      if (step(assemble(state, shared, options.error_term), Unknowns::kMotions, lambda, trial)) {
         state = std::move(trial);
         accepted = true;
       }
-      if (step(assemble(state, shared), Unknowns::kShape, lambda_shape, trial)) {
+      if (step(assemble(state, shared, options.error_term), Unknowns::kShape, lambda_shape, trial)) {
         state = std::move(trial);
         accepted = true;
       }
@@ -283,6 +286,51 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     offset += d.size();
   }
   result.residuals = ComputeResidualStatistics(all);
+
+  // Unobservable directions (METHOD.md section 6): the null space of the full normal matrix built with the
+  // whole normal space (GTDM), so that SDM's tangential terms cannot mask a motion that slides scans along
+  // the surface.
+  const System sys = assemble(state, false, ErrorTerm::kGtdm);
+  Eigen::Index dim = r;
+  for (const Eigen::MatrixXd& b : sys.basis) dim += b.cols();
+  Eigen::MatrixXd full = Eigen::MatrixXd::Zero(dim, dim);
+  full.topLeftCorner(r, r) = sys.h_dd;
+  std::vector<std::pair<Eigen::Index, std::size_t>> block_offset;  // (offset, scan)
+  Eigen::Index offset_b = r;
+  for (std::size_t b = 0; b < sys.basis.size(); ++b) {
+    const Eigen::Index q = sys.basis[b].cols();
+    full.block(offset_b, offset_b, q, q) = sys.h_bb[b];
+    full.block(0, offset_b, r, q) = sys.h_db[b];
+    full.block(offset_b, 0, q, r) = sys.h_db[b].transpose();
+    block_offset.push_back({offset_b, b});
+    offset_b += q;
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(full);
+  const double top = std::max(eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-300);
+  static const char* kMotionNames[6] = {"rotation x",    "rotation y",    "rotation z",
+                                        "translation x", "translation y", "translation z"};
+  for (Eigen::Index i = 0; i < dim; ++i) {
+    if (eig.eigenvalues()[i] > 1e-10 * top) continue;
+    const Eigen::VectorXd v = eig.eigenvectors().col(i);
+    // Name the largest component: a shape parameter, or a scan's motion mapped back to (c, cbar).
+    double best = v.head(r).cwiseAbs().maxCoeff();
+    std::string name;
+    if (r > 0) {
+      Eigen::Index at;
+      v.head(r).cwiseAbs().maxCoeff(&at);
+      name = model.parameter_name(static_cast<int>(at));
+    }
+    for (const auto& [offset_k, k] : block_offset) {
+      const Motion6 m = sys.basis[k] * v.segment(offset_k, sys.basis[k].cols());
+      Eigen::Index at;
+      const double size = m.cwiseAbs().maxCoeff(&at);
+      if (size > best) {
+        best = size;
+        name = "scan " + std::to_string(k) + " " + kMotionNames[at];
+      }
+    }
+    result.unobservable.push_back(name);
+  }
   return result;
 }
 

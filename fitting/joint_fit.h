@@ -12,6 +12,7 @@
 // (the initially registered cloud), then each scan gets its own.
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "fitting/fit_result.h"
@@ -29,6 +30,9 @@ struct JointFitOptions {
   // The alternating baseline of METHOD.md section 6: per iteration one registration step (motions only), then
   // one fitting step (shape only), instead of one joint step. Converges linearly (zig-zag).
   bool alternating = false;
+  // Remove the gauge directions the model declares (default). Off, the solver runs on the full motions
+  // (damping keeps it going) and reports the directions it could not observe, by name.
+  bool remove_gauge = true;
   FairnessWeights fairness;            // on data scaled into the unit box
   bool scan_weights = true;            // w_k = 1 / N_k (each scan counts the same), else 1
   double objective_tolerance = 1e-12;  // stop (in stage 2) when the relative decrease falls below this
@@ -43,6 +47,9 @@ struct JointFitResult {
   int shared_iterations = 0;  // how many of them used one shared motion
   StopReason stop_reason = StopReason::kMaxIterations;
   std::vector<IterationRecord> history;
+  // Directions of the final normal matrix (whole normal space) with no information, each named by its
+  // dominant parameter, e.g. "scan 2 rotation z". Empty when every remaining unknown is determined.
+  std::vector<std::string> unobservable;
 };
 
 // Fits `model` (updated in place) and the scans' poses together. `scans` are in their own coordinates,

@@ -124,6 +124,24 @@ TEST(JointFit, JointNeedsFewerIterationsThanAlternatingToTheSameRms) {
       << "joint " << iterations[0] << ", alternating " << iterations[1];
 }
 
+TEST(JointFit, GaugeIsRemovedOrReportedByName) {
+  const PotScans views = ScanPot(TruePot(), 0.0);
+  KinematicSurface pot = StartingProfile();
+  JointFitOptions o;
+  o.max_iterations = 40;
+  EXPECT_TRUE(FitJointly(pot, views.scans, views.initial, o).unobservable.empty());
+  // With the gauge left in, each scan's rotation about the axis (and one common axial shift) stay
+  // undetermined.
+  KinematicSurface free_pot = StartingProfile();
+  o.remove_gauge = false;
+  const JointFitResult r = FitJointly(free_pot, views.scans, views.initial, o);
+  EXPECT_LT(r.residuals.rms, 1e-6);
+  ASSERT_GE(r.unobservable.size(), 3u);
+  int rotations = 0;
+  for (const std::string& name : r.unobservable) rotations += name.find("rotation z") != std::string::npos;
+  EXPECT_GE(rotations, 3) << ::testing::PrintToString(r.unobservable);
+}
+
 TEST(JointFit, RejectsBadInput) {
   KinematicSurface pot = StartingProfile();
   EXPECT_THROW(FitJointly(pot, {}, {}), std::invalid_argument);
