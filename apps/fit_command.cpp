@@ -148,10 +148,15 @@ Runner AddFitCommand(CLI::App& app) {
   auto o = std::make_shared<FitOptions>();
   CLI::App* cmd =
       app.add_subcommand("fit", "Fit a model to a point cloud by orthogonal-distance least squares");
-  cmd->add_option("file", o->file, "Input: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds")->required();
+  cmd->add_option("file", o->file,
+                  "Input: a point cloud (.ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds), a glyph (.glif) for "
+                  "curves, or "
+                  "several views (.json manifest, Stanford .conf) for --model revolution")
+      ->required();
   cmd->add_option("--model,-m", o->model, "Model to fit")
       ->required()
-      ->check(CLI::IsMember({"plane", "sphere", "cylinder", "cone", "bspline-curve", "bspline-surface"}));
+      ->check(CLI::IsMember(
+          {"plane", "sphere", "cylinder", "cone", "bspline-curve", "bspline-surface", "revolution"}));
   cmd->add_option("--method", o->method,
                   "Error term per iteration: pdm, tdm, sdm, cdm, gtdm or gn (primitives: tdm or sdm). "
                   "Default: tdm for primitives, sdm for splines")
@@ -189,11 +194,18 @@ Runner AddFitCommand(CLI::App& app) {
   cmd->add_option("--reference", o->reference, "A NIST .fit reference file to compare the result with");
   cmd->add_option("--history", o->history, "Write the per-iteration history to this CSV file");
   cmd->add_option("--units", o->units, "Declare the input's units (e.g. mm) when the file does not say");
+  cmd->add_flag("--alternating", o->alternating,
+                "Multi-view: the alternating baseline (registration step, then fitting step) instead of the "
+                "joint method");
+  cmd->add_flag(
+      "--register-then-fit", o->register_then_fit,
+      "Multi-view: keep one shared motion for all views (fit the pre-registered cloud; a baseline)");
   cmd->add_flag("--verbose,-v", o->verbose,
                 "Print the per-iteration history (RMS, max distance, damping, step, time)");
   cmd->add_flag("--json", o->json, "Machine-readable output (schema scan2model.fit/1, docs/cli.md)");
   return [o]() {
     if (o->model == "bspline-curve" || o->model == "bspline-surface") return RunSplineFit(*o);
+    if (o->model == "revolution") return RunMultiViewFit(*o);
     if (o->method.empty()) o->method = "tdm";
     if (o->method != "tdm" && o->method != "sdm") {
       std::cerr << "scan2model fit: error: --method " << o->method

@@ -16,7 +16,9 @@ struct FitOptions {
   std::string units;
   int max_iterations = 200;
   bool json = false;
-  bool verbose = false;  // print the per-iteration history table
+  bool verbose = false;
+  bool alternating = false;        // multi-view: the alternating baseline instead of the joint method
+  bool register_then_fit = false;  // multi-view: one shared motion only (fit the pre-registered cloud)  // print the per-iteration history table
   // Splines.
   std::string control_points;  // curve: "N"; surface: "NUxNV"
   int order = 4;
@@ -31,5 +33,7 @@ struct FitOptions {
 
 // Runs a B-spline curve or surface fit; returns the exit code.
 int RunSplineFit(const FitOptions& options);
+// Runs a joint multi-view fit (surface of revolution); returns the exit code.
+int RunMultiViewFit(const FitOptions& options);
 
 }  // namespace s2m::app

@@ -55,18 +55,8 @@ void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std:
       columns.resize(entries.size());
       for (std::size_t a = 0; a < entries.size(); ++a) columns[a] = entries[a].column;
       if (foot.on_boundary && options.open_end_rule) {
-        // METHOD.md section 4: e_outer = cos(theta) e_PD + (1 - cos(theta)) e_term, theta between the
-        // boundary tangent space and X - s.
-        const PrincipalFrame f = ComputePrincipalFrame(geo, x);
-        const Eigen::Vector3d offset = -residual;
-        double tangential = 0.0;
-        for (int k = 0; k < f.tangent_count; ++k)
-          tangential += std::pow(f.tangents[static_cast<std::size_t>(k)].dot(offset), 2);
-        const double cos_theta = offset.norm() > 0 ? std::sqrt(tangential) / offset.norm() : 0.0;
-        const ErrorTerm base = gn ? ErrorTerm::kSdm : options.error_term;
-        Eigen::Matrix3d identity = Eigen::Matrix3d::Zero();
-        identity.topLeftCorner(s, s).setIdentity();
-        M = cos_theta * identity + (1.0 - cos_theta) * ErrorMatrix(base, f, s);
+        M = EndRuleMatrix(gn ? ErrorTerm::kSdm : options.error_term, ComputePrincipalFrame(geo, x), -residual,
+                          s);
       } else if (gn) {
         // Full Jacobian C_P - C_t G^-1 Q, G = C_t^T C_t + [r . C_tk tl], Q_k = C_tk^T C_P + r^T dC_P/dt_k.
         Eigen::Matrix2d G = Eigen::Matrix2d::Identity();
@@ -207,6 +197,18 @@ Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s) {
       return identity;  // GN builds its own Jacobian; M is used only for boundary points
   }
   return identity;
+}
+
+Eigen::Matrix3d EndRuleMatrix(ErrorTerm term, const PrincipalFrame& f, const Eigen::Vector3d& offset, int s) {
+  // METHOD.md section 4: e_outer = cos(theta) e_PD + (1 - cos(theta)) e_term, theta between the boundary's
+  // tangent space and X - s.
+  double tangential = 0.0;
+  for (int k = 0; k < f.tangent_count; ++k)
+    tangential += std::pow(f.tangents[static_cast<std::size_t>(k)].dot(offset), 2);
+  const double cos_theta = offset.norm() > 0 ? std::sqrt(tangential) / offset.norm() : 0.0;
+  Eigen::Matrix3d identity = Eigen::Matrix3d::Zero();
+  identity.topLeftCorner(s, s).setIdentity();
+  return cos_theta * identity + (1.0 - cos_theta) * ErrorMatrix(term, f, s);
 }
 
 const char* ToString(ErrorTerm term) {

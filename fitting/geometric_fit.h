@@ -25,9 +25,12 @@ enum class ErrorTerm {
 };
 const char* ToString(ErrorTerm term);
 
-// The 3x3 matrix M of the quadratic error term e^T M e of one data point in the principal frame `f` at its foot point
-// (first s rows and columns used). For kGn, which builds its own Jacobian, the identity.
+// The 3x3 matrix M of the quadratic error term e^T M e of one data point in the principal frame `f` at its
+// foot point (first s rows and columns used). For kGn, which builds its own Jacobian, the identity.
 Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s);
+// The error term of a data point whose foot point lies on an open boundary (the end rule of METHOD.md section
+// 4), with offset = X - s: cos(theta) I + (1 - cos(theta)) M_term.
+Eigen::Matrix3d EndRuleMatrix(ErrorTerm term, const PrincipalFrame& f, const Eigen::Vector3d& offset, int s);
 ErrorTerm ErrorTermFromString(const std::string& name);  // "pdm", "tdm", ...; throws std::invalid_argument
 
 enum class StepControl {

@@ -6,6 +6,7 @@
 #include <map>
 #include <stdexcept>
 
+#include "fitting/kinematic_surfaces.h"
 #include "fitting/primitive_fit.h"
 
 namespace s2m {
@@ -156,6 +157,37 @@ BSplineSurface InitialSurfaceByProjection(const Eigen::Matrix3Xd& points, int nu
   const double mu = 1e-3 * A.trace() / std::max(k_scalar.trace(), 1e-300);
   const Eigen::MatrixXd control = (A + mu * k_scalar).ldlt().solve(b);
   return BSplineSurface(bu, bv, control.transpose());
+}
+
+KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& p, int num_control, int order) {
+  if (p.cols() < num_control) throw std::invalid_argument("fewer points than profile control points");
+  const BSplineBasis basis = UnitSpacedClamped(order, num_control);
+  const Eigen::VectorXd z = p.row(2).transpose();
+  const double lo = z.minCoeff(), hi = z.maxCoeff();
+  if (!(hi > lo)) throw std::invalid_argument("the points have no extent along the axis");
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(num_control, num_control);
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(num_control, 2);
+  BSplineBasis::Values v;
+  for (Eigen::Index j = 0; j < p.cols(); ++j) {
+    const double u = (z[j] - lo) / (hi - lo) * (basis.hi() - basis.lo()) + basis.lo();
+    basis.Evaluate(u, 0, v);
+    const Eigen::Vector2d rz(std::hypot(p(0, j), p(1, j)), z[j]);
+    for (int i = 0; i < basis.order(); ++i) {
+      const int ci = basis.ControlIndex(v.first, i);
+      b.row(ci) += v.values[0][static_cast<std::size_t>(i)] * rz.transpose();
+      for (int k = 0; k < basis.order(); ++k) {
+        A(ci, basis.ControlIndex(v.first, k)) +=
+            v.values[0][static_cast<std::size_t>(i)] * v.values[0][static_cast<std::size_t>(k)];
+      }
+    }
+  }
+  const std::vector<double> g = basis.GramMatrix(2);
+  const Eigen::MatrixXd K =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+          g.data(), num_control, num_control);
+  const double mu = 1e-3 * A.trace() / std::max(K.trace(), 1e-300);
+  const Eigen::MatrixXd control = (A + mu * K).ldlt().solve(b);
+  return KinematicSurface::Revolution(basis, control.transpose());
 }
 
 }  // namespace s2m

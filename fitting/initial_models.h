@@ -27,4 +27,10 @@ enum class SurfaceProjection { kPlane, kCylinder };
 BSplineSurface InitialSurfaceByProjection(const Eigen::Matrix3Xd& points, int num_control_u,
                                           int num_control_v, int order, SurfaceProjection projection);
 
+// A surface of revolution about the z axis of the frame the points are given in: the generatrix (r(u), z(u))
+// by linear least squares over u proportional to height, with a small bending term (an initial model for the
+// joint fit).
+class KinematicSurface;
+KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& points_in_axis_frame, int num_control, int order);
+
 }  // namespace s2m

@@ -75,7 +75,13 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   std::vector<double> weights(K, 1.0);
   for (std::size_t k = 0; k < K; ++k)
     weights[k] = options.scan_weights ? 1.0 / static_cast<double>(data[k].cols()) : 1.0;
-  const Eigen::MatrixXd K_fair = state.model->FairnessMatrix(options.fairness);
+  // Fairness weights keep the engine's meaning (relative to the sum of squared distances over all points):
+  // with scan weights w_k the data term carries sum_k w_k N_k / N of that sum, and the fairness term is
+  // scaled alike.
+  double data_weight = 0.0;
+  for (std::size_t k = 0; k < K; ++k) data_weight += weights[k] * static_cast<double>(data[k].cols());
+  const Eigen::MatrixXd K_fair =
+      state.model->FairnessMatrix(options.fairness) * (data_weight / static_cast<double>(total));
   const Eigen::MatrixXd B_scan = options.remove_gauge ? GaugeComplement(state.model->InvariantMotions())
                                                       : Eigen::MatrixXd::Identity(6, 6);
   std::vector<Motion6> first_gauge = state.model->InvariantMotions();
@@ -142,8 +148,10 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
         const Eigen::Vector3d x = st.current[k].col(j);
         st.model->Evaluate(f.t, 2, geo);
         st.model->ShapeJacobian(f.t, false, entries);
-        const Eigen::Matrix3d M = ErrorMatrix(term, ComputePrincipalFrame(geo, x), 3);
         const Eigen::Vector3d e0 = x - To3(geo.point);
+        const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
+        const Eigen::Matrix3d M =
+            f.on_boundary ? EndRuleMatrix(term, frame, e0, 3) : ErrorMatrix(term, frame, 3);
         const Eigen::MatrixXd ab = MotionJacobian(x) * sys.basis[b];  // 3 x q
         const Eigen::MatrixXd m_ab = M * ab;
         sys.h_bb[b].noalias() += w * ab.transpose() * m_ab;

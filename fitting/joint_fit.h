@@ -35,7 +35,7 @@ struct JointFitOptions {
   bool remove_gauge = true;
   FairnessWeights fairness;            // on data scaled into the unit box
   bool scan_weights = true;            // w_k = 1 / N_k (each scan counts the same), else 1
-  double objective_tolerance = 1e-12;  // stop (in stage 2) when the relative decrease falls below this
+  double objective_tolerance = 1e-10;  // stop (in stage 2) when the relative decrease falls below this
   double target_rms = 0.0;             // stop as soon as the RMS (input units) reaches this (0: off)
 };
 

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -213,6 +215,31 @@ TEST(Cli, SplineOptionErrors) {
   EXPECT_EQ(r.exit_code, 4) << r.out;
   EXPECT_NE(r.out.find("singular"), std::string::npos) << r.out;
   std::filesystem::remove(file);
+}
+
+TEST(Cli, JointMultiViewFitOfTheDemoVase) {
+  const std::string manifest = std::string(S2M_SOURCE_DIR) + "/recordings/demo_vase/views.json";
+  const Result r = RunCli("fit --model revolution --json " + manifest, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto doc = nlohmann::json::parse(r.out);
+  EXPECT_EQ(doc["schema"], "scan2model.multiview/1");
+  EXPECT_EQ(doc["solver"], "joint");
+  ASSERT_EQ(doc["views"].size(), 4u);
+  EXPECT_LT(doc["residuals"]["rms"].get<double>(), 0.025);  // the recording's noise is 0.02 mm
+  EXPECT_EQ(doc["views"][0]["world_T_scan"].size(), 4u);
+  EXPECT_TRUE(doc["unobservable"].empty());
+  // The true axis direction (recordings/README.md), up to the averaged device-pose errors.
+  const Eigen::Vector3d truth = Eigen::Vector3d(-0.01, -0.02, 1.0).normalized();
+  const Eigen::Vector3d axis(doc["axis"]["direction"][0].get<double>(),
+                             doc["axis"]["direction"][1].get<double>(),
+                             doc["axis"]["direction"][2].get<double>());
+  EXPECT_LT(std::acos(std::min(1.0, std::abs(axis.dot(truth)))), 0.005);
+  EXPECT_EQ(doc["profile"]["samples_height_radius"].size(), 51u);
+  // The register-then-fit baseline cannot remove the device-pose errors.
+  const Result baseline = RunCli("fit --model revolution --register-then-fit --json " + manifest, false);
+  ASSERT_EQ(baseline.exit_code, 0) << baseline.out;
+  EXPECT_GT(nlohmann::json::parse(baseline.out)["residuals"]["rms"].get<double>(),
+            5 * doc["residuals"]["rms"].get<double>());
 }
 
 }  // namespace
