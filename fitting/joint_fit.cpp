@@ -128,7 +128,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     Eigen::MatrixXd h_dd;
     Eigen::VectorXd g_d;
   };
-  auto assemble = [&](const State& st, bool one_motion, ErrorTerm term) {
+  auto assemble = [&](const State& st, bool one_motion, ErrorTerm term, bool unit_weights = false) {
     System sys;
     const std::size_t blocks = one_motion ? 1 : K;
     for (std::size_t b = 0; b < blocks; ++b) {
@@ -142,7 +142,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     sys.g_d = Eigen::VectorXd::Zero(r);
     for (std::size_t k = 0; k < K; ++k) {
       const std::size_t b = one_motion ? 0 : k;
-      const double w = weights[k];
+      const double w = unit_weights ? 1.0 : weights[k];
       for (Eigen::Index j = 0; j < st.current[k].cols(); ++j) {
         const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
         const Eigen::Vector3d x = st.current[k].col(j);
@@ -298,7 +298,8 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   // Unobservable directions (METHOD.md section 6): the null space of the full normal matrix built with the
   // whole normal space (GTDM), so that SDM's tangential terms cannot mask a motion that slides scans along
   // the surface.
-  const System sys = assemble(state, false, ErrorTerm::kGtdm);
+  // Unit weights: the same matrix then also gives the Gauss-Newton covariance of the orthogonal distances.
+  const System sys = assemble(state, false, ErrorTerm::kGtdm, true);
   Eigen::Index dim = r;
   for (const Eigen::MatrixXd& b : sys.basis) dim += b.cols();
   Eigen::MatrixXd full = Eigen::MatrixXd::Zero(dim, dim);
@@ -338,6 +339,30 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
       }
     }
     result.unobservable.push_back(name);
+  }
+
+  // Standard uncertainties (type A, GUM): covariance s^2 (J^T J)^-1 of the Gauss-Newton problem in the
+  // orthogonal distances at the solution, s^2 = sum d^2 / (N - p), in the gauge-reduced coordinates; mapped
+  // to input units.
+  if (result.unobservable.empty() && total > dim) {
+    const double variance = std::pow(result.residuals.rms / scale, 2) * static_cast<double>(total) /
+                            static_cast<double>(total - dim);
+    const Eigen::MatrixXd cov = variance * full.ldlt().solve(Eigen::MatrixXd::Identity(dim, dim));
+    result.shape_covariance = cov.topLeftCorner(r, r) * (scale * scale);
+    result.shape_uncertainty.resize(r);
+    for (int i = 0; i < r; ++i) result.shape_uncertainty[i] = std::sqrt(std::max(cov(i, i), 0.0)) * scale;
+    for (const auto& [offset_k, k] : block_offset) {
+      const Eigen::MatrixXd& B = sys.basis[k];
+      const Eigen::Index q = B.cols();
+      const Eigen::Matrix<double, 6, 6> c6 = B * cov.block(offset_k, offset_k, q, q) * B.transpose();
+      ScanPoseUncertainty u;
+      u.rotation = Eigen::Vector3d(std::sqrt(std::max(c6(0, 0), 0.0)), std::sqrt(std::max(c6(1, 1), 0.0)),
+                                   std::sqrt(std::max(c6(2, 2), 0.0)));
+      u.translation = Eigen::Vector3d(std::sqrt(std::max(c6(3, 3), 0.0)), std::sqrt(std::max(c6(4, 4), 0.0)),
+                                      std::sqrt(std::max(c6(5, 5), 0.0))) *
+                      scale;
+      result.pose_uncertainty.push_back(u);
+    }
   }
   return result;
 }

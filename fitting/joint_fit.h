@@ -39,6 +39,14 @@ struct JointFitOptions {
   double target_rms = 0.0;             // stop as soon as the RMS (input units) reaches this (0: off)
 };
 
+// Standard uncertainty of a scan's pose correction, for the motion (c, cbar) in the model frame at the
+// solution: rotation components in radians, translation in input units. Gauge directions have zero
+// uncertainty (they are fixed).
+struct ScanPoseUncertainty {
+  Eigen::Vector3d rotation = Eigen::Vector3d::Zero();
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+};
+
 struct JointFitResult {
   std::vector<RigidMotion> model_T_scan;  // per scan: maps the scan's coordinates into the model frame
   ResidualStatistics residuals;           // all points, input units
@@ -50,6 +58,12 @@ struct JointFitResult {
   // Directions of the final normal matrix (whole normal space) with no information, each named by its
   // dominant parameter, e.g. "scan 2 rotation z". Empty when every remaining unknown is determined.
   std::vector<std::string> unobservable;
+  // Type-A standard uncertainties (independent, equal-variance errors along the normals; adequate model): one
+  // per shape parameter (input units) and one per scan. Empty when directions are unobservable or N <=
+  // parameters.
+  Eigen::VectorXd shape_uncertainty;
+  Eigen::MatrixXd shape_covariance;  // of the shape parameters, input units squared (for derived quantities)
+  std::vector<ScanPoseUncertainty> pose_uncertainty;
 };
 
 // Fits `model` (updated in place) and the scans' poses together. `scans` are in their own coordinates,

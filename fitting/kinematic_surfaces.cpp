@@ -41,6 +41,47 @@ Eigen::Vector2d KinematicSurface::ProfilePoint(double u) const {
   return p;
 }
 
+double KinematicSurface::RadiusAtHeight(double height, Eigen::VectorXd* gradient) const {
+  // Bracket on samples, then Newton on z(u) = height.
+  const int samples = 64 * basis_.num_control();
+  double u = basis_.lo();
+  bool found = false;
+  for (int i = 0; i < samples && !found; ++i) {
+    const double a = basis_.lo() + (basis_.hi() - basis_.lo()) * i / samples;
+    const double b = basis_.lo() + (basis_.hi() - basis_.lo()) * (i + 1) / samples;
+    const double za = ProfilePoint(a).y() - height, zb = ProfilePoint(b).y() - height;
+    if (za == 0 || za * zb < 0) {
+      u = za == 0 ? a : a - za * (b - a) / (zb - za);
+      found = true;
+    }
+  }
+  if (!found) throw std::domain_error("the profile does not reach height " + std::to_string(height));
+  BSplineBasis::Values v;
+  Eigen::Vector2d point, tangent;
+  for (int it = 0; it < 50; ++it) {
+    basis_.Evaluate(u, 1, v);
+    point.setZero();
+    tangent.setZero();
+    for (int i = 0; i < basis_.order(); ++i) {
+      point += v.values[0][static_cast<std::size_t>(i)] * profile_.col(basis_.ControlIndex(v.first, i));
+      tangent += v.values[1][static_cast<std::size_t>(i)] * profile_.col(basis_.ControlIndex(v.first, i));
+    }
+    const double du = (point.y() - height) / tangent.y();
+    u = basis_.Normalize(u - du);
+    if (std::abs(du) < 1e-15 * (basis_.hi() - basis_.lo())) break;
+  }
+  if (gradient) {
+    gradient->setZero(num_parameters());
+    const double slope = tangent.x() / tangent.y();  // dr/dz along the profile
+    for (int i = 0; i < basis_.order(); ++i) {
+      const int k = basis_.ControlIndex(v.first, i);
+      (*gradient)[2 * k] += v.values[0][static_cast<std::size_t>(i)];
+      (*gradient)[2 * k + 1] -= slope * v.values[0][static_cast<std::size_t>(i)];
+    }
+  }
+  return point.x();
+}
+
 ParameterDomain KinematicSurface::domain() const {
   ParameterDomain d;
   d.dimension = 2;

@@ -22,6 +22,11 @@ class KinematicSurface final : public ParametricModel {
   bool helical() const { return helical_; }
   // Radius and height of the generatrix at u.
   Eigen::Vector2d ProfilePoint(double u) const;
+  // The radius where the generatrix reaches `height` (Newton on z(u) = height; the profile must be monotone
+  // in height there), and its gradient with respect to the shape parameters (implicit function: dr/dP - r'/z'
+  // dz/dP), which propagates a parameter covariance to the radius. Throws std::domain_error when the height
+  // is not reached.
+  double RadiusAtHeight(double height, Eigen::VectorXd* gradient = nullptr) const;
 
   std::unique_ptr<ParametricModel> Clone() const override {
     return std::make_unique<KinematicSurface>(*this);

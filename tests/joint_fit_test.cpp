@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "fitting/initial_models.h"
@@ -140,6 +141,68 @@ TEST(JointFit, GaugeIsRemovedOrReportedByName) {
   int rotations = 0;
   for (const std::string& name : r.unobservable) rotations += name.find("rotation z") != std::string::npos;
   EXPECT_GE(rotations, 3) << ::testing::PrintToString(r.unobservable);
+}
+
+TEST(JointFit, ReportedUncertaintiesMatchTheMonteCarloScatter) {
+  // 200 noisy re-scans of the same pot: the errors of the axis tilt (seen from scan 1), the scan's lateral
+  // position and the radius at mid-height, divided by the uncertainty the fit reports, must scatter with
+  // standard deviation near 1 (issue bounds 0.8 to 1.25).
+  const KinematicSurface truth = TruePot();
+  const int trials = 200;
+  std::vector<double> z_tilt, z_shift, z_radius;
+  for (int t = 0; t < trials; ++t) {
+    std::mt19937_64 rng(1000 + t);
+    std::uniform_real_distribution<double> u(0.2, 3.8), a(0.0, 1.0);
+    std::normal_distribution<double> noise(0.0, 0.01);
+    std::vector<Eigen::Matrix3Xd> scans;
+    std::vector<RigidMotion> poses, initial;
+    LocalGeometry g;
+    for (int k = 0; k < 3; ++k) {
+      const RigidMotion pose =
+          RigidMotion::FromHelicalVelocity({0.03 * k, -0.04, 0.02}, {0.2 * k - 0.1, 0.15, 0.1 * k});
+      Eigen::Matrix3Xd model_points(3, 300);
+      for (int j = 0; j < 300; ++j) {
+        truth.Evaluate({u(rng), 2 * M_PI * k / 3 + 3.6 * a(rng)}, 1, g);
+        const Eigen::Vector3d n =
+            Eigen::Vector3d(g.d1.col(0)).cross(Eigen::Vector3d(g.d1.col(1))).normalized();
+        model_points.col(j) = Eigen::Vector3d(g.point) + noise(rng) * n;
+      }
+      scans.push_back(pose.inverse().apply(model_points));
+      poses.push_back(pose);
+      initial.push_back(
+          RigidMotion::FromHelicalVelocity({0.003 * (k - 1), 0.002, 0.0}, {0.01, -0.01 * k, 0.0}) * pose);
+    }
+    KinematicSurface pot = truth;
+    JointFitOptions o;
+    o.shared_motion_iterations = 0;
+    o.max_iterations = 30;
+    const JointFitResult r = FitJointly(pot, scans, initial, o);
+    ASSERT_EQ(r.pose_uncertainty.size(), 3u);
+    const RigidMotion error =
+        r.model_T_scan[1] * poses[1].inverse();  // the correction still left, model frame
+    const Eigen::AngleAxisd aa(error.rotation());
+    const Eigen::Vector3d w = aa.angle() * aa.axis();
+    z_tilt.push_back(w.x() / r.pose_uncertainty[1].rotation.x());
+    z_shift.push_back(error.translation().y() / r.pose_uncertainty[1].translation.y());
+    // The radius at mid-height: a geometric quantity (a control point alone is not: it can slide along the
+    // profile).
+    Eigen::VectorXd gradient;
+    const double radius = pot.RadiusAtHeight(4.5, &gradient);
+    z_radius.push_back((radius - truth.RadiusAtHeight(4.5)) /
+                       std::sqrt(gradient.dot(r.shape_covariance * gradient)));
+  }
+  for (const auto& [name, z] : {std::pair<const char*, std::vector<double>&>{"tilt", z_tilt},
+                                {"shift", z_shift},
+                                {"radius", z_radius}}) {
+    double mean = 0, sq = 0;
+    for (double v : z) mean += v / trials;
+    for (double v : z) sq += (v - mean) * (v - mean) / (trials - 1);
+    std::printf("standardized %s errors: mean %.3f, standard deviation %.3f over %d trials\n", name, mean,
+                std::sqrt(sq), trials);
+    EXPECT_GT(std::sqrt(sq), 0.8) << name;
+    EXPECT_LT(std::sqrt(sq), 1.25) << name;
+    EXPECT_LT(std::abs(mean), 0.3) << name << ": biased";
+  }
 }
 
 TEST(JointFit, RejectsBadInput) {
