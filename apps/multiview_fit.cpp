@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 
 #include "acquisition/format_error.h"
 #include "acquisition/point_cloud_io.h"
@@ -103,15 +104,32 @@ int RunMultiViewFit(const FitOptions& o) {
     std::vector<std::vector<double>> profile_cp, samples;
     for (Eigen::Index i = 0; i < pot.profile().cols(); ++i)
       profile_cp.push_back({pot.profile()(0, i), pot.profile()(1, i)});
+    std::vector<double> radius_uncertainty;
     for (int i = 0; i <= 50; ++i) {
       const Eigen::Vector2d rz =
           pot.ProfilePoint(pot.basis().lo() + (pot.basis().hi() - pot.basis().lo()) * i / 50);
       samples.push_back({rz.y(), rz.x()});  // (height along the axis from the axis point, radius)
+      // The radius at that height, with its standard uncertainty propagated from the shape covariance.
+      double u = std::numeric_limits<double>::quiet_NaN();
+      if (r.shape_covariance.size() > 0) {
+        try {
+          Eigen::VectorXd gradient;
+          pot.RadiusAtHeight(rz.y(), &gradient);
+          u = std::sqrt(gradient.dot(r.shape_covariance * gradient));
+        } catch (const std::domain_error&) {  // the profile turns back in height there: no radius function
+        }
+      }
+      radius_uncertainty.push_back(u);
     }
     j["profile"] = {{"order", pot.basis().order()},
                     {"knots", pot.basis().knots()},
                     {"control_points_radius_height", profile_cp},
                     {"samples_height_radius", samples}};
+    j["profile"]["samples_radius_uncertainty"] = nlohmann::json::array();
+    for (double u : radius_uncertainty) {
+      j["profile"]["samples_radius_uncertainty"].push_back(std::isfinite(u) ? nlohmann::json(u)
+                                                                            : nlohmann::json(nullptr));
+    }
     j["views"] = nlohmann::json::array();
     for (std::size_t k = 0; k < K; ++k) {
       const RigidMotion corrected = world_T_model_fit * r.model_T_scan[k];
@@ -124,6 +142,12 @@ int RunMultiViewFit(const FitOptions& o) {
                             {"correction",
                              {{"rotation_deg", correction.angle() * 180.0 / M_PI},
                               {"translation", correction.translation().norm()}}}});
+      if (k < r.pose_uncertainty.size()) {
+        const ScanPoseUncertainty& pu = r.pose_uncertainty[k];
+        j["views"][k]["pose_uncertainty"] = {
+            {"rotation_deg", ToJson(Eigen::Vector3d(pu.rotation * 180.0 / M_PI))},
+            {"translation", ToJson(pu.translation)}};
+      }
     }
     j["residuals"] = {
         {"count", r.residuals.count}, {"rms", r.residuals.rms}, {"max_abs", r.residuals.max_abs}};
@@ -148,10 +172,13 @@ int RunMultiViewFit(const FitOptions& o) {
               << "  axis point        " << Format(axis_point) << "\n"
               << "  axis direction    " << Format(axis_direction) << "\n"
               << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
-              << Format(r.residuals.max_abs, 6) << "\n\n  profile (height along the axis, radius)\n";
-    for (int i = 0; i <= 50; i += 10) {
+              << Format(r.residuals.max_abs, 6)
+              << "\n\n  profile (height along the axis, radius, standard uncertainty of the radius)\n";
+    for (int i = 0; i <= 50; i += 5) {
+      const double u = radius_uncertainty[static_cast<std::size_t>(i)];
       std::cout << "  " << std::setw(14) << Format(samples[static_cast<std::size_t>(i)][0], 6)
-                << std::setw(14) << Format(samples[static_cast<std::size_t>(i)][1], 6) << "\n";
+                << std::setw(14) << Format(samples[static_cast<std::size_t>(i)][1], 6) << std::setw(12)
+                << (std::isfinite(u) ? Format(u, 2) : std::string("-")) << "\n";
     }
     std::cout << "\n  view   points        RMS    pose correction (deg, translation)\n";
     for (std::size_t k = 0; k < K; ++k) {
