@@ -5,7 +5,7 @@
 
 #include <vector>
 
-#include "fitting/nearest_index.h"
+#include "registration/nearest_index.h"
 #include "fitting/parametric_model.h"
 
 namespace s2m {

@@ -7,7 +7,7 @@
 #include <fstream>
 
 #include "acquisition/format_error.h"
-#include "fitting/nearest_index.h"
+#include "registration/nearest_index.h"
 #include "test_paths.h"
 
 namespace s2m {

@@ -1,4 +1,4 @@
-#include "fitting/nearest_index.h"
+#include "registration/nearest_index.h"
 
 #include <algorithm>
 #include <limits>
@@ -59,6 +59,39 @@ void NearestIndex::Search(int id, const Eigen::Vector3d& q, Eigen::Index& best, 
   const int far = diff < 0 ? node.right : node.left;
   Search(near, q, best, best_d2);
   if (diff * diff < best_d2) Search(far, q, best, best_d2);
+}
+
+void NearestIndex::SearchK(int id, const Eigen::Vector3d& q, std::size_t k,
+                           std::vector<std::pair<double, Eigen::Index>>& heap) const {
+  const Node& node = nodes_[static_cast<std::size_t>(id)];
+  if (node.axis < 0) {
+    for (int i = node.begin; i < node.end; ++i) {
+      const Eigen::Index p = order_[static_cast<std::size_t>(i)];
+      const double d2 = (points_.col(p) - q).squaredNorm();
+      if (heap.size() < k) {
+        heap.emplace_back(d2, p);
+        std::push_heap(heap.begin(), heap.end());
+      } else if (d2 < heap.front().first) {
+        std::pop_heap(heap.begin(), heap.end());
+        heap.back() = {d2, p};
+        std::push_heap(heap.begin(), heap.end());
+      }
+    }
+    return;
+  }
+  const double diff = q[node.axis] - node.split;
+  SearchK(diff < 0 ? node.left : node.right, q, k, heap);
+  if (heap.size() < k || diff * diff < heap.front().first)
+    SearchK(diff < 0 ? node.right : node.left, q, k, heap);
+}
+
+std::vector<Eigen::Index> NearestIndex::KNearest(const Eigen::Vector3d& q, int k) const {
+  std::vector<std::pair<double, Eigen::Index>> heap;  // max-heap on distance
+  if (k > 0 && !nodes_.empty()) SearchK(0, q, static_cast<std::size_t>(k), heap);
+  std::sort_heap(heap.begin(), heap.end());
+  std::vector<Eigen::Index> out;
+  for (const auto& h : heap) out.push_back(h.second);
+  return out;
 }
 
 Eigen::Index NearestIndex::Nearest(const Eigen::Vector3d& q) const {

@@ -13,6 +13,9 @@ class NearestIndex {
   explicit NearestIndex(Eigen::Matrix3Xd points);
   // Index of the nearest point to q (the tree must not be empty).
   Eigen::Index Nearest(const Eigen::Vector3d& q) const;
+  // Indices of the k nearest points to q, nearest first (fewer when the tree holds fewer points).
+  std::vector<Eigen::Index> KNearest(const Eigen::Vector3d& q, int k) const;
+  const Eigen::Matrix3Xd& points() const { return points_; }
   Eigen::Index size() const { return points_.cols(); }
 
  private:
@@ -24,6 +27,8 @@ class NearestIndex {
   };
   int Build(int begin, int end);
   void Search(int node, const Eigen::Vector3d& q, Eigen::Index& best, double& best_d2) const;
+  void SearchK(int node, const Eigen::Vector3d& q, std::size_t k,
+               std::vector<std::pair<double, Eigen::Index>>& heap) const;
 
   Eigen::Matrix3Xd points_;
   std::vector<Eigen::Index> order_;
