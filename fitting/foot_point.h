@@ -5,8 +5,8 @@
 
 #include <vector>
 
-#include "registration/nearest_index.h"
 #include "fitting/parametric_model.h"
+#include "registration/nearest_index.h"
 
 namespace s2m {
 

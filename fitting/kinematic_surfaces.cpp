@@ -221,4 +221,138 @@ std::vector<Motion6> KinematicSurface::CommonMotionsAbsorbedByShape() const {
   return {axial};
 }
 
+// ---- SpiralSurface
+// ------------------------------------------------------------------------------------------------
+
+SpiralSurface::SpiralSurface(BSplineBasis basis, Eigen::Matrix2Xd profile, double growth, double v_lo,
+                             double v_hi)
+    : basis_(std::move(basis)), profile_(std::move(profile)), growth_(growth), v_lo_(v_lo), v_hi_(v_hi) {
+  if (basis_.periodic()) throw std::invalid_argument("the generatrix of a spiral surface is an open curve");
+  if (profile_.cols() != basis_.num_control()) throw std::invalid_argument("profile and basis sizes differ");
+  if (!(v_hi_ > v_lo_)) throw std::invalid_argument("empty angle range for the spiral surface");
+}
+
+double SpiralSurface::WhorlExpansionRate() const {
+  return std::exp(2.0 * M_PI * growth_);
+}
+
+ParameterDomain SpiralSurface::domain() const {
+  ParameterDomain d;
+  d.dimension = 2;
+  d.lo = {basis_.lo(), v_lo_};
+  d.hi = {basis_.hi(), v_hi_};
+  d.periodic = {false, false};
+  return d;
+}
+
+std::string SpiralSurface::parameter_name(int index) const {
+  if (index == static_cast<int>(profile_.size())) return "growth";
+  return std::string(index % 2 == 0 ? "radius" : "height") + " of profile point " + std::to_string(index / 2);
+}
+
+Eigen::VectorXd SpiralSurface::parameters() const {
+  Eigen::VectorXd p(num_parameters());
+  p.head(profile_.size()) = Eigen::Map<const Eigen::VectorXd>(profile_.data(), profile_.size());
+  p[profile_.size()] = growth_;
+  return p;
+}
+
+void SpiralSurface::set_parameters(const Eigen::VectorXd& p) {
+  profile_ = Eigen::Map<const Eigen::Matrix2Xd>(p.data(), 2, profile_.cols());
+  growth_ = p[profile_.size()];
+}
+
+void SpiralSurface::ApplySimilarity(double scale, const VecS& offset) {
+  if (offset.size() > 0 && offset.cwiseAbs().maxCoeff() != 0.0) {
+    throw std::logic_error("a spiral surface is tied to its frame: only scaling is representable");
+  }
+  profile_ *= scale;
+}
+
+void SpiralSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+  BSplineBasis::Values b;
+  basis_.Evaluate(t[0], derivatives, b);
+  Eigen::Matrix<double, 2, 3> rz = Eigen::Matrix<double, 2, 3>::Zero();
+  for (int i = 0; i < basis_.order(); ++i) {
+    const Eigen::Vector2d q = profile_.col(basis_.ControlIndex(b.first, i));
+    for (int d = 0; d <= std::min(derivatives, 2); ++d)
+      rz.col(d) += b.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(i)] * q;
+  }
+  const double v = std::clamp(t[1], v_lo_, v_hi_), c = std::cos(v), s = std::sin(v),
+               e = std::exp(growth_ * v);
+  const double p = growth_;
+  const Eigen::Vector3d base(rz(0, 0) * c, rz(0, 0) * s, rz(1, 0));  // before the growth factor
+  const Eigen::Vector3d turn(-rz(0, 0) * s, rz(0, 0) * c, 0.0);      // d/dv of base
+  const Eigen::Vector3d turn2(-rz(0, 0) * c, -rz(0, 0) * s, 0.0);    // d2/dv2 of base
+  const Eigen::Vector3d base_u(rz(0, 1) * c, rz(0, 1) * s, rz(1, 1));
+  out.point = e * base;
+  out.d1.setZero(3, 2);
+  out.d2.setZero(3, 3);
+  if (derivatives >= 1) {
+    out.d1.col(0) = e * base_u;
+    out.d1.col(1) = e * (p * base + turn);
+  }
+  if (derivatives >= 2) {
+    out.d2.col(0) = e * Eigen::Vector3d(rz(0, 2) * c, rz(0, 2) * s, rz(1, 2));
+    out.d2.col(1) = e * (p * base_u + Eigen::Vector3d(-rz(0, 1) * s, rz(0, 1) * c, 0.0));
+    out.d2.col(2) = e * (p * p * base + 2.0 * p * turn + turn2);
+  }
+}
+
+void SpiralSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {
+  out.clear();
+  BSplineBasis::Values b;
+  basis_.Evaluate(t[0], with_dt ? 1 : 0, b);
+  const double v = std::clamp(t[1], v_lo_, v_hi_), c = std::cos(v), s = std::sin(v),
+               e = std::exp(growth_ * v);
+  for (int i = 0; i < basis_.order(); ++i) {
+    const int k = basis_.ControlIndex(b.first, i);
+    const double w = b.values[0][static_cast<std::size_t>(i)];
+    const double dw = with_dt ? b.values[1][static_cast<std::size_t>(i)] : 0.0;
+    JacobianEntry radius, height;
+    radius.index = 2 * k;
+    radius.column = e * w * Eigen::Vector3d(c, s, 0.0);
+    radius.dcolumn_dt = {
+        Eigen::Vector3d(e * dw * Eigen::Vector3d(c, s, 0.0)),
+        with_dt
+            ? Eigen::Vector3d(e * w * (growth_ * Eigen::Vector3d(c, s, 0.0) + Eigen::Vector3d(-s, c, 0.0)))
+            : Eigen::Vector3d::Zero()};
+    height.index = 2 * k + 1;
+    height.column = e * w * Eigen::Vector3d::UnitZ();
+    height.dcolumn_dt = {
+        Eigen::Vector3d(e * dw * Eigen::Vector3d::UnitZ()),
+        with_dt ? Eigen::Vector3d(e * w * growth_ * Eigen::Vector3d::UnitZ()) : Eigen::Vector3d::Zero()};
+    out.push_back(radius);
+    out.push_back(height);
+  }
+  LocalGeometry g;
+  Evaluate(t, with_dt ? 1 : 0, g);
+  JacobianEntry growth;
+  growth.index = static_cast<int>(profile_.size());
+  growth.column = v * Eigen::Vector3d(g.point);  // d/dp of e^{p v} base = v x
+  growth.dcolumn_dt = {with_dt ? Eigen::Vector3d(v * Eigen::Vector3d(g.d1.col(0))) : Eigen::Vector3d::Zero(),
+                       with_dt ? Eigen::Vector3d(Eigen::Vector3d(g.point) + v * Eigen::Vector3d(g.d1.col(1)))
+                               : Eigen::Vector3d::Zero()};
+  out.push_back(growth);
+}
+
+std::vector<ParamT> SpiralSurface::SampleParameters() const {
+  std::vector<ParamT> out;
+  const std::vector<double> breaks = basis_.Breakpoints();
+  const int angles = std::max(16, static_cast<int>(24 * (v_hi_ - v_lo_) / M_PI));
+  for (std::size_t s = 0; s + 1 < breaks.size(); ++s)
+    for (int i = 0; i <= 8; ++i)
+      for (int a = 0; a <= angles; ++a) {
+        out.push_back(
+            {breaks[s] + (breaks[s + 1] - breaks[s]) * i / 8, v_lo_ + (v_hi_ - v_lo_) * a / angles});
+      }
+  return out;
+}
+
+std::vector<Motion6> SpiralSurface::CommonMotionsAbsorbedByShape() const {
+  Motion6 rotation;
+  rotation << 0, 0, 1, 0, 0, 0;
+  return {rotation};
+}
+
 }  // namespace s2m

@@ -61,4 +61,43 @@ class KinematicSurface final : public ParametricModel {
   double turns_ = 1.0;
 };
 
+// Spiral surface (shells; METHOD.md section 7): x(u, v) = e^{p v} sum_k (r_k cos v, r_k sin v, z_k) B_k(u)
+// for v in [v_lo, v_hi] (the whorls, unwrapped), growth parameter p. The growth enters non-linearly; its
+// Jacobian at fixed (u, v) is v x(u, v), the linearization at the current value (section 6). The whorl
+// expansion rate is exp(2 pi p).
+class SpiralSurface final : public ParametricModel {
+ public:
+  SpiralSurface(BSplineBasis basis, Eigen::Matrix2Xd profile, double growth, double v_lo, double v_hi);
+
+  const BSplineBasis& basis() const { return basis_; }
+  const Eigen::Matrix2Xd& profile() const { return profile_; }
+  double growth() const { return growth_; }
+  double WhorlExpansionRate() const;
+
+  std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<SpiralSurface>(*this); }
+  void CopyFrom(const ParametricModel& other) override { *this = dynamic_cast<const SpiralSurface&>(other); }
+  std::string name() const override { return "spiral surface"; }
+  int ambient_dimension() const override { return 3; }
+  ParameterDomain domain() const override;
+  int num_parameters() const override { return static_cast<int>(profile_.size()) + 1; }
+  std::string parameter_name(int index) const override;
+  Eigen::VectorXd parameters() const override;
+  void set_parameters(const Eigen::VectorXd& p) override;
+  // The spiral's centre is the frame's origin: only scaling is representable (a shift would move the centre).
+  void ApplySimilarity(double scale, const VecS& offset) override;
+  bool SupportsTranslation() const override { return false; }
+  void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
+  void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  std::vector<ParamT> SampleParameters() const override;
+  // A common rotation of all scans about the axis is a rescaling of the profile (e^{p phi}): the shape
+  // absorbs it.
+  std::vector<Motion6> CommonMotionsAbsorbedByShape() const override;
+
+ private:
+  BSplineBasis basis_;
+  Eigen::Matrix2Xd profile_;
+  double growth_;
+  double v_lo_, v_hi_;
+};
+
 }  // namespace s2m

@@ -171,6 +171,12 @@ std::vector<NamedFactory> Models() {
          return std::make_unique<KinematicSurface>(
              KinematicSurface::Helical(UnitSpacedClamped(3, 5), profile, 0.15, 2.0));
        }},
+      {"spiral",
+       [] {
+         Eigen::Matrix2Xd profile(2, 5);
+         profile << 1.0, 1.3, 1.5, 1.3, 1.0, -0.4, -0.2, 0.0, 0.2, 0.4;
+         return std::make_unique<SpiralSurface>(UnitSpacedClamped(4, 5), profile, 0.12, -2.0, 6.0);
+       }},
       {"circle_3d",
        [] {
          return std::make_unique<Ellipse3D>(Eigen::Vector3d(0, 0, 1), Eigen::Matrix3d::Identity(), 1.5, 1.5,

@@ -205,6 +205,61 @@ TEST(JointFit, ReportedUncertaintiesMatchTheMonteCarloScatter) {
   }
 }
 
+// Three views of a model's surface (noise-free) with mis-registered device poses.
+template <class Model>
+void ViewsOf(const Model& truth, double v_lo, double v_hi, std::vector<Eigen::Matrix3Xd>& scans,
+             std::vector<RigidMotion>& initial) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> a(0.0, 1.0);
+  LocalGeometry g;
+  const ParameterDomain d = truth.domain();
+  for (int k = 0; k < 3; ++k) {
+    const RigidMotion pose =
+        RigidMotion::FromHelicalVelocity({0.02 * k, -0.03, 0.01}, {0.1 * k, 0.05, -0.05 * k});
+    Eigen::Matrix3Xd points(3, 800);
+    for (int j = 0; j < 800; ++j) {
+      const double u = d.lo[0] + (d.hi[0] - d.lo[0]) * (0.05 + 0.9 * a(rng));
+      const double v =
+          v_lo + (v_hi - v_lo) * (k + 1.6 * a(rng)) / 3.6;  // overlapping thirds of the angle range
+      truth.Evaluate({u, v}, 0, g);
+      points.col(j) = g.point;
+    }
+    scans.push_back(pose.inverse().apply(points));
+    const double e = k - 1.0;
+    initial.push_back(RigidMotion::FromHelicalVelocity({0.004 * e, -0.003, 0.0}, {0.01 * e, 0.008, 0.0}) *
+                      pose);
+  }
+}
+
+TEST(JointFit, RecoversThePitchOfAHelicalSurfaceAndTheGrowthOfASpiralShell) {
+  Eigen::Matrix2Xd drill(2, 6);
+  drill << 0.6, 0.9, 1.2, 1.1, 0.8, 0.5,  //
+      -0.3, -0.2, -0.05, 0.05, 0.2, 0.3;
+  const KinematicSurface helical = KinematicSurface::Helical(UnitSpacedClamped(4, 6), drill, 0.2, 2.0);
+  std::vector<Eigen::Matrix3Xd> scans;
+  std::vector<RigidMotion> initial;
+  ViewsOf(helical, -2.0 * M_PI, 2.0 * M_PI, scans, initial);
+  KinematicSurface start = KinematicSurface::Helical(UnitSpacedClamped(4, 6), drill * 1.01, 0.19, 2.0);
+  JointFitOptions o;
+  o.max_iterations = 80;
+  const JointFitResult r = FitJointly(start, scans, initial, o);
+  EXPECT_LT(r.residuals.rms, 1e-8) << ToString(r.stop_reason);
+  EXPECT_NEAR(start.pitch(), 0.2, 1e-8);
+
+  Eigen::Matrix2Xd whorl(2, 5);
+  whorl << 1.0, 1.3, 1.5, 1.3, 1.0,  //
+      -0.4, -0.2, 0.0, 0.2, 0.4;
+  const SpiralSurface shell(UnitSpacedClamped(4, 5), whorl, 0.12, -2.0, 6.0);
+  scans.clear();
+  initial.clear();
+  ViewsOf(shell, -2.0, 6.0, scans, initial);
+  SpiralSurface shell_start(UnitSpacedClamped(4, 5), whorl * 0.98, 0.115, -2.0, 6.0);
+  const JointFitResult rs = FitJointly(shell_start, scans, initial, o);
+  EXPECT_LT(rs.residuals.rms, 1e-8) << ToString(rs.stop_reason);
+  EXPECT_NEAR(shell_start.growth(), 0.12, 1e-8);
+  EXPECT_NEAR(shell_start.WhorlExpansionRate(), std::exp(2 * M_PI * 0.12), 1e-6);
+}
+
 TEST(JointFit, RejectsBadInput) {
   KinematicSurface pot = StartingProfile();
   EXPECT_THROW(FitJointly(pot, {}, {}), std::invalid_argument);
