@@ -152,8 +152,10 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
         const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
         const Eigen::Matrix3d M =
             f.on_boundary ? EndRuleMatrix(term, frame, e0, 3) : ErrorMatrix(term, frame, 3);
-        const Eigen::MatrixXd ab = MotionJacobian(x) * sys.basis[b];  // 3 x q
-        const Eigen::MatrixXd m_ab = M * ab;
+        // Fixed-capacity 3 x q (q <= 6): no heap allocation per point.
+        using Block = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 6>;
+        const Block ab = MotionJacobian(x) * sys.basis[b];
+        const Block m_ab = M * ab;
         sys.h_bb[b].noalias() += w * ab.transpose() * m_ab;
         sys.g_b[b].noalias() += w * m_ab.transpose() * e0;
         for (const JacobianEntry& a : entries) {

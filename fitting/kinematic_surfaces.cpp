@@ -4,6 +4,30 @@
 #include <stdexcept>
 
 namespace s2m {
+namespace {
+
+// The generatrix (r(u), z(u)) and its first `derivatives` u-derivatives, as the columns of a 2 x 3 matrix.
+Eigen::Matrix<double, 2, 3> Generatrix(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile, double u,
+                                       int derivatives) {
+  BSplineBasis::Values b;
+  basis.Evaluate(u, derivatives, b);
+  Eigen::Matrix<double, 2, 3> rz = Eigen::Matrix<double, 2, 3>::Zero();
+  for (int i = 0; i < basis.order(); ++i) {
+    const Eigen::Vector2d q = profile.col(basis.ControlIndex(b.first, i));
+    for (int d = 0; d <= std::min(derivatives, 2); ++d) {
+      rz.col(d) += b.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(i)] * q;
+    }
+  }
+  return rz;
+}
+
+// Names of the parameters of a generatrix with one extra parameter (pitch, growth) after the profile points.
+std::string GeneratrixParameterName(int index, Eigen::Index profile_size, const char* extra) {
+  if (index == static_cast<int>(profile_size)) return extra;
+  return std::string(index % 2 == 0 ? "radius" : "height") + " of profile point " + std::to_string(index / 2);
+}
+
+}  // namespace
 
 KinematicSurface::KinematicSurface(BSplineBasis basis, Eigen::Matrix2Xd profile, bool helical, double pitch,
                                    double turns)
@@ -33,12 +57,7 @@ KinematicSurface KinematicSurface::Helical(BSplineBasis basis, Eigen::Matrix2Xd 
 }
 
 Eigen::Vector2d KinematicSurface::ProfilePoint(double u) const {
-  BSplineBasis::Values b;
-  basis_.Evaluate(u, 0, b);
-  Eigen::Vector2d p = Eigen::Vector2d::Zero();
-  for (int i = 0; i < basis_.order(); ++i)
-    p += b.values[0][static_cast<std::size_t>(i)] * profile_.col(basis_.ControlIndex(b.first, i));
-  return p;
+  return Generatrix(basis_, profile_, u, 0).col(0);
 }
 
 double KinematicSurface::RadiusAtHeight(double height, Eigen::VectorXd* gradient) const {
@@ -92,8 +111,7 @@ ParameterDomain KinematicSurface::domain() const {
 }
 
 std::string KinematicSurface::parameter_name(int index) const {
-  if (index == static_cast<int>(profile_.size())) return "pitch";
-  return std::string(index % 2 == 0 ? "radius" : "height") + " of profile point " + std::to_string(index / 2);
+  return GeneratrixParameterName(index, profile_.size(), "pitch");
 }
 
 Eigen::VectorXd KinematicSurface::parameters() const {
@@ -119,14 +137,8 @@ void KinematicSurface::ApplySimilarity(double scale, const VecS& offset) {
 }
 
 void KinematicSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
-  BSplineBasis::Values b;
-  basis_.Evaluate(t[0], derivatives, b);
-  Eigen::Matrix<double, 2, 3> rz = Eigen::Matrix<double, 2, 3>::Zero();  // columns: value, d/du, d2/du2
-  for (int i = 0; i < basis_.order(); ++i) {
-    const Eigen::Vector2d q = profile_.col(basis_.ControlIndex(b.first, i));
-    for (int d = 0; d <= std::min(derivatives, 2); ++d)
-      rz.col(d) += b.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(i)] * q;
-  }
+  const Eigen::Matrix<double, 2, 3> rz =
+      Generatrix(basis_, profile_, t[0], derivatives);  // value, d/du, d2/du2
   const double v = t[1], c = std::cos(v), s = std::sin(v);
   const double r = rz(0, 0), z = rz(1, 0), r1 = rz(0, 1), z1 = rz(1, 1), r2 = rz(0, 2), z2 = rz(1, 2);
   out.point = Eigen::Vector3d(r * c, r * s, z + pitch_ * v);
@@ -246,8 +258,7 @@ ParameterDomain SpiralSurface::domain() const {
 }
 
 std::string SpiralSurface::parameter_name(int index) const {
-  if (index == static_cast<int>(profile_.size())) return "growth";
-  return std::string(index % 2 == 0 ? "radius" : "height") + " of profile point " + std::to_string(index / 2);
+  return GeneratrixParameterName(index, profile_.size(), "growth");
 }
 
 Eigen::VectorXd SpiralSurface::parameters() const {
@@ -270,14 +281,7 @@ void SpiralSurface::ApplySimilarity(double scale, const VecS& offset) {
 }
 
 void SpiralSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
-  BSplineBasis::Values b;
-  basis_.Evaluate(t[0], derivatives, b);
-  Eigen::Matrix<double, 2, 3> rz = Eigen::Matrix<double, 2, 3>::Zero();
-  for (int i = 0; i < basis_.order(); ++i) {
-    const Eigen::Vector2d q = profile_.col(basis_.ControlIndex(b.first, i));
-    for (int d = 0; d <= std::min(derivatives, 2); ++d)
-      rz.col(d) += b.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(i)] * q;
-  }
+  const Eigen::Matrix<double, 2, 3> rz = Generatrix(basis_, profile_, t[0], derivatives);
   const double v = std::clamp(t[1], v_lo_, v_hi_), c = std::cos(v), s = std::sin(v),
                e = std::exp(growth_ * v);
   const double p = growth_;
