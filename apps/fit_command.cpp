@@ -159,7 +159,7 @@ Runner AddFitCommand(CLI::App& app) {
           {"plane", "sphere", "cylinder", "cone", "bspline-curve", "bspline-surface", "revolution"}));
   cmd->add_option("--method", o->method,
                   "Error term per iteration: pdm, tdm, sdm, cdm, gtdm or gn (primitives: tdm or sdm). "
-                  "Default: tdm for primitives, sdm for splines")
+                  "Default: tdm for primitives and multi-view fits, sdm for splines")
       ->check(CLI::IsMember({"pdm", "tdm", "sdm", "cdm", "gtdm", "gn"}));
   cmd->add_option("--control-points", o->control_points,
                   "Splines: control points, N for a curve, NUxNV for a surface (default 12 / 8x8)");

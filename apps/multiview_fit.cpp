@@ -60,7 +60,10 @@ int RunMultiViewFit(const FitOptions& o) {
     }
     KinematicSurface pot = InitialRevolution(model_T_world.apply(set.MergedWorldPoints()), n, o.order);
     JointFitOptions options;
-    options.error_term = ErrorTermFromString(o.method.empty() ? "sdm" : o.method);
+    // TDM by default here (measured on the demo vase, 4 noisy views: TDM 16 iterations, 0.3 s; SDM still
+    // creeping after 200, 2 s, to the same result): SDM's tangential terms damp the profile's
+    // re-parametrization, the slow direction once the data sit at the noise level (docs/registration.md).
+    options.error_term = ErrorTermFromString(o.method.empty() ? "tdm" : o.method);
     options.max_iterations = o.max_iterations;
     options.alternating = o.alternating;
     options.per_scan_motions = !o.register_then_fit;

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -181,6 +182,23 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     return a;
   };
 
+  // The whole block-arrow matrix as one dense matrix (shape block first, then the motion blocks in order).
+  auto full_matrix = [&](const System& sys) {
+    Eigen::Index dim = r;
+    for (const Eigen::MatrixXd& b : sys.basis) dim += b.cols();
+    Eigen::MatrixXd full = Eigen::MatrixXd::Zero(dim, dim);
+    full.topLeftCorner(r, r) = sys.h_dd;
+    Eigen::Index offset = r;
+    for (std::size_t b = 0; b < sys.basis.size(); ++b) {
+      const Eigen::Index q = sys.basis[b].cols();
+      full.block(offset, offset, q, q) = sys.h_bb[b];
+      full.block(0, offset, r, q) = sys.h_db[b];
+      full.block(offset, 0, q, r) = sys.h_db[b].transpose();
+      offset += q;
+    }
+    return full;
+  };
+
   enum class Unknowns { kAll, kMotions, kShape };
   // One Levenberg-Marquardt step on the chosen unknowns (all: the joint method; motions or shape alone: the
   // two half-steps of the alternating baseline). Returns false when no damping gives a decrease.
@@ -302,19 +320,13 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   // the surface.
   // Unit weights: the same matrix then also gives the Gauss-Newton covariance of the orthogonal distances.
   const System sys = assemble(state, false, ErrorTerm::kGtdm, true);
-  Eigen::Index dim = r;
-  for (const Eigen::MatrixXd& b : sys.basis) dim += b.cols();
-  Eigen::MatrixXd full = Eigen::MatrixXd::Zero(dim, dim);
-  full.topLeftCorner(r, r) = sys.h_dd;
+  const Eigen::MatrixXd full = full_matrix(sys);
+  const Eigen::Index dim = full.rows();
   std::vector<std::pair<Eigen::Index, std::size_t>> block_offset;  // (offset, scan)
   Eigen::Index offset_b = r;
   for (std::size_t b = 0; b < sys.basis.size(); ++b) {
-    const Eigen::Index q = sys.basis[b].cols();
-    full.block(offset_b, offset_b, q, q) = sys.h_bb[b];
-    full.block(0, offset_b, r, q) = sys.h_db[b];
-    full.block(offset_b, 0, q, r) = sys.h_db[b].transpose();
     block_offset.push_back({offset_b, b});
-    offset_b += q;
+    offset_b += sys.basis[b].cols();
   }
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(full);
   const double top = std::max(eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-300);
