@@ -10,6 +10,7 @@ packages=(
   zlib1g-dev             # .ply.gz
   libgtest-dev libgmock-dev
   libbenchmark-dev
+  libpcl-dev             # optional edge (s2m_pcl): PCL's reference ICP, coarse alignment (FPFH + RANSAC)
 )
 
 missing=()
