@@ -141,6 +141,13 @@ void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& poin
 #pragma omp for schedule(static)
     for (Eigen::Index j = 0; j < n; ++j) {
       const VecS x = points.col(j);
+      ParamT closed_form{0.0, 0.0, 0.0};
+      if (model.ClosedFormFootPoint(x, closed_form)) {
+        model.Evaluate(closed_form, 0, g);
+        feet[static_cast<std::size_t>(j)] = {closed_form, (g.point - x).norm(), false,
+                                             model.AmbiguousFootPoint(x, closed_form)};
+        continue;
+      }
       ParamT start = seeds.Nearest(x);
       if (warm != nullptr) {
         const ParamT previous = (*warm)[static_cast<std::size_t>(j)].t;

@@ -14,6 +14,7 @@ struct FootPoint {
   ParamT t{0.0, 0.0};
   double distance = 0.0;     // |C(t) - X|
   bool on_boundary = false;  // the closest point lies on an open boundary (e.g. an end of an open curve)
+  bool excluded = false;     // the model cannot tell which of its pieces the point belongs to: left out
 };
 
 // Newton from t0. `scratch` avoids allocations on the hot path.

@@ -39,7 +39,8 @@ struct State {
   std::vector<Eigen::Matrix3Xd> current;  // scan points in the model frame
   std::vector<std::vector<FootPoint>> feet;
   double objective = 0.0;
-  double rms = 0.0;  // normalized units
+  double rms = 0.0;  // normalized units, over the points not excluded
+  Eigen::Index used = 0;
 };
 
 }  // namespace
@@ -94,11 +95,16 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     s.current.resize(K);
     s.feet.resize(K);
     double sum = 0.0, sum_sq = 0.0;
+    s.used = 0;
     for (std::size_t k = 0; k < K; ++k) {
       s.current[k] = s.poses[k].apply(data[k]);
       ComputeFootPoints(*s.model, s.current[k], s.feet[k], warm ? &warm->feet[k] : nullptr);
       double scan_sq = 0.0;
-      for (const FootPoint& f : s.feet[k]) scan_sq += f.distance * f.distance;
+      for (const FootPoint& f : s.feet[k]) {
+        if (f.excluded) continue;
+        scan_sq += f.distance * f.distance;
+        ++s.used;
+      }
       sum += 0.5 * weights[k] * scan_sq;
       sum_sq += scan_sq;
     }
@@ -107,7 +113,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
       sum += p.dot(K_fair * p);
     }
     s.objective = sum;
-    s.rms = std::sqrt(sum_sq / static_cast<double>(total));
+    s.rms = std::sqrt(sum_sq / static_cast<double>(std::max<Eigen::Index>(s.used, 1)));
   };
   evaluate(state, nullptr);
 
@@ -146,6 +152,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
       const double w = unit_weights ? 1.0 : weights[k];
       for (Eigen::Index j = 0; j < st.current[k].cols(); ++j) {
         const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
+        if (f.excluded) continue;
         const Eigen::Vector3d x = st.current[k].col(j);
         st.model->Evaluate(f.t, 2, geo);
         st.model->ShapeJacobian(f.t, false, entries);
@@ -281,7 +288,8 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     rec.iteration = result.iterations;
     rec.rms = state.rms * scale;
     for (const auto& feet : state.feet)
-      for (const FootPoint& f : feet) rec.max_distance = std::max(rec.max_distance, f.distance * scale);
+      for (const FootPoint& f : feet)
+        if (!f.excluded) rec.max_distance = std::max(rec.max_distance, f.distance * scale);
     rec.objective = state.objective;
     rec.damping = lambda;
     rec.step_norm = last_step_norm;
@@ -300,20 +308,23 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   state.model->ApplySimilarity(scale, VecS::Zero(3));
   model.CopyFrom(*state.model);
   result.model_T_scan.clear();
-  Eigen::VectorXd all(total);
+  Eigen::VectorXd all(state.used);
   Eigen::Index offset = 0;
   for (std::size_t k = 0; k < K; ++k) {
     RigidMotion pose(state.poses[k].rotation(), state.poses[k].translation() * scale);
     pose.normalize();
     result.model_T_scan.push_back(pose);
-    Eigen::VectorXd d(static_cast<Eigen::Index>(state.feet[k].size()));
-    for (std::size_t j = 0; j < state.feet[k].size(); ++j)
-      d[static_cast<Eigen::Index>(j)] = state.feet[k][j].distance * scale;
-    result.per_scan.push_back(ComputeResidualStatistics(d));
-    all.segment(offset, d.size()) = d;
-    offset += d.size();
+    std::vector<double> d;
+    for (const FootPoint& f : state.feet[k]) {
+      if (!f.excluded) d.push_back(f.distance * scale);
+    }
+    const Eigen::Map<const Eigen::VectorXd> dk(d.data(), static_cast<Eigen::Index>(d.size()));
+    result.per_scan.push_back(ComputeResidualStatistics(dk));
+    all.segment(offset, dk.size()) = dk;
+    offset += dk.size();
   }
   result.residuals = ComputeResidualStatistics(all);
+  result.excluded_points = total - state.used;
 
   // Unobservable directions (METHOD.md section 6): the null space of the full normal matrix built with the
   // whole normal space (GTDM), so that SDM's tangential terms cannot mask a motion that slides scans along
@@ -358,9 +369,9 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   // Standard uncertainties (type A, GUM): covariance s^2 (J^T J)^-1 of the Gauss-Newton problem in the
   // orthogonal distances at the solution, s^2 = sum d^2 / (N - p), in the gauge-reduced coordinates; mapped
   // to input units.
-  if (result.unobservable.empty() && total > dim) {
-    const double variance = std::pow(result.residuals.rms / scale, 2) * static_cast<double>(total) /
-                            static_cast<double>(total - dim);
+  if (result.unobservable.empty() && state.used > dim) {
+    const double variance = std::pow(result.residuals.rms / scale, 2) * static_cast<double>(state.used) /
+                            static_cast<double>(state.used - dim);
     const Eigen::MatrixXd cov = variance * full.ldlt().solve(Eigen::MatrixXd::Identity(dim, dim));
     result.shape_covariance = cov.topLeftCorner(r, r) * (scale * scale);
     result.shape_uncertainty.resize(r);
@@ -379,6 +390,25 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     }
   }
   return result;
+}
+
+JointFitResult FitPartJointly(PartModel& part, const std::vector<Eigen::Matrix3Xd>& scans,
+                              const std::vector<RigidMotion>& model_T_scan, const JointFitOptions& options,
+                              double edge_margin_in_rms) {
+  const double given = part.edge_margin();
+  part.set_edge_margin(0.0);
+  const JointFitResult first = FitJointly(part, scans, model_T_scan, options);
+  part.set_edge_margin(given > 0 ? given : edge_margin_in_rms * first.residuals.rms);
+  JointFitResult second = FitJointly(part, scans, first.model_T_scan, options);
+  second.iterations += first.iterations;
+  second.shared_iterations += first.shared_iterations;
+  std::vector<IterationRecord> history = first.history;
+  for (IterationRecord rec : second.history) {
+    rec.iteration += first.iterations;
+    history.push_back(rec);
+  }
+  second.history = std::move(history);
+  return second;
 }
 
 }  // namespace s2m

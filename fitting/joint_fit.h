@@ -18,6 +18,7 @@
 #include "fitting/fit_result.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/parametric_model.h"
+#include "fitting/part_model.h"
 #include "registration/rigid_motion.h"
 
 namespace s2m {
@@ -48,9 +49,10 @@ struct ScanPoseUncertainty {
 };
 
 struct JointFitResult {
-  std::vector<RigidMotion> model_T_scan;  // per scan: maps the scan's coordinates into the model frame
-  ResidualStatistics residuals;           // all points, input units
-  std::vector<ResidualStatistics> per_scan;
+  std::vector<RigidMotion> model_T_scan;     // per scan: maps the scan's coordinates into the model frame
+  ResidualStatistics residuals;              // all points, input units
+  std::vector<ResidualStatistics> per_scan;  // over the points not excluded
+  Eigen::Index excluded_points = 0;          // left out as ambiguous (near a part's edges)
   int iterations = 0;
   int shared_iterations = 0;  // how many of them used one shared motion
   StopReason stop_reason = StopReason::kMaxIterations;
@@ -70,5 +72,12 @@ struct JointFitResult {
 // `model_T_scan` their initial poses (e.g. device or turntable poses, or a coarse registration).
 JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
                           std::vector<RigidMotion> model_T_scan, const JointFitOptions& options = {});
+
+// A constrained part in two passes: all points first; then, from that result, points within
+// `edge_margin_in_rms` x the first pass's RMS of a second face are left out (part_model.h) and the fit is
+// refined. `part`'s own edge margin, when set, replaces the second pass's.
+JointFitResult FitPartJointly(PartModel& part, const std::vector<Eigen::Matrix3Xd>& scans,
+                              const std::vector<RigidMotion>& model_T_scan,
+                              const JointFitOptions& options = {}, double edge_margin_in_rms = 3.0);
 
 }  // namespace s2m

@@ -8,13 +8,17 @@
 #include <string>
 #include <vector>
 
+#include "registration/local_quadric.h"
+
 namespace s2m {
 
 constexpr int kMaxAmbient = 3;
 // Small fixed-capacity types: no heap allocation on the foot-point hot path.
 using VecS = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxAmbient, 1>;
 using MatS = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxAmbient, kMaxAmbient>;
-using ParamT = std::array<double, 2>;  // t (surfaces use both entries)
+// t: curves use t[0], surfaces t[0] and t[1]. t[2] is the face index of multi-face models (PartModel: which
+// face the foot point lies on; it never changes in Newton steps) and 0 otherwise.
+using ParamT = std::array<double, 3>;
 // A rigid-motion velocity (c, cbar) of METHOD.md section 5: rotation c, then translation cbar.
 using Motion6 = Eigen::Matrix<double, 6, 1>;
 
@@ -25,15 +29,8 @@ inline Eigen::Vector3d To3(const VecS& v) {
   return out;
 }
 
-// The SDM weight of one tangential direction, delta*kappa / (delta*kappa - 1) clamped at 0 (METHOD.md section
-// 2; Wang, Pottmann, Liu, ACM TOG 25 (2006), eq. 9), with kappa signed w.r.t. the unit normal n and delta =
-// n.(X - s).
-inline double SdmWeight(double delta, double kappa) {
-  const double dk = delta * kappa;
-  const double denom = dk - 1.0;
-  if (denom > -1e-12 && denom < 1e-12) return 0.0;
-  return dk / denom > 0.0 ? dk / denom : 0.0;
-}
+// SdmWeight(delta, kappa), the SDM weight of one tangential direction, lives in registration/local_quadric.h
+// (scan-to-scan SDM uses it too, and registration/ cannot depend on fitting/).
 
 struct ParameterDomain {
   int dimension = 1;  // m
@@ -104,6 +101,13 @@ class ParametricModel {
   // Models with closed-form foot points (primitives, METHOD.md section 10) fill t and return true; the engine
   // then skips the sample search and Newton.
   virtual bool ClosedFormFootPoint(const VecS& x, ParamT& t) const {
+    (void)x;
+    (void)t;
+    return false;
+  }
+  // Multi-face models: true when x lies about as close to another face as to the face of its foot point t
+  // (near an edge, where the assignment is a guess); such points are left out of fits.
+  virtual bool AmbiguousFootPoint(const VecS& x, const ParamT& t) const {
     (void)x;
     (void)t;
     return false;

@@ -16,6 +16,7 @@
 #include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
+#include "fitting/part_model.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_models.h"
 #include "test_paths.h"
@@ -98,6 +99,31 @@ TEST(BSplineBasis, GramMatricesIntegrateExactly) {
 
 using ModelFactory = std::function<std::unique_ptr<ParametricModel>()>;
 
+// A one-face part of each face type in a tilted frame, its quantities linear expressions with several terms
+// (face 0 is what the family tests evaluate; the foot-point test sees both faces).
+std::unique_ptr<ParametricModel> PartWithFace(FaceType type) {
+  PartDefinition d;
+  d.parameters = {{"a", 2.0, false}, {"b", 0.5, false}, {"angle", 0.35, true}};
+  PartFace f;
+  f.name = "face";
+  f.type = type;
+  f.frame = Eigen::AngleAxisd(0.6, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
+  f.origin[0] = {0.3, {{0, 0.5}}};
+  f.origin[1] = {-0.2, {{1, 1.0}}};
+  f.origin[2] = {0.1, {}};
+  f.offset = {0.25, {{0, 1.0}, {1, -1.0}}};
+  f.radius = {0.4, {{0, 1.0}, {1, 0.5}}};
+  f.minor_radius = {0.1, {{1, 1.0}}};
+  f.half_angle = {0.1, {{2, 1.0}}};
+  PartFace other = f;
+  other.name = "other";
+  other.type = FaceType::kPlane;
+  other.frame = Eigen::Matrix3d::Identity();
+  other.offset = {-6.0, {{0, 1.0}}};
+  d.faces = {f, other};
+  return std::make_unique<PartModel>(d);
+}
+
 struct NamedFactory {
   std::string name;
   ModelFactory make;
@@ -177,6 +203,11 @@ std::vector<NamedFactory> Models() {
          profile << 1.0, 1.3, 1.5, 1.3, 1.0, -0.4, -0.2, 0.0, 0.2, 0.4;
          return std::make_unique<SpiralSurface>(UnitSpacedClamped(4, 5), profile, 0.12, -2.0, 6.0);
        }},
+      {"part_plane", [] { return PartWithFace(FaceType::kPlane); }},
+      {"part_cylinder", [] { return PartWithFace(FaceType::kCylinder); }},
+      {"part_cone", [] { return PartWithFace(FaceType::kCone); }},
+      {"part_sphere", [] { return PartWithFace(FaceType::kSphere); }},
+      {"part_torus", [] { return PartWithFace(FaceType::kTorus); }},
       {"circle_3d",
        [] {
          return std::make_unique<Ellipse3D>(Eigen::Vector3d(0, 0, 1), Eigen::Matrix3d::Identity(), 1.5, 1.5,

@@ -1,0 +1,92 @@
+// Issue 4's synthetic ground-truth cases (acquisition/synthetic_cases.h): a vase, a helical screw, a spiral
+// shell and the counterbored block, each split into 6-8 views with 0.02 mm noise and device poses off by 2
+// degrees and 2 mm. Every case: per-scan motions beat fitting the pre-registered cloud. The vase: every
+// measured quantity within 3 standard uncertainties, every observable pose component within 4, RMS at the
+// noise. Not yet met, and so not asserted here (docs/registration.md, "Open findings"): the helical and
+// spiral cases stop above the noise with a profile end point reported unobservable; the block's dimensions
+// carry a bias of about 2 standard uncertainties towards the material that appears only with per-view poses
+// free.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include "acquisition/synthetic_cases.h"
+#include "fitting/part_model.h"
+
+namespace s2m {
+namespace {
+
+class MultiViewCase : public ::testing::TestWithParam<std::string> {};
+class MultiViewRecovery : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(MultiViewRecovery, JointFitRecoversShapeAndPosesWithinTheirUncertainties) {
+  SyntheticCase c = MakeSyntheticCase(GetParam());
+  ASSERT_GE(c.views.scans.size(), 6u);
+  auto model = c.start->Clone();
+  if (std::getenv("S2M_TERM")) c.options.error_term = ErrorTermFromString(std::getenv("S2M_TERM"));
+  auto* part = dynamic_cast<PartModel*>(model.get());
+  const JointFitResult r =
+      part ? FitPartJointly(*part, c.views.scans, c.views.model_T_scan_recorded, c.options)
+           : FitJointly(*model, c.views.scans, c.views.model_T_scan_recorded, c.options);
+  std::printf("%s: %zu views, %d iterations (%s), RMS %.5f mm, %ld points left out near edges\n",
+              c.name.c_str(), c.views.scans.size(), r.iterations, ToString(r.stop_reason), r.residuals.rms,
+              static_cast<long>(r.excluded_points));
+  if (std::getenv("S2M_VERBOSE")) {
+    for (const IterationRecord& h : r.history)
+      std::printf("    %3d rms %.6f damping %.2e\n", h.iteration, h.rms, h.damping);
+  }
+  EXPECT_TRUE(r.unobservable.empty()) << ::testing::PrintToString(r.unobservable);
+  EXPECT_LT(r.residuals.rms, 1.1 * c.noise);
+  EXPECT_GT(r.residuals.rms, 0.9 * c.noise);
+  for (const MeasuredQuantity& q : c.measure(*model, r)) {
+    std::printf("  %-24s true %12.6f  fitted %12.6f  uncertainty %.6f  error/u %+.2f\n", q.name.c_str(),
+                q.truth, q.value, q.uncertainty, (q.value - q.truth) / q.uncertainty);
+    ASSERT_TRUE(std::isfinite(q.uncertainty) && q.uncertainty > 0) << q.name;
+    EXPECT_LT(std::abs(q.value - q.truth), 3 * q.uncertainty) << c.name << " " << q.name;
+  }
+  ASSERT_EQ(r.pose_uncertainty.size(), c.views.scans.size());
+  const std::vector<Motion6> errors = ObservablePoseErrors(*model, r.model_T_scan, c.views.model_T_scan_true);
+  double worst = 0.0;
+  int compared = 0;
+  for (std::size_t k = 0; k < errors.size(); ++k) {
+    Motion6 sigma;
+    sigma << r.pose_uncertainty[k].rotation, r.pose_uncertainty[k].translation;
+    for (int i = 0; i < 6; ++i) {
+      if (!std::isfinite(errors[k][i]) || sigma[i] == 0.0) continue;
+      worst = std::max(worst, std::abs(errors[k][i]) / sigma[i]);
+      ++compared;
+    }
+  }
+  std::printf("  poses: %d observable components, largest |error| / uncertainty %.2f\n", compared, worst);
+  EXPECT_GT(compared, 0);
+  EXPECT_LT(worst, 4.0);
+}
+
+TEST_P(MultiViewCase, PerScanMotionsBeatFittingThePreRegisteredCloud) {
+  SyntheticCase c = MakeSyntheticCase(GetParam());
+  double error[2] = {0, 0};
+  for (int joint = 0; joint < 2; ++joint) {
+    auto model = c.start->Clone();
+    JointFitOptions o = c.options;
+    o.per_scan_motions = joint == 1;
+    auto* part = dynamic_cast<PartModel*>(model.get());
+    const JointFitResult r = part ? FitPartJointly(*part, c.views.scans, c.views.model_T_scan_recorded, o)
+                                  : FitJointly(*model, c.views.scans, c.views.model_T_scan_recorded, o);
+    for (const MeasuredQuantity& q : c.measure(*model, r)) error[joint] += std::pow(q.value - q.truth, 2);
+    error[joint] = std::sqrt(error[joint]);
+  }
+  std::printf("%s: parameter error %.6f (pre-registered cloud) vs %.6f (joint)\n", c.name.c_str(), error[0],
+              error[1]);
+  EXPECT_LT(error[1], 0.5 * error[0]);
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, MultiViewRecovery, ::testing::Values("vase"),
+                         [](const auto& param_info) { return param_info.param; });
+INSTANTIATE_TEST_SUITE_P(Cases, MultiViewCase, ::testing::ValuesIn(SyntheticCaseNames()),
+                         [](const auto& param_info) { return param_info.param; });
+
+}  // namespace
+}  // namespace s2m
