@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -369,23 +370,42 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   // Standard uncertainties (type A, GUM): covariance s^2 (J^T J)^-1 of the Gauss-Newton problem in the
   // orthogonal distances at the solution, s^2 = sum d^2 / (N - p), in the gauge-reduced coordinates; mapped
   // to input units.
-  if (result.unobservable.empty() && state.used > dim) {
+  // With unobservable directions the covariance is the pseudo-inverse's: no variance along them. Quantities
+  // that do not change along them (a profile's radius at a height does not change when control points slide
+  // along the profile, a re-parametrization) keep valid uncertainties through shape_covariance; a single
+  // parameter or pose component that moves along them gets NaN.
+  if (state.used > dim) {
     const double variance = std::pow(result.residuals.rms / scale, 2) * static_cast<double>(state.used) /
                             static_cast<double>(state.used - dim);
-    const Eigen::MatrixXd cov = variance * full.ldlt().solve(Eigen::MatrixXd::Identity(dim, dim));
+    Eigen::VectorXd inverse = Eigen::VectorXd::Zero(dim);
+    Eigen::VectorXd null_weight = Eigen::VectorXd::Zero(dim);  // per unknown: its share of null directions
+    for (Eigen::Index i = 0; i < dim; ++i) {
+      if (eig.eigenvalues()[i] > 1e-10 * top) {
+        inverse[i] = 1.0 / eig.eigenvalues()[i];
+      } else {
+        null_weight += eig.eigenvectors().col(i).cwiseAbs2();
+      }
+    }
+    const Eigen::MatrixXd cov =
+        variance * eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
+    constexpr double kTouches = 1e-6;  // a squared component this large along a null direction
+    const double nan = std::numeric_limits<double>::quiet_NaN();
     result.shape_covariance = cov.topLeftCorner(r, r) * (scale * scale);
     result.shape_uncertainty.resize(r);
-    for (int i = 0; i < r; ++i) result.shape_uncertainty[i] = std::sqrt(std::max(cov(i, i), 0.0)) * scale;
+    for (int i = 0; i < r; ++i) {
+      result.shape_uncertainty[i] =
+          null_weight[i] > kTouches ? nan : std::sqrt(std::max(cov(i, i), 0.0)) * scale;
+    }
     for (const auto& [offset_k, k] : block_offset) {
       const Eigen::MatrixXd& B = sys.basis[k];
       const Eigen::Index q = B.cols();
       const Eigen::Matrix<double, 6, 6> c6 = B * cov.block(offset_k, offset_k, q, q) * B.transpose();
+      const Motion6 touched = B.cwiseAbs2() * null_weight.segment(offset_k, q);
+      Motion6 sigma;
+      for (int c = 0; c < 6; ++c) sigma[c] = touched[c] > kTouches ? nan : std::sqrt(std::max(c6(c, c), 0.0));
       ScanPoseUncertainty u;
-      u.rotation = Eigen::Vector3d(std::sqrt(std::max(c6(0, 0), 0.0)), std::sqrt(std::max(c6(1, 1), 0.0)),
-                                   std::sqrt(std::max(c6(2, 2), 0.0)));
-      u.translation = Eigen::Vector3d(std::sqrt(std::max(c6(3, 3), 0.0)), std::sqrt(std::max(c6(4, 4), 0.0)),
-                                      std::sqrt(std::max(c6(5, 5), 0.0))) *
-                      scale;
+      u.rotation = sigma.head<3>();
+      u.translation = sigma.tail<3>() * scale;
       result.pose_uncertainty.push_back(u);
     }
   }

@@ -61,8 +61,10 @@ struct JointFitResult {
   // dominant parameter, e.g. "scan 2 rotation z". Empty when every remaining unknown is determined.
   std::vector<std::string> unobservable;
   // Type-A standard uncertainties (independent, equal-variance errors along the normals; adequate model): one
-  // per shape parameter (input units) and one per scan. Empty when directions are unobservable or N <=
-  // parameters.
+  // per shape parameter (input units) and one per scan; empty when N <= unknowns. Along unobservable
+  // directions the covariance is the pseudo-inverse's (no variance): quantities invariant along them (e.g. a
+  // radius at a height under control points sliding along a profile) keep valid uncertainties; a parameter or
+  // pose component that moves along them gets NaN.
   Eigen::VectorXd shape_uncertainty;
   Eigen::MatrixXd shape_covariance;  // of the shape parameters, input units squared (for derived quantities)
   std::vector<ScanPoseUncertainty> pose_uncertainty;

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <string>
 
 #include "acquisition/synthetic_cases.h"
 #include "fitting/part_model.h"
@@ -38,7 +39,10 @@ TEST_P(MultiViewRecovery, JointFitRecoversShapeAndPosesWithinTheirUncertainties)
     for (const IterationRecord& h : r.history)
       std::printf("    %3d rms %.6f damping %.2e\n", h.iteration, h.rms, h.damping);
   }
-  EXPECT_TRUE(r.unobservable.empty()) << ::testing::PrintToString(r.unobservable);
+  // The only directions allowed without information: control points sliding along a generatrix (a
+  // re-parametrization; the measured quantities do not change along it and keep their uncertainties).
+  for (const std::string& name : r.unobservable)
+    EXPECT_NE(name.find("profile point"), std::string::npos) << name;
   EXPECT_LT(r.residuals.rms, 1.1 * c.noise);
   EXPECT_GT(r.residuals.rms, 0.9 * c.noise);
   for (const MeasuredQuantity& q : c.measure(*model, r)) {
@@ -83,7 +87,7 @@ TEST_P(MultiViewCase, PerScanMotionsBeatFittingThePreRegisteredCloud) {
   EXPECT_LT(error[1], 0.5 * error[0]);
 }
 
-INSTANTIATE_TEST_SUITE_P(Cases, MultiViewRecovery, ::testing::Values("vase"),
+INSTANTIATE_TEST_SUITE_P(Cases, MultiViewRecovery, ::testing::Values("vase", "helical", "spiral"),
                          [](const auto& param_info) { return param_info.param; });
 INSTANTIATE_TEST_SUITE_P(Cases, MultiViewCase, ::testing::ValuesIn(SyntheticCaseNames()),
                          [](const auto& param_info) { return param_info.param; });
