@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <stdexcept>
 
 #include "acquisition/scan_set_io.h"
 #include "test_paths.h"
@@ -22,6 +23,27 @@ TEST(ScanToScan, NormalsOfAPlaneAreItsNormal) {
   const Eigen::Matrix3Xd n = EstimateNormals(p, 8);
   const Eigen::Vector3d truth = Eigen::Vector3d(-0.3, 0.2, 1.0).normalized();
   for (Eigen::Index i = 0; i < n.cols(); ++i) EXPECT_NEAR(std::abs(n.col(i).dot(truth)), 1.0, 1e-12);
+}
+
+TEST(ScanToScan, RejectsBadOptions) {
+  Eigen::Matrix3Xd p(3, 400);
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) p.col(i * 20 + j) << i * 0.1, j * 0.1, 0.05 * i * j * 0.01;
+  const std::vector<Eigen::Matrix3Xd> views = {p, p};
+  const std::vector<RigidMotion> poses(2);
+  ScanToScanOptions sdm;
+  sdm.error_term = ScanErrorTerm::kSdm;
+  sdm.quadric_neighbours = 5;
+  EXPECT_THROW(RegisterScansToEachOther(views, poses, sdm), std::invalid_argument);
+  ScanToScanOptions few;
+  few.samples_per_view = 0;
+  EXPECT_THROW(RegisterScansToEachOther(views, poses, few), std::invalid_argument);
+  ScanToScanOptions plane;
+  plane.normal_neighbours = 2;
+  EXPECT_THROW(RegisterScansToEachOther(views, poses, plane), std::invalid_argument);
+  sdm.quadric_neighbours = 500;  // more than a view has
+  EXPECT_THROW(RegisterScansToEachOther(views, poses, sdm), std::invalid_argument);
+  EXPECT_THROW(RegisterScansToEachOther({p}, {RigidMotion()}), std::invalid_argument);
 }
 
 // Four views of a smooth closed surface (star-shaped, no symmetry: r(d) = 1 + 0.25 dx dy + 0.2 dz^2 - 0.15
