@@ -190,4 +190,56 @@ KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& p, int num_control, i
   return KinematicSurface::Revolution(basis, control.transpose());
 }
 
+KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                                       KinematicKind kind) {
+  if (points.cols() != normals.cols()) throw std::invalid_argument("one normal per point is needed");
+  if (points.cols() < 8) throw std::invalid_argument("too few points for an axis from normals");
+  if (!points.allFinite() || !normals.allFinite())
+    throw std::invalid_argument("non-finite points or normals");
+  // Centre the data: conditioning, and the moments x_j x n_j stay of the data's size.
+  const Eigen::Vector3d centre = points.rowwise().mean();
+  const bool spiral = kind == KinematicKind::kSpiral;
+  const int q = spiral ? 4 : 3;  // eliminated unknowns: cbar (and gamma)
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(3, q), C = Eigen::MatrixXd::Zero(q, q);
+  for (Eigen::Index j = 0; j < points.cols(); ++j) {
+    const Eigen::Vector3d x = points.col(j) - centre;
+    const Eigen::Vector3d n = normals.col(j).normalized();
+    const Eigen::Vector3d m = x.cross(n);
+    Eigen::VectorXd e(q);
+    e.head<3>() = n;
+    if (spiral) e[3] = n.dot(x);
+    A += m * m.transpose();
+    B += m * e.transpose();
+    C += e * e.transpose();
+  }
+  const Eigen::LDLT<Eigen::MatrixXd> c_ldlt(C);
+  if (c_ldlt.info() != Eigen::Success || !(C.eigenvalues().real().minCoeff() > 1e-9 * C.trace()))
+    throw std::invalid_argument("the normals do not span all directions: no axis can be found from them");
+  const Eigen::Matrix3d S = A - B * c_ldlt.solve(B.transpose());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(S);
+  const Eigen::Vector3d c = eig.eigenvectors().col(0);
+  const Eigen::VectorXd rest = -c_ldlt.solve(B.transpose() * c);  // (cbar, gamma) given c
+  const Eigen::Vector3d cbar = rest.head<3>();
+  KinematicAxis axis;
+  axis.direction = c;
+  axis.residual = std::sqrt(std::max(eig.eigenvalues()[0], 0.0) / static_cast<double>(points.cols()));
+  if (spiral) {
+    axis.growth = rest[3];
+    // The centre: v(x0) = cbar + c x x0 + gamma x0 = 0, i.e. (gamma I + [c]x) x0 = -cbar.
+    Eigen::Matrix3d M = axis.growth * Eigen::Matrix3d::Identity();
+    M(0, 1) -= c.z();
+    M(0, 2) += c.y();
+    M(1, 0) += c.z();
+    M(1, 2) -= c.x();
+    M(2, 0) -= c.y();
+    M(2, 1) += c.x();
+    axis.point = centre + M.colPivHouseholderQr().solve(-cbar);
+  } else {
+    axis.pitch = c.dot(cbar);
+    axis.point = centre + c.cross(cbar);  // where v is parallel to c (|c| = 1)
+  }
+  return axis;
+}
+
 }  // namespace s2m

@@ -33,4 +33,25 @@ BSplineSurface InitialSurfaceByProjection(const Eigen::Matrix3Xd& points, int nu
 class KinematicSurface;
 KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& points_in_axis_frame, int num_control, int order);
 
+// The axis of a kinematic surface from surface normals by line geometry (METHOD.md section 8; Pottmann,
+// Randrup, "Rotational and helical surface approximation for reverse engineering", Computing 60 (1998); for
+// spiral surfaces Hofer, Pottmann, Ravani, "From curve design algorithms to the design of rigid body
+// motions", Visual Computer 20 (2004), equiform motions). The surface is invariant under a one-parameter
+// motion whose velocity field v(x) = cbar + c x x + gamma x is tangent to it, so every point x_j with normal
+// n_j satisfies n_j . v(x_j) = (x_j x n_j) . c + n_j . cbar + gamma n_j . x_j = 0: linear in (c, cbar,
+// gamma). Least squares with |c| = 1 eliminates (cbar, gamma) (a Schur complement) and leaves the smallest
+// eigenvector of a 3 x 3 matrix. Revolution: gamma = 0 and the pitch is reported but not used; helical:
+// pitch c . cbar, axis through c x cbar; spiral: growth gamma, centre where v vanishes.
+enum class KinematicKind { kRevolution, kHelical, kSpiral };
+struct KinematicAxis {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();  // on the axis; the spiral's centre
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitZ();
+  double pitch = 0.0;     // axial advance per radian (helical; near 0 for a surface of revolution)
+  double growth = 0.0;    // spiral growth per radian (spiral)
+  double residual = 0.0;  // RMS of n_j . v(x_j) at the solution, |c| = 1 (input units)
+};
+// Throws std::invalid_argument for fewer than 8 points, mismatched sizes or normals spanning less than 3D.
+KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                                       KinematicKind kind);
+
 }  // namespace s2m
