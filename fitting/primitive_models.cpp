@@ -180,4 +180,24 @@ bool SphereModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
   return true;
 }
 
+// A rotation with unit angular velocity a about the line through p has the velocity field v(x) = a x (x - p)
+// = cbar + a x x with cbar = p x a (METHOD.md section 5's (c, cbar)).
+std::vector<Motion6> CylinderModel::InvariantMotions() const {
+  const Eigen::Vector3d a = frame_.col(2);
+  Motion6 rotation, translation;
+  rotation << a, point_.cross(a);
+  translation << Eigen::Vector3d::Zero(), a;
+  return {rotation, translation};
+}
+
+std::vector<Motion6> SphereModel::InvariantMotions() const {
+  std::vector<Motion6> out;
+  for (int i = 0; i < 3; ++i) {
+    Motion6 rotation;
+    rotation << Eigen::Vector3d::Unit(i), center_.cross(Eigen::Vector3d::Unit(i));
+    out.push_back(rotation);
+  }
+  return out;
+}
+
 }  // namespace s2m

@@ -30,6 +30,8 @@ class CylinderModel final : public ParametricModel {
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
   std::vector<ParamT> SampleParameters() const override;
   bool ClosedFormFootPoint(const VecS& x, ParamT& t) const override;
+  // Per scan in the joint solver: the rotation about and the translation along the (start) axis.
+  std::vector<Motion6> InvariantMotions() const override;
 
  private:
   Eigen::Vector3d point_;
@@ -58,6 +60,8 @@ class SphereModel final : public ParametricModel {
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
   std::vector<ParamT> SampleParameters() const override;
   bool ClosedFormFootPoint(const VecS& x, ParamT& t) const override;
+  // Per scan in the joint solver: the three rotations about the (start) centre.
+  std::vector<Motion6> InvariantMotions() const override;
 
  private:
   Eigen::Vector3d center_;

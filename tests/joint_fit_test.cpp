@@ -11,6 +11,7 @@
 
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
+#include "fitting/primitive_models.h"
 
 namespace s2m {
 namespace {
@@ -258,6 +259,57 @@ TEST(JointFit, RecoversThePitchOfAHelicalSurfaceAndTheGrowthOfASpiralShell) {
   EXPECT_LT(rs.residuals.rms, 1e-8) << ToString(rs.stop_reason);
   EXPECT_NEAR(shell_start.growth(), 0.12, 1e-8);
   EXPECT_NEAR(shell_start.WhorlExpansionRate(), std::exp(2 * M_PI * 0.12), 1e-6);
+}
+
+// Gauge of primitives (issue 4): each scan's rotation about and shift along a cylinder's axis, and its
+// rotations about a sphere's centre, are removed; what stays unobservable is only the model's own
+// re-parametrization (a cylinder's axis point sliding along the axis and its frame turning about it), never a
+// scan motion.
+TEST(JointFit, PrimitivesRemoveTheirSymmetriesFromEveryScan) {
+  for (int kind = 0; kind < 2; ++kind) {
+    std::unique_ptr<ParametricModel> truth;
+    if (kind == 0) {
+      truth = std::make_unique<CylinderModel>(
+          Cylinder{{1.0, -2.0, 0.5}, Eigen::Vector3d(0.2, 0.1, 1).normalized(), 3.0});
+    } else {
+      truth = std::make_unique<SphereModel>(Sphere{{1.0, -2.0, 0.5}, 3.0});
+    }
+    std::vector<Eigen::Matrix3Xd> scans;
+    std::vector<RigidMotion> initial;
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> a(0.0, 1.0);
+    LocalGeometry g;
+    for (int k = 0; k < 4; ++k) {
+      const RigidMotion pose =
+          RigidMotion::FromHelicalVelocity({0.1 * k, -0.2, 0.05 * k}, {2.0 * k, 1.0, -1.0});
+      Eigen::Matrix3Xd points(3, 400);
+      for (int j = 0; j < 400; ++j) {
+        // Overlapping patches of the surface (cylinder: angle and height; sphere: longitude and latitude).
+        const double u = 2 * M_PI * (k + 1.8 * a(rng)) / 4, v = kind == 0 ? 4 * a(rng) - 2 : a(rng) - 0.5;
+        truth->Evaluate({u, v, 0.0}, 0, g);
+        points.col(j) = g.point;
+      }
+      scans.push_back(pose.inverse().apply(points));
+      initial.push_back(RigidMotion::FromHelicalVelocity({0.01, -0.01 * k, 0.005}, {0.05, 0.02 * k, -0.03}) *
+                        pose);
+    }
+    auto model = truth->Clone();
+    model->ApplyStep(Eigen::VectorXd::Constant(model->num_parameters(), 0.02));
+    JointFitOptions o;
+    o.max_iterations = 60;
+    const JointFitResult r = FitJointly(*model, scans, initial, o);
+    EXPECT_LT(r.residuals.rms, 1e-8) << kind << " " << ToString(r.stop_reason);
+    for (const std::string& name : r.unobservable) EXPECT_EQ(name.find("scan"), std::string::npos) << name;
+    const int radius = model->num_parameters() - 1;
+    EXPECT_NEAR(model->parameters()[radius], 3.0, 1e-8) << model->parameter_name(radius);
+    // Left in, the symmetries are reported as scan motions by name.
+    auto free_model = truth->Clone();
+    o.remove_gauge = false;
+    int scan_directions = 0;
+    for (const std::string& name : FitJointly(*free_model, scans, initial, o).unobservable)
+      scan_directions += name.find("scan") != std::string::npos;
+    EXPECT_GE(scan_directions, kind == 0 ? 6 : 9) << "kind " << kind;
+  }
 }
 
 TEST(JointFit, RejectsBadInput) {
