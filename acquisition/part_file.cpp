@@ -14,6 +14,8 @@ namespace s2m {
 namespace {
 
 constexpr double kDegree = M_PI / 180.0;
+// Members in the file's order: the free parameters are numbered (and reported) as the file lists them.
+using Json = nlohmann::ordered_json;
 
 struct ParameterInfo {
   int index = -1;      // among the free parameters; -1 when fixed
@@ -148,7 +150,7 @@ class Reader {
     throw FormatError(source_, where, problem);
   }
 
-  LinearExpression Expression(const nlohmann::json& value, const std::string& where, bool angle) {
+  LinearExpression Expression(const Json& value, const std::string& where, bool angle) {
     if (value.is_number()) {
       const double v = value.get<double>();
       if (!std::isfinite(v)) Fail(where, "not a finite number");
@@ -167,7 +169,7 @@ class Reader {
     }
   }
 
-  Eigen::Vector3d Direction(const nlohmann::json& value, const std::string& where) {
+  Eigen::Vector3d Direction(const Json& value, const std::string& where) {
     if (!value.is_array() || value.size() != 3) Fail(where, "expected a direction [x, y, z]");
     Eigen::Vector3d d;
     for (int i = 0; i < 3; ++i) {
@@ -179,9 +181,9 @@ class Reader {
   }
 
   PartFile Parse(const std::string& text) {
-    nlohmann::json j;
+    Json j;
     try {
-      j = nlohmann::json::parse(text);
+      j = Json::parse(text);
     } catch (const nlohmann::json::parse_error& e) {
       Fail("byte " + std::to_string(e.byte), std::string("not valid JSON: ") + e.what());
     }
@@ -211,10 +213,12 @@ class Reader {
           Fail(where, "expected a number or {\"value\": number, \"unit\": \"deg\", \"fixed\": bool}");
         }
         if (!std::isfinite(info.value)) Fail(where, "the value is not finite");
-        if (!fixed) {
+        const PartParameter held{name, info.angle ? info.value * kDegree : info.value, info.angle};
+        if (fixed) {
+          out.fixed_parameters.push_back(held);
+        } else {
           info.index = static_cast<int>(out.definition.parameters.size());
-          out.definition.parameters.push_back(
-              {name, info.angle ? info.value * kDegree : info.value, info.angle});
+          out.definition.parameters.push_back(held);
         }
         table_[name] = info;
       }
@@ -222,19 +226,19 @@ class Reader {
     if (!j.contains("faces") || !j["faces"].is_array() || j["faces"].empty())
       Fail("faces", "a part needs a non-empty \"faces\" array");
     for (std::size_t i = 0; i < j["faces"].size(); ++i) {
-      const nlohmann::json& fj = j["faces"][i];
+      const Json& fj = j["faces"][i];
       PartFace f;
       f.name = fj.is_object() ? fj.value("name", "face " + std::to_string(i)) : "face " + std::to_string(i);
       const std::string where = "face '" + f.name + "'";
       if (!fj.is_object() || !fj.contains("type") || !fj["type"].is_string())
         Fail(where, "each face is an object with a \"type\"");
       const std::string type = fj["type"].get<std::string>();
-      auto need = [&](const char* key) -> const nlohmann::json& {
+      auto need = [&](const char* key) -> const Json& {
         if (!fj.contains(key)) Fail(where, std::string("a ") + type + " needs \"" + key + "\"");
         return fj[key];
       };
       auto point = [&](const char* key) {
-        const nlohmann::json& p = need(key);
+        const Json& p = need(key);
         if (!p.is_array() || p.size() != 3) Fail(where + " " + key, "expected [x, y, z]");
         for (std::size_t c = 0; c < 3; ++c)
           f.origin[c] = Expression(p[c], where + " " + key + "[" + std::to_string(c) + "]", false);

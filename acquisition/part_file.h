@@ -5,14 +5,16 @@
 // held in radians in the model.
 
 #include <string>
+#include <vector>
 
 #include "fitting/part_model.h"
 
 namespace s2m {
 
 struct PartFile {
-  PartDefinition definition;
-  std::string units;  // of the lengths, as the file states ("" when it does not)
+  PartDefinition definition;                    // the free parameters in the order the file lists them
+  std::vector<PartParameter> fixed_parameters;  // with their values (angles in radians), for reports
+  std::string units;                            // of the lengths, as the file states ("" when it does not)
 };
 
 // Throws FormatError naming the file, the face or parameter, and the problem.

@@ -3,6 +3,7 @@
 #include <iomanip>
 #include <iostream>
 #include <optional>
+#include <set>
 
 #include "acquisition/format_error.h"
 #include "acquisition/nist_reference.h"
@@ -151,12 +152,26 @@ Runner AddFitCommand(CLI::App& app) {
   cmd->add_option("file", o->file,
                   "Input: a point cloud (.ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds), a glyph (.glif) for "
                   "curves, or "
-                  "several views (.json manifest, Stanford .conf) for --model revolution")
+                  "several views (.json manifest, Stanford .conf) for --model revolution and part:FILE")
       ->required();
-  cmd->add_option("--model,-m", o->model, "Model to fit")
+  cmd->add_option(
+         "--model,-m", o->model,
+         "Model to fit: plane, sphere, cylinder, cone, bspline-curve, bspline-surface, revolution, or "
+         "part:FILE (a constrained part, docs/parts.md)")
       ->required()
-      ->check(CLI::IsMember(
-          {"plane", "sphere", "cylinder", "cone", "bspline-curve", "bspline-surface", "revolution"}));
+      ->check(CLI::Validator(
+          [](std::string& model) -> std::string {
+            static const std::set<std::string> kModels = {
+                "plane", "sphere", "cylinder", "cone", "bspline-curve", "bspline-surface", "revolution"};
+            if (kModels.count(model) > 0) return "";
+            if (model.rfind("part:", 0) == 0) {
+              return model.size() > 5 ? "" : "part: needs a part file, e.g. part:block.part.json";
+            }
+            return model +
+                   " is not a model (plane, sphere, cylinder, cone, bspline-curve, bspline-surface, "
+                   "revolution, part:FILE)";
+          },
+          "MODEL"));
   cmd->add_option("--method", o->method,
                   "Error term per iteration: pdm, tdm, sdm, cdm, gtdm or gn (primitives: tdm or sdm). "
                   "Default: tdm for primitives and multi-view fits, sdm for splines")
@@ -182,7 +197,8 @@ Runner AddFitCommand(CLI::App& app) {
       ->check(CLI::IsMember({"lm", "armijo", "none"}));
   cmd->add_option(
       "--output,-o", o->output,
-      "Splines: write PREFIX.json (control points, knots), PREFIX.ply (samples), PREFIX_history.csv");
+      "Splines: write PREFIX.json (control points, knots), PREFIX.ply (samples), PREFIX_history.csv; "
+      "multi-view fits: PREFIX.json");
   cmd->add_option(
       "--initial", o->initial,
       "Splines: start from this curve or surface (a scan2model.bspline/1 JSON, e.g. an earlier PREFIX.json)");
@@ -194,18 +210,24 @@ Runner AddFitCommand(CLI::App& app) {
   cmd->add_option("--reference", o->reference, "A NIST .fit reference file to compare the result with");
   cmd->add_option("--history", o->history, "Write the per-iteration history to this CSV file");
   cmd->add_option("--units", o->units, "Declare the input's units (e.g. mm) when the file does not say");
+  CLI::Option* joint = cmd->add_flag(
+      "--joint", o->joint,
+      "Multi-view: solve every view's pose and the model together, one linear solve per iteration (the "
+      "default)");
   cmd->add_flag("--alternating", o->alternating,
                 "Multi-view: the alternating baseline (registration step, then fitting step) instead of the "
-                "joint method");
-  cmd->add_flag(
-      "--register-then-fit", o->register_then_fit,
-      "Multi-view: keep one shared motion for all views (fit the pre-registered cloud; a baseline)");
+                "joint method")
+      ->excludes(joint);
+  cmd->add_flag("--register-then-fit", o->register_then_fit,
+                "Multi-view: keep one shared motion for all views (fit the pre-registered cloud; a baseline)")
+      ->excludes(joint);
   cmd->add_flag("--verbose,-v", o->verbose,
                 "Print the per-iteration history (RMS, max distance, damping, step, time)");
   cmd->add_flag("--json", o->json, "Machine-readable output (schema scan2model.fit/1, docs/cli.md)");
   return [o]() {
     if (o->model == "bspline-curve" || o->model == "bspline-surface") return RunSplineFit(*o);
     if (o->model == "revolution") return RunMultiViewFit(*o);
+    if (o->model.rfind("part:", 0) == 0) return RunPartFit(*o);
     if (o->method.empty()) o->method = "tdm";
     if (o->method != "tdm" && o->method != "sdm") {
       std::cerr << "scan2model fit: error: --method " << o->method

@@ -16,9 +16,10 @@ struct FitOptions {
   std::string units;
   int max_iterations = 200;
   bool json = false;
-  bool verbose = false;
+  bool verbose = false;            // print the per-iteration history table
+  bool joint = false;              // multi-view: the joint method, stated explicitly (it is the default)
   bool alternating = false;        // multi-view: the alternating baseline instead of the joint method
-  bool register_then_fit = false;  // multi-view: one shared motion only (fit the pre-registered cloud)  // print the per-iteration history table
+  bool register_then_fit = false;  // multi-view: one shared motion only (fit the pre-registered cloud)
   // Splines.
   std::string control_points;  // curve: "N"; surface: "NUxNV"
   int order = 4;
@@ -35,5 +36,8 @@ struct FitOptions {
 int RunSplineFit(const FitOptions& options);
 // Runs a joint multi-view fit (surface of revolution); returns the exit code.
 int RunMultiViewFit(const FitOptions& options);
+// Runs a joint multi-view fit of a constrained part (`--model part:FILE`, docs/parts.md); returns the exit
+// code.
+int RunPartFit(const FitOptions& options);
 
 }  // namespace s2m::app

@@ -1,24 +1,31 @@
-// Generates the demo's multi-view recording: a vase (surface of revolution) seen by a scanner from four
-// directions, with measurement noise and scanner poses that are off by about a degree and half a millimetre,
-// written as one PLY per view plus a scan2model.views/1 manifest. Usage: s2m_make_demo_views <manifest.json>.
-// Deterministic (fixed seed).
+// Generates the demo recordings, one PLY per view plus a scan2model.views/1 manifest (recordings/README.md):
+//   s2m_make_demo_views [vase] <manifest.json>   a vase (surface of revolution) seen from four directions,
+//   with
+//                                                measurement noise and scanner poses off by about a degree
+//                                                and half a millimetre (world: the lab's frame)
+//   s2m_make_demo_views block <manifest.json>    the counterbored block of
+//   docs/examples/counterbored_block.part.json
+//                                                (the "part" case of acquisition/synthetic_cases.h): 8 views,
+//                                                0.02 mm noise, recorded poses off by 2 degrees and 2 mm
+//                                                (world: the part frame, as a fixture would give it)
+// Deterministic (fixed seeds).
 
 #include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <random>
+#include <string>
 
 #include "acquisition/scan_set_io.h"
+#include "acquisition/synthetic_cases.h"
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
 
-int main(int argc, char** argv) {
-  using namespace s2m;
-  if (argc != 2) {
-    std::cerr << "usage: s2m_make_demo_views <manifest.json>\n";
-    return 2;
-  }
+namespace s2m {
+namespace {
+
+ScanSet MakeVaseViews() {
   Eigen::Matrix2Xd profile(2, 8);             // radius, height in mm: foot, belly, neck, lip
   profile << 30, 42, 58, 66, 55, 38, 34, 41,  //
       0, 20, 45, 70, 95, 120, 135, 150;
@@ -58,8 +65,40 @@ int main(int argc, char** argv) {
     scan.world_T_scan = error * world_T_scan_true;
     set.scans.push_back(scan);
   }
-  std::filesystem::create_directories(std::filesystem::path(argv[1]).parent_path());
-  WriteScanSet(argv[1], set);
-  std::cout << "wrote " << set.scans.size() << " views to " << argv[1] << "\n";
+  return set;
+}
+
+// The synthetic "part" case as recorded: each view in its scanner's coordinates, placed by the device's
+// (erroneous) pose in the part frame.
+ScanSet MakeBlockViews() {
+  const SyntheticCase c = MakeSyntheticCase("part");
+  ScanSet set;
+  set.name = "demo block (docs/examples/counterbored_block.part.json), 8 views";
+  for (std::size_t k = 0; k < c.views.scans.size(); ++k) {
+    Scan scan;
+    scan.points = c.views.scans[k];
+    scan.units = "mm";
+    scan.world_T_scan = c.views.model_T_scan_recorded[k];
+    set.scans.push_back(scan);
+  }
+  return set;
+}
+
+}  // namespace
+}  // namespace s2m
+
+int main(int argc, char** argv) {
+  using namespace s2m;
+  const std::string which = argc == 3 ? argv[1] : "vase";
+  if ((argc != 2 && argc != 3) || (which != "vase" && which != "block")) {
+    std::cerr << "usage: s2m_make_demo_views [vase|block] <manifest.json>\n";
+    return 2;
+  }
+  const std::filesystem::path manifest = argv[argc - 1];
+  const ScanSet set = which == "vase" ? MakeVaseViews() : MakeBlockViews();
+  std::filesystem::create_directories(manifest.parent_path());
+  WriteScanSet(manifest, set);
+  std::cout << "wrote " << set.scans.size() << " views (" << set.TotalPoints() << " points) to "
+            << manifest.string() << "\n";
   return 0;
 }

@@ -3,17 +3,15 @@
 
 #include <Eigen/Geometry>
 #include <chrono>
-#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <limits>
 
 #include "acquisition/format_error.h"
-#include "acquisition/point_cloud_io.h"
-#include "acquisition/scan_set_io.h"
 #include "apps/commands.h"
 #include "apps/fit_options.h"
 #include "apps/output.h"
+#include "apps/views.h"
 #include "fitting/initial_models.h"
 #include "fitting/joint_fit.h"
 #include "fitting/kinematic_surfaces.h"
@@ -22,22 +20,10 @@
 namespace s2m::app {
 namespace {
 
-ScanSet ReadViews(const std::string& file) {
-  const std::string ext = std::filesystem::path(file).extension().string();
-  if (ext == ".json" || ext == ".conf") return ReadScanSet(file);
-  ScanSet set;  // a single cloud: one view in world coordinates
-  set.scans.push_back(ReadPointCloud(file));
-  return set;
-}
-
 // The frame of the initial axis: z along the axis of the cylinder best fitting all views merged in the world.
 RigidMotion InitialAxisFrame(const ScanSet& set) {
   const Cylinder c = FitCylinder(set.MergedWorldPoints()).shape;
   return RigidMotion(FrameWithAxis(c.axis_direction), c.axis_point);
-}
-
-nlohmann::json PoseJson(const RigidMotion& m) {
-  return ToJson(m.matrix());
 }
 
 }  // namespace
@@ -59,14 +45,7 @@ int RunMultiViewFit(const FitOptions& o) {
       initial.push_back(model_T_world * s.world_T_scan);
     }
     KinematicSurface pot = InitialRevolution(model_T_world.apply(set.MergedWorldPoints()), n, o.order);
-    JointFitOptions options;
-    // TDM by default here (measured on the demo vase, 4 noisy views: TDM 16 iterations, 0.3 s; SDM still
-    // creeping after 200, 2 s, to the same result): SDM's tangential terms damp the profile's
-    // re-parametrization, the slow direction once the data sit at the noise level (docs/registration.md).
-    options.error_term = ErrorTermFromString(o.method.empty() ? "tdm" : o.method);
-    options.max_iterations = o.max_iterations;
-    options.alternating = o.alternating;
-    options.per_scan_motions = !o.register_then_fit;
+    JointFitOptions options = JointOptions(o);  // TDM by default (apps/views.cpp)
     options.fairness = {o.stretch, o.bending};
     const auto start = std::chrono::steady_clock::now();
     const JointFitResult r = FitJointly(pot, scans, initial, options);
@@ -100,9 +79,7 @@ int RunMultiViewFit(const FitOptions& o) {
     j["input"] = {{"file", o.file}, {"views", K}, {"points", set.TotalPoints()}, {"units", units}};
     j["model"] = o.model;
     j["method"] = ToString(options.error_term);
-    j["solver"] = options.alternating        ? "alternating"
-                  : options.per_scan_motions ? "joint"
-                                             : "register-then-fit";
+    j["solver"] = SolverName(options);
     j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
     std::vector<std::vector<double>> profile_cp, samples;
     for (Eigen::Index i = 0; i < pot.profile().cols(); ++i)
@@ -133,45 +110,18 @@ int RunMultiViewFit(const FitOptions& o) {
       j["profile"]["samples_radius_uncertainty"].push_back(std::isfinite(u) ? nlohmann::json(u)
                                                                             : nlohmann::json(nullptr));
     }
-    j["views"] = nlohmann::json::array();
-    for (std::size_t k = 0; k < K; ++k) {
-      const RigidMotion corrected = world_T_model_fit * r.model_T_scan[k];
-      const RigidMotion correction = corrected * set.scans[k].world_T_scan.inverse();
-      j["views"].push_back({{"source", set.scans[k].metadata.source},
-                            {"points", set.scans[k].size()},
-                            {"rms", r.per_scan[k].rms},
-                            {"max_abs", r.per_scan[k].max_abs},
-                            {"world_T_scan", PoseJson(corrected)},
-                            {"correction",
-                             {{"rotation_deg", correction.angle() * 180.0 / M_PI},
-                              {"translation", correction.translation().norm()}}}});
-      if (k < r.pose_uncertainty.size()) {
-        const ScanPoseUncertainty& pu = r.pose_uncertainty[k];
-        j["views"][k]["pose_uncertainty"] = {
-            {"rotation_deg", ToJson(Eigen::Vector3d(pu.rotation * 180.0 / M_PI))},
-            {"translation", ToJson(pu.translation)}};
-      }
-    }
-    j["residuals"] = {
-        {"count", r.residuals.count}, {"rms", r.residuals.rms}, {"max_abs", r.residuals.max_abs}};
-    j["iterations"] = r.iterations;
-    j["shared_iterations"] = r.shared_iterations;
-    j["stop_reason"] = ToString(r.stop_reason);
-    j["unobservable"] = r.unobservable;
-    j["seconds"] = seconds;
-    j["history"] = HistoryJson(r.history);
-    if (!o.output.empty()) WriteTextAtomically(o.output + ".json", j.dump(2) + "\n");
-    if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(r.history));
+    std::vector<RigidMotion> corrected;
+    for (std::size_t k = 0; k < K; ++k) corrected.push_back(world_T_model_fit * r.model_T_scan[k]);
+    j["views"] = ViewsJson(set, corrected, r);
+    AddSolverJson(j, r, seconds);
+    WriteRequestedFiles(o, j, r);
     if (o.json) {
       std::cout << j.dump(2) << "\n";
       return kOk;
     }
     std::cout << "scan2model fit: surface of revolution to " << K << " views (" << set.TotalPoints()
               << " points) of " << o.file << " (units " << units << ")\n\n"
-              << "  solver            " << j["solver"].get<std::string>() << " registration and fitting, "
-              << ToString(options.error_term) << ", " << r.iterations << " iterations ("
-              << r.shared_iterations << " with one shared motion), stopped: " << ToString(r.stop_reason)
-              << ", " << Format(seconds * 1e3, 4) << " ms\n"
+              << "  solver            " << SolverSummary(options, r, seconds) << "\n"
               << "  axis point        " << Format(axis_point) << "\n"
               << "  axis direction    " << Format(axis_direction) << "\n"
               << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
@@ -183,19 +133,7 @@ int RunMultiViewFit(const FitOptions& o) {
                 << std::setw(14) << Format(samples[static_cast<std::size_t>(i)][1], 6) << std::setw(12)
                 << (std::isfinite(u) ? Format(u, 2) : std::string("-")) << "\n";
     }
-    std::cout << "\n  view   points        RMS    pose correction (deg, translation)\n";
-    for (std::size_t k = 0; k < K; ++k) {
-      const auto& v = j["views"][k];
-      std::cout << "  " << std::setw(4) << k << std::setw(9) << v["points"].get<int>() << std::setw(11)
-                << Format(v["rms"].get<double>(), 4) << "    "
-                << Format(v["correction"]["rotation_deg"].get<double>(), 3) << ", "
-                << Format(v["correction"]["translation"].get<double>(), 3) << "\n";
-    }
-    if (!r.unobservable.empty()) {
-      std::cout << "\n  unobservable:";
-      for (const std::string& u : r.unobservable) std::cout << " " << u << ";";
-      std::cout << "\n";
-    }
+    std::cout << ViewsTable(j["views"]) << UnobservableText(r);
     if (o.verbose) std::cout << HistoryTable(r.history);
     return kOk;
   } catch (const FormatError& e) {

@@ -10,8 +10,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "test_paths.h"
 
@@ -240,6 +243,207 @@ TEST(Cli, JointMultiViewFitOfTheDemoVase) {
   ASSERT_EQ(baseline.exit_code, 0) << baseline.out;
   EXPECT_GT(nlohmann::json::parse(baseline.out)["residuals"]["rms"].get<double>(),
             5 * doc["residuals"]["rms"].get<double>());
+}
+
+std::string SourcePath(const std::string& relative) {
+  return std::string(S2M_SOURCE_DIR) + "/" + relative;
+}
+
+// The demo block (recordings/README.md): 8 views, 0.02 mm noise, recorded poses off by 2 degrees and 2 mm.
+TEST(Cli, PartFitOfTheDemoBlockMeasuresItsDimensions) {
+  const std::string part = SourcePath("docs/examples/counterbored_block.part.json");
+  const std::string views = SourcePath("recordings/demo_block/views.json");
+  const Result r = RunCli("fit --model part:" + part + " " + views + " --json", false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto doc = nlohmann::json::parse(r.out);
+  EXPECT_EQ(doc["schema"], "scan2model.part_fit/1");
+  EXPECT_EQ(doc["solver"], "joint");
+  EXPECT_EQ(doc["method"], "tdm");
+  EXPECT_EQ(doc["part"]["name"], "block with a through bore and a counterbore");
+  EXPECT_EQ(doc["part"]["units"], "mm");
+  EXPECT_EQ(doc["input"]["views"], 8);
+
+  const std::map<std::string, double> truth = {{"width", 60.0},
+                                               {"depth", 40.0},
+                                               {"bore_diameter", 10.0},
+                                               {"counterbore_diameter", 18.0},
+                                               {"counterbore_depth", 6.0}};
+  ASSERT_EQ(doc["parameters"].size(), truth.size());
+  for (const auto& p : doc["parameters"]) {
+    const std::string name = p["name"];
+    ASSERT_EQ(truth.count(name), 1u) << name;
+    const double error = p["value"].get<double>() - truth.at(name);
+    ASSERT_TRUE(p["standard_uncertainty"].is_number()) << name;
+    const double u = p["standard_uncertainty"].get<double>();
+    std::printf("  %-22s %.6f  error %+.6f mm  uncertainty %.6f  error/u %+.2f\n", name.c_str(),
+                p["value"].get<double>(), error, u, error / u);
+    EXPECT_GT(u, 0.0) << name;
+    EXPECT_LT(u, 0.01) << name;
+    EXPECT_LT(std::abs(error), 4 * u) << name;
+    EXPECT_LT(std::abs(error), 0.05) << name;
+    EXPECT_EQ(p["unit"], "mm");
+    EXPECT_EQ(p["nominal"].get<double>(), truth.at(name));
+  }
+  ASSERT_EQ(doc["fixed_parameters"].size(), 1u);
+  EXPECT_EQ(doc["fixed_parameters"][0]["name"], "height");
+  EXPECT_EQ(doc["fixed_parameters"][0]["value"], 20.0);
+
+  // Residuals at the recording's noise (0.02 mm), every direction observable.
+  const double rms = doc["residuals"]["rms"].get<double>();
+  EXPECT_GT(rms, 0.9 * 0.02);
+  EXPECT_LT(rms, 1.1 * 0.02);
+  EXPECT_TRUE(doc["unobservable"].empty());
+  EXPECT_GT(doc["excluded_points"].get<long long>(), 0);
+  EXPECT_GT(doc["edge_margin"].get<double>(), 0.0);
+
+  // The correlation matrix: symmetric, unit diagonal, entries within [-1, 1].
+  const auto& c = doc["correlation"]["matrix"];
+  ASSERT_EQ(c.size(), 5u);
+  EXPECT_EQ(doc["correlation"]["parameters"].size(), 5u);
+  for (std::size_t i = 0; i < 5; ++i) {
+    ASSERT_EQ(c[i].size(), 5u);
+    EXPECT_NEAR(c[i][i].get<double>(), 1.0, 1e-12);
+    for (std::size_t j = 0; j < 5; ++j) {
+      EXPECT_NEAR(c[i][j].get<double>(), c[j][i].get<double>(), 1e-12);
+      EXPECT_LE(std::abs(c[i][j].get<double>()), 1.0 + 1e-12);
+    }
+  }
+
+  // Per face: every face listed; the seen ones have points at the noise level; all points accounted for.
+  ASSERT_EQ(doc["faces"].size(), 9u);
+  long long counted = 0;
+  for (const auto& f : doc["faces"]) {
+    ASSERT_TRUE(f.contains("points") && f.contains("rms") && f.contains("max_abs")) << f.dump();
+    counted += f["points"].get<long long>();
+    if (f["name"] == "bottom") continue;  // never seen (the block lies on a table)
+    EXPECT_GT(f["points"].get<long long>(), 1000) << f["name"];
+    EXPECT_NEAR(f["rms"].get<double>(), 0.02, 0.002) << f["name"];
+  }
+  EXPECT_EQ(counted, doc["input"]["points"].get<long long>());
+
+  // Per view: the corrected pose, about 2 degrees and 2 mm from the recorded one, with its uncertainty.
+  ASSERT_EQ(doc["views"].size(), 8u);
+  for (const auto& v : doc["views"]) {
+    ASSERT_EQ(v["world_T_scan"].size(), 4u);
+    EXPECT_EQ(v["world_T_scan"][3], nlohmann::json({0.0, 0.0, 0.0, 1.0}));
+    EXPECT_NEAR(v["correction"]["rotation_deg"].get<double>(), 2.0, 0.1);
+    EXPECT_NEAR(v["correction"]["translation"].get<double>(), 2.0, 0.1);
+    ASSERT_EQ(v["pose_uncertainty"]["rotation_deg"].size(), 3u);
+    EXPECT_GT(v["pose_uncertainty"]["translation"][0].get<double>(), 0.0);
+    EXPECT_NEAR(v["rms"].get<double>(), 0.02, 0.002);
+  }
+  EXPECT_GT(doc["iterations"].get<int>(), 0);
+  EXPECT_EQ(doc["history"].size(), doc["iterations"].get<std::size_t>());
+  std::printf("  RMS %.5f mm, %d iterations, %.2f s\n", rms, doc["iterations"].get<int>(),
+              doc["seconds"].get<double>());
+}
+
+TEST(Cli, PartFitTextOutputAndFiles) {
+  const std::string part = SourcePath("docs/examples/counterbored_block.part.json");
+  const std::string views = SourcePath("recordings/demo_block/views.json");
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string prefix = (dir / "s2m_cli_part").string(), csv = (dir / "s2m_cli_part.csv").string();
+  // A short run (the result need not have converged): the report's layout, the files, --joint.
+  const Result r = RunCli("fit --model part:" + part + " " + views + " --joint --max-iterations 2 -v -o " +
+                          prefix + " --history " + csv);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  for (const char* text :
+       {"part \"block with a through bore and a counterbore\"", "8 views", "counterbore_depth", "(fixed)",
+        "parameter correlations", "counterbore floor", "pose correction", "iteration           RMS"}) {
+    EXPECT_NE(r.out.find(text), std::string::npos) << text << " in\n" << r.out;
+  }
+  std::ifstream json(prefix + ".json");
+  ASSERT_TRUE(json.good());
+  EXPECT_EQ(nlohmann::json::parse(json)["schema"], "scan2model.part_fit/1");
+  std::ifstream history(csv);
+  std::string header;
+  std::getline(history, header);
+  EXPECT_EQ(header, "iteration,rms,max_distance,objective,damping,step_norm,seconds");
+  std::filesystem::remove(prefix + ".json");
+  std::filesystem::remove(csv);
+  // --joint is the default; it excludes the baselines.
+  EXPECT_EQ(RunCli("fit --model part:" + part + " " + views + " --joint --alternating").exit_code, 2);
+  EXPECT_EQ(RunCli("fit --model part:" + part + " " + views + " --joint --register-then-fit").exit_code, 2);
+  EXPECT_EQ(RunCli("fit --model part: " + views).exit_code, 2);
+}
+
+TEST(Cli, PartFitNamesAnUnobservableHeight) {
+  // The demo block with its height free: no view sees the bottom, so the height trades with a common vertical
+  // shift of the views (docs/parts.md).
+  std::ifstream in(SourcePath("docs/examples/counterbored_block.part.json"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string fixed = R"("height": {"value": 20.0, "fixed": true})";
+  ASSERT_NE(text.find(fixed), std::string::npos);
+  text.replace(text.find(fixed), fixed.size(), R"("height": 20.0)");
+  const auto path = std::filesystem::temp_directory_path() / "s2m_cli_free_height.part.json";
+  std::ofstream(path) << text;
+  const Result r = RunCli(
+      "fit --json --model part:" + path.string() + " " + SourcePath("recordings/demo_block/views.json"),
+      false);
+  std::filesystem::remove(path);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto doc = nlohmann::json::parse(r.out);
+  EXPECT_FALSE(doc["unobservable"].empty());
+  ASSERT_EQ(doc["parameters"].size(), 6u);
+  EXPECT_TRUE(doc["fixed_parameters"].empty());
+  for (const auto& p : doc["parameters"]) {
+    if (p["name"] == "height") {
+      EXPECT_TRUE(p["standard_uncertainty"].is_null());
+    } else {
+      EXPECT_GT(p["standard_uncertainty"].get<double>(), 0.0) << p["name"];
+    }
+  }
+  const auto& c = doc["correlation"]["matrix"];
+  ASSERT_EQ(c.size(), 6u);
+  EXPECT_TRUE(c[2][0].is_null());  // height is the third parameter
+  EXPECT_NEAR(c[0][0].get<double>(), 1.0, 1e-12);
+}
+
+TEST(Cli, PartFileErrorsNameTheFileAndExitWithThree) {
+  const std::string views = SourcePath("recordings/demo_block/views.json");
+  const Result missing = RunCli("fit --model part:/nonexistent/block.part.json " + views);
+  EXPECT_EQ(missing.exit_code, 3) << missing.out;
+  EXPECT_NE(missing.out.find("/nonexistent/block.part.json: cannot open"), std::string::npos) << missing.out;
+
+  const std::string faces =
+      R"([{"name": "top", "type": "plane", "normal": [0, 0, 1], "offset": "height"},
+          {"name": "hole", "type": "cylinder", "axis": [0, 0, 1], "point": [0, 0, 0], "radius": RADIUS}])";
+  auto part_file = [&](const std::string& radius, const std::string& units = "mm") {
+    std::string f = faces;
+    f.replace(f.find("RADIUS"), 6, radius);
+    return R"({"format": "scan2model.part/1", "units": ")" + units +
+           R"(", "parameters": {"height": 20, "d": 10}, "faces": )" + f + "}";
+  };
+  struct Case {
+    std::string text, problem;
+  };
+  const std::vector<Case> cases = {
+      {R"({"format": "scan2model.part/1", "faces": [)", "not valid JSON"},
+      {part_file(R"("d / 2")").replace(part_file(R"("d / 2")").find("cylinder"), 8, "cylindre"),
+       "face 'hole': unknown face type \"cylindre\""},
+      {part_file(R"("diameter / 2")"), "face 'hole' radius: 'diameter / 2': unknown parameter 'diameter'"},
+      {part_file(R"("d * height")"),
+       "face 'hole' radius: 'd * height': a product of two parameters is not linear"},
+  };
+  const auto path = std::filesystem::temp_directory_path() / "s2m_cli_bad.part.json";
+  for (const Case& c : cases) {
+    std::ofstream(path) << c.text;
+    const Result r = RunCli("fit --model part:" + path.string() + " " + views);
+    EXPECT_EQ(r.exit_code, 3) << r.out;
+    EXPECT_NE(r.out.find("scan2model fit: error: " + path.string() + ": "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(c.problem), std::string::npos) << c.problem << " in\n" << r.out;
+    const Result j = RunCli("fit --json --model part:" + path.string() + " " + views, false);
+    EXPECT_EQ(j.exit_code, 3);
+    EXPECT_EQ(nlohmann::json::parse(j.out)["schema"], "scan2model.error/1");
+  }
+  // A part in other units than the views.
+  std::ofstream(path) << part_file(R"("d / 2")", "in");
+  const Result units = RunCli("fit --model part:" + path.string() + " " + views);
+  EXPECT_EQ(units.exit_code, 3) << units.out;
+  EXPECT_NE(units.out.find("the views are in mm but the part " + path.string() + " is in in"),
+            std::string::npos)
+      << units.out;
+  std::filesystem::remove(path);
 }
 
 }  // namespace

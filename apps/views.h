@@ -1,0 +1,44 @@
+#pragma once
+// Shared by the multi-view fits of `scan2model fit` (surface of revolution, constrained part): reading the
+// views, the joint solver's options from the command line, and reporting per-view results and the solver's
+// run.
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "apps/fit_options.h"
+#include "fitting/joint_fit.h"
+#include "registration/scan.h"
+
+namespace s2m::app {
+
+// A scan2model.views/1 manifest (.json) or Stanford .conf; any other file is read as one cloud, one view in
+// world coordinates. Throws FormatError.
+ScanSet ReadViews(const std::string& file);
+
+// The error term (default tdm), iteration cap and solver variant (joint, alternating, register-then-fit).
+// Throws std::invalid_argument for a method the joint solver does not know.
+JointFitOptions JointOptions(const FitOptions& o);
+// "joint", "alternating" or "register-then-fit".
+std::string SolverName(const JointFitOptions& options);
+
+// One entry per view: source, points, RMS and max over the points fitted, the corrected `world_T_scan`
+// (4x4 row-major), its correction relative to the recorded pose (rotation angle in degrees, translation
+// length) and, when known, the pose uncertainty (rotation about x, y, z in degrees; translation).
+nlohmann::json ViewsJson(const ScanSet& set, const std::vector<RigidMotion>& world_T_scan,
+                         const JointFitResult& result);
+// The text table of those entries.
+std::string ViewsTable(const nlohmann::json& views);
+
+// The solver's members of a result document: residuals, iterations, shared_iterations, stop_reason,
+// unobservable, seconds, history.
+void AddSolverJson(nlohmann::json& j, const JointFitResult& result, double seconds);
+// The solver line of the text output ("joint registration and fitting, tdm, 23 iterations ...").
+std::string SolverSummary(const JointFitOptions& options, const JointFitResult& result, double seconds);
+// "\n  unobservable: a; b;\n" when directions are unobservable, else "".
+std::string UnobservableText(const JointFitResult& result);
+// Writes PREFIX.json (with -o) and the history CSV (with --history) when asked.
+void WriteRequestedFiles(const FitOptions& o, const nlohmann::json& document, const JointFitResult& result);
+
+}  // namespace s2m::app
