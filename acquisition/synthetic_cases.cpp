@@ -212,6 +212,19 @@ SyntheticViews ScanFromDirections(const SurfaceSample& surface,
   return out;
 }
 
+ScanSet RecordedViews(const SyntheticCase& c) {
+  ScanSet set;
+  set.name = "synthetic " + c.name + ", " + std::to_string(c.views.scans.size()) + " views";
+  for (std::size_t k = 0; k < c.views.scans.size(); ++k) {
+    Scan scan;
+    scan.points = c.views.scans[k];
+    scan.units = "mm";
+    scan.world_T_scan = c.views.model_T_scan_recorded[k];
+    set.scans.push_back(scan);
+  }
+  return set;
+}
+
 std::vector<Motion6> ObservablePoseErrors(const ParametricModel& model,
                                           const std::vector<RigidMotion>& fitted,
                                           const std::vector<RigidMotion>& truth) {

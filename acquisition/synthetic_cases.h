@@ -15,6 +15,7 @@
 #include "fitting/joint_fit.h"
 #include "fitting/parametric_model.h"
 #include "registration/rigid_motion.h"
+#include "registration/scan.h"
 
 namespace s2m {
 
@@ -78,6 +79,10 @@ struct SyntheticCase {
 // and 2 mm (deterministic). Throws std::invalid_argument for other names.
 SyntheticCase MakeSyntheticCase(const std::string& name);
 std::vector<std::string> SyntheticCaseNames();
+
+// The case as a recording: each view in its scanner's coordinates, placed by the device's (erroneous) pose in
+// the model frame as world_T_scan, in millimetres.
+ScanSet RecordedViews(const SyntheticCase& c);
 
 // The error of each scan's fitted pose (model_T_scan) against the truth as (rotation vector, translation) in
 // the model frame, with the components along the model's gauge removed (each scan's invariant motions; the

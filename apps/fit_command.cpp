@@ -152,24 +152,26 @@ Runner AddFitCommand(CLI::App& app) {
   cmd->add_option("file", o->file,
                   "Input: a point cloud (.ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds), a glyph (.glif) for "
                   "curves, or "
-                  "several views (.json manifest, Stanford .conf) for --model revolution and part:FILE")
+                  "several views (.json manifest, Stanford .conf) for --model revolution, helical, spiral "
+                  "and part:FILE")
       ->required();
   cmd->add_option(
          "--model,-m", o->model,
-         "Model to fit: plane, sphere, cylinder, cone, bspline-curve, bspline-surface, revolution, or "
-         "part:FILE (a constrained part, docs/parts.md)")
+         "Model to fit: plane, sphere, cylinder, cone, bspline-curve, bspline-surface, revolution, helical, "
+         "spiral, or part:FILE (a constrained part, docs/parts.md)")
       ->required()
       ->check(CLI::Validator(
           [](std::string& model) -> std::string {
-            static const std::set<std::string> kModels = {
-                "plane", "sphere", "cylinder", "cone", "bspline-curve", "bspline-surface", "revolution"};
+            static const std::set<std::string> kModels = {"plane",      "sphere",        "cylinder",
+                                                          "cone",       "bspline-curve", "bspline-surface",
+                                                          "revolution", "helical",       "spiral"};
             if (kModels.count(model) > 0) return "";
             if (model.rfind("part:", 0) == 0) {
               return model.size() > 5 ? "" : "part: needs a part file, e.g. part:block.part.json";
             }
             return model +
                    " is not a model (plane, sphere, cylinder, cone, bspline-curve, bspline-surface, "
-                   "revolution, part:FILE)";
+                   "revolution, helical, spiral, part:FILE)";
           },
           "MODEL"));
   cmd->add_option("--method", o->method,
@@ -226,7 +228,7 @@ Runner AddFitCommand(CLI::App& app) {
   cmd->add_flag("--json", o->json, "Machine-readable output (schema scan2model.fit/1, docs/cli.md)");
   return [o]() {
     if (o->model == "bspline-curve" || o->model == "bspline-surface") return RunSplineFit(*o);
-    if (o->model == "revolution") return RunMultiViewFit(*o);
+    if (o->model == "revolution" || o->model == "helical" || o->model == "spiral") return RunMultiViewFit(*o);
     if (o->model.rfind("part:", 0) == 0) return RunPartFit(*o);
     if (o->method.empty()) o->method = "tdm";
     if (o->method != "tdm" && o->method != "sdm") {

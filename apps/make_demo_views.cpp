@@ -68,22 +68,6 @@ ScanSet MakeVaseViews() {
   return set;
 }
 
-// The synthetic "part" case as recorded: each view in its scanner's coordinates, placed by the device's
-// (erroneous) pose in the part frame.
-ScanSet MakeBlockViews() {
-  const SyntheticCase c = MakeSyntheticCase("part");
-  ScanSet set;
-  set.name = "demo block (docs/examples/counterbored_block.part.json), 8 views";
-  for (std::size_t k = 0; k < c.views.scans.size(); ++k) {
-    Scan scan;
-    scan.points = c.views.scans[k];
-    scan.units = "mm";
-    scan.world_T_scan = c.views.model_T_scan_recorded[k];
-    set.scans.push_back(scan);
-  }
-  return set;
-}
-
 }  // namespace
 }  // namespace s2m
 
@@ -95,7 +79,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::filesystem::path manifest = argv[argc - 1];
-  const ScanSet set = which == "vase" ? MakeVaseViews() : MakeBlockViews();
+  ScanSet set = which == "vase" ? MakeVaseViews() : RecordedViews(MakeSyntheticCase("part"));
+  if (which == "block") set.name = "demo block (docs/examples/counterbored_block.part.json), 8 views";
   std::filesystem::create_directories(manifest.parent_path());
   WriteScanSet(manifest, set);
   std::cout << "wrote " << set.scans.size() << " views (" << set.TotalPoints() << " points) to "

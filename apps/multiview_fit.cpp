@@ -1,5 +1,5 @@
-// `scan2model fit --model revolution <views.json|.conf|cloud>`: joint registration and fitting of several
-// views.
+// `scan2model fit --model revolution|helical|spiral <views.json|.conf|cloud>`: joint registration and fitting
+// of several views to a kinematic surface.
 
 #include <Eigen/Geometry>
 #include <chrono>
@@ -16,6 +16,7 @@
 #include "fitting/joint_fit.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/primitive_fit.h"
+#include "registration/scan_to_scan.h"
 
 namespace s2m::app {
 namespace {
@@ -26,17 +27,59 @@ RigidMotion InitialAxisFrame(const ScanSet& set) {
   return RigidMotion(FrameWithAxis(c.axis_direction), c.axis_point);
 }
 
+// Helical and spiral surfaces: the axis (and pitch or growth, and the spiral's centre) from normals by line
+// geometry (METHOD.md section 8), normals from local plane fits over 12 neighbours of the merged views.
+KinematicAxis InitialKinematicAxis(const ScanSet& set, KinematicKind kind) {
+  const Eigen::Matrix3Xd merged = set.MergedWorldPoints();
+  return KinematicAxisFromNormals(merged, EstimateNormals(merged, 12), kind);
+}
+
+double ParameterUncertainty(const ParametricModel& m, const JointFitResult& r, const std::string& name) {
+  for (int i = 0; i < m.num_parameters(); ++i) {
+    if (m.parameter_name(i) == name && i < r.shape_uncertainty.size()) return r.shape_uncertainty[i];
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+nlohmann::json NumberOrNull(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
 }  // namespace
 
 int RunMultiViewFit(const FitOptions& o) {
   try {
-    if (o.model != "revolution")
-      throw std::invalid_argument("multi-view fitting supports --model revolution so far");
+    if (o.model != "revolution" && o.model != "helical" && o.model != "spiral")
+      throw std::invalid_argument(
+          "multi-view fitting supports --model revolution, helical, spiral and part:FILE");
     const ScanSet set = ReadViews(o.file);
     const std::size_t K = set.scans.size();
     const int n = o.control_points.empty() ? 8 : std::stoi(o.control_points);
-    // Model frame: the initial axis. Scans start at their given world poses, expressed in that frame.
-    const RigidMotion world_T_model = InitialAxisFrame(set);
+    // Model frame: the initial axis (revolution: of the best cylinder; helical: from normals; spiral: from
+    // normals, origin at the centre). Scans start at their given world poses, expressed in that frame.
+    std::unique_ptr<ParametricModel> model;
+    RigidMotion world_T_model;
+    if (o.model == "revolution") {
+      world_T_model = InitialAxisFrame(set);
+      model = std::make_unique<KinematicSurface>(
+          InitialRevolution(world_T_model.inverse().apply(set.MergedWorldPoints()), n, o.order));
+    } else {
+      KinematicAxis axis =
+          InitialKinematicAxis(set, o.model == "helical" ? KinematicKind::kHelical : KinematicKind::kSpiral);
+      if (axis.growth < 0) {  // the same motion reversed: report growing whorls about the opposite direction
+        axis.growth = -axis.growth;
+        axis.direction = -axis.direction;
+      }
+      world_T_model = RigidMotion(FrameWithAxis(axis.direction), axis.point);
+      const Eigen::Matrix3Xd local = world_T_model.inverse().apply(set.MergedWorldPoints());
+      if (o.model == "helical") {
+        model =
+            std::make_unique<KinematicSurface>(InitialHelicalWithPitchSearch(local, axis.pitch, n, o.order));
+      } else {
+        model =
+            std::make_unique<SpiralSurface>(InitialSpiralWithGrowthSearch(local, axis.growth, n, o.order));
+      }
+    }
     const RigidMotion model_T_world = world_T_model.inverse();
     std::vector<Eigen::Matrix3Xd> scans;
     std::vector<RigidMotion> initial;
@@ -44,11 +87,14 @@ int RunMultiViewFit(const FitOptions& o) {
       scans.push_back(s.points);
       initial.push_back(model_T_world * s.world_T_scan);
     }
-    KinematicSurface pot = InitialRevolution(model_T_world.apply(set.MergedWorldPoints()), n, o.order);
     JointFitOptions options = JointOptions(o);  // TDM by default (apps/views.cpp)
     options.fairness = {o.stretch, o.bending};
+    // Helical and spiral profiles are distorted by a shared-motion stage on mis-registered views (measured on
+    // the synthetic screw: stalls at RMS 1.7 x the noise; without it the noise is reached in 15 iterations,
+    // docs/multiview-cases.md): per-view motions from the start.
+    if (o.model != "revolution") options.shared_motion_iterations = 0;
     const auto start = std::chrono::steady_clock::now();
-    const JointFitResult r = FitJointly(pot, scans, initial, options);
+    const JointFitResult r = FitJointly(*model, scans, initial, options);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
     // Report in the data's world. The fit fixes the views only relative to each other and to the model; place
@@ -81,34 +127,53 @@ int RunMultiViewFit(const FitOptions& o) {
     j["method"] = ToString(options.error_term);
     j["solver"] = SolverName(options);
     j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
+    const auto* kinematic = dynamic_cast<const KinematicSurface*>(model.get());
+    const auto* spiral = dynamic_cast<const SpiralSurface*>(model.get());
+    const BSplineBasis& basis = kinematic ? kinematic->basis() : spiral->basis();
+    const Eigen::Matrix2Xd& profile = kinematic ? kinematic->profile() : spiral->profile();
     std::vector<std::vector<double>> profile_cp, samples;
-    for (Eigen::Index i = 0; i < pot.profile().cols(); ++i)
-      profile_cp.push_back({pot.profile()(0, i), pot.profile()(1, i)});
+    for (Eigen::Index i = 0; i < profile.cols(); ++i) profile_cp.push_back({profile(0, i), profile(1, i)});
     std::vector<double> radius_uncertainty;
+    BSplineBasis::Values values;
     for (int i = 0; i <= 50; ++i) {
-      const Eigen::Vector2d rz =
-          pot.ProfilePoint(pot.basis().lo() + (pot.basis().hi() - pot.basis().lo()) * i / 50);
+      const double u = basis.lo() + (basis.hi() - basis.lo()) * i / 50;
+      basis.Evaluate(u, 0, values);
+      Eigen::Vector2d rz = Eigen::Vector2d::Zero();
+      for (int k = 0; k < basis.order(); ++k)
+        rz +=
+            values.values[0][static_cast<std::size_t>(k)] * profile.col(basis.ControlIndex(values.first, k));
       samples.push_back({rz.y(), rz.x()});  // (height along the axis from the axis point, radius)
-      // The radius at that height, with its standard uncertainty propagated from the shape covariance.
-      double u = std::numeric_limits<double>::quiet_NaN();
-      if (r.shape_covariance.size() > 0) {
+      // The radius at that height, with its standard uncertainty propagated from the shape covariance (for
+      // the generatrix of a spiral, at v = 0: its scale is tied to the growth and the gauge, not reported).
+      double uncertainty = std::numeric_limits<double>::quiet_NaN();
+      if (kinematic && r.shape_covariance.size() > 0) {
         try {
           Eigen::VectorXd gradient;
-          pot.RadiusAtHeight(rz.y(), &gradient);
-          u = std::sqrt(gradient.dot(r.shape_covariance * gradient));
+          kinematic->RadiusAtHeight(rz.y(), &gradient);
+          uncertainty = std::sqrt(gradient.dot(r.shape_covariance * gradient));
         } catch (const std::domain_error&) {  // the profile turns back in height there: no radius function
         }
       }
-      radius_uncertainty.push_back(u);
+      radius_uncertainty.push_back(uncertainty);
     }
-    j["profile"] = {{"order", pot.basis().order()},
-                    {"knots", pot.basis().knots()},
+    j["profile"] = {{"order", basis.order()},
+                    {"knots", basis.knots()},
                     {"control_points_radius_height", profile_cp},
                     {"samples_height_radius", samples}};
     j["profile"]["samples_radius_uncertainty"] = nlohmann::json::array();
-    for (double u : radius_uncertainty) {
-      j["profile"]["samples_radius_uncertainty"].push_back(std::isfinite(u) ? nlohmann::json(u)
-                                                                            : nlohmann::json(nullptr));
+    for (double u : radius_uncertainty) j["profile"]["samples_radius_uncertainty"].push_back(NumberOrNull(u));
+    if (kinematic && kinematic->helical()) {
+      j["pitch"] = {{"value", kinematic->pitch()},
+                    {"uncertainty", NumberOrNull(ParameterUncertainty(*model, r, "pitch"))},
+                    {"lead_per_turn", 2 * M_PI * kinematic->pitch()}};
+    }
+    if (spiral) {
+      const double u_growth = ParameterUncertainty(*model, r, "growth");
+      j["growth"] = {{"value", spiral->growth()},
+                     {"uncertainty", NumberOrNull(u_growth)},
+                     {"whorl_expansion_rate", spiral->WhorlExpansionRate()},
+                     {"whorl_expansion_rate_uncertainty",
+                      NumberOrNull(2 * M_PI * spiral->WhorlExpansionRate() * u_growth)}};
     }
     std::vector<RigidMotion> corrected;
     for (std::size_t k = 0; k < K; ++k) corrected.push_back(world_T_model_fit * r.model_T_scan[k]);
@@ -119,12 +184,23 @@ int RunMultiViewFit(const FitOptions& o) {
       std::cout << j.dump(2) << "\n";
       return kOk;
     }
-    std::cout << "scan2model fit: surface of revolution to " << K << " views (" << set.TotalPoints()
+    std::cout << "scan2model fit: " << model->name() << " to " << K << " views (" << set.TotalPoints()
               << " points) of " << o.file << " (units " << units << ")\n\n"
               << "  solver            " << SolverSummary(options, r, seconds) << "\n"
               << "  axis point        " << Format(axis_point) << "\n"
-              << "  axis direction    " << Format(axis_direction) << "\n"
-              << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
+              << "  axis direction    " << Format(axis_direction) << "\n";
+    if (j.contains("pitch")) {
+      std::cout << "  pitch             " << Format(j["pitch"]["value"].get<double>(), 8) << " +- "
+                << Format(ParameterUncertainty(*model, r, "pitch"), 2) << " per radian (lead "
+                << Format(j["pitch"]["lead_per_turn"].get<double>(), 6) << " per turn)\n";
+    }
+    if (j.contains("growth")) {
+      std::cout << "  growth            " << Format(j["growth"]["value"].get<double>(), 8) << " +- "
+                << Format(ParameterUncertainty(*model, r, "growth"), 2)
+                << " per radian (whorl expansion rate "
+                << Format(j["growth"]["whorl_expansion_rate"].get<double>(), 6) << ")\n";
+    }
+    std::cout << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
               << Format(r.residuals.max_abs, 6)
               << "\n\n  profile (height along the axis, radius, standard uncertainty of the radius)\n";
     for (int i = 0; i <= 50; i += 5) {

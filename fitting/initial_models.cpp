@@ -6,6 +6,7 @@
 #include <map>
 #include <stdexcept>
 
+#include "fitting/foot_point.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/primitive_fit.h"
 
@@ -240,6 +241,127 @@ KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eig
     axis.point = centre + c.cross(cbar);  // where v is parallel to c (|c| = 1)
   }
   return axis;
+}
+
+namespace {
+
+// Values taken modulo `period`, shifted so that they form one contiguous run: the circle is cut at the
+// largest gap between them.
+std::vector<double> UnwrapAtLargestGap(const std::vector<double>& values, double period) {
+  std::vector<double> w(values.size());
+  for (std::size_t j = 0; j < values.size(); ++j) {
+    w[j] = std::fmod(values[j], period);
+    if (w[j] < 0) w[j] += period;
+  }
+  std::vector<double> sorted = w;
+  std::sort(sorted.begin(), sorted.end());
+  double cut = sorted.front(), gap = sorted.front() + period - sorted.back();  // the wrap-around gap
+  for (std::size_t i = 0; i + 1 < sorted.size(); ++i) {
+    if (sorted[i + 1] - sorted[i] > gap) {
+      gap = sorted[i + 1] - sorted[i];
+      cut = sorted[i + 1];
+    }
+  }
+  for (double& v : w) {
+    if (v < cut) v += period;
+  }
+  return w;
+}
+
+}  // namespace
+
+KinematicSurface InitialHelical(const Eigen::Matrix3Xd& p, double pitch, int num_control, int order,
+                                double margin) {
+  if (!(std::abs(pitch) > 0)) throw std::invalid_argument("a helical surface needs a non-zero pitch");
+  const double lead = 2 * M_PI * std::abs(pitch);
+  std::vector<double> heights(static_cast<std::size_t>(p.cols())), theta(heights.size());
+  for (Eigen::Index j = 0; j < p.cols(); ++j) {
+    theta[static_cast<std::size_t>(j)] = std::atan2(p(1, j), p(0, j));
+    heights[static_cast<std::size_t>(j)] = p(2, j) - pitch * theta[static_cast<std::size_t>(j)];
+  }
+  const std::vector<double> unwrapped = UnwrapAtLargestGap(heights, lead);
+  Eigen::Matrix3Xd on_half_plane(3, p.cols());
+  double v_max = 0.0;
+  for (Eigen::Index j = 0; j < p.cols(); ++j) {
+    const auto i = static_cast<std::size_t>(j);
+    on_half_plane.col(j) << std::hypot(p(0, j), p(1, j)), 0.0, unwrapped[i];
+    v_max = std::max(v_max, std::abs(theta[i] + (heights[i] - unwrapped[i]) / pitch));
+  }
+  const KinematicSurface profile = InitialRevolution(on_half_plane, num_control, order);
+  return KinematicSurface::Helical(profile.basis(), profile.profile(), pitch, (v_max + margin) / M_PI);
+}
+
+namespace {
+
+// RMS of the foot-point distances of the points to a model.
+double FootPointRms(const ParametricModel& model, const Eigen::Matrix3Xd& p) {
+  std::vector<FootPoint> feet;
+  ComputeFootPoints(model, p, feet);
+  double sum = 0.0;
+  for (const FootPoint& f : feet) sum += f.distance * f.distance;
+  return std::sqrt(sum / static_cast<double>(feet.size()));
+}
+
+// The value in value0 (1 +- 20 %) whose initial model lies closest to the points: a scan in 2.5 % steps, then
+// a parabola through the best three.
+template <class Build>
+double SearchParameter(double value0, const Eigen::Matrix3Xd& p, const Build& build) {
+  const int steps = 8;
+  const double step = 0.025 * value0;
+  std::vector<double> rms(2 * steps + 1);
+  int best = steps;
+  for (int i = 0; i <= 2 * steps; ++i) {
+    rms[static_cast<std::size_t>(i)] = FootPointRms(build(value0 + (i - steps) * step), p);
+    if (rms[static_cast<std::size_t>(i)] < rms[static_cast<std::size_t>(best)]) best = i;
+  }
+  double refined = value0 + (best - steps) * step;
+  if (best > 0 && best < 2 * steps) {
+    const double a = rms[static_cast<std::size_t>(best - 1)], b = rms[static_cast<std::size_t>(best)],
+                 c = rms[static_cast<std::size_t>(best + 1)];
+    const double curvature = a - 2 * b + c;
+    if (curvature > 0) refined += 0.5 * step * (a - c) / curvature;
+  }
+  return refined;
+}
+
+}  // namespace
+
+KinematicSurface InitialHelicalWithPitchSearch(const Eigen::Matrix3Xd& p, double pitch, int num_control,
+                                               int order) {
+  const auto build = [&](double candidate) { return InitialHelical(p, candidate, num_control, order); };
+  return build(SearchParameter(pitch, p, build));
+}
+
+SpiralSurface InitialSpiralWithGrowthSearch(const Eigen::Matrix3Xd& p, double growth, int num_control,
+                                            int order) {
+  const auto build = [&](double candidate) { return InitialSpiral(p, candidate, num_control, order); };
+  return build(SearchParameter(growth, p, build));
+}
+
+SpiralSurface InitialSpiral(const Eigen::Matrix3Xd& p, double growth, int num_control, int order,
+                            double margin) {
+  if (!(std::abs(growth) > 0)) throw std::invalid_argument("a spiral surface needs a non-zero growth");
+  const double period = 2 * M_PI * std::abs(growth);
+  std::vector<double> log_size(static_cast<std::size_t>(p.cols())), theta(log_size.size());
+  for (Eigen::Index j = 0; j < p.cols(); ++j) {
+    const double size = p.col(j).norm();
+    if (!(size > 0)) throw std::invalid_argument("a point lies at the spiral's centre");
+    theta[static_cast<std::size_t>(j)] = std::atan2(p(1, j), p(0, j));
+    log_size[static_cast<std::size_t>(j)] = std::log(size) - growth * theta[static_cast<std::size_t>(j)];
+  }
+  const std::vector<double> unwrapped = UnwrapAtLargestGap(log_size, period);
+  Eigen::Matrix3Xd on_generatrix(3, p.cols());
+  double v_lo = INFINITY, v_hi = -INFINITY;
+  for (Eigen::Index j = 0; j < p.cols(); ++j) {
+    const auto i = static_cast<std::size_t>(j);
+    const double v = theta[i] + (log_size[i] - unwrapped[i]) / growth;  // theta + 2 pi k
+    v_lo = std::min(v_lo, v);
+    v_hi = std::max(v_hi, v);
+    on_generatrix.col(j) << std::exp(-growth * v) * std::hypot(p(0, j), p(1, j)), 0.0,
+        std::exp(-growth * v) * p(2, j);
+  }
+  const KinematicSurface profile = InitialRevolution(on_generatrix, num_control, order);
+  return SpiralSurface(profile.basis(), profile.profile(), growth, v_lo - margin, v_hi + margin);
 }
 
 }  // namespace s2m
