@@ -11,6 +11,7 @@ packages=(
   libgtest-dev libgmock-dev
   libbenchmark-dev
   libpcl-dev             # optional edge (s2m_pcl): PCL's reference ICP, coarse alignment (FPFH + RANSAC)
+  libtiff-dev            # tests only: libtiff decodes the Kinect depth TIFFs independently of our reader
 )
 
 missing=()
