@@ -8,6 +8,7 @@ packages=(
   nlohmann-json3-dev     # --json output, manifests
   libcli11-dev           # command line
   zlib1g-dev             # .ply.gz
+  libsqlite3-dev         # recordings (.s2mrec, docs/recordings.md)
   libgtest-dev libgmock-dev
   libbenchmark-dev
   libpcl-dev             # optional edge (s2m_pcl): PCL's reference ICP, coarse alignment (FPFH + RANSAC)
