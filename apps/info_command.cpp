@@ -1,11 +1,83 @@
+#include <filesystem>
 #include <iostream>
 
 #include "acquisition/format_error.h"
 #include "acquisition/point_cloud_io.h"
+#include "acquisition/recording.h"
 #include "apps/commands.h"
 #include "apps/output.h"
 
 namespace s2m::app {
+namespace {
+
+// JSON text from the recording, parsed for the document; kept as a string if it does not parse (the writer
+// validates it, a hand-edited file may not).
+nlohmann::json JsonOrText(const std::string& text) {
+  nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  return j.is_discarded() ? nlohmann::json(text) : j;
+}
+
+// `info` on a recording: its meta, device, streams and, when it has exactly one points stream, the views that
+// `fit` would read.
+int DescribeRecording(const std::string& file, bool json) {
+  const RecordingReader reader = RecordingReader::Open(file);
+  const RecordingSummary s = reader.Summary();
+  nlohmann::json j = {{"file", file}, {"format", s.format}};
+  j["meta"] = nlohmann::json::object();
+  for (const auto& [key, value] : s.meta) j["meta"][key] = value;
+  j["device"] = JsonOrText(s.device);
+  j["calibration"] = JsonOrText(s.calibration);
+  j["streams"] = nlohmann::json::array();
+  int points_streams = 0;
+  for (std::size_t k = 0; k < s.streams.size(); ++k) {
+    const RecordingStream& st = s.streams[k];
+    points_streams += st.kind == "points" ? 1 : 0;
+    j["streams"].push_back({{"id", st.id},
+                            {"name", st.name},
+                            {"kind", st.kind},
+                            {"encoding", st.encoding},
+                            {"units", st.units},
+                            {"frames", s.frames_per_stream[k]},
+                            {"payload_bytes", s.payload_bytes_per_stream[k]}});
+  }
+  j["posed_frames"] = s.posed_frames;
+  std::optional<ScanSet> views;
+  if (points_streams == 1) {
+    views = ReadRecording(file);  // decodes and validates every payload
+    j["views"] = views->scans.size();
+    j["points"] = views->TotalPoints();
+    const Bounds b = ComputeBounds(views->MergedWorldPoints());
+    j["world_bounds"] = {{"min", ToJson(b.min)}, {"max", ToJson(b.max)}};
+  }
+  if (json) {
+    j["schema"] = "scan2model.info/1";
+    std::cout << j.dump(2) << "\n";
+    return kOk;
+  }
+  std::cout << file << "\n"
+            << "  format    " << s.format << " (recording)\n";
+  for (const auto& [key, value] : s.meta) {
+    if (key != "format") std::cout << "  meta      " << key << " = " << value << "\n";
+  }
+  std::cout << "  device    " << s.device << "\n"
+            << "  calib     " << s.calibration << "\n";
+  for (std::size_t k = 0; k < s.streams.size(); ++k) {
+    const RecordingStream& st = s.streams[k];
+    std::cout << "  stream    " << st.id << " '" << st.name << "': " << st.kind << ", " << st.encoding << ", "
+              << st.units << ", " << s.frames_per_stream[k] << " frames, " << s.payload_bytes_per_stream[k]
+              << " bytes\n";
+  }
+  std::cout << "  posed     " << s.posed_frames << " frames\n";
+  if (views) {
+    const Bounds b = ComputeBounds(views->MergedWorldPoints());
+    std::cout << "  views     " << views->scans.size() << " (" << views->TotalPoints() << " points)\n"
+              << "  min       " << Format(b.min, 8) << "  (world)\n"
+              << "  max       " << Format(b.max, 8) << "  (world)\n";
+  }
+  return kOk;
+}
+
+}  // namespace
 
 Runner AddInfoCommand(CLI::App& app) {
   struct Options {
@@ -14,10 +86,14 @@ Runner AddInfoCommand(CLI::App& app) {
   };
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand("info", "Describe a point-cloud file: points, bounds, units, normals");
-  cmd->add_option("file", options->file, "Input: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds")->required();
+  cmd->add_option("file", options->file, "Input: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds, .s2mrec")
+      ->required();
   cmd->add_flag("--json", options->json, "Machine-readable output (schema scan2model.info/1, docs/cli.md)");
   return [options]() {
     try {
+      if (std::filesystem::path(options->file).extension() == kRecordingExtension) {
+        return DescribeRecording(options->file, options->json);
+      }
       const PointCloudFormat format = DetectFormat(options->file);
       const Scan scan = ReadPointCloud(options->file, format);
       nlohmann::json j = DescribeScan(scan, options->file, ToString(format));

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "acquisition/point_cloud_io.h"
+#include "acquisition/recording.h"
 #include "acquisition/scan_set_io.h"
 #include "apps/output.h"
 
@@ -14,6 +15,7 @@ namespace s2m::app {
 ScanSet ReadViews(const std::string& file) {
   const std::string ext = std::filesystem::path(file).extension().string();
   if (ext == ".json" || ext == ".conf") return ReadScanSet(file);
+  if (ext == kRecordingExtension) return ReadRecording(file);  // its points stream, one view per frame
   ScanSet set;  // a single cloud: one view in world coordinates
   set.scans.push_back(ReadPointCloud(file));
   return set;

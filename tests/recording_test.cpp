@@ -11,8 +11,10 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <nlohmann/json.hpp>
 
 #include "acquisition/format_error.h"
+#include "acquisition/scan_set_io.h"
 #include "acquisition/synthetic_cases.h"
 
 namespace s2m {
@@ -274,6 +276,59 @@ TEST(Recording, WrongVersionMissingTablesAndBadContentAreClearErrors) {
             std::string::npos);
   EXPECT_NE(ReadError(variant("nopoints", "UPDATE streams SET kind = 'depth'")).find("no points stream"),
             std::string::npos);
+  fs::remove_all(dir);
+}
+
+// The command's output (stdout only) and exit code.
+std::pair<int, std::string> RunCli(const std::string& args) {
+  const std::string cmd = std::string(S2M_CLI_PATH) + " " + args + " 2>/dev/null";
+  std::string out;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return {-1, out};
+  char buffer[4096];
+  std::size_t n;
+  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+// `info` and `fit --model revolution` on the demo vase as a recording: the fit reads the same views as from
+// the manifest, so the results are identical.
+TEST(Recording, CliInfoAndFitReadARecording) {
+  const fs::path dir = TempDir("cli");
+  const std::string manifest = std::string(S2M_SOURCE_DIR) + "/recordings/demo_vase/views.json";
+  const fs::path file = dir / "demo_vase.s2mrec";
+  WriteRecording(file, ReadScanSet(manifest));
+
+  const auto [info_code, info_out] = RunCli("info --json " + file.string());
+  ASSERT_EQ(info_code, 0) << info_out;
+  const auto info = nlohmann::json::parse(info_out);
+  EXPECT_EQ(info["schema"], "scan2model.info/1");
+  EXPECT_EQ(info["format"], kRecordingFormat);
+  ASSERT_EQ(info["streams"].size(), 1u);
+  EXPECT_EQ(info["streams"][0]["frames"], 4);
+  EXPECT_EQ(info["views"], 4);
+  EXPECT_EQ(info["posed_frames"], 4);
+  EXPECT_EQ(info["points"].get<long long>(), ReadScanSet(manifest).TotalPoints());
+  EXPECT_EQ(RunCli("info " + file.string()).first, 0);
+
+  const auto [fit_code, fit_out] = RunCli("fit --model revolution --json " + file.string());
+  ASSERT_EQ(fit_code, 0) << fit_out;
+  const auto fit = nlohmann::json::parse(fit_out);
+  const auto [ref_code, ref_out] = RunCli("fit --model revolution --json " + manifest);
+  ASSERT_EQ(ref_code, 0);
+  const auto ref = nlohmann::json::parse(ref_out);
+  ASSERT_EQ(fit["views"].size(), 4u);
+  EXPECT_EQ(fit["residuals"]["rms"].get<double>(), ref["residuals"]["rms"].get<double>());
+  EXPECT_EQ(fit["axis"], ref["axis"]);
+  EXPECT_NE(fit["views"][0]["source"].get<std::string>().find("demo_vase.s2mrec"), std::string::npos);
+
+  // A damaged recording is bad input (exit code 3), with the file named.
+  const fs::path broken = dir / "broken.s2mrec";
+  fs::copy_file(file, broken);
+  fs::resize_file(broken, fs::file_size(file) / 2);
+  EXPECT_EQ(RunCli("info " + broken.string()).first, 3);
+  EXPECT_EQ(RunCli("fit --model revolution " + broken.string()).first, 3);
   fs::remove_all(dir);
 }
 
