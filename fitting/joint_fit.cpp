@@ -1,5 +1,7 @@
 #include "fitting/joint_fit.h"
 
+#include <omp.h>
+
 #include <Eigen/Dense>
 #include <chrono>
 #include <cmath>
@@ -20,9 +22,11 @@ Eigen::MatrixXd GaugeComplement(const std::vector<Motion6>& gauge) {
   if (gauge.empty()) return Eigen::MatrixXd::Identity(6, 6);
   Eigen::MatrixXd g(6, static_cast<Eigen::Index>(gauge.size()));
   for (std::size_t i = 0; i < gauge.size(); ++i) g.col(static_cast<Eigen::Index>(i)) = gauge[i];
-  Eigen::HouseholderQR<Eigen::MatrixXd> qr(g);
+  // The gauge vectors may be dependent (a model's invariances and the common motions it absorbs overlap):
+  // the complement of their span, by its rank.
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(g);
   const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(6, 6);
-  return q.rightCols(6 - g.cols());
+  return q.rightCols(6 - qr.rank());
 }
 
 // The linearized motion of a point x: x' = x + cbar + c x x = x + A [c; cbar], A = [-[x]x  I].
@@ -122,8 +126,6 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   double lambda = 1e-6;
   bool shared = (options.shared_motion_iterations > 0 || !options.per_scan_motions) && K > 1;
   const int r = state.model->num_parameters();
-  LocalGeometry geo;
-  std::vector<JacobianEntry> entries;
   result.stop_reason = StopReason::kMaxIterations;
   if (options.target_rms > 0 && state.rms * scale <= options.target_rms)
     result.stop_reason = StopReason::kTargetReached;
@@ -148,31 +150,57 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     }
     sys.h_dd = Eigen::MatrixXd::Zero(r, r);
     sys.g_d = Eigen::VectorXd::Zero(r);
+    // In parallel over points: each thread sums into its own partial matrices; the partials are added in
+    // thread order afterwards, so that a run is reproducible for a given thread count.
     for (std::size_t k = 0; k < K; ++k) {
       const std::size_t b = one_motion ? 0 : k;
       const double w = unit_weights ? 1.0 : weights[k];
-      for (Eigen::Index j = 0; j < st.current[k].cols(); ++j) {
-        const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
-        if (f.excluded) continue;
-        const Eigen::Vector3d x = st.current[k].col(j);
-        st.model->Evaluate(f.t, 2, geo);
-        st.model->ShapeJacobian(f.t, false, entries);
-        const Eigen::Vector3d e0 = x - To3(geo.point);
-        const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
-        const Eigen::Matrix3d M =
-            f.on_boundary ? EndRuleMatrix(term, frame, e0, 3) : ErrorMatrix(term, frame, 3);
-        // Fixed-capacity 3 x q (q <= 6): no heap allocation per point.
-        using Block = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 6>;
-        const Block ab = MotionJacobian(x) * sys.basis[b];
-        const Block m_ab = M * ab;
-        sys.h_bb[b].noalias() += w * ab.transpose() * m_ab;
-        sys.g_b[b].noalias() += w * m_ab.transpose() * e0;
-        for (const JacobianEntry& a : entries) {
-          const Eigen::Vector3d m_col = M * a.column;
-          sys.g_d[a.index] -= w * m_col.dot(e0);
-          sys.h_db[b].row(a.index).noalias() -= w * (a.column.transpose() * m_ab);
-          for (const JacobianEntry& c : entries) sys.h_dd(c.index, a.index) += w * c.column.dot(m_col);
+      const Eigen::Index q = sys.basis[b].cols();
+      struct Partial {
+        Eigen::MatrixXd h_bb, h_db, h_dd;
+        Eigen::VectorXd g_b, g_d;
+      };
+      std::vector<Partial> partials;
+#pragma omp parallel
+      {
+#pragma omp single
+        partials.resize(static_cast<std::size_t>(omp_get_num_threads()));
+        Partial& mine = partials[static_cast<std::size_t>(omp_get_thread_num())];
+        mine = {Eigen::MatrixXd::Zero(q, q), Eigen::MatrixXd::Zero(r, q), Eigen::MatrixXd::Zero(r, r),
+                Eigen::VectorXd::Zero(q), Eigen::VectorXd::Zero(r)};
+        LocalGeometry geo;
+        std::vector<JacobianEntry> entries;
+#pragma omp for schedule(static)
+        for (Eigen::Index j = 0; j < st.current[k].cols(); ++j) {
+          const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
+          if (f.excluded) continue;
+          const Eigen::Vector3d x = st.current[k].col(j);
+          st.model->Evaluate(f.t, 2, geo);
+          st.model->ShapeJacobian(f.t, false, entries);
+          const Eigen::Vector3d e0 = x - To3(geo.point);
+          const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
+          const Eigen::Matrix3d M =
+              f.on_boundary ? EndRuleMatrix(term, frame, e0, 3) : ErrorMatrix(term, frame, 3);
+          // Fixed-capacity 3 x q (q <= 6): no heap allocation per point.
+          using Block = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 6>;
+          const Block ab = MotionJacobian(x) * sys.basis[b];
+          const Block m_ab = M * ab;
+          mine.h_bb.noalias() += w * ab.transpose() * m_ab;
+          mine.g_b.noalias() += w * m_ab.transpose() * e0;
+          for (const JacobianEntry& a : entries) {
+            const Eigen::Vector3d m_col = M * a.column;
+            mine.g_d[a.index] -= w * m_col.dot(e0);
+            mine.h_db.row(a.index).noalias() -= w * (a.column.transpose() * m_ab);
+            for (const JacobianEntry& c : entries) mine.h_dd(c.index, a.index) += w * c.column.dot(m_col);
+          }
         }
+      }
+      for (const Partial& p : partials) {
+        sys.h_bb[b] += p.h_bb;
+        sys.h_db[b] += p.h_db;
+        sys.h_dd += p.h_dd;
+        sys.g_b[b] += p.g_b;
+        sys.g_d += p.g_d;
       }
     }
     if (K_fair.size() > 0) {
@@ -185,6 +213,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   // Damps a block with lambda * max(diag, floor): the floor keeps damping effective in near-null directions.
   auto damped = [](const Eigen::MatrixXd& h, double damping) {
     Eigen::MatrixXd a = h;
+    if (h.size() == 0) return a;  // a scan whose every motion is gauge (a model carrying its own pose)
     const double floor = 1e-9 * h.diagonal().cwiseAbs().maxCoeff() + 1e-300;
     a.diagonal() += damping * h.diagonal().cwiseAbs().cwiseMax(floor);
     return a;

@@ -200,4 +200,20 @@ std::vector<Motion6> SphereModel::InvariantMotions() const {
   return out;
 }
 
+namespace {
+std::vector<Motion6> AllRigidMotions() {
+  std::vector<Motion6> out;
+  for (int i = 0; i < 6; ++i) out.push_back(Motion6::Unit(i));
+  return out;
+}
+}  // namespace
+
+std::vector<Motion6> CylinderModel::CommonMotionsAbsorbedByShape() const {
+  return AllRigidMotions();
+}
+
+std::vector<Motion6> SphereModel::CommonMotionsAbsorbedByShape() const {
+  return AllRigidMotions();
+}
+
 }  // namespace s2m

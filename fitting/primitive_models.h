@@ -32,6 +32,8 @@ class CylinderModel final : public ParametricModel {
   bool ClosedFormFootPoint(const VecS& x, ParamT& t) const override;
   // Per scan in the joint solver: the rotation about and the translation along the (start) axis.
   std::vector<Motion6> InvariantMotions() const override;
+  // The cylinder carries its own pose: any motion of all scans together is a motion of the cylinder.
+  std::vector<Motion6> CommonMotionsAbsorbedByShape() const override;
 
  private:
   Eigen::Vector3d point_;
@@ -62,6 +64,8 @@ class SphereModel final : public ParametricModel {
   bool ClosedFormFootPoint(const VecS& x, ParamT& t) const override;
   // Per scan in the joint solver: the three rotations about the (start) centre.
   std::vector<Motion6> InvariantMotions() const override;
+  // The sphere carries its own position: a common translation of all scans moves its centre.
+  std::vector<Motion6> CommonMotionsAbsorbedByShape() const override;
 
  private:
   Eigen::Vector3d center_;
