@@ -150,23 +150,36 @@ TEST(Recording, WriterApiDeviceStreamsAndRefusals) {
   fs::remove_all(dir);
 }
 
-// A writer killed with SIGKILL in the middle of a recording: every frame it reported committed is in the
-// file, which passes the integrity check.
-TEST(Recording, KilledWriterKeepsEveryCommittedFrame) {
-  const fs::path dir = TempDir("kill");
-  const fs::path file = dir / "killed.s2mrec";
-  const ScanSet vase = Vase();
-  constexpr int kCommitted = 20;
+// Kills the child on every path out of the test, so that a failed assertion never leaves a writer running.
+struct ChildGuard {
+  pid_t pid = -1;
+  ~ChildGuard() {
+    if (pid > 0) {
+      kill(pid, SIGKILL);
+      waitpid(pid, nullptr, 0);
+    }
+  }
+};
+
+// Records the vase views one frame per transaction in a child, kills it with SIGKILL after it reported
+// `committed` commits, and checks the file. Returns the frames reported and recovered.
+std::pair<int, int> KillAfter(const fs::path& file, const ScanSet& vase, int committed) {
   int fds[2];
-  ASSERT_EQ(pipe(fds), 0);
-  const pid_t child = fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
+  if (pipe(fds) != 0) {
+    ADD_FAILURE() << "pipe";
+    return {0, 0};
+  }
+  ChildGuard child{fork()};
+  if (child.pid < 0) {
+    ADD_FAILURE() << "fork";
+    return {0, 0};
+  }
+  if (child.pid == 0) {
     close(fds[0]);
     try {
       RecordingWriter w = RecordingWriter::Create(file);
       const std::int64_t stream = w.AddStream("points", "points", kPointsEncoding, "mm");
-      for (int i = 0;; ++i) {  // records until killed
+      for (int i = 0;; ++i) {  // records until killed (or the parent goes away: write fails, SIGPIPE)
         const Scan& scan = vase.scans[static_cast<std::size_t>(i) % vase.scans.size()];
         w.AppendFrame(stream, i, EncodePoints(scan.points), scan.world_T_scan, i);
         const char c = 'f';
@@ -179,12 +192,13 @@ TEST(Recording, KilledWriterKeepsEveryCommittedFrame) {
   close(fds[1]);
   int seen = 0;
   char c = 0;
-  while (seen < kCommitted && read(fds[0], &c, 1) == 1) ++seen;
-  ASSERT_EQ(seen, kCommitted);
-  ASSERT_EQ(kill(child, SIGKILL), 0);
+  while (seen < committed && read(fds[0], &c, 1) == 1) ++seen;
+  EXPECT_EQ(seen, committed);
+  EXPECT_EQ(kill(child.pid, SIGKILL), 0);
   int status = 0;
-  ASSERT_EQ(waitpid(child, &status, 0), child);
-  ASSERT_TRUE(WIFSIGNALED(status)) << "the writer ended on its own, status " << status;
+  EXPECT_EQ(waitpid(child.pid, &status, 0), child.pid);
+  child.pid = -1;
+  EXPECT_TRUE(WIFSIGNALED(status)) << "the writer ended on its own, status " << status;
   // Frames the child committed between our count and the kill: drain the pipe.
   while (read(fds[0], &c, 1) == 1) ++seen;
   close(fds[0]);
@@ -192,7 +206,6 @@ TEST(Recording, KilledWriterKeepsEveryCommittedFrame) {
 
   const ScanSet back = ReadRecording(file);  // integrity check included
   const auto recovered = static_cast<int>(back.scans.size());
-  std::cout << "[ kill     ] frames reported committed " << seen << ", recovered " << recovered << "\n";
   EXPECT_GE(recovered, seen);
   EXPECT_LE(recovered, seen + 1);  // at most the frame in flight committed without being reported
   for (int i = 0; i < recovered; ++i) {
@@ -200,6 +213,20 @@ TEST(Recording, KilledWriterKeepsEveryCommittedFrame) {
     EXPECT_EQ(back.scans[static_cast<std::size_t>(i)].points, expected.points) << i;
     EXPECT_EQ(back.scans[static_cast<std::size_t>(i)].world_T_scan.matrix(), expected.world_T_scan.matrix())
         << i;
+  }
+  return {seen, recovered};
+}
+
+// A writer killed with SIGKILL in the middle of a recording: every frame it reported committed is in the
+// file, which passes the integrity check.
+TEST(Recording, KilledWriterKeepsEveryCommittedFrame) {
+  const fs::path dir = TempDir("kill");
+  const ScanSet vase = Vase();
+  for (int committed : {1, 7, 20, 50}) {
+    const auto [seen, recovered] =
+        KillAfter(dir / ("killed_" + std::to_string(committed) + ".s2mrec"), vase, committed);
+    std::cout << "[ kill     ] after " << committed << " commits: frames reported committed " << seen
+              << ", recovered " << recovered << "\n";
   }
   fs::remove_all(dir);
 }
