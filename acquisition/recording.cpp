@@ -262,12 +262,26 @@ std::int64_t RecordingWriter::AppendFrame(std::int64_t stream, std::int64_t view
 void RecordingWriter::Close() {
   if (!db_ || !db_->db) return;
   // Back to a rollback journal: the checkpoint moves every frame into the main file and the -wal/-shm files
-  // disappear, so a finished recording is one file (copyable, readable from read-only media).
-  db_->Exec("PRAGMA wal_checkpoint(TRUNCATE)");
-  db_->Exec("PRAGMA journal_mode=DELETE");
+  // disappear, so a finished recording is one file (copyable, readable from read-only media). That needs the
+  // file to ourselves: while a reader has it open, the switch is refused and the recording stays valid as the
+  // file plus its -wal. The connection is closed either way; the caller learns which.
+  std::string problem;
+  try {
+    db_->Exec("PRAGMA wal_checkpoint(TRUNCATE)");
+    Statement mode(*db_, "PRAGMA journal_mode=DELETE");
+    if (mode.Step() && mode.Text(0) != "delete") problem = "journal mode stayed " + mode.Text(0);
+  } catch (const FormatError& e) {
+    problem = e.problem();
+  }
   const int rc = sqlite3_close_v2(db_->db);
   db_->db = nullptr;
   if (rc != SQLITE_OK) throw FormatError(path_.string(), "", "cannot close the recording");
+  if (!problem.empty()) {
+    throw FormatError(path_.string(), "",
+                      "every frame is committed, but the recording is still in WAL mode (keep its -wal file "
+                      "beside it): " +
+                          problem);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------------- reader
