@@ -38,6 +38,10 @@ struct JointFitOptions {
   bool scan_weights = true;            // w_k = 1 / N_k (each scan counts the same), else 1
   double objective_tolerance = 1e-10;  // stop (in stage 2) when the relative decrease falls below this
   double target_rms = 0.0;             // stop as soon as the RMS (input units) reaches this (0: off)
+  // Points to leave out, per scan (true: left out), fixed for the whole fit; empty: none. Overrides the
+  // model's own per-iteration choice (AmbiguousFootPoint), which can settle differently from different
+  // starts.
+  std::vector<std::vector<bool>> left_out;
 };
 
 // Standard uncertainty of a scan's pose correction, for the motion (c, cbar) in the model frame at the
@@ -75,9 +79,9 @@ struct JointFitResult {
 JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
                           std::vector<RigidMotion> model_T_scan, const JointFitOptions& options = {});
 
-// A constrained part in two passes: all points first; then, from that result, points within
-// `edge_margin_in_rms` x the first pass's RMS of a second face are left out (part_model.h) and the fit is
-// refined. `part`'s own edge margin, when set, replaces the second pass's.
+// A constrained part in two passes: all points first; then, from that result, the points within
+// `edge_margin_in_rms` x the first pass's RMS of a second face are chosen ONCE (part_model.h) and left out of
+// the refined fit. `part`'s own edge margin, when set, replaces the second pass's.
 JointFitResult FitPartJointly(PartModel& part, const std::vector<Eigen::Matrix3Xd>& scans,
                               const std::vector<RigidMotion>& model_T_scan,
                               const JointFitOptions& options = {}, double edge_margin_in_rms = 3.0);
