@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <optional>
 
 namespace s2m {
 namespace {
@@ -131,10 +132,14 @@ ParamT FootPointSeeds::Nearest(const VecS& x) const {
 
 void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& points,
                        std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm) {
-  const FootPointSeeds seeds(model);
   const ParameterDomain d = model.domain();
   const Eigen::Index n = points.cols();
   feet.resize(static_cast<std::size_t>(n));
+  // A model has closed-form feet everywhere or nowhere: the sample tree is built only when Newton needs
+  // seeds.
+  ParamT probe{0.0, 0.0, 0.0};
+  std::optional<FootPointSeeds> seeds;
+  if (n > 0 && !model.ClosedFormFootPoint(VecS(points.col(0)), probe)) seeds.emplace(model);
 #pragma omp parallel
   {
     LocalGeometry g;
@@ -148,7 +153,7 @@ void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& poin
                                              model.AmbiguousFootPoint(x, closed_form)};
         continue;
       }
-      ParamT start = seeds.Nearest(x);
+      ParamT start = seeds->Nearest(x);
       if (warm != nullptr) {
         const ParamT previous = (*warm)[static_cast<std::size_t>(j)].t;
         model.Evaluate(start, 0, g);
