@@ -34,7 +34,7 @@ KinematicAxis InitialKinematicAxis(const ScanSet& set, KinematicKind kind) {
   return KinematicAxisFromNormals(merged, EstimateNormals(merged, 12), kind);
 }
 
-double ParameterUncertainty(const ParametricModel& m, const JointFitResult& r, const std::string& name) {
+double UncertaintyOf(const ParametricModel& m, const JointFitResult& r, const std::string& name) {
   for (int i = 0; i < m.num_parameters(); ++i) {
     if (m.parameter_name(i) == name && i < r.shape_uncertainty.size()) return r.shape_uncertainty[i];
   }
@@ -164,11 +164,11 @@ int RunMultiViewFit(const FitOptions& o) {
     for (double u : radius_uncertainty) j["profile"]["samples_radius_uncertainty"].push_back(NumberOrNull(u));
     if (kinematic && kinematic->helical()) {
       j["pitch"] = {{"value", kinematic->pitch()},
-                    {"uncertainty", NumberOrNull(ParameterUncertainty(*model, r, "pitch"))},
+                    {"uncertainty", NumberOrNull(UncertaintyOf(*model, r, "pitch"))},
                     {"lead_per_turn", 2 * M_PI * kinematic->pitch()}};
     }
     if (spiral) {
-      const double u_growth = ParameterUncertainty(*model, r, "growth");
+      const double u_growth = UncertaintyOf(*model, r, "growth");
       j["growth"] = {{"value", spiral->growth()},
                      {"uncertainty", NumberOrNull(u_growth)},
                      {"whorl_expansion_rate", spiral->WhorlExpansionRate()},
@@ -191,13 +191,12 @@ int RunMultiViewFit(const FitOptions& o) {
               << "  axis direction    " << Format(axis_direction) << "\n";
     if (j.contains("pitch")) {
       std::cout << "  pitch             " << Format(j["pitch"]["value"].get<double>(), 8) << " +- "
-                << Format(ParameterUncertainty(*model, r, "pitch"), 2) << " per radian (lead "
+                << Format(UncertaintyOf(*model, r, "pitch"), 2) << " per radian (lead "
                 << Format(j["pitch"]["lead_per_turn"].get<double>(), 6) << " per turn)\n";
     }
     if (j.contains("growth")) {
       std::cout << "  growth            " << Format(j["growth"]["value"].get<double>(), 8) << " +- "
-                << Format(ParameterUncertainty(*model, r, "growth"), 2)
-                << " per radian (whorl expansion rate "
+                << Format(UncertaintyOf(*model, r, "growth"), 2) << " per radian (whorl expansion rate "
                 << Format(j["growth"]["whorl_expansion_rate"].get<double>(), 6) << ")\n";
     }
     std::cout << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
