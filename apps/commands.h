@@ -19,5 +19,7 @@ using Runner = std::function<int()>;
 
 Runner AddInfoCommand(CLI::App& app);
 Runner AddFitCommand(CLI::App& app);
+Runner AddRecordCommand(CLI::App& app);  // apps/acquire_commands.cpp
+Runner AddExportCommand(CLI::App& app);
 
 }  // namespace s2m::app

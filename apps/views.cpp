@@ -5,6 +5,7 @@
 #include <iomanip>
 #include <sstream>
 
+#include "acquisition/frame_source.h"
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
 #include "acquisition/scan_set_io.h"
@@ -15,7 +16,12 @@ namespace s2m::app {
 ScanSet ReadViews(const std::string& file) {
   const std::string ext = std::filesystem::path(file).extension().string();
   if (ext == ".json" || ext == ".conf") return ReadScanSet(file);
-  if (ext == kRecordingExtension) return ReadRecording(file);  // its points stream, one view per frame
+  // A recording is replayed through the same frame path as a live device: points as they are, depth images
+  // back-projected with the stream's intrinsics, the profiles of a sweep gathered into one view.
+  if (ext == kRecordingExtension) {
+    const std::unique_ptr<FrameSource> source = OpenRecordingSource(file);
+    return FramesToScanSet(*source);
+  }
   ScanSet set;  // a single cloud: one view in world coordinates
   set.scans.push_back(ReadPointCloud(file));
   return set;

@@ -1,0 +1,182 @@
+// `scan2model record` and `scan2model export`: frame sources (acquisition/frame_source.h) into a recording,
+// and any source into one PLY per view plus a scan2model.views/1 manifest.
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "acquisition/format_error.h"
+#include "acquisition/frame_source.h"
+#include "acquisition/recording.h"
+#include "acquisition/scan_set_io.h"
+#include "apps/commands.h"
+#include "apps/output.h"
+#ifdef S2M_HAVE_VIRTUAL_SCANNER
+#include "devices/virtual_scanner.h"
+#endif
+
+namespace s2m::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Progress on standard error: a bar redrawn in place on a terminal, one line per tenth otherwise (logs).
+FrameProgress ProgressBar(const std::string& what, bool quiet) {
+  if (quiet) return {};
+  const bool tty = isatty(STDERR_FILENO) != 0;
+  auto last_tenth = std::make_shared<std::int64_t>(-1);
+  return [what, tty, last_tenth](std::int64_t done, std::optional<std::int64_t> total) {
+    if (!total || *total <= 0) {
+      if (tty) std::cerr << "\r" << what << ": " << done << " frames" << std::flush;
+      return;
+    }
+    const std::int64_t tenth = 10 * done / *total;
+    if (tty) {
+      constexpr int kWidth = 30;
+      const auto filled = static_cast<int>(kWidth * done / *total);
+      std::cerr << "\r" << what << " [" << std::string(static_cast<std::size_t>(filled), '#')
+                << std::string(static_cast<std::size_t>(kWidth - filled), ' ') << "] " << done << "/" << *total
+                << " frames" << (done == *total ? "\n" : "") << std::flush;
+    } else if (tenth != *last_tenth) {
+      *last_tenth = tenth;
+      std::cerr << what << ": " << done << "/" << *total << " frames\n";
+    }
+  };
+}
+
+std::unique_ptr<FrameSource> OpenSource(const std::string& device, const std::vector<std::string>& inputs,
+                                        bool original_timing) {
+  if (!device.empty()) {
+    if (!inputs.empty()) throw std::invalid_argument("give either --device or input files, not both");
+#ifdef S2M_HAVE_VIRTUAL_SCANNER
+    std::string scene, units;
+    const VirtualScannerOptions options = ParseVirtualDevice(device, scene, units);
+    return MakeVirtualScanner(SceneByName(scene, units), options);
+#else
+    throw std::invalid_argument("this build has no virtual scanner (Open3D was not found when it was built)");
+#endif
+  }
+  if (inputs.empty()) throw std::invalid_argument("no input: give --device virtual:... or input files");
+  std::vector<fs::path> paths(inputs.begin(), inputs.end());
+  ReplayOptions replay;
+  replay.original_timing = original_timing;
+  return OpenFrameSource(paths, replay);
+}
+
+}  // namespace
+
+Runner AddRecordCommand(CLI::App& app) {
+  struct Options {
+    std::string device, out;
+    std::vector<std::string> inputs;
+    bool original_timing = false, quiet = false;
+  };
+  auto options = std::make_shared<Options>();
+  CLI::App* cmd = app.add_subcommand(
+      "record", "Record a device's frames (the virtual scanner) or input files into a recording (.s2mrec)");
+  cmd->add_option("inputs", options->inputs,
+                  "Instead of --device: a views manifest (.json), Stanford .conf, point cloud, recording, or "
+                  "Kinect depth frames (frame_<time>_depth.tiff beside frame_<time>.xml)");
+  cmd->add_option("--device", options->device,
+                  "virtual:<vase|helical|spiral|part|mesh.ply>[,key=value...] (docs/acquisition.md)");
+  cmd->add_option("--out", options->out, "The new recording (never overwritten)")->required();
+  cmd->add_flag("--original-timing", options->original_timing,
+                "Replaying a recording: deliver its frames with their original timing");
+  cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");
+  return [options]() {
+    try {
+      std::unique_ptr<FrameSource> source = OpenSource(options->device, options->inputs, options->original_timing);
+      const std::int64_t frames = RecordSource(*source, options->out, ProgressBar("recording", options->quiet));
+      const RecordingSummary s = RecordingReader::Open(options->out).Summary();
+      std::cout << options->out << ": " << frames << " frames\n";
+      for (std::size_t k = 0; k < s.streams.size(); ++k) {
+        std::cout << "  stream '" << s.streams[k].name << "' (" << s.streams[k].kind << ", " << s.streams[k].units
+                  << "): " << s.frames_per_stream[k] << " frames, " << s.payload_bytes_per_stream[k] << " bytes\n";
+      }
+      return int{kOk};
+    } catch (const FormatError& e) {
+      return ReportError("record", e.what(), kInputError, false);
+    } catch (const std::invalid_argument& e) {
+      return ReportError("record", e.what(), kUsage, false);
+    }
+  };
+}
+
+Runner AddExportCommand(CLI::App& app) {
+  struct Options {
+    std::vector<std::string> inputs;
+    std::string out;
+    std::vector<std::int64_t> views;
+    bool quiet = false;
+  };
+  auto options = std::make_shared<Options>();
+  CLI::App* cmd = app.add_subcommand(
+      "export", "Write a recording's (or any input's) views as one PLY per view plus a scan2model.views/1 manifest");
+  cmd->add_option("inputs", options->inputs,
+                  "A recording (.s2mrec), views manifest (.json), Stanford .conf, point cloud, or Kinect depth "
+                  "frames")
+      ->required();
+  cmd->add_option("--out", options->out, "Output folder (created; views.json and view_NNN.ply inside)")->required();
+  cmd->add_option("--view", options->views, "Only these views (the recording's view numbers); repeatable");
+  cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");
+  return [options]() {
+    try {
+      std::unique_ptr<FrameSource> source = OpenSource("", options->inputs, false);
+      ScanSet set;
+      const FrameProgress progress = ProgressBar("converting", options->quiet);
+      if (options->views.empty()) {
+        set = FramesToScanSet(*source, progress);
+      } else {
+        for (const std::int64_t view : options->views) {
+          try {
+            source->SeekView(view);
+          } catch (const std::out_of_range&) {
+            throw FormatError(options->inputs.front(), "", "no view " + std::to_string(view));
+          }
+          // One view: the frames from its first up to the next view's.
+          std::vector<Frame> frames;
+          while (std::optional<Frame> f = source->Next()) {
+            if (f->view != view) break;
+            frames.push_back(std::move(*f));
+          }
+          // Converted through the same function as a whole source.
+          struct OneView final : FrameSource {
+            const SourceDescription& d;
+            std::vector<Frame> frames;
+            std::size_t next = 0;
+            OneView(const SourceDescription& description, std::vector<Frame> f) : d(description), frames(std::move(f)) {}
+            const SourceDescription& description() const override { return d; }
+            std::optional<Frame> Next() override {
+              if (next >= frames.size()) return std::nullopt;
+              return std::move(frames[next++]);
+            }
+            std::vector<std::int64_t> Views() const override { return {}; }
+            void SeekView(std::int64_t) override {}
+          } one(source->description(), std::move(frames));
+          ScanSet part = FramesToScanSet(one);
+          if (set.name.empty()) set.name = part.name;
+          for (Scan& s : part.scans) set.scans.push_back(std::move(s));
+        }
+      }
+      fs::create_directories(options->out);
+      const fs::path manifest = fs::path(options->out) / "views.json";
+      WriteScanSet(manifest, set);
+      std::cout << manifest.string() << ": " << set.scans.size() << " views, " << set.TotalPoints() << " points ("
+                << (set.scans.empty() ? "" : set.scans.front().units) << ")\n";
+      return int{kOk};
+    } catch (const FormatError& e) {
+      return ReportError("export", e.what(), kInputError, false);
+    } catch (const std::invalid_argument& e) {
+      return ReportError("export", e.what(), kUsage, false);
+    } catch (const fs::filesystem_error& e) {
+      return ReportError("export", e.what(), kInputError, false);
+    }
+  };
+}
+
+}  // namespace s2m::app
