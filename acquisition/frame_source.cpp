@@ -69,9 +69,9 @@ DepthIntrinsics IntrinsicsFromJson(const nlohmann::json& calibration, const std:
     k = &calibration["streams"][stream]["intrinsics"];
   }
   if (k == nullptr || !k->is_object()) {
-    throw FormatError(file, where,
-                      "a depth stream needs its intrinsics, but the calibration has no streams." + stream +
-                          ".intrinsics");
+    throw FormatError(
+        file, where,
+        "a depth stream needs its intrinsics, but the calibration has no streams." + stream + ".intrinsics");
   }
   DepthIntrinsics out;
   auto get = [&](const char* name, double& value) {
@@ -79,7 +79,8 @@ DepthIntrinsics IntrinsicsFromJson(const nlohmann::json& calibration, const std:
       throw FormatError(file, where, std::string("intrinsics: '") + name + "' missing or not a number");
     }
     value = (*k)[name].get<double>();
-    if (!std::isfinite(value)) throw FormatError(file, where, std::string("intrinsics: '") + name + "' not finite");
+    if (!std::isfinite(value))
+      throw FormatError(file, where, std::string("intrinsics: '") + name + "' not finite");
   };
   get("fx", out.fx);
   get("fy", out.fy);
@@ -121,8 +122,8 @@ class RecordingSource final : public FrameSource {
       const std::string expected = info.kind == FrameKind::kDepth ? kDepthEncoding : kPointsEncoding;
       if (s.encoding != expected) {
         throw FormatError(file, where,
-                          "encoding '" + s.encoding + "' of a " + s.kind + " stream is not supported (expected " +
-                              expected + ")");
+                          "encoding '" + s.encoding + "' of a " + s.kind +
+                              " stream is not supported (expected " + expected + ")");
       }
       info.units = s.units;
       if (info.kind == FrameKind::kDepth) info.intrinsics = IntrinsicsFromJson(calibration, s.name, file);
@@ -146,7 +147,8 @@ class RecordingSource final : public FrameSource {
     const RecordingFrame& f = frames_[next_++];
     const std::string file = reader_.path().string();
     const std::string where = "frame " + std::to_string(f.id);
-    if (f.compression != "none") throw FormatError(file, where, "unsupported compression '" + f.compression + "'");
+    if (f.compression != "none")
+      throw FormatError(file, where, "unsupported compression '" + f.compression + "'");
     Frame out;
     out.stream = stream_index_.at(f.stream);
     const StreamInfo& stream = description_.streams[static_cast<std::size_t>(out.stream)];
@@ -190,7 +192,9 @@ class RecordingSource final : public FrameSource {
     throw std::out_of_range(reader_.path().string() + ": no view " + std::to_string(view));
   }
 
-  std::optional<std::int64_t> FrameCount() const override { return static_cast<std::int64_t>(frames_.size()); }
+  std::optional<std::int64_t> FrameCount() const override {
+    return static_cast<std::int64_t>(frames_.size());
+  }
 
  private:
   RecordingReader reader_;
@@ -231,7 +235,9 @@ class VectorSource final : public FrameSource {
     }
     throw std::out_of_range("no view " + std::to_string(view));
   }
-  std::optional<std::int64_t> FrameCount() const override { return static_cast<std::int64_t>(frames_.size()); }
+  std::optional<std::int64_t> FrameCount() const override {
+    return static_cast<std::int64_t>(frames_.size());
+  }
 
  private:
   SourceDescription description_;
@@ -278,8 +284,9 @@ std::unique_ptr<FrameSource> DepthFileSource(const std::vector<fs::path>& files)
   for (std::size_t k = 0; k < files.size(); ++k) {
     const fs::path& file = files[k];
     if (!IsDepthTiff(file)) {
-      throw FormatError(file.string(), "", "not a depth frame (frame_<time>_depth.tiff); depth frames cannot be "
-                                           "mixed with other inputs");
+      throw FormatError(file.string(), "",
+                        "not a depth frame (frame_<time>_depth.tiff); depth frames cannot be "
+                        "mixed with other inputs");
     }
     const DepthIntrinsics k_file = ReadDepthIntrinsicsXml(DepthIntrinsicsPathFor(file));
     if (!stream.intrinsics) {
@@ -313,15 +320,17 @@ std::unique_ptr<FrameSource> OpenRecordingSource(const fs::path& path, const Rep
   return std::make_unique<RecordingSource>(path, options);
 }
 
-std::unique_ptr<FrameSource> ScanSetSource(ScanSet set, const std::string& device_name, const std::string& origin) {
+std::unique_ptr<FrameSource> ScanSetSource(ScanSet set, const std::string& device_name,
+                                           const std::string& origin) {
   SourceDescription d;
   d.origin = origin.empty() ? set.name : origin;
   d.name = set.name;
-  const std::string device =
-      set.scans.empty() || set.scans.front().metadata.device.empty() ? device_name : set.scans.front().metadata.device;
+  const std::string device = set.scans.empty() || set.scans.front().metadata.device.empty()
+                                 ? device_name
+                                 : set.scans.front().metadata.device;
   d.device_json = nlohmann::json{{"name", device}}.dump();
-  d.streams.push_back({"points", FrameKind::kPoints, set.scans.empty() ? "unknown" : set.scans.front().units,
-                       std::nullopt});
+  d.streams.push_back(
+      {"points", FrameKind::kPoints, set.scans.empty() ? "unknown" : set.scans.front().units, std::nullopt});
   std::vector<Frame> frames;
   for (std::size_t k = 0; k < set.scans.size(); ++k) {
     Scan& scan = set.scans[k];
@@ -357,7 +366,8 @@ std::unique_ptr<FrameSource> OpenFileSource(const std::vector<fs::path>& files) 
   return ScanSetSource(std::move(set), "file", file.string());
 }
 
-std::unique_ptr<FrameSource> OpenFrameSource(const std::vector<fs::path>& inputs, const ReplayOptions& replay) {
+std::unique_ptr<FrameSource> OpenFrameSource(const std::vector<fs::path>& inputs,
+                                             const ReplayOptions& replay) {
   if (inputs.size() == 1 && inputs.front().extension() == kRecordingExtension)
     return OpenRecordingSource(inputs.front(), replay);
   return OpenFileSource(inputs);
@@ -374,7 +384,7 @@ ScanSet FramesToScanSet(FrameSource& source, const FrameProgress& progress) {
   ScanSet set;
   set.name = d.name;
   std::map<std::pair<int, std::int64_t>, std::size_t> scan_of;  // (stream, view) -> scan index
-  std::vector<std::vector<Eigen::Matrix3Xd>> parts;              // per scan: each frame's points, scan frame
+  std::vector<std::vector<Eigen::Matrix3Xd>> parts;             // per scan: each frame's points, scan frame
   std::int64_t done = 0;
   const std::optional<std::int64_t> total = source.FrameCount();
   while (std::optional<Frame> f = source.Next()) {
@@ -412,7 +422,8 @@ ScanSet FramesToScanSet(FrameSource& source, const FrameProgress& progress) {
     ++done;
     if (progress) progress(done, total);
   }
-  if (set.scans.empty()) throw FormatError(d.origin.empty() ? d.name : d.origin, "", "no frames to read as views");
+  if (set.scans.empty())
+    throw FormatError(d.origin.empty() ? d.name : d.origin, "", "no frames to read as views");
   for (std::size_t k = 0; k < set.scans.size(); ++k) {
     Eigen::Index count = 0;
     for (const auto& p : parts[k]) count += p.cols();
@@ -450,8 +461,8 @@ std::int64_t RecordSource(FrameSource& source, const fs::path& out, const FrameP
   writer.SetDevice(d.device_json, calibration.dump());
   std::vector<std::int64_t> stream_ids;
   for (const StreamInfo& s : d.streams) {
-    stream_ids.push_back(writer.AddStream(s.name, ToString(s.kind),
-                                          s.kind == FrameKind::kDepth ? kDepthEncoding : kPointsEncoding, s.units));
+    stream_ids.push_back(writer.AddStream(
+        s.name, ToString(s.kind), s.kind == FrameKind::kDepth ? kDepthEncoding : kPointsEncoding, s.units));
   }
   std::int64_t done = 0;
   const std::optional<std::int64_t> total = source.FrameCount();
@@ -481,9 +492,11 @@ std::vector<std::uint8_t> EncodeDepth(const DepthImage& image) {
   return out;
 }
 
-DepthImage DecodeDepth(const std::vector<std::uint8_t>& payload, const std::string& file, const std::string& where) {
+DepthImage DecodeDepth(const std::vector<std::uint8_t>& payload, const std::string& file,
+                       const std::string& where) {
   if (payload.size() < 8) {
-    throw FormatError(file, where, "depth payload of " + std::to_string(payload.size()) + " bytes has no size");
+    throw FormatError(file, where,
+                      "depth payload of " + std::to_string(payload.size()) + " bytes has no size");
   }
   std::uint32_t w = 0, h = 0;
   std::memcpy(&w, payload.data(), 4);
@@ -492,7 +505,8 @@ DepthImage DecodeDepth(const std::vector<std::uint8_t>& payload, const std::stri
   if (w > (1u << 16) || h > (1u << 16) || payload.size() - 8 != 2 * count) {
     throw FormatError(file, where,
                       "depth payload declares " + std::to_string(w) + " x " + std::to_string(h) +
-                          " pixels (8 + 2 per pixel bytes) but has " + std::to_string(payload.size()) + " bytes");
+                          " pixels (8 + 2 per pixel bytes) but has " + std::to_string(payload.size()) +
+                          " bytes");
   }
   DepthImage image;
   image.width = static_cast<int>(w);

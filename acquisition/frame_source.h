@@ -45,9 +45,9 @@ struct StreamInfo {
 };
 
 struct SourceDescription {
-  std::string origin;                // the file or device the frames come from (named in errors)
-  std::string name;                  // the set's name (a recording's meta "name")
-  std::string device_json = "{}";    // the device's description; its "name" names the device
+  std::string origin;                   // the file or device the frames come from (named in errors)
+  std::string name;                     // the set's name (a recording's meta "name")
+  std::string device_json = "{}";       // the device's description; its "name" names the device
   std::string calibration_json = "{}";  // everything but the streams' intrinsics (turntable axis, ...)
   std::vector<std::pair<std::string, std::string>> meta;  // free metadata to record
   std::vector<StreamInfo> streams;
@@ -56,20 +56,20 @@ struct SourceDescription {
 struct Frame {
   int stream = 0;  // index into SourceDescription::streams
   FrameKind kind = FrameKind::kPoints;
-  std::int64_t view = 0;  // frames of one view (a turntable stop, a sweep) share it
-  std::optional<std::int64_t> timestamp_ns;      // since the Unix epoch; absent when the source has no clock
-  std::optional<RigidMotion> world_T_scan;       // the device's nominal pose of this frame
-  std::optional<double> turntable_angle_rad;     // nominal turntable angle, when there is a turntable
-  Eigen::Matrix3Xd points;                       // kPoints, kProfile: scanner coordinates, stream units
-  DepthImage depth;                              // kDepth: raw values, see the stream's intrinsics
-  std::string source;                            // where the frame came from (file, recording frame, device)
+  std::int64_t view = 0;                      // frames of one view (a turntable stop, a sweep) share it
+  std::optional<std::int64_t> timestamp_ns;   // since the Unix epoch; absent when the source has no clock
+  std::optional<RigidMotion> world_T_scan;    // the device's nominal pose of this frame
+  std::optional<double> turntable_angle_rad;  // nominal turntable angle, when there is a turntable
+  Eigen::Matrix3Xd points;                    // kPoints, kProfile: scanner coordinates, stream units
+  DepthImage depth;                           // kDepth: raw values, see the stream's intrinsics
+  std::string source;                         // where the frame came from (file, recording frame, device)
 };
 
 // What replay waits on. Injectable so that tests check the timing without sleeping.
 class ReplayClock {
  public:
   virtual ~ReplayClock() = default;
-  virtual std::int64_t NowNs() = 0;              // a monotonic clock
+  virtual std::int64_t NowNs() = 0;               // a monotonic clock
   virtual void SleepUntilNs(std::int64_t t) = 0;  // returns at or after t on NowNs's scale
 };
 // std::chrono::steady_clock and std::this_thread::sleep_until.
@@ -128,11 +128,11 @@ using FrameProgress = std::function<void(std::int64_t done, std::optional<std::i
 
 // Every frame from the source's current position to its end, as views: one scan per (stream, view), in
 // order of first appearance. Depth frames are back-projected with the stream's intrinsics (BackProject of
-// depth_frame.h: metres, camera frame); points and profiles are taken as they are. A view with one frame keeps
-// the frame's points and pose bit for bit; a view of several frames (a sweep of laser profiles) is expressed
-// in the frame of its first frame: each frame's points are mapped by first_T_frame = world_T_first^-1 *
-// world_T_frame. Frames without a pose get the identity. Throws FormatError for a source with no frames or a
-// view with no points.
+// depth_frame.h: metres, camera frame); points and profiles are taken as they are. A view with one frame
+// keeps the frame's points and pose bit for bit; a view of several frames (a sweep of laser profiles) is
+// expressed in the frame of its first frame: each frame's points are mapped by first_T_frame =
+// world_T_first^-1 * world_T_frame. Frames without a pose get the identity. Throws FormatError for a source
+// with no frames or a view with no points.
 ScanSet FramesToScanSet(FrameSource& source, const FrameProgress& progress = {});
 
 // ---------------------------------------------------------------------------------------------- recording

@@ -40,8 +40,8 @@ FrameProgress ProgressBar(const std::string& what, bool quiet) {
       constexpr int kWidth = 30;
       const auto filled = static_cast<int>(kWidth * done / *total);
       std::cerr << "\r" << what << " [" << std::string(static_cast<std::size_t>(filled), '#')
-                << std::string(static_cast<std::size_t>(kWidth - filled), ' ') << "] " << done << "/" << *total
-                << " frames" << (done == *total ? "\n" : "") << std::flush;
+                << std::string(static_cast<std::size_t>(kWidth - filled), ' ') << "] " << done << "/"
+                << *total << " frames" << (done == *total ? "\n" : "") << std::flush;
     } else if (tenth != *last_tenth) {
       *last_tenth = tenth;
       std::cerr << what << ": " << done << "/" << *total << " frames\n";
@@ -90,13 +90,16 @@ Runner AddRecordCommand(CLI::App& app) {
   cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");
   return [options]() {
     try {
-      std::unique_ptr<FrameSource> source = OpenSource(options->device, options->inputs, options->original_timing);
-      const std::int64_t frames = RecordSource(*source, options->out, ProgressBar("recording", options->quiet));
+      std::unique_ptr<FrameSource> source =
+          OpenSource(options->device, options->inputs, options->original_timing);
+      const std::int64_t frames =
+          RecordSource(*source, options->out, ProgressBar("recording", options->quiet));
       const RecordingSummary s = RecordingReader::Open(options->out).Summary();
       std::cout << options->out << ": " << frames << " frames\n";
       for (std::size_t k = 0; k < s.streams.size(); ++k) {
-        std::cout << "  stream '" << s.streams[k].name << "' (" << s.streams[k].kind << ", " << s.streams[k].units
-                  << "): " << s.frames_per_stream[k] << " frames, " << s.payload_bytes_per_stream[k] << " bytes\n";
+        std::cout << "  stream '" << s.streams[k].name << "' (" << s.streams[k].kind << ", "
+                  << s.streams[k].units << "): " << s.frames_per_stream[k] << " frames, "
+                  << s.payload_bytes_per_stream[k] << " bytes\n";
       }
       return int{kOk};
     } catch (const FormatError& e) {
@@ -116,12 +119,15 @@ Runner AddExportCommand(CLI::App& app) {
   };
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
-      "export", "Write a recording's (or any input's) views as one PLY per view plus a scan2model.views/1 manifest");
-  cmd->add_option("inputs", options->inputs,
-                  "A recording (.s2mrec), views manifest (.json), Stanford .conf, point cloud, or Kinect depth "
-                  "frames")
+      "export",
+      "Write a recording's (or any input's) views as one PLY per view plus a scan2model.views/1 manifest");
+  cmd->add_option(
+         "inputs", options->inputs,
+         "A recording (.s2mrec), views manifest (.json), Stanford .conf, point cloud, or Kinect depth "
+         "frames")
       ->required();
-  cmd->add_option("--out", options->out, "Output folder (created; views.json and view_NNN.ply inside)")->required();
+  cmd->add_option("--out", options->out, "Output folder (created; views.json and view_NNN.ply inside)")
+      ->required();
   cmd->add_option("--view", options->views, "Only these views (the recording's view numbers); repeatable");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");
   return [options]() {
@@ -149,7 +155,8 @@ Runner AddExportCommand(CLI::App& app) {
             const SourceDescription& d;
             std::vector<Frame> frames;
             std::size_t next = 0;
-            OneView(const SourceDescription& description, std::vector<Frame> f) : d(description), frames(std::move(f)) {}
+            OneView(const SourceDescription& description, std::vector<Frame> f)
+                : d(description), frames(std::move(f)) {}
             const SourceDescription& description() const override { return d; }
             std::optional<Frame> Next() override {
               if (next >= frames.size()) return std::nullopt;
@@ -166,8 +173,8 @@ Runner AddExportCommand(CLI::App& app) {
       fs::create_directories(options->out);
       const fs::path manifest = fs::path(options->out) / "views.json";
       WriteScanSet(manifest, set);
-      std::cout << manifest.string() << ": " << set.scans.size() << " views, " << set.TotalPoints() << " points ("
-                << (set.scans.empty() ? "" : set.scans.front().units) << ")\n";
+      std::cout << manifest.string() << ": " << set.scans.size() << " views, " << set.TotalPoints()
+                << " points (" << (set.scans.empty() ? "" : set.scans.front().units) << ")\n";
       return int{kOk};
     } catch (const FormatError& e) {
       return ReportError("export", e.what(), kInputError, false);

@@ -51,10 +51,11 @@ std::string Trim(std::string s) {
 
 class VirtualScanner final : public FrameSource {
  public:
-  VirtualScanner(SceneMesh scene, const VirtualScannerOptions& options)
-      : caster_(scene), options_(options) {
-    if (options_.turntable.steps < 1) throw std::invalid_argument("virtual scanner: steps must be at least 1");
-    if (!(options_.metres_per_unit > 0)) throw std::invalid_argument("virtual scanner: metres_per_unit must be positive");
+  VirtualScanner(SceneMesh scene, const VirtualScannerOptions& options) : caster_(scene), options_(options) {
+    if (options_.turntable.steps < 1)
+      throw std::invalid_argument("virtual scanner: steps must be at least 1");
+    if (!(options_.metres_per_unit > 0))
+      throw std::invalid_argument("virtual scanner: metres_per_unit must be positive");
     const Eigen::Vector3d lo = scene.vertices.rowwise().minCoeff(), hi = scene.vertices.rowwise().maxCoeff();
     scale_ = (hi - lo).norm();
     double radius = 0;
@@ -63,14 +64,16 @@ class VirtualScanner final : public FrameSource {
     const bool depth = options_.sensor == VirtualScannerOptions::Sensor::kDepthCamera;
     double distance = options_.distance;
     if (distance <= 0) distance = depth ? 0.7 / options_.metres_per_unit : 3.0 * radius;
-    const double height = std::isnan(options_.target_height) ? 0.5 * (lo.z() + hi.z()) : options_.target_height;
+    const double height =
+        std::isnan(options_.target_height) ? 0.5 * (lo.z() + hi.z()) : options_.target_height;
     const Eigen::Vector3d target(0, 0, height);
     const double el = options_.elevation_rad;
     lab_T_sensor_ = LookAt(target + distance * Eigen::Vector3d(std::cos(el), 0, std::sin(el)), target);
     // The laser scanner's camera: 30 degrees (camera_angle) around the table from the laser, same height.
     const Eigen::Vector3d laser_position = lab_T_sensor_.translation();
     laser_camera_position_ =
-        target + RotationAboutAxis(Eigen::Vector3d::UnitZ(), options_.laser.camera_angle_rad) * (laser_position - target);
+        target + RotationAboutAxis(Eigen::Vector3d::UnitZ(), options_.laser.camera_angle_rad) *
+                     (laser_position - target);
     // The laser fan covers the scene: its half-angle reaches the scene's corners in the laser plane's y.
     if (!depth) {
       double reach = 0;
@@ -90,7 +93,8 @@ class VirtualScanner final : public FrameSource {
     // The true axis: the nominal z tilted towards `axis_tilt_azimuth`, shifted in the table plane.
     const TurntableOptions& t = options_.turntable;
     true_axis_ = Eigen::Vector3d(std::sin(t.axis_tilt_rad) * std::cos(t.axis_tilt_azimuth_rad),
-                                 std::sin(t.axis_tilt_rad) * std::sin(t.axis_tilt_azimuth_rad), std::cos(t.axis_tilt_rad));
+                                 std::sin(t.axis_tilt_rad) * std::sin(t.axis_tilt_azimuth_rad),
+                                 std::cos(t.axis_tilt_rad));
     true_axis_point_ = Eigen::Vector3d(t.axis_offset_x, t.axis_offset_y, 0.0);
 
     description_.name = options_.name;
@@ -126,11 +130,15 @@ class VirtualScanner final : public FrameSource {
     StreamInfo stream;
     if (depth) {
       const DepthCameraOptions& c = options_.camera;
-      if (c.width < 1 || c.height < 1 || !(c.fx > 0) || !(c.fy > 0) || !(c.depth_unit_m > 0) || !(c.baseline_m > 0))
-        throw std::invalid_argument("virtual scanner: camera size, focal lengths, depth unit and baseline must be positive");
-      stream = {"depth", FrameKind::kDepth, "m", DepthIntrinsics{c.fx, c.fy, c.cx, c.cy, c.depth_unit_m, true}};
+      if (c.width < 1 || c.height < 1 || !(c.fx > 0) || !(c.fy > 0) || !(c.depth_unit_m > 0) ||
+          !(c.baseline_m > 0))
+        throw std::invalid_argument(
+            "virtual scanner: camera size, focal lengths, depth unit and baseline must be positive");
+      stream = {"depth", FrameKind::kDepth, "m",
+                DepthIntrinsics{c.fx, c.fy, c.cx, c.cy, c.depth_unit_m, true}};
     } else {
-      if (options_.laser.points_per_profile < 2) throw std::invalid_argument("virtual scanner: points must be at least 2");
+      if (options_.laser.points_per_profile < 2)
+        throw std::invalid_argument("virtual scanner: points must be at least 2");
       stream = {"profile", FrameKind::kProfile, scene.units, std::nullopt};
     }
     description_.streams.push_back(stream);
@@ -144,13 +152,16 @@ class VirtualScanner final : public FrameSource {
     const TurntableOptions& t = options_.turntable;
     const double nominal = t.start_angle_rad + 2 * M_PI * k / t.steps;
     std::mt19937_64 table_rng = FrameGenerator(options_.seed, 1, static_cast<std::uint64_t>(k));
-    const double truth = nominal + (t.angle_noise_rad > 0 ? std::normal_distribution<double>(0.0, t.angle_noise_rad)(table_rng) : 0.0);
+    const double truth =
+        nominal +
+        (t.angle_noise_rad > 0 ? std::normal_distribution<double>(0.0, t.angle_noise_rad)(table_rng) : 0.0);
     // The table turned the object by `truth` about the true axis: lab = A world, A = o + R (x - o).
     const Eigen::Matrix3d R = RotationAboutAxis(true_axis_, truth);
     const RigidMotion lab_T_world_true(R, true_axis_point_ - R * true_axis_point_);
     const RigidMotion world_T_sensor_true = lab_T_world_true.inverse() * lab_T_sensor_;
     const RigidMotion world_T_sensor_nominal =
-        RigidMotion(RotationAboutAxis(Eigen::Vector3d::UnitZ(), -nominal), Eigen::Vector3d::Zero()) * lab_T_sensor_;
+        RigidMotion(RotationAboutAxis(Eigen::Vector3d::UnitZ(), -nominal), Eigen::Vector3d::Zero()) *
+        lab_T_sensor_;
     std::mt19937_64 rng = FrameGenerator(options_.seed, 2, static_cast<std::uint64_t>(k));
 
     Frame f;
@@ -163,7 +174,8 @@ class VirtualScanner final : public FrameSource {
       f.view = k;
       f.depth = RenderDepth(world_T_sensor_true, rng);
       const double m = options_.metres_per_unit;
-      f.world_T_scan = RigidMotion(world_T_sensor_nominal.rotation(), world_T_sensor_nominal.translation() * m);
+      f.world_T_scan =
+          RigidMotion(world_T_sensor_nominal.rotation(), world_T_sensor_nominal.translation() * m);
     } else {
       f.kind = FrameKind::kProfile;
       f.view = 0;  // one sweep: every profile belongs to the same view
@@ -232,7 +244,8 @@ class VirtualScanner final : public FrameSource {
     const double fb = c.fx * c.baseline_m;
     for (int v = 0; v < c.height; ++v) {
       for (int u = 0; u < c.width; ++u) {
-        const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(c.width) + static_cast<std::size_t>(u);
+        const std::size_t i =
+            static_cast<std::size_t>(v) * static_cast<std::size_t>(c.width) + static_cast<std::size_t>(u);
         // Drawn for every pixel, used or not: a pixel's noise does not depend on which others returned.
         const double e = gauss(rng);
         if (z[i] == 0) continue;
@@ -242,7 +255,8 @@ class VirtualScanner final : public FrameSource {
           for (int q = 0; q < 4 && !edge; ++q) {
             const int uu = u + du[q], vv = v + dv[q];
             if (uu < 0 || vv < 0 || uu >= c.width || vv >= c.height) continue;
-            const double zn = z[static_cast<std::size_t>(vv) * static_cast<std::size_t>(c.width) + static_cast<std::size_t>(uu)];
+            const double zn = z[static_cast<std::size_t>(vv) * static_cast<std::size_t>(c.width) +
+                                static_cast<std::size_t>(uu)];
             edge = zn == 0 || std::abs(zn - z[i]) > c.edge_jump_m;
           }
           if (edge) continue;
@@ -347,7 +361,8 @@ SceneMesh TessellateSurface(std::shared_ptr<const ParametricModel> model, double
 
 SceneMesh CounterboredBlockMesh(const Eigen::VectorXd& values, int segments) {
   if (values.size() != 6) throw std::invalid_argument("the counterbored block has six parameters");
-  const double W = values[0], D = values[1], H = values[2], rb = values[3] / 2, rc = values[4] / 2, depth = values[5];
+  const double W = values[0], D = values[1], H = values[2], rb = values[3] / 2, rc = values[4] / 2,
+               depth = values[5];
   if (!(rb > 0 && rc > rb && 2 * rc < std::min(W, D) && depth > 0 && depth < H) || segments < 8)
     throw std::invalid_argument("inconsistent counterbored block dimensions");
   std::vector<Eigen::Vector3d> v;
@@ -382,8 +397,8 @@ SceneMesh CounterboredBlockMesh(const Eigen::VectorXd& values, int segments) {
     }
     return ids;
   };
-  const std::vector<int> top_c = circle(rc, H), floor_c = circle(rc, H - depth), floor_b = circle(rb, H - depth),
-                         bottom_b = circle(rb, 0.0);
+  const std::vector<int> top_c = circle(rc, H), floor_c = circle(rc, H - depth),
+                         floor_b = circle(rb, H - depth), bottom_b = circle(rb, 0.0);
   // Outline points of the rectangle in the direction of each circle vertex (rays from the centre).
   auto outline = [&](double z) {
     std::vector<int> ids;
@@ -402,7 +417,8 @@ SceneMesh CounterboredBlockMesh(const Eigen::VectorXd& values, int segments) {
   const std::array<int, 4> top_corners = {t10, t11, t01, t00}, bottom_corners = {b10, b11, b01, b00};
   auto corner_between = [&](int k) -> int {  // corner index in the sector from k to k+1, or -1
     const double a0 = 2 * M_PI * k / n, a1 = 2 * M_PI * (k + 1) / n;
-    const double corners[4] = {std::atan2(y0, x1), std::atan2(y1, x1), std::atan2(y1, x0), std::atan2(y0, x0)};
+    const double corners[4] = {std::atan2(y0, x1), std::atan2(y1, x1), std::atan2(y1, x0),
+                               std::atan2(y0, x0)};
     for (int c = 0; c < 4; ++c) {
       double a = corners[c];
       if (a < 0) a += 2 * M_PI;
@@ -423,27 +439,30 @@ SceneMesh CounterboredBlockMesh(const Eigen::VectorXd& values, int segments) {
     // Top (normal +z): outline k, outline k1, circle k1, circle k seen from above is counter-clockwise as
     // circle k, outline k, outline k1, circle k1 ... written as quads around the annulus-like ring.
     if (corner < 0) {
-      quad(top_c[static_cast<std::size_t>(k)], top_o[static_cast<std::size_t>(k)], top_o[static_cast<std::size_t>(k1)],
-           top_c[static_cast<std::size_t>(k1)], -1);
+      quad(top_c[static_cast<std::size_t>(k)], top_o[static_cast<std::size_t>(k)],
+           top_o[static_cast<std::size_t>(k1)], top_c[static_cast<std::size_t>(k1)], -1);
       quad(bottom_b[static_cast<std::size_t>(k1)], bottom_o[static_cast<std::size_t>(k1)],
            bottom_o[static_cast<std::size_t>(k)], bottom_b[static_cast<std::size_t>(k)], -1);
     } else {
-      const int tc = top_corners[static_cast<std::size_t>(corner)], bc = bottom_corners[static_cast<std::size_t>(corner)];
-      quad(top_c[static_cast<std::size_t>(k)], top_o[static_cast<std::size_t>(k)], tc, top_c[static_cast<std::size_t>(k1)], -1);
+      const int tc = top_corners[static_cast<std::size_t>(corner)],
+                bc = bottom_corners[static_cast<std::size_t>(corner)];
+      quad(top_c[static_cast<std::size_t>(k)], top_o[static_cast<std::size_t>(k)], tc,
+           top_c[static_cast<std::size_t>(k1)], -1);
       tri.emplace_back(top_c[static_cast<std::size_t>(k1)], tc, top_o[static_cast<std::size_t>(k1)]);
       patch.push_back(-1);
-      quad(bottom_b[static_cast<std::size_t>(k1)], bc, bottom_o[static_cast<std::size_t>(k)], bottom_b[static_cast<std::size_t>(k)], -1);
+      quad(bottom_b[static_cast<std::size_t>(k1)], bc, bottom_o[static_cast<std::size_t>(k)],
+           bottom_b[static_cast<std::size_t>(k)], -1);
       tri.emplace_back(bottom_b[static_cast<std::size_t>(k1)], bottom_o[static_cast<std::size_t>(k1)], bc);
       patch.push_back(-1);
     }
     // Counterbore floor (normal +z), annulus between rc and rb.
-    quad(floor_b[static_cast<std::size_t>(k)], floor_c[static_cast<std::size_t>(k)], floor_c[static_cast<std::size_t>(k1)],
-         floor_b[static_cast<std::size_t>(k1)], -1);
+    quad(floor_b[static_cast<std::size_t>(k)], floor_c[static_cast<std::size_t>(k)],
+         floor_c[static_cast<std::size_t>(k1)], floor_b[static_cast<std::size_t>(k1)], -1);
     // Walls face the axis.
-    quad(top_c[static_cast<std::size_t>(k)], top_c[static_cast<std::size_t>(k1)], floor_c[static_cast<std::size_t>(k1)],
-         floor_c[static_cast<std::size_t>(k)], 0);
-    quad(floor_b[static_cast<std::size_t>(k)], floor_b[static_cast<std::size_t>(k1)], bottom_b[static_cast<std::size_t>(k1)],
-         bottom_b[static_cast<std::size_t>(k)], 1);
+    quad(top_c[static_cast<std::size_t>(k)], top_c[static_cast<std::size_t>(k1)],
+         floor_c[static_cast<std::size_t>(k1)], floor_c[static_cast<std::size_t>(k)], 0);
+    quad(floor_b[static_cast<std::size_t>(k)], floor_b[static_cast<std::size_t>(k1)],
+         bottom_b[static_cast<std::size_t>(k1)], bottom_b[static_cast<std::size_t>(k)], 1);
   }
   mesh.vertices.resize(3, static_cast<Eigen::Index>(v.size()));
   for (std::size_t i = 0; i < v.size(); ++i) mesh.vertices.col(static_cast<Eigen::Index>(i)) = v[i];
@@ -473,13 +492,16 @@ SceneMesh SceneByName(const std::string& name, const std::string& mesh_units) {
                               "' (vase, helical, spiral, part, or a .ply mesh)");
 }
 
-VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& scene, std::string& mesh_units) {
+VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& scene,
+                                         std::string& mesh_units) {
   const std::string prefix = "virtual:";
-  if (spec.rfind(prefix, 0) != 0) throw std::invalid_argument("device '" + spec + "': only virtual:<scene>[,key=value...] is supported");
+  if (spec.rfind(prefix, 0) != 0)
+    throw std::invalid_argument("device '" + spec + "': only virtual:<scene>[,key=value...] is supported");
   std::vector<std::string> items;
   std::stringstream in(spec.substr(prefix.size()));
   for (std::string item; std::getline(in, item, ',');) items.push_back(Trim(item));
-  if (items.empty() || items.front().empty()) throw std::invalid_argument("device '" + spec + "': no scene given");
+  if (items.empty() || items.front().empty())
+    throw std::invalid_argument("device '" + spec + "': no scene given");
   scene = items.front();
   mesh_units = "mm";
   VirtualScannerOptions o;
@@ -487,9 +509,11 @@ VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& s
   std::map<std::string, std::string> seen;
   for (std::size_t i = 1; i < items.size(); ++i) {
     const std::size_t eq = items[i].find('=');
-    if (eq == std::string::npos) throw std::invalid_argument("device option '" + items[i] + "' is not key=value");
+    if (eq == std::string::npos)
+      throw std::invalid_argument("device option '" + items[i] + "' is not key=value");
     const std::string key = Trim(items[i].substr(0, eq)), value = Trim(items[i].substr(eq + 1));
-    if (!seen.emplace(key, value).second) throw std::invalid_argument("device option '" + key + "' given twice");
+    if (!seen.emplace(key, value).second)
+      throw std::invalid_argument("device option '" + key + "' given twice");
     auto number = [&]() {
       std::size_t used = 0;
       double x = 0;
@@ -505,7 +529,8 @@ VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& s
     auto integer = [&]() {
       const double x = number();
       if (x != std::floor(x) || x < 0 || x > 1e9)
-        throw std::invalid_argument("device option '" + key + "': '" + value + "' is not a non-negative integer");
+        throw std::invalid_argument("device option '" + key + "': '" + value +
+                                    "' is not a non-negative integer");
       return static_cast<int>(x);
     };
     if (key == "sensor") {

@@ -37,21 +37,21 @@ namespace s2m {
 
 // A triangle mesh with, optionally, the exact surfaces its triangles approximate.
 struct SceneMesh {
-  Eigen::Matrix3Xd vertices;                                // scene units
-  Eigen::Matrix<int, 3, Eigen::Dynamic> triangles;          // vertex indices, counter-clockwise seen from outside
-  std::string units = "unknown";                            // of the vertices
+  Eigen::Matrix3Xd vertices;                        // scene units
+  Eigen::Matrix<int, 3, Eigen::Dynamic> triangles;  // vertex indices, counter-clockwise seen from outside
+  std::string units = "unknown";                    // of the vertices
   // Exact surfaces. triangle_patch[i] = -1: triangle i is itself the surface (plain mesh, a planar face);
   // otherwise an index into `patches`.
   struct Patch {
     enum class Type { kParametric, kCylinder } type = Type::kParametric;
-    std::shared_ptr<const ParametricModel> model;  // kParametric: face 0 of this model
-    Eigen::Vector3d axis_point = Eigen::Vector3d::Zero();    // kCylinder
+    std::shared_ptr<const ParametricModel> model;          // kParametric: face 0 of this model
+    Eigen::Vector3d axis_point = Eigen::Vector3d::Zero();  // kCylinder
     Eigen::Vector3d axis_direction = Eigen::Vector3d::UnitZ();
     double radius = 0.0;
   };
   std::vector<Patch> patches;
-  std::vector<int> triangle_patch;      // empty (all -1) or one per triangle
-  Eigen::Matrix2Xd vertex_parameters;   // (u, v) per vertex for kParametric triangles
+  std::vector<int> triangle_patch;     // empty (all -1) or one per triangle
+  Eigen::Matrix2Xd vertex_parameters;  // (u, v) per vertex for kParametric triangles
 };
 
 // Face 0 of `model` over [u0, u1] x [v0, v1] as an nu x nv grid of quads, two triangles each, with the exact
@@ -78,9 +78,10 @@ SceneMesh SceneByName(const std::string& name_or_mesh, const std::string& mesh_u
 
 struct RayHit {
   bool hit = false;
-  double distance = 0.0;    // along the unit direction, scene units
-  Eigen::Vector3d point;    // on the exact surface (double precision)
-  Eigen::Vector3d normal;   // unit surface normal at the hit, facing the ray's origin
+  double distance = 0.0;                            // along the unit direction, scene units
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();  // on the exact surface (double precision)
+  Eigen::Vector3d normal =
+      Eigen::Vector3d::Zero();  // unit surface normal at the hit, facing the ray's origin
 };
 
 class RayCaster {
@@ -110,15 +111,15 @@ class RayCaster {
 // sigma_z = z^2 sigma_d / (f b) (their eq. 10), and the disparity's 1/8-pixel sub-pixel steps quantize the
 // depth (steps growing with z^2). Raw values are stored like OpenNI's, in units of depth_unit_m.
 struct DepthCameraOptions {
-  int width = 640, height = 480;                        // pixels
+  int width = 640, height = 480;                          // pixels
   double fx = 525.0, fy = 525.0, cx = 319.5, cy = 239.5;  // pinhole, pixels (OpenNI's defaults)
-  double depth_unit_m = 0.001;                          // metres per raw value (OpenNI: millimetres)
-  double baseline_m = 0.075;                            // projector-camera baseline (Kinect v1: 7.5 cm)
-  double disparity_step_px = 1.0 / 8.0;                 // disparity quantization; 0: off
+  double depth_unit_m = 0.001;                            // metres per raw value (OpenNI: millimetres)
+  double baseline_m = 0.075;                              // projector-camera baseline (Kinect v1: 7.5 cm)
+  double disparity_step_px = 1.0 / 8.0;                   // disparity quantization; 0: off
   // Disparity noise, pixels: 0.06 gives sigma_z = 1.5 mm at 1 m and 3.8 cm at 5 m (K&E 2012 report about 4 cm
   // at 5 m). 0: noise off.
   double disparity_noise_px = 0.06;
-  double min_range_m = 0.4, max_range_m = 4.5;          // no return outside
+  double min_range_m = 0.4, max_range_m = 4.5;  // no return outside
   // Dropout at grazing angles: no return where the ray meets the surface at a cosine below this (75 degrees).
   double min_incidence_cosine = 0.26;
   // Dropout at depth edges: no return where a 4-neighbour's true depth differs by more than this, or the
@@ -129,19 +130,19 @@ struct DepthCameraOptions {
 // A laser-line scanner on a turntable (Horus/Ciclop-like): a vertical laser fan, a camera beside the laser
 // that must also see the lit point (triangulation occlusion), one profile per turntable step.
 struct LaserLineOptions {
-  int points_per_profile = 480;          // rays in the fan (the camera's rows)
-  double noise = 0.02;                   // standard deviation along the ray, scene units; 0: off
-  double camera_angle_rad = 0.5236;      // the camera's line of sight 30 degrees from the laser's (about z)
-  double min_incidence_cosine = 0.1;     // no return at more grazing incidence
+  int points_per_profile = 480;       // rays in the fan (the camera's rows)
+  double noise = 0.02;                // standard deviation along the ray, scene units; 0: off
+  double camera_angle_rad = 0.5236;   // the camera's line of sight 30 degrees from the laser's (about z)
+  double min_incidence_cosine = 0.1;  // no return at more grazing incidence
 };
 
 struct TurntableOptions {
-  int steps = 8;                         // depth camera: stops (one frame and one view each); laser: profiles per turn
+  int steps = 8;  // depth camera: stops (one frame and one view each); laser: profiles per turn
   double start_angle_rad = 0.0;
-  double axis_tilt_rad = 0.0;            // true axis tilted from the nominal z by this
-  double axis_tilt_azimuth_rad = 0.0;    // ... towards this direction in the table plane
+  double axis_tilt_rad = 0.0;                       // true axis tilted from the nominal z by this
+  double axis_tilt_azimuth_rad = 0.0;               // ... towards this direction in the table plane
   double axis_offset_x = 0.0, axis_offset_y = 0.0;  // true axis shifted, scene units
-  double angle_noise_rad = 0.0;          // standard deviation of each step's true angle about its nominal one
+  double angle_noise_rad = 0.0;  // standard deviation of each step's true angle about its nominal one
 };
 
 struct VirtualScannerOptions {
@@ -169,7 +170,8 @@ struct VirtualScannerOptions {
 // axis_azimuth_deg, axis_offset_x, axis_offset_y, angle_noise_deg, interval, units (of a mesh). Fills `scene`
 // with the part before the first comma (after "virtual:"). Throws std::invalid_argument naming the bad key or
 // value.
-VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& scene, std::string& mesh_units);
+VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& scene,
+                                         std::string& mesh_units);
 
 // The virtual scanner as a frame source. Deterministic: the same scene, options and seed give the same
 // frames, bit for bit (each frame's random numbers come from its own generator seeded by (seed, frame)).

@@ -46,7 +46,9 @@ class ListSource final : public FrameSource {
   }
   std::vector<std::int64_t> Views() const override { return {}; }
   void SeekView(std::int64_t) override { next_ = 0; }
-  std::optional<std::int64_t> FrameCount() const override { return static_cast<std::int64_t>(frames_.size()); }
+  std::optional<std::int64_t> FrameCount() const override {
+    return static_cast<std::int64_t>(frames_.size());
+  }
 
  private:
   SourceDescription d_;
@@ -80,10 +82,12 @@ ListSource DepthSource() {
     f.view = k;
     f.timestamp_ns = 1'000'000'000LL * (k == 2 ? 4 : k + 1);
     f.turntable_angle_rad = 0.7 * k;
-    f.world_T_scan = RigidMotion(RotationAboutAxis(Eigen::Vector3d::UnitZ(), -0.7 * k), Eigen::Vector3d(0.1, -0.2, 0.3 * k));
+    f.world_T_scan = RigidMotion(RotationAboutAxis(Eigen::Vector3d::UnitZ(), -0.7 * k),
+                                 Eigen::Vector3d(0.1, -0.2, 0.3 * k));
     f.depth.width = 8;
     f.depth.height = 6;
-    for (int i = 0; i < 48; ++i) f.depth.values.push_back(static_cast<std::uint16_t>(i % 7 == 0 ? 0 : 900 + 13 * i + k));
+    for (int i = 0; i < 48; ++i)
+      f.depth.values.push_back(static_cast<std::uint16_t>(i % 7 == 0 ? 0 : 900 + 13 * i + k));
     frames.push_back(f);
   }
   return ListSource(d, frames);
@@ -95,7 +99,9 @@ void ExpectSameFrames(const Frame& a, const Frame& b) {
   EXPECT_EQ(a.timestamp_ns, b.timestamp_ns);
   EXPECT_EQ(a.turntable_angle_rad, b.turntable_angle_rad);
   ASSERT_EQ(a.world_T_scan.has_value(), b.world_T_scan.has_value());
-  if (a.world_T_scan) EXPECT_EQ(a.world_T_scan->matrix(), b.world_T_scan->matrix());  // bit for bit
+  if (a.world_T_scan) {
+    EXPECT_EQ(a.world_T_scan->matrix(), b.world_T_scan->matrix());  // bit for bit
+  }
   EXPECT_EQ(a.depth.width, b.depth.width);
   EXPECT_EQ(a.depth.height, b.depth.height);
   EXPECT_EQ(a.depth.values, b.depth.values);
@@ -117,10 +123,11 @@ TEST(FrameSource, DepthFramesRoundTripThroughARecordingBitForBit) {
   const fs::path dir = TempDir("depth");
   ListSource original = DepthSource();
   std::vector<std::int64_t> progress;
-  EXPECT_EQ(RecordSource(original, dir / "d.s2mrec", [&](std::int64_t done, std::optional<std::int64_t> total) {
-              progress.push_back(done);
-              EXPECT_EQ(total, 3);
-            }),
+  EXPECT_EQ(RecordSource(original, dir / "d.s2mrec",
+                         [&](std::int64_t done, std::optional<std::int64_t> total) {
+                           progress.push_back(done);
+                           EXPECT_EQ(total, 3);
+                         }),
             3);
   EXPECT_EQ(progress, (std::vector<std::int64_t>{1, 2, 3}));
 
@@ -218,7 +225,8 @@ TEST(FrameSource, ProfilesOfASweepBecomeOneView) {
     f.kind = FrameKind::kProfile;
     f.view = 0;
     f.turntable_angle_rad = 0.5 * k;
-    f.world_T_scan = RigidMotion(RotationAboutAxis(Eigen::Vector3d::UnitZ(), -0.5 * k), Eigen::Vector3d(200, 0, 50));
+    f.world_T_scan =
+        RigidMotion(RotationAboutAxis(Eigen::Vector3d::UnitZ(), -0.5 * k), Eigen::Vector3d(200, 0, 50));
     f.points = Eigen::Matrix3Xd::Random(3, 5 + k) * 30.0;
     const Eigen::Matrix3Xd w = f.world_T_scan->apply(f.points);
     world.conservativeResize(3, world.cols() + w.cols());
@@ -257,26 +265,31 @@ TEST(FrameSource, BadRecordingsAreClearErrors) {
     ADD_FAILURE() << "no FormatError for " << file;
     return "";
   };
-  EXPECT_NE(error(variant("nointrinsics", "UPDATE device SET calibration = '{}'")).find("needs its intrinsics"),
-            std::string::npos);
-  EXPECT_NE(error(variant("badfx", "UPDATE device SET calibration = json_remove(calibration, "
-                                   "'$.streams.depth.intrinsics.fx')"))
+  EXPECT_NE(
+      error(variant("nointrinsics", "UPDATE device SET calibration = '{}'")).find("needs its intrinsics"),
+      std::string::npos);
+  EXPECT_NE(error(variant("badfx",
+                          "UPDATE device SET calibration = json_remove(calibration, "
+                          "'$.streams.depth.intrinsics.fx')"))
                 .find("intrinsics: 'fx' missing"),
             std::string::npos);
   EXPECT_NE(error(variant("version", "UPDATE meta SET value = 'scan2model.recording/9' WHERE key = 'format'"))
                 .find("unsupported recording format"),
             std::string::npos);
-  EXPECT_NE(error(variant("empty", "DELETE FROM poses; DELETE FROM frames")).find("no frames"), std::string::npos);
+  EXPECT_NE(error(variant("empty", "DELETE FROM poses; DELETE FROM frames")).find("no frames"),
+            std::string::npos);
   EXPECT_NE(error(variant("short", "UPDATE frames SET payload = substr(payload, 1, 50) WHERE id = 2"))
                 .find("frame 2: depth payload declares 8 x 6 pixels"),
             std::string::npos);
-  EXPECT_NE(error(variant("encoding", "UPDATE streams SET encoding = 'depth_f32'")).find("encoding 'depth_f32'"),
-            std::string::npos);
+  EXPECT_NE(
+      error(variant("encoding", "UPDATE streams SET encoding = 'depth_f32'")).find("encoding 'depth_f32'"),
+      std::string::npos);
   EXPECT_NE(error(variant("nanpose", "UPDATE poses SET m13 = 'NaN' WHERE frame = 3"))
                 .find("frame 3: pose element m13 is not a number"),
             std::string::npos);
   // A view whose only frame has no returns at all.
-  EXPECT_NE(error(variant("noreturn", "UPDATE frames SET payload = substr(payload, 1, 8) || zeroblob(96) WHERE id = 1"))
+  EXPECT_NE(error(variant("noreturn",
+                          "UPDATE frames SET payload = substr(payload, 1, 8) || zeroblob(96) WHERE id = 1"))
                 .find("the view has no points"),
             std::string::npos);
   // The writer refuses a NaN pose before anything of that frame is written.

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "acquisition/frame_source.h"
 #include "acquisition/recording.h"
@@ -100,7 +101,8 @@ TEST(VirtualScanner, BlockHitsLieOnItsFaces) {
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
   for (int i = 0; i < 3000; ++i) {
     origins.col(i) = Eigen::Vector3d(150 * uniform(rng), 150 * uniform(rng), 100 + 50 * uniform(rng));
-    directions.col(i) = Eigen::Vector3d(12 * uniform(rng), 12 * uniform(rng), 10 + 10 * uniform(rng)) - origins.col(i);
+    directions.col(i) =
+        Eigen::Vector3d(12 * uniform(rng), 12 * uniform(rng), 10 + 10 * uniform(rng)) - origins.col(i);
   }
   int count = 0, in_bores = 0;
   double worst = 0;
@@ -166,7 +168,8 @@ TEST(VirtualScanner, RoundTripThroughARecordingIsBitIdentical) {
   laser.laser.points_per_profile = 100;
   laser.turntable.axis_tilt_rad = 0.01;
   for (const VirtualScannerOptions& options : {Kinect(3), laser}) {
-    const fs::path file = dir / (options.sensor == VirtualScannerOptions::Sensor::kLaserLine ? "l.s2mrec" : "k.s2mrec");
+    const fs::path file =
+        dir / (options.sensor == VirtualScannerOptions::Sensor::kLaserLine ? "l.s2mrec" : "k.s2mrec");
     const auto device = MakeVirtualScanner(scene, options);
     ASSERT_EQ(RecordSource(*device, file), options.turntable.steps);
     const std::vector<Frame> live = AllFrames(*MakeVirtualScanner(scene, options));
@@ -200,7 +203,8 @@ TEST(VirtualScanner, RoundTripThroughARecordingIsBitIdentical) {
   fs::remove_all(dir);
 }
 
-// Zero noise: the laser's profiles, placed by their nominal poses (exact without axis error), lie on the vase.
+// Zero noise: the laser's profiles, placed by their nominal poses (exact without axis error), lie on the
+// vase.
 TEST(VirtualScanner, LaserProfilesLieOnTheModelWithoutNoise) {
   const auto vase = VaseModel();
   VirtualScannerOptions o;
@@ -214,7 +218,8 @@ TEST(VirtualScanner, LaserProfilesLieOnTheModelWithoutNoise) {
   while (std::optional<Frame> f = device->Next()) {
     off_plane = std::max(off_plane, f->points.row(0).cwiseAbs().maxCoeff());  // the laser plane is x = 0
     const Eigen::Matrix3Xd world = f->world_T_scan->apply(f->points);
-    for (Eigen::Index i = 0; i < world.cols(); ++i) worst = std::max(worst, DistanceToRevolution(*vase, world.col(i)));
+    for (Eigen::Index i = 0; i < world.cols(); ++i)
+      worst = std::max(worst, DistanceToRevolution(*vase, world.col(i)));
     count += f->points.cols();
   }
   EXPECT_GT(count, 36 * 50);
@@ -227,10 +232,14 @@ TEST(VirtualScanner, LaserProfilesLieOnTheModelWithoutNoise) {
   double largest = 0;
   while (std::optional<Frame> f = tilted->Next()) {
     const Eigen::Matrix3Xd world = f->world_T_scan->apply(f->points);
-    for (Eigen::Index i = 0; i < world.cols(); i += 7) largest = std::max(largest, DistanceToRevolution(*vase, world.col(i)));
+    for (Eigen::Index i = 0; i < world.cols(); i += 7)
+      largest = std::max(largest, DistanceToRevolution(*vase, world.col(i)));
   }
-  EXPECT_GT(largest, 0.2);  // sin(0.5 deg) x ~66 mm = 0.58 mm at most, less along the normal
-  EXPECT_LT(largest, 2.0);
+  // The tilt moves a point at distance R from the axis' foot by up to sin(tilt) R, and the nominal pose's
+  // error at angle theta is the difference of two such rotations: at most 2 sin(0.5 deg) x 163 mm (the rim's
+  // distance from the foot) = 2.8 mm.
+  EXPECT_GT(largest, 0.2);
+  EXPECT_LT(largest, 2 * std::sin(0.5 * M_PI / 180) * 163.0);
 }
 
 // The depth camera's noise model: depth errors along z, standardized by sigma_z = z^2 sigma_d / (f b), have
@@ -278,7 +287,7 @@ TEST(VirtualScanner, DepthNoiseFollowsTheDisparityModel) {
         ++n;
       }
     }
-    EXPECT_GT(n, 5000);
+    EXPECT_GT(n, 3000);
     if (sigma_d == 0) {
       EXPECT_LE(worst, 0.5 * o.camera.depth_unit_m * (1 + 1e-9));
     } else {
@@ -291,6 +300,11 @@ TEST(VirtualScanner, DepthNoiseFollowsTheDisparityModel) {
 
 TEST(VirtualScanner, DropoutsAtGrazingAnglesAndDepthEdges) {
   VirtualScannerOptions o = Kinect(1);
+  o.camera.width = 320;
+  o.camera.height = 240;
+  o.camera.fx = o.camera.fy = 262.5;
+  o.camera.cx = 159.5;
+  o.camera.cy = 119.5;
   o.turntable.steps = 1;
   o.camera.edge_jump_m = 0;
   o.camera.min_incidence_cosine = 0;
@@ -313,8 +327,8 @@ TEST(VirtualScanner, DropoutsAtGrazingAnglesAndDepthEdges) {
 
 TEST(VirtualScanner, DeviceSpecParsingAndBadOptions) {
   std::string scene, units;
-  const VirtualScannerOptions o =
-      ParseVirtualDevice("virtual:vase,sensor=laser,steps=90,seed=4,axis_tilt_deg=0.5,noise=0.01", scene, units);
+  const VirtualScannerOptions o = ParseVirtualDevice(
+      "virtual:vase,sensor=laser,steps=90,seed=4,axis_tilt_deg=0.5,noise=0.01", scene, units);
   EXPECT_EQ(scene, "vase");
   EXPECT_EQ(o.sensor, VirtualScannerOptions::Sensor::kLaserLine);
   EXPECT_EQ(o.turntable.steps, 90);
