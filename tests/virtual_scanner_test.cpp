@@ -4,6 +4,7 @@
 #include "devices/virtual_scanner.h"
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -13,6 +14,7 @@
 
 #include "acquisition/frame_source.h"
 #include "acquisition/recording.h"
+#include "acquisition/scan_set_io.h"
 #include "acquisition/synthetic_cases.h"
 
 namespace s2m {
@@ -342,6 +344,61 @@ TEST(VirtualScanner, DeviceSpecParsingAndBadOptions) {
   EXPECT_THROW(ParseVirtualDevice("virtual:vase,seed=1,seed=2", scene, units), std::invalid_argument);
   EXPECT_THROW(SceneByName("teapot"), std::invalid_argument);
   EXPECT_THROW(SceneByName("/nonexistent/mesh.ply"), std::exception);
+}
+
+// The command's exit code and standard output.
+std::pair<int, std::string> RunCli(const std::string& args) {
+  const std::string cmd = std::string(S2M_CLI_PATH) + " " + args + " 2>/dev/null";
+  std::string out;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return {-1, out};
+  char buffer[4096];
+  std::size_t n;
+  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+// `record --device virtual:...` then `export`: the exported views (PLY + manifest, read back by the manifest
+// reader) are exactly the recording's views; bad device options are usage errors, a bad input file is bad
+// input.
+TEST(VirtualScanner, CliRecordAndExport) {
+  const fs::path dir = TempDir("cli");
+  const std::string rec = (dir / "pot.s2mrec").string();
+  const auto [code, out] = RunCli(
+      "record -q --device virtual:vase,steps=4,width=160,height=120,fx=131.25,fy=131.25,"
+      "cx=79.5,cy=59.5,axis_tilt_deg=0.3 --out " +
+      rec);
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("4 frames"), std::string::npos) << out;
+  EXPECT_EQ(RunCli("record -q --device virtual:vase --out " + rec).first, 3);  // never overwritten
+  const auto [export_code, export_out] = RunCli("export -q " + rec + " --out " + (dir / "views").string());
+  ASSERT_EQ(export_code, 0) << export_out;
+  const ScanSet exported = ReadScanSet(dir / "views" / "views.json");
+  const auto replay = OpenRecordingSource(rec);
+  const ScanSet recorded = FramesToScanSet(*replay);
+  ASSERT_EQ(exported.scans.size(), 4u);
+  for (std::size_t k = 0; k < 4; ++k) {
+    EXPECT_EQ(exported.scans[k].points, recorded.scans[k].points);
+    // The manifest reader re-orthonormalizes rotations read from text: equal to rounding.
+    EXPECT_LT((exported.scans[k].world_T_scan.matrix() - recorded.scans[k].world_T_scan.matrix()).norm(),
+              1e-15);
+    EXPECT_EQ(exported.scans[k].units, "m");
+  }
+  // One view by its number.
+  ASSERT_EQ(RunCli("export -q " + rec + " --view 2 --out " + (dir / "one").string()).first, 0);
+  const ScanSet one = ReadScanSet(dir / "one" / "views.json");
+  ASSERT_EQ(one.scans.size(), 1u);
+  EXPECT_EQ(one.scans[0].points, recorded.scans[2].points);
+
+  EXPECT_EQ(RunCli("record -q --device virtual:vase,colour=red --out " + (dir / "x.s2mrec").string()).first,
+            2);
+  EXPECT_EQ(RunCli("record -q --device virtual:teapot --out " + (dir / "x.s2mrec").string()).first, 2);
+  EXPECT_EQ(RunCli("export -q " + rec + " --view 9 --out " + (dir / "none").string()).first, 3);
+  EXPECT_EQ(
+      RunCli("export -q " + (dir / "missing.s2mrec").string() + " --out " + (dir / "none").string()).first,
+      3);
+  fs::remove_all(dir);
 }
 
 }  // namespace
