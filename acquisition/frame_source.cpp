@@ -147,8 +147,7 @@ class RecordingSource final : public FrameSource {
     const RecordingFrame& f = frames_[next_++];
     const std::string file = reader_.path().string();
     const std::string where = "frame " + std::to_string(f.id);
-    if (f.compression != "none")
-      throw FormatError(file, where, "unsupported compression '" + f.compression + "'");
+    const std::vector<std::uint8_t> payload = FramePayload(f, file, where);
     Frame out;
     out.stream = stream_index_.at(f.stream);
     const StreamInfo& stream = description_.streams[static_cast<std::size_t>(out.stream)];
@@ -158,9 +157,9 @@ class RecordingSource final : public FrameSource {
     out.world_T_scan = f.world_T_scan;
     out.turntable_angle_rad = f.turntable_angle_rad;
     if (out.kind == FrameKind::kDepth) {
-      out.depth = DecodeDepth(f.payload, file, where);
+      out.depth = DecodeDepth(payload, file, where);
     } else {
-      out.points = DecodePoints(f.payload, file, where);
+      out.points = DecodePoints(payload, file, where);
     }
     out.source = file + ": stream '" + stream.name + "', view " + std::to_string(f.view) + ", " + where;
     if (options_.original_timing && f.timestamp_ns) {
@@ -445,7 +444,8 @@ ScanSet FramesToScanSet(FrameSource& source, const FrameProgress& progress) {
 
 // ---------------------------------------------------------------------------------------------- recording
 
-std::int64_t RecordSource(FrameSource& source, const fs::path& out, const FrameProgress& progress) {
+std::int64_t RecordSource(FrameSource& source, const fs::path& out, const FrameProgress& progress,
+                          const std::string& compression) {
   const SourceDescription& d = source.description();
   nlohmann::json calibration = nlohmann::json::parse(d.calibration_json, nullptr, false);
   if (!calibration.is_object()) throw std::invalid_argument("the source's calibration is not a JSON object");
@@ -471,7 +471,7 @@ std::int64_t RecordSource(FrameSource& source, const fs::path& out, const FrameP
         f->kind == FrameKind::kDepth ? EncodeDepth(f->depth) : EncodePoints(f->points);
     // A turntable angle needs a pose row to live in (docs/recordings.md): frames with an angle have a pose.
     writer.AppendFrame(stream_ids.at(static_cast<std::size_t>(f->stream)), f->view, payload, f->world_T_scan,
-                       f->timestamp_ns, f->turntable_angle_rad);
+                       f->timestamp_ns, f->turntable_angle_rad, compression);
     ++done;
     if (progress) progress(done, total);
   }

@@ -139,9 +139,10 @@ ScanSet FramesToScanSet(FrameSource& source, const FrameProgress& progress = {})
 
 // Records every frame of the source into a new recording (RecordingWriter: one transaction per frame): the
 // description's device, calibration (with each depth stream's intrinsics under
-// calibration.streams.<name>.intrinsics), meta and streams, then the frames. Returns the number of frames.
+// calibration.streams.<name>.intrinsics), meta and streams, then the frames, each stored with `compression`
+// ("none" or "zlib", recording.h). Returns the number of frames.
 std::int64_t RecordSource(FrameSource& source, const std::filesystem::path& out,
-                          const FrameProgress& progress = {});
+                          const FrameProgress& progress = {}, const std::string& compression = "none");
 
 // Payload codecs of the depth stream. DecodeDepth throws FormatError (file, where) for a size that does not
 // match the declared image.

@@ -1,6 +1,7 @@
 #include "acquisition/recording.h"
 
 #include <sqlite3.h>
+#include <zlib.h>
 
 #include <array>
 #include <bit>
@@ -212,8 +213,21 @@ std::int64_t RecordingWriter::AppendFrame(std::int64_t stream, std::int64_t view
                                           const std::vector<std::uint8_t>& payload,
                                           const std::optional<RigidMotion>& world_T_scan,
                                           std::optional<std::int64_t> timestamp_ns,
-                                          std::optional<double> turntable_angle_rad) {
+                                          std::optional<double> turntable_angle_rad,
+                                          const std::string& compression) {
   if (!db_ || !db_->db) throw std::logic_error("recording closed");
+  if (compression != kNoCompression && compression != kZlibCompression)
+    throw std::invalid_argument("unknown frame compression '" + compression + "' (none or zlib)");
+  std::vector<std::uint8_t> stored;
+  if (compression == kZlibCompression) {
+    const std::uint64_t size = payload.size();
+    uLongf bound = compressBound(static_cast<uLong>(payload.size()));
+    stored.resize(8 + bound);
+    std::memcpy(stored.data(), &size, 8);
+    if (compress2(stored.data() + 8, &bound, payload.data(), static_cast<uLong>(payload.size()), 9) != Z_OK)
+      throw std::runtime_error("zlib cannot compress the frame");
+    stored.resize(8 + bound);
+  }
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
   if (world_T_scan) {
     m = world_T_scan->matrix();
@@ -228,15 +242,17 @@ std::int64_t RecordingWriter::AppendFrame(std::int64_t stream, std::int64_t view
   db_->Exec("BEGIN IMMEDIATE");
   try {
     Statement insert(
-        *db_,
-        "INSERT INTO frames(stream, timestamp_ns, view, compression, payload) VALUES (?, ?, ?, 'none', ?)");
+        *db_, "INSERT INTO frames(stream, timestamp_ns, view, compression, payload) VALUES (?, ?, ?, ?, ?)");
     insert.Bind(1, stream);
     if (timestamp_ns) {
       insert.Bind(2, *timestamp_ns);
     } else {
       insert.BindNull(2);
     }
-    insert.Bind(3, view).Bind(4, payload).Run();
+    insert.Bind(3, view)
+        .Bind(4, compression)
+        .Bind(5, compression == kZlibCompression ? stored : payload)
+        .Run();
     const std::int64_t frame = sqlite3_last_insert_rowid(db_->db);
     if (world_T_scan) {
       Statement pose(*db_, "INSERT INTO poses VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
@@ -480,6 +496,29 @@ std::vector<RecordingFrame> RecordingReader::Query(std::int64_t stream,
 // ----------------------------------------------------------------------------------------------------
 // payloads
 
+std::vector<std::uint8_t> FramePayload(const RecordingFrame& frame, const std::string& file,
+                                       const std::string& where) {
+  if (frame.compression == kNoCompression) return frame.payload;
+  if (frame.compression != kZlibCompression)
+    throw FormatError(file, where, "unsupported compression '" + frame.compression + "' (none or zlib)");
+  std::uint64_t size = 0;
+  if (frame.payload.size() < 8) throw FormatError(file, where, "zlib payload has no size");
+  std::memcpy(&size, frame.payload.data(), 8);
+  // A damaged size must not allocate the moon: zlib compresses at most about 1032:1.
+  if (size > 1100 * static_cast<std::uint64_t>(frame.payload.size()) + 64)
+    throw FormatError(file, where,
+                      "zlib payload declares " + std::to_string(size) + " bytes, more than it can hold");
+  std::vector<std::uint8_t> out(size);
+  uLongf length = static_cast<uLongf>(size);
+  const int rc =
+      uncompress(out.data(), &length, frame.payload.data() + 8, static_cast<uLong>(frame.payload.size() - 8));
+  if (rc != Z_OK || length != size)
+    throw FormatError(
+        file, where,
+        std::string("damaged zlib payload (") + (rc == Z_OK ? "size mismatch" : zError(rc)) + ")");
+  return out;
+}
+
 std::vector<std::uint8_t> EncodePoints(const Eigen::Matrix3Xd& points) {
   const auto n = static_cast<std::uint64_t>(points.cols());
   std::vector<std::uint8_t> out(8 + 24 * n);
@@ -566,10 +605,8 @@ ScanSet ReadRecording(const fs::path& path, const std::string& stream_name) {
   set.name = reader.Meta("name").value_or("");
   for (RecordingFrame& f : reader.Frames(chosen->id)) {
     const std::string where = "frame " + std::to_string(f.id);
-    if (f.compression != "none")
-      throw FormatError(file, where, "unsupported compression '" + f.compression + "'");
     Scan scan;
-    scan.points = DecodePoints(f.payload, file, where);
+    scan.points = DecodePoints(FramePayload(f, file, where), file, where);
     if (scan.empty()) throw FormatError(file, where, "no points");
     scan.units = chosen->units;
     if (f.world_T_scan) scan.world_T_scan = *f.world_T_scan;

@@ -23,6 +23,10 @@ inline constexpr const char* kRecordingExtension = ".s2mrec";
 // The point-set payload: a little-endian uint64 point count, then count x y z triplets of little-endian IEEE
 // float64 (docs/recordings.md).
 inline constexpr const char* kPointsEncoding = "xyz_f64le";
+// Frame compression: "none", or "zlib" = a little-endian uint64 uncompressed size, then the payload as one
+// zlib stream (RFC 1950). Depth images, mostly "no return" zeros, shrink several-fold.
+inline constexpr const char* kNoCompression = "none";
+inline constexpr const char* kZlibCompression = "zlib";
 
 struct RecordingStream {
   std::int64_t id = 0;
@@ -71,12 +75,14 @@ class RecordingWriter {
   // Returns the stream's id. kind: "points", "depth" or "profile".
   std::int64_t AddStream(const std::string& name, const std::string& kind, const std::string& encoding,
                          const std::string& units = "unknown");
-  // One committed transaction per frame; returns the frame's id. Throws std::invalid_argument for a pose that
-  // is not finite or not rigid, FormatError naming the file when SQLite fails.
+  // One committed transaction per frame; returns the frame's id. `compression`: kNoCompression or
+  // kZlibCompression (the payload is compressed here). Throws std::invalid_argument for a pose that is not
+  // finite or not rigid or an unknown compression, FormatError naming the file when SQLite fails.
   std::int64_t AppendFrame(std::int64_t stream, std::int64_t view, const std::vector<std::uint8_t>& payload,
                            const std::optional<RigidMotion>& world_T_scan = std::nullopt,
                            std::optional<std::int64_t> timestamp_ns = std::nullopt,
-                           std::optional<double> turntable_angle_rad = std::nullopt);
+                           std::optional<double> turntable_angle_rad = std::nullopt,
+                           const std::string& compression = kNoCompression);
   // Checkpoints the write-ahead log into the file and leaves WAL mode, so that a finished recording is one
   // self-contained file. Idempotent.
   void Close();
@@ -116,6 +122,11 @@ class RecordingReader {
   std::filesystem::path path_;
   std::unique_ptr<Db> db_;
 };
+
+// A frame's payload as the sensor gave it: decompressed when the frame is compressed. Throws FormatError
+// (file and `where` given by the caller) for an unknown compression or a damaged compressed payload.
+std::vector<std::uint8_t> FramePayload(const RecordingFrame& frame, const std::string& file,
+                                       const std::string& where);
 
 // The point-set payload (kPointsEncoding) of a 3xN matrix, and back. DecodePoints throws FormatError (file
 // and `where` given by the caller) for a size that does not match the count, or a coordinate that is not

@@ -74,7 +74,7 @@ Runner AddRecordCommand(CLI::App& app) {
   struct Options {
     std::string device, out;
     std::vector<std::string> inputs;
-    bool original_timing = false, quiet = false;
+    bool original_timing = false, quiet = false, compress = false;
   };
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
