@@ -87,13 +87,16 @@ Runner AddRecordCommand(CLI::App& app) {
   cmd->add_option("--out", options->out, "The new recording (never overwritten)")->required();
   cmd->add_flag("--original-timing", options->original_timing,
                 "Replaying a recording: deliver its frames with their original timing");
+  cmd->add_flag("--compress", options->compress,
+                "Store each frame zlib-compressed (depth images shrink several-fold)");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");
   return [options]() {
     try {
       std::unique_ptr<FrameSource> source =
           OpenSource(options->device, options->inputs, options->original_timing);
       const std::int64_t frames =
-          RecordSource(*source, options->out, ProgressBar("recording", options->quiet));
+          RecordSource(*source, options->out, ProgressBar("recording", options->quiet),
+                       options->compress ? kZlibCompression : kNoCompression);
       const RecordingSummary s = RecordingReader::Open(options->out).Summary();
       std::cout << options->out << ": " << frames << " frames\n";
       for (std::size_t k = 0; k < s.streams.size(); ++k) {

@@ -67,17 +67,22 @@ class VirtualScanner final : public FrameSource {
     const double height =
         std::isnan(options_.target_height) ? 0.5 * (lo.z() + hi.z()) : options_.target_height;
     const Eigen::Vector3d target(0, 0, height);
-    const double el = options_.elevation_rad;
-    lab_T_sensor_ = LookAt(target + distance * Eigen::Vector3d(std::cos(el), 0, std::sin(el)), target);
-    // The laser scanner's camera: 30 degrees (camera_angle) around the table from the laser, same height.
-    const Eigen::Vector3d laser_position = lab_T_sensor_.translation();
-    laser_camera_position_ =
-        target + RotationAboutAxis(Eigen::Vector3d::UnitZ(), options_.laser.camera_angle_rad) *
-                     (laser_position - target);
+    if (options_.elevations_rad.empty())
+      throw std::invalid_argument("virtual scanner: at least one elevation");
+    for (const double el : options_.elevations_rad) {
+      Sweep sweep;
+      sweep.lab_T_sensor = LookAt(target + distance * Eigen::Vector3d(std::cos(el), 0, std::sin(el)), target);
+      // The laser scanner's camera: camera_angle around the table from the laser, same height.
+      sweep.laser_camera_position =
+          target + RotationAboutAxis(Eigen::Vector3d::UnitZ(), options_.laser.camera_angle_rad) *
+                       (sweep.lab_T_sensor.translation() - target);
+      sweeps_.push_back(sweep);
+    }
     // The laser fan covers the scene: its half-angle reaches the scene's corners in the laser plane's y.
-    if (!depth) {
+    for (Sweep& sweep : sweeps_) {
+      if (depth) break;
       double reach = 0;
-      const RigidMotion sensor_T_lab = lab_T_sensor_.inverse();
+      const RigidMotion sensor_T_lab = sweep.lab_T_sensor.inverse();
       for (int corner = 0; corner < 8; ++corner) {
         const Eigen::Vector3d c((corner & 1) ? hi.x() : lo.x(), (corner & 2) ? hi.y() : lo.y(),
                                 (corner & 4) ? hi.z() : lo.z());
@@ -88,7 +93,7 @@ class VirtualScanner final : public FrameSource {
           if (p.z() > 0) reach = std::max(reach, std::abs(p.y() / p.z()));
         }
       }
-      fan_half_angle_ = std::atan(reach) * 1.05;
+      sweep.fan_half_angle = std::atan(reach) * 1.05;
     }
     // The true axis: the nominal z tilted towards `axis_tilt_azimuth`, shifted in the table plane.
     const TurntableOptions& t = options_.turntable;
@@ -105,7 +110,7 @@ class VirtualScanner final : public FrameSource {
     description_.device_json = device.dump();
     nlohmann::json calibration = {
         {"turntable", {{"nominal_axis", {0, 0, 1}}, {"nominal_axis_point", {0, 0, 0}}}},
-        {"lab_T_sensor", Matrix(lab_T_sensor_.matrix(), depth ? options_.metres_per_unit : 1.0)},
+        {"lab_T_sensor", nlohmann::json::array()},
         // What the simulation used and a real device would not know: kept for tests and reports.
         {"simulation",
          {{"true_axis", {true_axis_.x(), true_axis_.y(), true_axis_.z()}},
@@ -122,9 +127,13 @@ class VirtualScanner final : public FrameSource {
                                {"disparity_noise_px", c.disparity_noise_px}};
     } else {
       calibration["laser"] = {{"points_per_profile", options_.laser.points_per_profile},
-                              {"fan_half_angle_rad", fan_half_angle_},
+                              {"fan_half_angle_rad", sweeps_.front().fan_half_angle},
                               {"noise", options_.laser.noise},
                               {"camera_angle_rad", options_.laser.camera_angle_rad}};
+    }
+    for (const Sweep& sweep : sweeps_) {
+      calibration["lab_T_sensor"].push_back(
+          Matrix(sweep.lab_T_sensor.matrix(), depth ? options_.metres_per_unit * OutputPerMetre() : 1.0));
     }
     description_.calibration_json = calibration.dump();
     StreamInfo stream;
@@ -134,8 +143,10 @@ class VirtualScanner final : public FrameSource {
           !(c.baseline_m > 0))
         throw std::invalid_argument(
             "virtual scanner: camera size, focal lengths, depth unit and baseline must be positive");
-      stream = {"depth", FrameKind::kDepth, "m",
-                DepthIntrinsics{c.fx, c.fy, c.cx, c.cy, c.depth_unit_m, true}};
+      if (c.output_units != "m" && c.output_units != "mm")
+        throw std::invalid_argument("virtual scanner: depth units must be m or mm, not " + c.output_units);
+      stream = {"depth", FrameKind::kDepth, c.output_units,
+                DepthIntrinsics{c.fx, c.fy, c.cx, c.cy, c.depth_unit_m * OutputPerMetre(), true}};
     } else {
       if (options_.laser.points_per_profile < 2)
         throw std::invalid_argument("virtual scanner: points must be at least 2");
@@ -147,10 +158,12 @@ class VirtualScanner final : public FrameSource {
   const SourceDescription& description() const override { return description_; }
 
   std::optional<Frame> Next() override {
-    if (next_ >= options_.turntable.steps) return std::nullopt;
+    if (next_ >= *FrameCount()) return std::nullopt;
     const int k = next_++;
     const TurntableOptions& t = options_.turntable;
-    const double nominal = t.start_angle_rad + 2 * M_PI * k / t.steps;
+    // Frame k: sweep k / steps (one per elevation), turntable step k % steps.
+    const Sweep& sweep = sweeps_[static_cast<std::size_t>(k / t.steps)];
+    const double nominal = t.start_angle_rad + 2 * M_PI * (k % t.steps) / t.steps;
     std::mt19937_64 table_rng = FrameGenerator(options_.seed, 1, static_cast<std::uint64_t>(k));
     const double truth =
         nominal +
@@ -158,10 +171,10 @@ class VirtualScanner final : public FrameSource {
     // The table turned the object by `truth` about the true axis: lab = A world, A = o + R (x - o).
     const Eigen::Matrix3d R = RotationAboutAxis(true_axis_, truth);
     const RigidMotion lab_T_world_true(R, true_axis_point_ - R * true_axis_point_);
-    const RigidMotion world_T_sensor_true = lab_T_world_true.inverse() * lab_T_sensor_;
+    const RigidMotion world_T_sensor_true = lab_T_world_true.inverse() * sweep.lab_T_sensor;
     const RigidMotion world_T_sensor_nominal =
         RigidMotion(RotationAboutAxis(Eigen::Vector3d::UnitZ(), -nominal), Eigen::Vector3d::Zero()) *
-        lab_T_sensor_;
+        sweep.lab_T_sensor;
     std::mt19937_64 rng = FrameGenerator(options_.seed, 2, static_cast<std::uint64_t>(k));
 
     Frame f;
@@ -173,33 +186,40 @@ class VirtualScanner final : public FrameSource {
       f.kind = FrameKind::kDepth;
       f.view = k;
       f.depth = RenderDepth(world_T_sensor_true, rng);
-      const double m = options_.metres_per_unit;
+      const double scale = options_.metres_per_unit * OutputPerMetre();  // scene units to the stream's
       f.world_T_scan =
-          RigidMotion(world_T_sensor_nominal.rotation(), world_T_sensor_nominal.translation() * m);
+          RigidMotion(world_T_sensor_nominal.rotation(), world_T_sensor_nominal.translation() * scale);
     } else {
       f.kind = FrameKind::kProfile;
-      f.view = 0;  // one sweep: every profile belongs to the same view
-      f.points = LaserProfile(world_T_sensor_true, lab_T_world_true, rng);
+      f.view = k / t.steps;  // every profile of a sweep belongs to its view
+      f.points = LaserProfile(world_T_sensor_true, lab_T_world_true, sweep, rng);
       f.world_T_scan = world_T_sensor_nominal;
     }
     return f;
   }
 
   std::vector<std::int64_t> Views() const override {
-    if (options_.sensor == VirtualScannerOptions::Sensor::kLaserLine) return {0};
+    const bool laser = options_.sensor == VirtualScannerOptions::Sensor::kLaserLine;
+    const auto count = laser ? static_cast<std::int64_t>(sweeps_.size()) : *FrameCount();
     std::vector<std::int64_t> v;
-    for (int k = 0; k < options_.turntable.steps; ++k) v.push_back(k);
+    for (std::int64_t k = 0; k < count; ++k) v.push_back(k);
     return v;
   }
   void SeekView(std::int64_t view) override {
     const std::vector<std::int64_t> views = Views();
     if (std::find(views.begin(), views.end(), view) == views.end())
       throw std::out_of_range("virtual scanner: no view " + std::to_string(view));
-    next_ = options_.sensor == VirtualScannerOptions::Sensor::kLaserLine ? 0 : static_cast<int>(view);
+    next_ = static_cast<int>(options_.sensor == VirtualScannerOptions::Sensor::kLaserLine
+                                 ? view * options_.turntable.steps
+                                 : view);
   }
-  std::optional<std::int64_t> FrameCount() const override { return options_.turntable.steps; }
+  std::optional<std::int64_t> FrameCount() const override {
+    return static_cast<std::int64_t>(options_.turntable.steps) * static_cast<std::int64_t>(sweeps_.size());
+  }
 
  private:
+  double OutputPerMetre() const { return options_.camera.output_units == "mm" ? 1000.0 : 1.0; }
+
   static nlohmann::json Matrix(const Eigen::Matrix4d& m, double translation_scale) {
     nlohmann::json rows = nlohmann::json::array();
     for (int r = 0; r < 4; ++r) {
@@ -272,8 +292,15 @@ class VirtualScanner final : public FrameSource {
     return image;
   }
 
+  struct Sweep {
+    RigidMotion lab_T_sensor;
+    Eigen::Vector3d laser_camera_position = Eigen::Vector3d::Zero();
+    double fan_half_angle = 0.0;
+  };
+
   Eigen::Matrix3Xd LaserProfile(const RigidMotion& world_T_laser, const RigidMotion& lab_T_world_true,
-                                std::mt19937_64& rng) const {
+                                const Sweep& sweep, std::mt19937_64& rng) const {
+    const double fan_half_angle_ = sweep.fan_half_angle;
     const LaserLineOptions& l = options_.laser;
     const int n = l.points_per_profile;
     Eigen::Matrix3Xd origins(3, n), directions(3, n), local(3, n);
@@ -294,7 +321,7 @@ class VirtualScanner final : public FrameSource {
     }
     lit.conservativeResize(3, static_cast<Eigen::Index>(ray_of.size()));
     // Triangulation: the camera must see the lit point too (it sits camera_angle around the table).
-    const Eigen::Vector3d camera = lab_T_world_true.inverse() * laser_camera_position_;
+    const Eigen::Vector3d camera = lab_T_world_true.inverse() * sweep.laser_camera_position;
     const std::vector<bool> seen = caster_.Visible(lit, camera, 1e-3 * scale_);
     std::normal_distribution<double> gauss(0.0, 1.0);
     Eigen::Matrix3Xd out(3, lit.cols());
@@ -313,10 +340,8 @@ class VirtualScanner final : public FrameSource {
   RayCaster caster_;
   VirtualScannerOptions options_;
   SourceDescription description_;
-  RigidMotion lab_T_sensor_;
-  Eigen::Vector3d laser_camera_position_;
+  std::vector<Sweep> sweeps_;
   Eigen::Vector3d true_axis_, true_axis_point_;
-  double fan_half_angle_ = 0.0;
   double scale_ = 1.0;
   int next_ = 0;
 };
@@ -548,7 +573,22 @@ VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& s
     } else if (key == "distance") {
       o.distance = number();
     } else if (key == "elevation_deg") {
-      o.elevation_rad = number() * kDegree;
+      // Several elevations separated by ':' (one sweep each), e.g. 30:-30.
+      o.elevations_rad.clear();
+      std::stringstream list(value);
+      for (std::string e; std::getline(list, e, ':');) {
+        std::size_t used = 0;
+        double x = 0;
+        try {
+          x = std::stod(e, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (e.empty() || used != e.size() || !std::isfinite(x) || std::abs(x) >= 90)
+          throw std::invalid_argument("device option 'elevation_deg': '" + e +
+                                      "' is not an angle in (-90, 90)");
+        o.elevations_rad.push_back(x * kDegree);
+      }
     } else if (key == "target_height") {
       o.target_height = number();
     } else if (key == "width") {
@@ -565,6 +605,8 @@ VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& s
       o.camera.cy = number();
     } else if (key == "depth_unit") {
       o.camera.depth_unit_m = number();
+    } else if (key == "depth_units") {
+      o.camera.output_units = value;
     } else if (key == "disparity_noise") {
       o.camera.disparity_noise_px = number();
     } else if (key == "disparity_step") {

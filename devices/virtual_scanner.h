@@ -125,6 +125,9 @@ struct DepthCameraOptions {
   // Dropout at depth edges: no return where a 4-neighbour's true depth differs by more than this, or the
   // neighbour has no return (the projected pattern breaks up across a depth discontinuity). 0: off.
   double edge_jump_m = 0.02;
+  // Units of the depth stream's points and of the poses: "m" (OpenNI's convention) or "mm" (the raw values'
+  // scale is then depth_unit_m * 1000 mm per raw value; the measurement itself is the same).
+  std::string output_units = "m";
 };
 
 // A laser-line scanner on a turntable (Horus/Ciclop-like): a vertical laser fan, a camera beside the laser
@@ -152,10 +155,13 @@ struct VirtualScannerOptions {
   LaserLineOptions laser;
   TurntableOptions turntable;
   // Sensor placement in the lab: looking at `target_height` on the nominal axis from `distance` away (scene
-  // units), `elevation_rad` above the horizontal. distance 0: 0.7 m for the depth camera, 3 x the scene's
-  // radius for the laser; target_height NaN: the scene's mid-height.
+  // units), each of `elevations_rad` above the horizontal. distance 0: 0.7 m for the depth camera, 3 x the
+  // scene's radius for the laser; target_height NaN: the scene's mid-height.
   double distance = 0.0;
-  double elevation_rad = 0.3491;  // 20 degrees
+  // One sweep per elevation (a full turn each; the depth camera's frames are views of their own, a laser
+  // sweep is one view). No table is simulated: a negative elevation looks from below, as if the part had been
+  // turned over and put back at the same place.
+  std::vector<double> elevations_rad = {0.3491};  // 20 degrees
   double target_height = std::numeric_limits<double>::quiet_NaN();
   double metres_per_unit = 0.001;  // scene units to metres (the depth camera works in metres)
   std::int64_t start_time_ns = 1700000000000000000;  // timestamps: start + k * interval
@@ -165,11 +171,11 @@ struct VirtualScannerOptions {
 };
 
 // "virtual:<scene>[,key=value...]" as given to `scan2model record --device`: keys sensor=kinect|laser, steps,
-// seed, distance, elevation_deg, target_height, width, height, fx, fy, cx, cy, depth_unit, disparity_noise,
-// disparity_step, edge_jump, min_cosine, noise (laser), points (laser), camera_angle_deg, axis_tilt_deg,
-// axis_azimuth_deg, axis_offset_x, axis_offset_y, angle_noise_deg, interval, units (of a mesh). Fills `scene`
-// with the part before the first comma (after "virtual:"). Throws std::invalid_argument naming the bad key or
-// value.
+// seed, distance, elevation_deg (several: 30:-30), target_height, width, height, fx, fy, cx, cy, depth_unit,
+// depth_units (m or mm), disparity_noise, disparity_step, edge_jump, min_cosine, noise (laser), points
+// (laser), camera_angle_deg, axis_tilt_deg, axis_azimuth_deg, axis_offset_x, axis_offset_y, angle_noise_deg,
+// interval, units (of a mesh). Fills `scene` with the part before the first comma (after "virtual:"). Throws
+// std::invalid_argument naming the bad key or value.
 VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& scene,
                                          std::string& mesh_units);
 

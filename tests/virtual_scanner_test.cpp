@@ -337,6 +337,16 @@ TEST(VirtualScanner, DeviceSpecParsingAndBadOptions) {
   EXPECT_EQ(o.seed, 4u);
   EXPECT_NEAR(o.turntable.axis_tilt_rad, 0.5 * M_PI / 180, 1e-15);
   EXPECT_EQ(o.laser.noise, 0.01);
+  // Two sweeps (elevations): a laser gives one view per sweep, frames = steps x sweeps.
+  VirtualScannerOptions two =
+      ParseVirtualDevice("virtual:vase,sensor=laser,steps=5,points=50,elevation_deg=30:-30", scene, units);
+  ASSERT_EQ(two.elevations_rad.size(), 2u);
+  EXPECT_NEAR(two.elevations_rad[1], -30 * M_PI / 180, 1e-15);
+  const auto sweeps = MakeVirtualScanner(SceneByName("vase"), two);
+  EXPECT_EQ(sweeps->FrameCount(), 10);
+  EXPECT_EQ(sweeps->Views(), (std::vector<std::int64_t>{0, 1}));
+  EXPECT_EQ(FramesToScanSet(*sweeps).scans.size(), 2u);
+  EXPECT_THROW(ParseVirtualDevice("virtual:vase,elevation_deg=30:95", scene, units), std::invalid_argument);
   EXPECT_THROW(ParseVirtualDevice("kinect:vase", scene, units), std::invalid_argument);
   EXPECT_THROW(ParseVirtualDevice("virtual:vase,steps=x", scene, units), std::invalid_argument);
   EXPECT_THROW(ParseVirtualDevice("virtual:vase,colour=red", scene, units), std::invalid_argument);
