@@ -19,6 +19,12 @@
 #ifdef S2M_HAVE_VIRTUAL_SCANNER
 #include "devices/virtual_scanner.h"
 #endif
+#ifdef S2M_HAVE_PCL
+#include "acquisition/pcl_preprocess.h"
+#endif
+#ifdef S2M_HAVE_PCL
+#include "acquisition/pcl_preprocess.h"
+#endif
 
 namespace s2m::app {
 namespace {
@@ -119,6 +125,13 @@ Runner AddExportCommand(CLI::App& app) {
     std::string out;
     std::vector<std::int64_t> views;
     bool quiet = false;
+    // Preprocessing (acquisition/pcl_preprocess.h), each step optional, per view in its scanner's
+    // coordinates.
+    std::vector<double> crop_min, crop_max;
+    double voxel = 0.0;
+    bool remove_outliers = false, normals = false;
+    int outlier_neighbours = 50, normal_neighbours = 20;
+    double outlier_stddev = 1.0;
   };
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
@@ -133,8 +146,38 @@ Runner AddExportCommand(CLI::App& app) {
       ->required();
   cmd->add_option("--view", options->views, "Only these views (the recording's view numbers); repeatable");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");
+  const std::string group =
+      "Preprocessing (PCL; each view in its scanner's coordinates, sensor at the origin)";
+  cmd->add_option("--crop-min", options->crop_min, "Crop box corner x y z (with --crop-max), inclusive")
+      ->expected(3)
+      ->group(group);
+  cmd->add_option("--crop-max", options->crop_max, "Crop box corner x y z (with --crop-min)")
+      ->expected(3)
+      ->group(group);
+  cmd->add_flag("--remove-outliers", options->remove_outliers, "Statistical outlier removal")->group(group);
+  cmd->add_option("--outlier-neighbours", options->outlier_neighbours,
+                  "Neighbours of the outlier statistic (50)")
+      ->group(group);
+  cmd->add_option("--outlier-stddev", options->outlier_stddev,
+                  "Standard deviations beyond which a point goes (1.0)")
+      ->group(group);
+  cmd->add_option("--voxel", options->voxel,
+                  "Voxel-grid down-sampling, edge length in the data's units (0: off)")
+      ->group(group);
+  cmd->add_flag("--normals", options->normals, "Estimate normals, oriented towards the sensor")->group(group);
+  cmd->add_option("--normal-neighbours", options->normal_neighbours,
+                  "Neighbours of each normal's plane fit (20)")
+      ->group(group);
   return [options]() {
     try {
+      const bool crop = !options->crop_min.empty() || !options->crop_max.empty();
+      const bool preprocess = crop || options->voxel > 0 || options->remove_outliers || options->normals;
+      if (crop && (options->crop_min.size() != 3 || options->crop_max.size() != 3))
+        throw std::invalid_argument("--crop-min and --crop-max go together, three numbers each");
+#ifndef S2M_HAVE_PCL
+      if (preprocess)
+        throw std::invalid_argument("this build has no preprocessing (PCL was not found when it was built)");
+#endif
       std::unique_ptr<FrameSource> source = OpenSource("", options->inputs, false);
       ScanSet set;
       const FrameProgress progress = ProgressBar("converting", options->quiet);
@@ -173,6 +216,37 @@ Runner AddExportCommand(CLI::App& app) {
           for (Scan& s : part.scans) set.scans.push_back(std::move(s));
         }
       }
+#ifdef S2M_HAVE_PCL
+      if (preprocess) {
+        PreprocessOptions p;
+        p.crop = crop;
+        if (crop) {
+          p.crop_min = Eigen::Vector3d(options->crop_min[0], options->crop_min[1], options->crop_min[2]);
+          p.crop_max = Eigen::Vector3d(options->crop_max[0], options->crop_max[1], options->crop_max[2]);
+        }
+        p.voxel_size = options->voxel;
+        p.remove_outliers = options->remove_outliers;
+        p.outlier_neighbours = options->outlier_neighbours;
+        p.outlier_stddev = options->outlier_stddev;
+        p.estimate_normals = options->normals;
+        p.normal_neighbours = options->normal_neighbours;
+        for (std::size_t k = 0; k < set.scans.size(); ++k) {
+          Scan& scan = set.scans[k];
+          // Every frame source delivers views in the scanner's coordinates: the sensor is at the origin.
+          const PreprocessResult r = Preprocess(scan.points, Eigen::Vector3d::Zero(), p);
+          if (r.points.cols() == 0)
+            throw FormatError(scan.metadata.source, "", "preprocessing left no points in the view");
+          scan.points = r.points;
+          scan.normals = r.normals;
+          scan.metadata.notes.push_back("preprocessed: " + std::to_string(r.input) + " points, " +
+                                        std::to_string(r.removed_by_crop) + " cropped, " +
+                                        std::to_string(r.removed_as_outliers) + " outliers, " +
+                                        std::to_string(r.removed_by_voxel) + " merged by the voxel grid, " +
+                                        std::to_string(r.removed_without_normal) + " without a normal");
+          if (!options->quiet) std::cerr << "view " << k << ": " << scan.metadata.notes.back() << "\n";
+        }
+      }
+#endif
       fs::create_directories(options->out);
       const fs::path manifest = fs::path(options->out) / "views.json";
       WriteScanSet(manifest, set);

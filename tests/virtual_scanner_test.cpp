@@ -401,6 +401,23 @@ TEST(VirtualScanner, CliRecordAndExport) {
   ASSERT_EQ(one.scans.size(), 1u);
   EXPECT_EQ(one.scans[0].points, recorded.scans[2].points);
 
+#ifdef S2M_HAVE_PCL
+  // Preprocessing on export: outliers removed per view, normals estimated (facing the sensor at the origin).
+  ASSERT_EQ(RunCli("export -q " + rec + " --remove-outliers --outlier-stddev 2 --normals --out " +
+                   (dir / "pre").string())
+                .first,
+            0);
+  const ScanSet pre = ReadScanSet(dir / "pre" / "views.json");
+  ASSERT_EQ(pre.scans.size(), 4u);
+  for (std::size_t k = 0; k < 4; ++k) {
+    EXPECT_LT(pre.scans[k].size(), recorded.scans[k].size());
+    EXPECT_GT(pre.scans[k].size(), recorded.scans[k].size() * 8 / 10);
+    ASSERT_TRUE(pre.scans[k].has_normals());
+    for (Eigen::Index i = 0; i < pre.scans[k].size(); ++i)
+      ASSERT_LE(pre.scans[k].normals.col(i).dot(pre.scans[k].points.col(i)), 0.0);  // towards the sensor
+  }
+  EXPECT_EQ(RunCli("export -q " + rec + " --crop-min 0 0 --out " + (dir / "bad").string()).first, 2);
+#endif
   EXPECT_EQ(RunCli("record -q --device virtual:vase,colour=red --out " + (dir / "x.s2mrec").string()).first,
             2);
   EXPECT_EQ(RunCli("record -q --device virtual:teapot --out " + (dir / "x.s2mrec").string()).first, 2);
