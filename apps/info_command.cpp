@@ -2,6 +2,7 @@
 #include <iostream>
 
 #include "acquisition/format_error.h"
+#include "acquisition/frame_source.h"
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
 #include "apps/commands.h"
@@ -28,10 +29,8 @@ int DescribeRecording(const std::string& file, bool json) {
   j["device"] = JsonOrText(s.device);
   j["calibration"] = JsonOrText(s.calibration);
   j["streams"] = nlohmann::json::array();
-  int points_streams = 0;
   for (std::size_t k = 0; k < s.streams.size(); ++k) {
     const RecordingStream& st = s.streams[k];
-    points_streams += st.kind == "points" ? 1 : 0;
     j["streams"].push_back({{"id", st.id},
                             {"name", st.name},
                             {"kind", st.kind},
@@ -42,8 +41,13 @@ int DescribeRecording(const std::string& file, bool json) {
   }
   j["posed_frames"] = s.posed_frames;
   std::optional<ScanSet> views;
-  if (points_streams == 1) {
-    views = ReadRecording(file);  // decodes and validates every payload
+  std::int64_t frames = 0;
+  for (const std::int64_t n : s.frames_per_stream) frames += n;
+  if (frames > 0) {
+    // The views `fit` and `export` would read: every stream through the frame path (depth images
+    // back-projected, laser sweeps gathered); decodes and validates every payload.
+    const std::unique_ptr<FrameSource> source = OpenRecordingSource(file);
+    views = FramesToScanSet(*source);
     j["views"] = views->scans.size();
     j["points"] = views->TotalPoints();
     const Bounds b = ComputeBounds(views->MergedWorldPoints());
