@@ -215,6 +215,21 @@ void PartModel::UpdatePatches() {
         state.sample_parameters.push_back(t);
       }
     }
+    const auto nv = static_cast<Eigen::Index>(vs.size());
+    for (Eigen::Index i = 0; i + 1 < static_cast<Eigen::Index>(us.size()); ++i) {
+      for (Eigen::Index j = 0; j < nv; ++j) {
+        for (Eigen::Index dj = -1; dj <= 1; ++dj) {
+          if (j + dj >= 0 && j + dj < nv) {
+            state.covering_radius = std::max(
+                state.covering_radius, (points.col((i + 1) * nv + j + dj) - points.col(i * nv + j)).norm());
+          }
+        }
+        if (j + 1 < nv) {
+          state.covering_radius =
+              std::max(state.covering_radius, (points.col(i * nv + j + 1) - points.col(i * nv + j)).norm());
+        }
+      }
+    }
     state.samples = NearestIndex(std::move(points));
   }
 }
@@ -250,7 +265,8 @@ void PartModel::EvaluatePatch(std::size_t k, const ParamT& t, int derivatives, L
   }
 }
 
-std::pair<ParamT, double> PartModel::FootPointOnFace(std::size_t k, const Eigen::Vector3d& x) const {
+std::pair<ParamT, double> PartModel::FootPointOnFace(std::size_t k, const Eigen::Vector3d& x,
+                                                     double needed_within) const {
   const PartFace& f = definition_.faces[k];
   if (f.type != FaceType::kSplinePatch) {
     auto [t, d] = FaceFootPoint(f, values_, x);
@@ -258,7 +274,10 @@ std::pair<ParamT, double> PartModel::FootPointOnFace(std::size_t k, const Eigen:
     return {t, d};
   }
   const PatchState& state = patches_[k];
-  const ParamT seed = state.sample_parameters[static_cast<std::size_t>(state.samples.Nearest(x))];
+  const Eigen::Index nearest = state.samples.Nearest(x);
+  if ((state.samples.points().col(nearest) - x).norm() - state.covering_radius > needed_within)
+    return {{0.0, 0.0, static_cast<double>(k)}, std::numeric_limits<double>::infinity()};
+  const ParamT seed = state.sample_parameters[static_cast<std::size_t>(nearest)];
   LocalGeometry g;
   const FootPoint foot = RefineFootPoint(*this, PatchDomain(*f.patch), x, seed, g);
   return {foot.t, foot.distance};
@@ -486,11 +505,15 @@ std::vector<ParamT> PartModel::SampleParameters() const {
 bool PartModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
   const Eigen::Vector3d x3 = To3(x);
   double best = std::numeric_limits<double>::infinity();
-  for (std::size_t k = 0; k < definition_.faces.size(); ++k) {
-    auto [tk, d] = FootPointOnFace(k, x3);
-    if (d < best) {
-      best = d;
-      t = tk;
+  // Analytic faces first: their distances let most spline patches be skipped.
+  for (const bool patches : {false, true}) {
+    for (std::size_t k = 0; k < definition_.faces.size(); ++k) {
+      if ((definition_.faces[k].type == FaceType::kSplinePatch) != patches) continue;
+      auto [tk, d] = FootPointOnFace(k, x3, best);
+      if (d < best) {
+        best = d;
+        t = tk;
+      }
     }
   }
   return true;
@@ -509,7 +532,7 @@ bool PartModel::AmbiguousFootPoint(const VecS& x, const ParamT& t) const {
   const Eigen::Vector3d x3 = To3(x);
   const auto own = static_cast<std::size_t>(FaceOf(t));
   for (std::size_t k = 0; k < definition_.faces.size(); ++k) {
-    if (k != own && FootPointOnFace(k, x3).second < edge_margin_) return true;
+    if (k != own && FootPointOnFace(k, x3, edge_margin_).second < edge_margin_) return true;
   }
   return false;
 }

@@ -18,6 +18,7 @@
 // tube; spline patches the B-spline parameters.
 
 #include <array>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -126,11 +127,17 @@ class PartModel final : public ParametricModel {
     Eigen::Matrix3Xd control_points;
     std::vector<ParamT> sample_parameters;
     NearestIndex samples;
+    // Every point of the patch lies within this distance of a sample (the largest distance between grid
+    // neighbours, diagonals included): dist(x, nearest sample) - covering_radius bounds dist(x, patch) below.
+    double covering_radius = 0.0;
   };
   void Validate() const;
   void UpdatePatches();
-  // Foot point on face k (t[2] = k) and its distance.
-  std::pair<ParamT, double> FootPointOnFace(std::size_t k, const Eigen::Vector3d& x) const;
+  // Foot point on face k (t[2] = k) and its distance. A spline patch that cannot come closer than
+  // `needed_within` is not searched (distance infinity): most points are far from most patches.
+  std::pair<ParamT, double> FootPointOnFace(
+      std::size_t k, const Eigen::Vector3d& x,
+      double needed_within = std::numeric_limits<double>::infinity()) const;
   void EvaluatePatch(std::size_t k, const ParamT& t, int derivatives, LocalGeometry& out) const;
 
   PartDefinition definition_;
