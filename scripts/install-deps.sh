@@ -13,6 +13,7 @@ packages=(
   libbenchmark-dev
   libpcl-dev             # optional edge (s2m_pcl): PCL's reference ICP, coarse alignment (FPFH + RANSAC)
   libtiff-dev            # tests only: libtiff decodes the Kinect depth TIFFs independently of our reader
+  libopen3d-dev          # optional edge (s2m_virtual_scanner): the virtual scanner's ray casting (RaycastingScene)
 )
 
 missing=()
