@@ -5,11 +5,12 @@
 // through the FrameSource interface, so its output can be recorded and replayed like a device's.
 //
 // Ray casting uses Open3D's t::geometry::RaycastingScene (Embree, single precision) to find which triangle a
-// ray meets; the hit is then recomputed in double precision: on the triangle's plane for a plain mesh, and
-// by Newton's method on the exact surface for a tessellated model (ray S(u, v) = o + s d, started from the
-// triangle's barycentric interpolation of its vertices' parameters). Zero-noise hits therefore lie on the
-// model itself, not on its tessellation (tests/virtual_scanner_test.cpp: to 1e-9 relative). Open3D appears
-// only in devices/open3d_ray_caster.cpp.
+// ray meets -- its CastRays, or, where that finds nothing (Debian's Open3D 0.16 build: docs/acquisition.md),
+// sphere tracing on its closest-point queries; the hit is then recomputed in double precision: on the
+// triangle's plane for a plain mesh, and by Newton's method on the exact surface for a tessellated model (ray
+// S(u, v) = o + s d, started from the triangle's barycentric interpolation of its vertices' parameters).
+// Zero-noise hits therefore lie on the model itself, not on its tessellation (tests/virtual_scanner_test.cpp:
+// to 1e-9 relative). Open3D appears only in devices/open3d_ray_caster.cpp.
 //
 // Turntable convention: the world is the turntable's frame at angle 0 (z up the nominal axis, origin on the
 // axis at the table's surface), in which the scene is placed. At turntable angle theta the table has turned
