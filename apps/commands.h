@@ -19,5 +19,7 @@ using Runner = std::function<int()>;
 
 Runner AddInfoCommand(CLI::App& app);
 Runner AddFitCommand(CLI::App& app);
+Runner AddBatchCommand(CLI::App& app);   // apps/batch_command.cpp, docs/batch.md
+Runner AddReportCommand(CLI::App& app);  // apps/report.cpp
 
 }  // namespace s2m::app

@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
       "3 bad input, 4 fit failed.");
   const s2m::app::Runner info = s2m::app::AddInfoCommand(app);
   const s2m::app::Runner fit = s2m::app::AddFitCommand(app);
+  const s2m::app::Runner batch = s2m::app::AddBatchCommand(app);
+  const s2m::app::Runner report = s2m::app::AddReportCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -34,6 +36,8 @@ int main(int argc, char** argv) {
   try {
     if (app.got_subcommand("info")) return info();
     if (app.got_subcommand("fit")) return fit();
+    if (app.got_subcommand("batch")) return batch();
+    if (app.got_subcommand("report")) return report();
   } catch (const std::exception& e) {
     std::cerr << "scan2model: internal error: " << e.what() << "\n";
     return s2m::app::kInternal;
