@@ -342,7 +342,7 @@ class Progress {
     --running_;
     ++computed_;
     if (!ok) ++failed_;
-    if (options_.progress && !ok) {
+    if (!ok) {  // errors are printed even without the progress line
       std::cerr << (tty_ ? "\r\033[K" : "") << options_.progress_prefix << "object " << id
                 << " failed: " << error << "\n";
     }
@@ -408,8 +408,8 @@ nlohmann::json ComputeObject(const BatchObject& object, const BatchOptions& opti
       const std::string units = result["input"].value("units", "unknown");
       WriteProfileFiles((dir / object.id).string(), result["vessel"], units);
     }
-    if (options.reports) WriteTextAtomically((dir / (object.id + ".html")).string(), ReportHtml(record));
   }
+  if (options.reports) WriteTextAtomically((dir / (object.id + ".html")).string(), ReportHtml(record));
   // Last: the record's presence under its final name marks the object finished.
   WriteTextAtomically(RecordPath(options.output_dir, object.id), record.dump(1) + "\n");
   return record;

@@ -102,6 +102,10 @@ int Run(BatchCommandOptions& o) {
     } else {
       entries = RunBatchObjects(manifest, mine, o.run, counts);
     }
+    if (mpi && !o.summary_only) {
+      std::cerr << o.run.progress_prefix << "done: " << mine.size() << " objects (" << counts.computed
+                << " computed, " << counts.skipped << " skipped)\n";
+    }
     nlohmann::json pairs = nlohmann::json::array();
     for (std::size_t i = 0; i < mine.size(); ++i) pairs.push_back({mine[i], entries[i]});
     std::vector<nlohmann::json> all;
@@ -120,7 +124,7 @@ int Run(BatchCommandOptions& o) {
         const std::string status = e["status"].get<std::string>();
         (status == "ok" ? ok : status == "missing" ? missing : failed) += 1;
       }
-      if (!o.quiet) {
+      {
         std::cerr << "[batch] " << all.size() << " objects: " << ok << " ok, " << failed << " failed";
         if (missing > 0) std::cerr << ", " << missing << " missing";
         if (!o.summary_only && !mpi)
@@ -171,7 +175,7 @@ Runner AddBatchCommand(CLI::App& app) {
                 "writes the summary");
   cmd->add_flag("--summary-only", o->summary_only,
                 "Fit nothing: collect the summary from the results already in the output folder");
-  cmd->add_flag("--quiet,-q", o->quiet, "No progress line");
+  cmd->add_flag("--quiet,-q", o->quiet, "No progress line (the closing line and errors are still printed)");
   return [o]() { return Run(*o); };
 }
 

@@ -45,8 +45,9 @@ nlohmann::json DeviationsJson(const Eigen::Matrix3Xd& world_points, const Eigen:
                               const DeviationOptions& options = {});
 
 // The scanner noise of the views, without a model: per view, local quadrics (registration/local_quadric.h)
-// over the 20 nearest neighbours of up to 300 points spread over the view; the pooled residual variance with
-// k - 6 degrees of freedom per neighbourhood. NaN when no view has enough points.
+// over the 8 nearest neighbours of up to 500 points spread over the view; the pooled residual variance with
+// k - 6 degrees of freedom per neighbourhood (k - 3 where the quadric falls back to a plane). NaN when no
+// view has enough points.
 double EstimateNoise(const ScanSet& set);
 // Adequacy of a model: ratio = fit RMS / noise estimate; adequate when the ratio is at most
 // kAdequacyThreshold (null when the noise is unknown).
