@@ -45,9 +45,9 @@ nlohmann::json DeviationsJson(const Eigen::Matrix3Xd& world_points, const Eigen:
                               const DeviationOptions& options = {});
 
 // The scanner noise of the views, without a model: per view, local quadrics (registration/local_quadric.h)
-// over the 8 nearest neighbours of up to 500 points spread over the view; the pooled residual variance with
-// k - 6 degrees of freedom per neighbourhood (k - 3 where the quadric falls back to a plane). NaN when no
-// view has enough points.
+// over the 8 nearest neighbours of up to 500 points spread over the view; each gives SS / dof scaled to have
+// the noise variance as its median; the square root of the median over all of them (docs/batch.md). NaN when
+// fewer than 10 neighbourhoods could be fitted.
 double EstimateNoise(const ScanSet& set);
 // Adequacy of a model: ratio = fit RMS / noise estimate; adequate when the ratio is at most
 // kAdequacyThreshold (null when the noise is unknown).
