@@ -13,6 +13,8 @@ packages=(
   libbenchmark-dev
   libpcl-dev             # optional edge (s2m_pcl): PCL's reference ICP, coarse alignment (FPFH + RANSAC)
   libtiff-dev            # tests only: libtiff decodes the Kinect depth TIFFs independently of our reader
+  libopenmpi-dev openmpi-bin  # optional: `scan2model batch` under mpirun (docs/batch.md)
+  chromium               # tests only: the HTML report opens in headless Chromium (tests/report_test.cpp)
 )
 
 missing=()
