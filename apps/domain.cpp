@@ -279,7 +279,7 @@ std::string ProfileSvg(const nlohmann::json& v, const std::string& units) {
     << "\" viewBox=\"0 0 " << kWidth << " " << kHeight << "\" font-family=\"sans-serif\" font-size=\"12\">\n"
     << "<title>Vessel profile</title>\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
   // Axis (dash-dot), the section left of it, the outline mirrored right of it.
-  s << "<line x1=\"" << Num(axis_x) << "\" y1=\"" << Num(Y(max_h) - 20) << "\" x2=\"" << Num(axis_x)
+  s << "<line x1=\"" << Num(axis_x) << "\" y1=\"" << Num(Y(max_h) - 3) << "\" x2=\"" << Num(axis_x)
     << "\" y2=\"" << Num(Y(min_h) + 20)
     << "\" stroke=\"#000\" stroke-width=\"0.8\" stroke-dasharray=\"12 3 2 3\"/>\n";
   std::ostringstream left, right;
@@ -294,7 +294,7 @@ std::string ProfileSvg(const nlohmann::json& v, const std::string& units) {
   const std::string u = svg::Escape(units);
   s << "<line x1=\"" << Num(X(-rim.x())) << "\" y1=\"" << Num(Y(rim.y())) << "\" x2=\"" << Num(X(rim.x()))
     << "\" y2=\"" << Num(Y(rim.y())) << "\" stroke=\"#b2182b\" stroke-width=\"1.2\"/>\n"
-    << "<text x=\"" << Num(axis_x) << "\" y=\"" << Num(Y(rim.y()) - 8)
+    << "<text x=\"" << Num(axis_x) << "\" y=\"" << Num(Y(rim.y()) - 10)
     << "\" text-anchor=\"middle\" fill=\"#b2182b\">rim &#216; " << svg::Escape(Format(2 * rim.x(), 5)) << " "
     << u << "</text>\n"
     << "<line x1=\"" << Num(X(-base.x())) << "\" y1=\"" << Num(Y(base.y())) << "\" x2=\"" << Num(X(base.x()))

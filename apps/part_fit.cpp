@@ -57,6 +57,21 @@ nlohmann::json NumberOrNull(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
+// A parameter against its tolerance (nominal +- tolerance): the plain verdict, and the decision of ISO
+// 14253-1 with the expanded uncertainty U = 2 u (conformance or non-conformance proven, or neither).
+struct Tolerance {
+  std::string verdict;   // "pass" when |deviation| <= tolerance, else "fail"
+  std::string decision;  // "conforms", "does not conform", "ambiguous"
+};
+Tolerance CheckTolerance(double deviation, double tolerance, double uncertainty) {
+  const double d = std::abs(deviation);
+  const double expanded =
+      std::isfinite(uncertainty) ? 2 * uncertainty : std::numeric_limits<double>::infinity();
+  return {d <= tolerance ? "pass" : "fail", d + expanded <= tolerance  ? "conforms"
+                                            : d - expanded > tolerance ? "does not conform"
+                                                                       : "ambiguous"};
+}
+
 // The correlation matrix of the shape parameters; empty when there is no covariance (too few points). Rows
 // and columns of parameters without a finite uncertainty (unobservable) are NaN.
 Eigen::MatrixXd Correlation(const Eigen::MatrixXd& covariance, const std::vector<Reported>& parameters) {
@@ -164,15 +179,25 @@ FitOutcome ComputePartFit(const FitOptions& o) {
     j["method"] = ToString(options.error_term);
     j["solver"] = SolverName(options);
     j["parameters"] = nlohmann::json::array();
+    std::string verdict;  // over the parameters with tolerances: "pass", "fail", or none
     for (std::size_t i = 0; i < reported.size(); ++i) {
       const Reported& p = reported[i];
-      j["parameters"].push_back({{"name", names[i]},
-                                 {"value", p.value},
-                                 {"standard_uncertainty", NumberOrNull(p.uncertainty)},
-                                 {"nominal", p.nominal},
-                                 {"deviation", p.value - p.nominal},
-                                 {"unit", p.unit}});
+      nlohmann::json entry = {{"name", names[i]},
+                              {"value", p.value},
+                              {"standard_uncertainty", NumberOrNull(p.uncertainty)},
+                              {"nominal", p.nominal},
+                              {"deviation", p.value - p.nominal},
+                              {"unit", p.unit}};
+      if (const auto t = file.tolerances.find(names[i]); t != file.tolerances.end()) {
+        const Tolerance check = CheckTolerance(p.value - p.nominal, t->second, p.uncertainty);
+        entry["tolerance"] = t->second;
+        entry["verdict"] = check.verdict;
+        entry["decision"] = check.decision;
+        verdict = verdict == "fail" || check.verdict == "fail" ? "fail" : "pass";
+      }
+      j["parameters"].push_back(std::move(entry));
     }
+    if (!verdict.empty()) j["verdict"] = verdict;
     j["fixed_parameters"] = nlohmann::json::array();
     for (const PartParameter& p : file.fixed_parameters) {
       const Reported f = Report(p, p.value, 0.0, units);
@@ -228,6 +253,17 @@ FitOutcome ComputePartFit(const FitOptions& o) {
       text << "  " << std::left << std::setw(24) << p.name << std::right << std::setw(14)
            << Format(f.value, 8) << std::setw(24) << "(fixed)" << std::setw(14) << ""
            << "  " << f.unit << "\n";
+    }
+    if (j.contains("verdict")) {
+      text << "\n  tolerances (nominal +- tolerance; decision by ISO 14253-1 with U = 2u)\n";
+      for (const nlohmann::json& p : j["parameters"]) {
+        if (!p.contains("tolerance")) continue;
+        text << "  " << std::left << std::setw(24) << p["name"].get<std::string>() << std::right
+             << " deviation " << std::setw(12) << Format(p["deviation"].get<double>(), 4) << "  tolerance +-"
+             << std::setw(8) << Format(p["tolerance"].get<double>(), 4) << "  "
+             << p["verdict"].get<std::string>() << " (" << p["decision"].get<std::string>() << ")\n";
+      }
+      text << "  verdict           " << j["verdict"].get<std::string>() << "\n";
     }
     if (correlation.size() > 0) text << CorrelationTable(names, correlation);
     text << "\n  face                      type        points          RMS          max\n";

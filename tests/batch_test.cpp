@@ -249,6 +249,46 @@ TEST(Batch, ManifestErrorsNameTheProblem) {
   fs::remove_all(dir);
 }
 
+TEST(Batch, PartTolerancesGiveVerdicts) {
+  const fs::path dir = FreshDir("tolerances");
+  nlohmann::json part = ReadJson(fs::path(S2M_SOURCE_DIR) / "docs/examples/counterbored_block.part.json");
+  part["parameters"]["width"] = {{"value", 60.0}, {"tolerance", 0.1}};  // measured 60 +- 0.003: passes
+  part["parameters"]["bore_diameter"] = {{"value", 10.0}, {"tolerance", 0.0}};  // any deviation fails
+  std::ofstream(dir / "block.part.json") << part.dump(2);
+  part["parameters"]["depth"] = {{"value", 40.0}, {"tolerance", -1}};
+  std::ofstream(dir / "bad.part.json") << part.dump(2);
+  const std::string views = std::string(S2M_SOURCE_DIR) + "/recordings/demo_block/views.json";
+  std::ofstream(dir / "batch.csv") << "id,input,model\nblock," << views << ",part:block.part.json\nbad,"
+                                   << views << ",part:bad.part.json\n";
+  const Result r =
+      Shell(Cli() + " batch " + (dir / "batch.csv").string() + " -q --report -o " + (dir / "out").string());
+  EXPECT_EQ(r.exit_code, 4) << r.out;
+  const nlohmann::json summary = ReadJson(dir / "out" / "summary.json");
+  const nlohmann::json& block = summary["objects"][0];
+  ASSERT_EQ(block["status"], "ok") << block;
+  EXPECT_EQ(block["verdict"], "fail");
+  std::map<std::string, nlohmann::json> by_name;
+  for (const nlohmann::json& p : block["parameters"]) by_name[p["name"].get<std::string>()] = p;
+  EXPECT_EQ(by_name["width"]["verdict"], "pass");
+  EXPECT_EQ(by_name["width"]["tolerance"], 0.1);
+  EXPECT_EQ(by_name["bore_diameter"]["verdict"], "fail");
+  EXPECT_FALSE(by_name["depth"].contains("verdict"));  // no tolerance given
+  const nlohmann::json record = ReadJson(dir / "out" / "objects" / "block.json");
+  for (const nlohmann::json& p : record["result"]["parameters"]) {
+    if (p["name"] == "width") {
+      EXPECT_EQ(p["decision"], "conforms") << p;  // |deviation| + 2u well inside 0.1
+    }
+  }
+  const nlohmann::json& bad = summary["objects"][1];
+  EXPECT_EQ(bad["exit_code"], 3);
+  EXPECT_NE(bad["error"].get<std::string>().find("parameter 'depth': the tolerance"), std::string::npos)
+      << bad;
+  const std::string html = ReadText(dir / "out" / "objects" / "block.html");
+  EXPECT_NE(html.find("<span class=\"fail\">fail</span>"), std::string::npos);
+  EXPECT_NE(html.find("<span class=\"pass\">pass</span>"), std::string::npos);
+  fs::remove_all(dir);
+}
+
 TEST(Batch, MpiGivesTheSameSummaryAsOneProcess) {
   if (Shell("command -v mpirun").exit_code != 0) GTEST_SKIP() << "mpirun not installed (openmpi-bin)";
   const fs::path dir = FreshDir("mpi");
