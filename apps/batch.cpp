@@ -555,7 +555,8 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
       }
     }
   } else if (schema == "scan2model.multiview/1") {
-    AddVector(out, "axis_point", d["axis"]["point"], units);
+    // A spiral's axis point is its centre (the fixed point of the spiral motion).
+    AddVector(out, d.contains("growth") ? "centre" : "axis_point", d["axis"]["point"], units);
     AddVector(out, "axis_direction", d["axis"]["direction"], "");
     if (d.contains("pitch")) {
       out.push_back(

@@ -146,6 +146,7 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
       EXPECT_EQ(e["status"], "ok") << e["id"];
       EXPECT_LT(e["rms"].get<double>(), 0.03) << e["id"];  // noise 0.02
       EXPECT_EQ(e["adequate"], true) << e["id"];
+      EXPECT_LT(e["rms_to_noise"].get<double>(), 1.2) << e["id"];  // measured: 0.88 - 1.05
     }
   }
   // The CSV: a header and one line per object.
@@ -173,6 +174,15 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
     DropTimings(in_batch);
     EXPECT_EQ(alone, in_batch) << id;
   }
+
+  // The adequacy figure tells a wrong model: a shell fitted as a surface of revolution.
+  const Result wrong = Shell(Cli() + " fit --model revolution " + (dir / "shell_00" / "views.json").string() +
+                             " --json 2>/dev/null");
+  ASSERT_EQ(wrong.exit_code, 0) << wrong.out;
+  const nlohmann::json adequacy = nlohmann::json::parse(wrong.out)["adequacy"];
+  EXPECT_EQ(adequacy["adequate"], false) << adequacy;
+  EXPECT_GT(adequacy["rms_to_noise"].get<double>(), 10.0) << adequacy;  // measured: 47
+  EXPECT_NEAR(adequacy["noise_estimate"].get<double>(), 0.02, 0.006) << adequacy;
 
   // A third run has nothing left but the failed object.
   const Result again = Shell(batch + " -q");
