@@ -409,7 +409,13 @@ nlohmann::json ComputeObject(const BatchObject& object, const BatchOptions& opti
       WriteProfileFiles((dir / object.id).string(), result["vessel"], units);
     }
   }
-  if (options.reports) WriteTextAtomically((dir / (object.id + ".html")).string(), ReportHtml(record));
+  if (options.reports) {
+    try {  // a report that cannot be drawn is a note, not a failed object
+      WriteTextAtomically((dir / (object.id + ".html")).string(), ReportHtml(record));
+    } catch (const std::exception& e) {
+      record["notes"].push_back(std::string("no report: ") + e.what());
+    }
+  }
   // Last: the record's presence under its final name marks the object finished.
   WriteTextAtomically(RecordPath(options.output_dir, object.id), record.dump(1) + "\n");
   return record;

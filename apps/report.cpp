@@ -196,6 +196,8 @@ std::string Deviations(const nlohmann::json& d) {
     const Eigen::Matrix3d projector = Eigen::Matrix3d::Identity() - up * up.transpose();
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(projector * scatter * projector);
     across = eig.eigenvectors().col(2);
+    // A shell's whorls show from above: look down the axis.
+    if (d.contains("growth")) up = up.cross(across).normalized();
   } else {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
     across = eig.eigenvectors().col(2);
@@ -220,7 +222,9 @@ std::string Deviations(const nlohmann::json& d) {
                                 std::to_string(dev["sample"]["stride"].get<long long>()) + ". point)",
                             projected, ordered_values, range, units, {640, 480})
     << "<figcaption class=\"note\">Colour scale &#177;3 RMS; red outside the model, blue inside. "
-    << (d.contains("axis") ? "Side view, axis up." : "View along the points' least principal direction.")
+    << (d.contains("growth") ? "View down the spiral's axis."
+        : d.contains("axis") ? "Side view, axis up."
+                             : "View along the points' least principal direction.")
     << "</figcaption></figure>\n";
   return s.str();
 }
@@ -237,9 +241,12 @@ std::string Views(const nlohmann::json& d) {
   std::vector<double> rotation, translation;
   for (std::size_t k = 0; k < views.size(); ++k) {
     const nlohmann::json& v = views[k];
-    auto norm3 = [](const nlohmann::json& a) {
+    auto norm3 = [](const nlohmann::json& a) {  // null when a component is unknown (unobservable)
       double sum = 0;
-      for (const nlohmann::json& x : a) sum += x.get<double>() * x.get<double>();
+      for (const nlohmann::json& x : a) {
+        if (!x.is_number()) return nlohmann::json(nullptr);
+        sum += x.get<double>() * x.get<double>();
+      }
       return nlohmann::json(std::sqrt(sum));
     };
     const bool u = v.contains("pose_uncertainty");

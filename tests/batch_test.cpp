@@ -117,7 +117,7 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
   }
 
   // The re-run computes only the rest (a failed object is retried: its input may have been fixed).
-  const Result resumed = Shell(batch + " -q");
+  const Result resumed = Shell(batch + " -q --report");
   EXPECT_EQ(resumed.exit_code, 4) << resumed.out;  // one object failed
   EXPECT_NE(resumed.out.find("(" + std::to_string(20 - finished_ok) + " computed, " +
                              std::to_string(finished_ok) + " skipped)"),
@@ -159,6 +159,13 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
   EXPECT_NE(line.find("whorl_expansion_rate"), std::string::npos);
   while (std::getline(csv, line)) ++lines;
   EXPECT_EQ(lines, 20);
+  // Reports of objects computed by the re-run (the shells come last in the manifest), also with unknown pose
+  // uncertainty components (null in the JSON).
+  const std::string shell_report = ReadText(out / "objects" / "shell_01.html");
+  EXPECT_NE(shell_report.find("whorl_expansion_rate"), std::string::npos);
+  EXPECT_FALSE(ReadJson(out / "objects" / "shell_01.json").contains("notes") &&
+               ReadJson(out / "objects" / "shell_01.json")["notes"].dump().find("no report") !=
+                   std::string::npos);
   EXPECT_TRUE(fs::exists(out / "objects" / "pot_00_profile.svg"));
   EXPECT_TRUE(fs::exists(out / "objects" / "sherd_03_profile.csv"));
 
