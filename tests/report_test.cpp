@@ -80,6 +80,20 @@ TEST_F(Report, IsSelfContainedWithEverySection) {
         "<h2>Views and pose corrections</h2>", "distance (log scale)"}) {
     EXPECT_NE(html_.find(section), std::string::npos) << section;
   }
+  // A primitive fit: its parameters with their uncertainties, its deviations; no views.
+  const std::string sphere = std::string(S2M_TEST_DATA_DIR) + "/nist/sph1.ds";
+  ASSERT_EQ(Shell(std::string(S2M_CLI_PATH) + " fit --model sphere " + sphere + " --json > " +
+                  (dir_ / "sphere.json").string())
+                .exit_code,
+            0);
+  ASSERT_EQ(Shell(std::string(S2M_CLI_PATH) + " report " + (dir_ / "sphere.json").string() + " -o " +
+                  (dir_ / "sphere.html").string())
+                .exit_code,
+            0);
+  const std::string primitive = ReadText(dir_ / "sphere.html");
+  EXPECT_NE(primitive.find("<td class=\"name\">radius</td>"), std::string::npos);
+  EXPECT_NE(primitive.find("Residual histogram"), std::string::npos);
+  EXPECT_EQ(primitive.find("Views and pose corrections"), std::string::npos);
   // A document that is no fit result is bad input.
   std::ofstream(dir_ / "other.json") << "{\"schema\": \"scan2model.info/1\"}";
   const Result bad = Shell(std::string(S2M_CLI_PATH) + " report " + (dir_ / "other.json").string() + " -o " +
