@@ -287,6 +287,12 @@ class Reader {
           } else if (!unit.empty() && unit != "length") {
             Fail(where, "unit must be \"deg\" (an angle) or \"length\", not \"" + unit + "\"");
           }
+          if (spec.contains("tolerance")) {
+            const Json& t = spec["tolerance"];
+            if (!t.is_number() || !std::isfinite(t.get<double>()) || t.get<double>() < 0)
+              Fail(where, "the tolerance must be a non-negative number (value +- tolerance)");
+            out.tolerances[name] = t.get<double>();
+          }
         } else {
           Fail(where, "expected a number or {\"value\": number, \"unit\": \"deg\", \"fixed\": bool}");
         }

@@ -4,6 +4,7 @@
 // "bore_diameter / 2" (+, -, *, / by numbers, parentheses). Angles are written in degrees in the file and
 // held in radians in the model.
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,9 @@ struct PartFile {
   PartDefinition definition;                    // the free parameters in the order the file lists them
   std::vector<PartParameter> fixed_parameters;  // with their values (angles in radians), for reports
   std::string units;                            // of the lengths, as the file states ("" when it does not)
+  // Optional symmetric tolerances by parameter name ({"value": 60, "tolerance": 0.1}: 60 +- 0.1), in the
+  // file's units (degrees for angles); docs/batch.md.
+  std::map<std::string, double> tolerances;
 };
 
 // Throws FormatError naming the file, the face or parameter, and the problem.

@@ -21,5 +21,7 @@ Runner AddInfoCommand(CLI::App& app);
 Runner AddFitCommand(CLI::App& app);
 Runner AddRecordCommand(CLI::App& app);  // apps/acquire_commands.cpp
 Runner AddExportCommand(CLI::App& app);
+Runner AddBatchCommand(CLI::App& app);   // apps/batch_command.cpp, docs/batch.md
+Runner AddReportCommand(CLI::App& app);  // apps/report.cpp
 
 }  // namespace s2m::app

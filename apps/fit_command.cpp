@@ -4,11 +4,13 @@
 #include <iostream>
 #include <optional>
 #include <set>
+#include <sstream>
 
 #include "acquisition/format_error.h"
 #include "acquisition/nist_reference.h"
 #include "acquisition/point_cloud_io.h"
 #include "apps/commands.h"
+#include "apps/domain.h"
 #include "apps/fit_options.h"
 #include "apps/output.h"
 #include "fitting/primitive_compare.h"
@@ -63,7 +65,8 @@ Cone ReadReference(const std::string& f, const Cone&) {
 }
 
 template <class Shape, class FitFn>
-int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, FitFn fit_fn) {
+FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std::string& format,
+                               FitFn fit_fn) {
   PrimitiveFitOptions options;
   options.method = o.method == "sdm" ? PrimitiveMethod::kSdm : PrimitiveMethod::kTdm;
   options.solver.max_iterations = o.max_iterations;
@@ -77,8 +80,9 @@ int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, Fit
   if (!o.reference.empty()) deviation = Compare(fit.shape, ReadReference(o.reference, fit.shape));
   if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(fit.history));
 
-  if (o.json) {
-    nlohmann::json j;
+  FitOutcome outcome;
+  {
+    nlohmann::json& j = outcome.document;
     j["schema"] = "scan2model.fit/1";
     j["input"] = DescribeScan(scan, o.file, format);
     j["model"] = o.model;
@@ -105,42 +109,43 @@ int RunFit(const FitOptions& o, const Scan& scan, const std::string& format, Fit
                         {"size", deviation->size},
                         {"apex_angle_rad", deviation->angle}};
     }
-    std::cout << j.dump(2) << "\n";
-    return kOk;
+    j["deviations"] = DeviationsJson(scan.points, SignedDistances(fit.shape, scan.points));
   }
 
-  std::cout << "scan2model fit: " << o.model << " to " << scan.size() << " points of " << o.file << " ("
-            << format << ", units " << scan.units << ")\n\n";
-  for (const Row& r : rows) std::cout << "  " << std::left << std::setw(18) << r.name << r.text << "\n";
+  std::ostringstream text;
+  text << "scan2model fit: " << o.model << " to " << scan.size() << " points of " << o.file << " (" << format
+       << ", units " << scan.units << ")\n\n";
+  for (const Row& r : rows) text << "  " << std::left << std::setw(18) << r.name << r.text << "\n";
   if (!fit.uncertainties.empty()) {
-    std::cout << "\n  standard uncertainties (type A, from the residuals)\n";
+    text << "\n  standard uncertainties (type A, from the residuals)\n";
     for (const ParameterUncertainty& u : fit.uncertainties) {
-      std::cout << "  " << std::left << std::setw(18) << u.name << Format(u.standard_uncertainty, 3)
-                << (u.is_angle ? " rad" : "") << "\n";
+      text << "  " << std::left << std::setw(18) << u.name << Format(u.standard_uncertainty, 3)
+           << (u.is_angle ? " rad" : "") << "\n";
     }
   } else {
-    std::cout << "\n  no uncertainties: as many parameters as points (the fit interpolates and may not be "
-                 "unique)\n";
+    text << "\n  no uncertainties: as many parameters as points (the fit interpolates and may not be "
+            "unique)\n";
   }
-  std::cout << "\n  residuals         RMS " << Format(fit.residuals.rms, 6) << ", max "
-            << Format(fit.residuals.max_abs, 6) << ", mean " << Format(fit.residuals.mean, 3) << "\n"
-            << "  solver            " << ToString(options.method) << " + Levenberg-Marquardt, "
-            << fit.iterations << " iterations, stopped: " << ToString(fit.stop_reason) << ", "
-            << Format(seconds * 1e3, 3) << " ms\n";
-  if (o.verbose) std::cout << HistoryTable(fit.history);
+  text << "\n  residuals         RMS " << Format(fit.residuals.rms, 6) << ", max "
+       << Format(fit.residuals.max_abs, 6) << ", mean " << Format(fit.residuals.mean, 3) << "\n"
+       << "  solver            " << ToString(options.method) << " + Levenberg-Marquardt, " << fit.iterations
+       << " iterations, stopped: " << ToString(fit.stop_reason) << ", " << Format(seconds * 1e3, 3)
+       << " ms\n";
+  if (o.verbose) text << HistoryTable(fit.history);
   if (deviation) {
-    std::cout << "\n  against reference " << o.reference << " (relative to the data's extent "
-              << Format(extent, 6) << ")\n"
-              << "  position          " << Format(deviation->position / extent, 3) << "\n";
+    text << "\n  against reference " << o.reference << " (relative to the data's extent " << Format(extent, 6)
+         << ")\n"
+         << "  position          " << Format(deviation->position / extent, 3) << "\n";
     if (deviation->direction > 0 || !std::is_same_v<Shape, Sphere>) {
-      std::cout << "  direction         " << Format(deviation->direction, 3) << " rad\n";
+      text << "  direction         " << Format(deviation->direction, 3) << " rad\n";
     }
     if (!std::is_same_v<Shape, Plane>)
-      std::cout << "  size              " << Format(deviation->size / extent, 3) << "\n";
+      text << "  size              " << Format(deviation->size / extent, 3) << "\n";
     if (std::is_same_v<Shape, Cone>)
-      std::cout << "  apex angle        " << Format(deviation->angle, 3) << " rad\n";
+      text << "  apex angle        " << Format(deviation->angle, 3) << " rad\n";
   }
-  return kOk;
+  outcome.text = text.str();
+  return outcome;
 }
 
 }  // namespace
@@ -226,37 +231,61 @@ Runner AddFitCommand(CLI::App& app) {
   cmd->add_flag("--verbose,-v", o->verbose,
                 "Print the per-iteration history (RMS, max distance, damping, step, time)");
   cmd->add_flag("--json", o->json, "Machine-readable output (schema scan2model.fit/1, docs/cli.md)");
-  return [o]() {
-    if (o->model == "bspline-curve" || o->model == "bspline-surface") return RunSplineFit(*o);
-    if (o->model == "revolution" || o->model == "helical" || o->model == "spiral") return RunMultiViewFit(*o);
-    if (o->model.rfind("part:", 0) == 0) return RunPartFit(*o);
-    if (o->method.empty()) o->method = "tdm";
-    if (o->method != "tdm" && o->method != "sdm") {
-      std::cerr << "scan2model fit: error: --method " << o->method
-                << " applies to splines; primitives use tdm or sdm\n";
-      return int{kUsage};
+  return [o]() { return RunFit(*o); };
+}
+
+FitOutcome ComputeFit(const FitOptions& o) {
+  if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
+  if (o.model == "revolution" || o.model == "helical" || o.model == "spiral") return ComputeMultiViewFit(o);
+  if (o.model.rfind("part:", 0) == 0) return ComputePartFit(o);
+  if (o.model != "plane" && o.model != "sphere" && o.model != "cylinder" && o.model != "cone")
+    throw FitFailure(kUsage, o.model + " is not a model (docs/cli.md)");
+  FitOptions options = o;
+  if (options.method.empty()) options.method = "tdm";
+  if (options.method != "tdm" && options.method != "sdm") {
+    throw FitFailure(kUsage, "--method " + options.method + " applies to splines; primitives use tdm or sdm");
+  }
+  try {
+    const PointCloudFormat format = DetectFormat(options.file);
+    Scan scan = ReadPointCloud(options.file, format);
+    if (!options.units.empty()) scan.units = options.units;
+    const std::string f = ToString(format);
+    FitOutcome outcome;
+    if (options.model == "plane") {
+      outcome = ComputePrimitiveFit<Plane>(options, scan, f,
+                                           [](const auto& p, const auto& opt) { return FitPlane(p, opt); });
+    } else if (options.model == "sphere") {
+      outcome = ComputePrimitiveFit<Sphere>(options, scan, f,
+                                            [](const auto& p, const auto& opt) { return FitSphere(p, opt); });
+    } else if (options.model == "cylinder") {
+      outcome = ComputePrimitiveFit<Cylinder>(
+          options, scan, f, [](const auto& p, const auto& opt) { return FitCylinder(p, opt); });
+    } else {
+      outcome = ComputePrimitiveFit<Cone>(options, scan, f,
+                                          [](const auto& p, const auto& opt) { return FitCone(p, opt); });
     }
-    try {
-      const PointCloudFormat format = DetectFormat(o->file);
-      Scan scan = ReadPointCloud(o->file, format);
-      if (!o->units.empty()) scan.units = o->units;
-      for (const std::string& note : scan.metadata.notes)
-        std::cerr << "scan2model fit: note: " << note << "\n";
-      const std::string f = ToString(format);
-      if (o->model == "plane")
-        return RunFit<Plane>(*o, scan, f, [](const auto& p, const auto& opt) { return FitPlane(p, opt); });
-      if (o->model == "sphere")
-        return RunFit<Sphere>(*o, scan, f, [](const auto& p, const auto& opt) { return FitSphere(p, opt); });
-      if (o->model == "cylinder")
-        return RunFit<Cylinder>(*o, scan, f,
-                                [](const auto& p, const auto& opt) { return FitCylinder(p, opt); });
-      return RunFit<Cone>(*o, scan, f, [](const auto& p, const auto& opt) { return FitCone(p, opt); });
-    } catch (const FormatError& e) {
-      return ReportError("fit", e.what(), kInputError, o->json);
-    } catch (const FitError& e) {
-      return ReportError("fit", o->file + ": " + e.what(), kFitError, o->json);
+    outcome.notes = scan.metadata.notes;
+    return outcome;
+  } catch (const FormatError& e) {
+    throw FitFailure(kInputError, e.what());
+  } catch (const FitError& e) {
+    throw FitFailure(kFitError, options.file + ": " + e.what());
+  }
+}
+
+int RunFit(const FitOptions& o) {
+  try {
+    const FitOutcome outcome = ComputeFit(o);
+    for (const std::string& note : outcome.notes) std::cerr << "scan2model fit: note: " << note << "\n";
+    if (o.json) {
+      std::cout << outcome.document.dump(2) << "\n";
+    } else {
+      std::cout << outcome.text;
     }
-  };
+    return kOk;
+  } catch (const FitFailure& e) {
+    return ReportError("fit", e.what(), e.exit_code(), o.json);
+  }
 }
 
 }  // namespace s2m::app

@@ -1,7 +1,10 @@
 #pragma once
 // Options of `scan2model fit`, shared by the primitive and the spline paths.
 
+#include <nlohmann/json.hpp>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "registration/scan.h"
 
@@ -30,14 +33,44 @@ struct FitOptions {
   std::string output;   // prefix for PREFIX.json, PREFIX.ply, PREFIX_history.csv
   int contour = 0;      // .glif inputs: which contour
   std::string initial;  // a scan2model.bspline/1 JSON to start from instead of the automatic initial model
+  // Show the iterations on a terminal as they run (splines); `batch` turns it off for its objects.
+  bool interactive = true;
 };
 
-// Runs a B-spline curve or surface fit; returns the exit code.
-int RunSplineFit(const FitOptions& options);
-// Runs a joint multi-view fit (surface of revolution); returns the exit code.
-int RunMultiViewFit(const FitOptions& options);
-// Runs a joint multi-view fit of a constrained part (`--model part:FILE`, docs/parts.md); returns the exit
-// code.
-int RunPartFit(const FitOptions& options);
+// What a fit produced: the result document (`--json`, schemas in docs/cli.md), the text output, and the
+// readers' notes (standard error in `fit`). `scan2model fit` prints it; `scan2model batch` stores it: both
+// run the same code (ComputeFit).
+struct FitOutcome {
+  nlohmann::json document;
+  std::string text;
+  std::vector<std::string> notes;
+};
+
+// A fit that could not be computed: the message and the exit code of apps/commands.h (kUsage, kInputError,
+// kFitError).
+class FitFailure : public std::runtime_error {
+ public:
+  FitFailure(int exit_code, const std::string& message)
+      : std::runtime_error(message), exit_code_(exit_code) {}
+  int exit_code() const { return exit_code_; }
+
+ private:
+  int exit_code_;
+};
+
+// Runs the fit `o` describes (any model of `scan2model fit`); throws FitFailure. Writes the files options
+// ask for (-o PREFIX, --history), nothing on standard output or error.
+FitOutcome ComputeFit(const FitOptions& o);
+// `scan2model fit`: ComputeFit, then the text or JSON on standard output (notes and errors on standard
+// error); returns the exit code.
+int RunFit(const FitOptions& o);
+
+// The fits ComputeFit dispatches to; each throws FitFailure.
+// A B-spline curve or surface fit.
+FitOutcome ComputeSplineFit(const FitOptions& options);
+// A joint multi-view fit (surface of revolution, helical or spiral surface).
+FitOutcome ComputeMultiViewFit(const FitOptions& options);
+// A joint multi-view fit of a constrained part (`--model part:FILE`, docs/parts.md).
+FitOutcome ComputePartFit(const FitOptions& options);
 
 }  // namespace s2m::app

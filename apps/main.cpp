@@ -21,6 +21,8 @@ int main(int argc, char** argv) {
   const s2m::app::Runner fit = s2m::app::AddFitCommand(app);
   const s2m::app::Runner record = s2m::app::AddRecordCommand(app);
   const s2m::app::Runner export_views = s2m::app::AddExportCommand(app);
+  const s2m::app::Runner batch = s2m::app::AddBatchCommand(app);
+  const s2m::app::Runner report = s2m::app::AddReportCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -38,6 +40,8 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("fit")) return fit();
     if (app.got_subcommand("record")) return record();
     if (app.got_subcommand("export")) return export_views();
+    if (app.got_subcommand("batch")) return batch();
+    if (app.got_subcommand("report")) return report();
   } catch (const std::exception& e) {
     std::cerr << "scan2model: internal error: " << e.what() << "\n";
     return s2m::app::kInternal;

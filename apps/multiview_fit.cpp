@@ -6,9 +6,11 @@
 #include <iomanip>
 #include <iostream>
 #include <limits>
+#include <sstream>
 
 #include "acquisition/format_error.h"
 #include "apps/commands.h"
+#include "apps/domain.h"
 #include "apps/fit_options.h"
 #include "apps/output.h"
 #include "apps/views.h"
@@ -47,7 +49,7 @@ nlohmann::json NumberOrNull(double v) {
 
 }  // namespace
 
-int RunMultiViewFit(const FitOptions& o) {
+FitOutcome ComputeMultiViewFit(const FitOptions& o) {
   try {
     if (o.model != "revolution" && o.model != "helical" && o.model != "spiral")
       throw std::invalid_argument(
@@ -120,7 +122,8 @@ int RunMultiViewFit(const FitOptions& o) {
     const Eigen::Vector3d axis_direction = world_T_model_fit.rotation().col(2);
     const std::string units = o.units.empty() ? set.scans[0].units : o.units;
 
-    nlohmann::json j;
+    FitOutcome outcome;
+    nlohmann::json& j = outcome.document;
     j["schema"] = "scan2model.multiview/1";
     j["input"] = {{"file", o.file}, {"views", K}, {"points", set.TotalPoints()}, {"units", units}};
     j["model"] = o.model;
@@ -179,44 +182,56 @@ int RunMultiViewFit(const FitOptions& o) {
     for (std::size_t k = 0; k < K; ++k) corrected.push_back(world_T_model_fit * r.model_T_scan[k]);
     j["views"] = ViewsJson(set, corrected, r);
     AddSolverJson(j, r, seconds);
+    // Domain outputs (docs/batch.md): the vessel's measures for a surface of revolution, the model's adequacy
+    // against the views' own noise, and the signed deviations of the registered points.
+    std::vector<Eigen::Matrix3Xd> model_points;
+    for (std::size_t k = 0; k < K; ++k) model_points.push_back(r.model_T_scan[k].apply(scans[k]));
+    const Eigen::Matrix3Xd registered = Concatenate(model_points);
+    const Eigen::VectorXd deviations = SignedDistancesAroundAxis(*model, registered);
+    j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations);
+    j["adequacy"] = AdequacyJson(r.residuals.rms, EstimateNoise(set));
+    if (o.model == "revolution") j["vessel"] = VesselJson(j, units);
     WriteRequestedFiles(o, j, r);
-    if (o.json) {
-      std::cout << j.dump(2) << "\n";
-      return kOk;
-    }
-    std::cout << "scan2model fit: " << model->name() << " to " << K << " views (" << set.TotalPoints()
-              << " points) of " << o.file << " (units " << units << ")\n\n"
-              << "  solver            " << SolverSummary(options, r, seconds) << "\n"
-              << "  axis point        " << Format(axis_point) << "\n"
-              << "  axis direction    " << Format(axis_direction) << "\n";
+    if (o.model == "revolution" && !o.output.empty()) WriteProfileFiles(o.output, j["vessel"], units);
+    std::ostringstream text;
+    text << "scan2model fit: " << model->name() << " to " << K << " views (" << set.TotalPoints()
+         << " points) of " << o.file << " (units " << units << ")\n\n"
+         << "  solver            " << SolverSummary(options, r, seconds) << "\n"
+         << "  axis point        " << Format(axis_point) << "\n"
+         << "  axis direction    " << Format(axis_direction) << "\n";
     if (j.contains("pitch")) {
-      std::cout << "  pitch             " << Format(j["pitch"]["value"].get<double>(), 8) << " +- "
-                << Format(UncertaintyOf(*model, r, "pitch"), 2) << " per radian (lead "
-                << Format(j["pitch"]["lead_per_turn"].get<double>(), 6) << " per turn)\n";
+      text << "  pitch             " << Format(j["pitch"]["value"].get<double>(), 8) << " +- "
+           << Format(UncertaintyOf(*model, r, "pitch"), 2) << " per radian (lead "
+           << Format(j["pitch"]["lead_per_turn"].get<double>(), 6) << " per turn)\n";
     }
     if (j.contains("growth")) {
-      std::cout << "  growth            " << Format(j["growth"]["value"].get<double>(), 8) << " +- "
-                << Format(UncertaintyOf(*model, r, "growth"), 2) << " per radian (whorl expansion rate "
-                << Format(j["growth"]["whorl_expansion_rate"].get<double>(), 6) << ")\n";
+      text << "  growth            " << Format(j["growth"]["value"].get<double>(), 8) << " +- "
+           << Format(UncertaintyOf(*model, r, "growth"), 2) << " per radian (whorl expansion rate "
+           << Format(j["growth"]["whorl_expansion_rate"].get<double>(), 6) << ")\n";
     }
-    std::cout << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
-              << Format(r.residuals.max_abs, 6)
-              << "\n\n  profile (height along the axis, radius, standard uncertainty of the radius)\n";
+    text << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
+         << Format(r.residuals.max_abs, 6)
+         << "\n\n  profile (height along the axis, radius, standard uncertainty of the radius)\n";
     for (int i = 0; i <= 50; i += 5) {
       const double u = radius_uncertainty[static_cast<std::size_t>(i)];
-      std::cout << "  " << std::setw(14) << Format(samples[static_cast<std::size_t>(i)][0], 6)
-                << std::setw(14) << Format(samples[static_cast<std::size_t>(i)][1], 6) << std::setw(12)
-                << (std::isfinite(u) ? Format(u, 2) : std::string("-")) << "\n";
+      text << "  " << std::setw(14) << Format(samples[static_cast<std::size_t>(i)][0], 6) << std::setw(14)
+           << Format(samples[static_cast<std::size_t>(i)][1], 6) << std::setw(12)
+           << (std::isfinite(u) ? Format(u, 2) : std::string("-")) << "\n";
     }
-    std::cout << ViewsTable(j["views"]) << UnobservableText(r);
-    if (o.verbose) std::cout << HistoryTable(r.history);
-    return kOk;
+    text << ViewsTable(j["views"]) << UnobservableText(r);
+    if (o.verbose) text << HistoryTable(r.history);
+    if (j.contains("vessel")) text << VesselText(j["vessel"], units);
+    text << AdequacyText(j["adequacy"]);
+    outcome.text = text.str();
+    return outcome;
   } catch (const FormatError& e) {
-    return ReportError("fit", e.what(), kInputError, o.json);
+    throw FitFailure(kInputError, e.what());
   } catch (const std::invalid_argument& e) {
-    return ReportError("fit", o.file + ": " + e.what(), kUsage, o.json);
+    throw FitFailure(kUsage, o.file + ": " + e.what());
+  } catch (const FitFailure&) {
+    throw;
   } catch (const std::exception& e) {
-    return ReportError("fit", o.file + ": " + e.what(), kFitError, o.json);
+    throw FitFailure(kFitError, o.file + ": " + e.what());
   }
 }
 

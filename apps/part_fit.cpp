@@ -13,6 +13,7 @@
 #include "acquisition/format_error.h"
 #include "acquisition/part_file.h"
 #include "apps/commands.h"
+#include "apps/domain.h"
 #include "apps/fit_options.h"
 #include "apps/output.h"
 #include "apps/views.h"
@@ -56,6 +57,21 @@ nlohmann::json NumberOrNull(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
+// A parameter against its tolerance (nominal +- tolerance): the plain verdict, and the decision of ISO
+// 14253-1 with the expanded uncertainty U = 2 u (conformance or non-conformance proven, or neither).
+struct Tolerance {
+  std::string verdict;   // "pass" when |deviation| <= tolerance, else "fail"
+  std::string decision;  // "conforms", "does not conform", "ambiguous"
+};
+Tolerance CheckTolerance(double deviation, double tolerance, double uncertainty) {
+  const double d = std::abs(deviation);
+  const double expanded =
+      std::isfinite(uncertainty) ? 2 * uncertainty : std::numeric_limits<double>::infinity();
+  return {d <= tolerance ? "pass" : "fail", d + expanded <= tolerance  ? "conforms"
+                                            : d - expanded > tolerance ? "does not conform"
+                                                                       : "ambiguous"};
+}
+
 // The correlation matrix of the shape parameters; empty when there is no covariance (too few points). Rows
 // and columns of parameters without a finite uncertainty (unobservable) are NaN.
 Eigen::MatrixXd Correlation(const Eigen::MatrixXd& covariance, const std::vector<Reported>& parameters) {
@@ -95,13 +111,13 @@ std::string CorrelationTable(const std::vector<std::string>& names, const Eigen:
 
 }  // namespace
 
-int RunPartFit(const FitOptions& o) {
+FitOutcome ComputePartFit(const FitOptions& o) {
   const std::string part_path = o.model.substr(std::string("part:").size());
   JointFitOptions options;
   try {
     options = JointOptions(o);
   } catch (const std::invalid_argument& e) {
-    return ReportError("fit", std::string("--method: ") + e.what(), kUsage, o.json);
+    throw FitFailure(kUsage, std::string("--method: ") + e.what());
   }
   try {
     const PartFile file = ReadPartFile(part_path);
@@ -154,7 +170,8 @@ int RunPartFit(const FitOptions& o) {
     }
     const std::vector<ResidualStatistics> faces = PerFaceResiduals(part, registered);
 
-    nlohmann::json j;
+    FitOutcome outcome;
+    nlohmann::json& j = outcome.document;
     j["schema"] = "scan2model.part_fit/1";
     j["input"] = {{"file", o.file}, {"views", K}, {"points", set.TotalPoints()}, {"units", units}};
     j["model"] = o.model;
@@ -162,15 +179,25 @@ int RunPartFit(const FitOptions& o) {
     j["method"] = ToString(options.error_term);
     j["solver"] = SolverName(options);
     j["parameters"] = nlohmann::json::array();
+    std::string verdict;  // over the parameters with tolerances: "pass", "fail", or none
     for (std::size_t i = 0; i < reported.size(); ++i) {
       const Reported& p = reported[i];
-      j["parameters"].push_back({{"name", names[i]},
-                                 {"value", p.value},
-                                 {"standard_uncertainty", NumberOrNull(p.uncertainty)},
-                                 {"nominal", p.nominal},
-                                 {"deviation", p.value - p.nominal},
-                                 {"unit", p.unit}});
+      nlohmann::json entry = {{"name", names[i]},
+                              {"value", p.value},
+                              {"standard_uncertainty", NumberOrNull(p.uncertainty)},
+                              {"nominal", p.nominal},
+                              {"deviation", p.value - p.nominal},
+                              {"unit", p.unit}};
+      if (const auto t = file.tolerances.find(names[i]); t != file.tolerances.end()) {
+        const Tolerance check = CheckTolerance(p.value - p.nominal, t->second, p.uncertainty);
+        entry["tolerance"] = t->second;
+        entry["verdict"] = check.verdict;
+        entry["decision"] = check.decision;
+        verdict = verdict == "fail" || check.verdict == "fail" ? "fail" : "pass";
+      }
+      j["parameters"].push_back(std::move(entry));
     }
+    if (!verdict.empty()) j["verdict"] = verdict;
     j["fixed_parameters"] = nlohmann::json::array();
     for (const PartParameter& p : file.fixed_parameters) {
       const Reported f = Report(p, p.value, 0.0, units);
@@ -198,49 +225,64 @@ int RunPartFit(const FitOptions& o) {
     j["edge_margin"] = part.edge_margin();
     j["views"] = ViewsJson(set, r.model_T_scan, r);  // world = part frame
     AddSolverJson(j, r, seconds);
+    // Signed deviations of the registered points (world = part frame) and the fit's adequacy against the
+    // views' own noise (docs/batch.md).
+    j["deviations"] = DeviationsJson(registered, SignedDistancesToFaces(part, registered));
+    j["adequacy"] = AdequacyJson(r.residuals.rms, EstimateNoise(set));
     WriteRequestedFiles(o, j, r);
-    if (o.json) {
-      std::cout << j.dump(2) << "\n";
-      return kOk;
-    }
 
-    std::cout << "scan2model fit: part \"" << part.name() << "\" (" << part_path << ", " << d.faces.size()
-              << " faces) to " << K << " views (" << set.TotalPoints() << " points) of " << o.file
-              << " (units " << units << ")\n\n"
-              << "  solver            " << SolverSummary(options, r, seconds) << "\n"
-              << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
-              << Format(r.residuals.max_abs, 6) << "\n"
-              << "  near edges        " << r.excluded_points << " points within "
-              << Format(part.edge_margin(), 3) << " " << units
-              << " of a second face left out of the final pass\n\n"
-              << "  parameter                          value    standard uncertainty       nominal\n";
+    std::ostringstream text;
+    text << "scan2model fit: part \"" << part.name() << "\" (" << part_path << ", " << d.faces.size()
+         << " faces) to " << K << " views (" << set.TotalPoints() << " points) of " << o.file << " (units "
+         << units << ")\n\n"
+         << "  solver            " << SolverSummary(options, r, seconds) << "\n"
+         << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
+         << Format(r.residuals.max_abs, 6) << "\n"
+         << "  near edges        " << r.excluded_points << " points within " << Format(part.edge_margin(), 3)
+         << " " << units << " of a second face left out of the final pass\n\n"
+         << "  parameter                          value    standard uncertainty       nominal\n";
     for (std::size_t i = 0; i < reported.size(); ++i) {
       const Reported& p = reported[i];
-      std::cout << "  " << std::left << std::setw(24) << names[i] << std::right << std::setw(14)
-                << Format(p.value, 8) << std::setw(24)
-                << (std::isfinite(p.uncertainty) ? Format(p.uncertainty, 3) : std::string("-"))
-                << std::setw(14) << Format(p.nominal, 8) << "  " << p.unit << "\n";
+      text << "  " << std::left << std::setw(24) << names[i] << std::right << std::setw(14)
+           << Format(p.value, 8) << std::setw(24)
+           << (std::isfinite(p.uncertainty) ? Format(p.uncertainty, 3) : std::string("-")) << std::setw(14)
+           << Format(p.nominal, 8) << "  " << p.unit << "\n";
     }
     for (const PartParameter& p : file.fixed_parameters) {
       const Reported f = Report(p, p.value, 0.0, units);
-      std::cout << "  " << std::left << std::setw(24) << p.name << std::right << std::setw(14)
-                << Format(f.value, 8) << std::setw(24) << "(fixed)" << std::setw(14) << ""
-                << "  " << f.unit << "\n";
+      text << "  " << std::left << std::setw(24) << p.name << std::right << std::setw(14)
+           << Format(f.value, 8) << std::setw(24) << "(fixed)" << std::setw(14) << ""
+           << "  " << f.unit << "\n";
     }
-    if (correlation.size() > 0) std::cout << CorrelationTable(names, correlation);
-    std::cout << "\n  face                      type        points          RMS          max\n";
+    if (j.contains("verdict")) {
+      text << "\n  tolerances (nominal +- tolerance; decision by ISO 14253-1 with U = 2u)\n";
+      for (const nlohmann::json& p : j["parameters"]) {
+        if (!p.contains("tolerance")) continue;
+        text << "  " << std::left << std::setw(24) << p["name"].get<std::string>() << std::right
+             << " deviation " << std::setw(12) << Format(p["deviation"].get<double>(), 4) << "  tolerance +-"
+             << std::setw(8) << Format(p["tolerance"].get<double>(), 4) << "  "
+             << p["verdict"].get<std::string>() << " (" << p["decision"].get<std::string>() << ")\n";
+      }
+      text << "  verdict           " << j["verdict"].get<std::string>() << "\n";
+    }
+    if (correlation.size() > 0) text << CorrelationTable(names, correlation);
+    text << "\n  face                      type        points          RMS          max\n";
     for (std::size_t f = 0; f < faces.size(); ++f) {
-      std::cout << "  " << std::left << std::setw(24) << d.faces[f].name << "  " << std::setw(10)
-                << ToString(d.faces[f].type) << std::right << std::setw(8) << faces[f].count << std::setw(13)
-                << Format(faces[f].rms, 4) << std::setw(13) << Format(faces[f].max_abs, 4) << "\n";
+      text << "  " << std::left << std::setw(24) << d.faces[f].name << "  " << std::setw(10)
+           << ToString(d.faces[f].type) << std::right << std::setw(8) << faces[f].count << std::setw(13)
+           << Format(faces[f].rms, 4) << std::setw(13) << Format(faces[f].max_abs, 4) << "\n";
     }
-    std::cout << ViewsTable(j["views"]) << UnobservableText(r);
-    if (o.verbose) std::cout << HistoryTable(r.history);
-    return kOk;
+    text << ViewsTable(j["views"]) << UnobservableText(r);
+    if (o.verbose) text << HistoryTable(r.history);
+    text << AdequacyText(j["adequacy"]);
+    outcome.text = text.str();
+    return outcome;
   } catch (const FormatError& e) {
-    return ReportError("fit", e.what(), kInputError, o.json);
+    throw FitFailure(kInputError, e.what());
+  } catch (const FitFailure&) {
+    throw;
   } catch (const std::exception& e) {
-    return ReportError("fit", o.file + ": " + e.what(), kFitError, o.json);
+    throw FitFailure(kFitError, o.file + ": " + e.what());
   }
 }
 

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <sstream>
 
 #include "acquisition/format_error.h"
 #include "acquisition/glyph_outline.h"
@@ -49,7 +50,8 @@ StepControl ParseStepControl(const std::string& s) {
 }
 
 // Points of the input: a point cloud, or one contour of a .glif glyph (2D).
-Eigen::MatrixXd ReadInput(const FitOptions& o, std::string& format, std::string& units) {
+Eigen::MatrixXd ReadInput(const FitOptions& o, std::string& format, std::string& units,
+                          std::vector<std::string>& notes) {
   if (std::filesystem::path(o.file).extension() == ".glif") {
     const auto contours = ReadGlifContours(o.file);
     if (o.contour < 0 || o.contour >= static_cast<int>(contours.size())) {
@@ -62,7 +64,7 @@ Eigen::MatrixXd ReadInput(const FitOptions& o, std::string& format, std::string&
   }
   const PointCloudFormat f = DetectFormat(o.file);
   const Scan scan = ReadPointCloud(o.file, f);
-  for (const std::string& note : scan.metadata.notes) std::cerr << "scan2model fit: note: " << note << "\n";
+  notes = scan.metadata.notes;
   format = ToString(f);
   units = scan.units;
   return scan.points;
@@ -158,12 +160,13 @@ Eigen::Matrix3Xd Samples(const ParametricModel& model) {
 
 }  // namespace
 
-int RunSplineFit(const FitOptions& o) {
+FitOutcome ComputeSplineFit(const FitOptions& o) {
   const bool surface = o.model == "bspline-surface";
   try {
     const auto [n1, n2] = ParseControlPoints(o.control_points, surface);
     std::string format, units;
-    const Eigen::MatrixXd points = ReadInput(o, format, units);
+    FitOutcome outcome;
+    const Eigen::MatrixXd points = ReadInput(o, format, units, outcome.notes);
     const std::string units_out = o.units.empty() ? units : o.units;
     if (surface && points.rows() != 3) throw UsageError("a B-spline surface needs 3D points");
     std::unique_ptr<ParametricModel> model;
@@ -188,7 +191,7 @@ int RunSplineFit(const FitOptions& o) {
     options.step_control = ParseStepControl(o.step_control);
     options.fairness = {o.stretch, o.bending};
     options.max_iterations = o.max_iterations;
-    const bool progress = !o.json && isatty(STDERR_FILENO);
+    const bool progress = o.interactive && !o.json && isatty(STDERR_FILENO);
     if (progress) {
       options.on_iteration = [](const IterationRecord& r) {
         std::cerr << "\r  iteration " << std::setw(4) << r.iteration << "  RMS " << std::setw(12)
@@ -200,7 +203,7 @@ int RunSplineFit(const FitOptions& o) {
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (progress) std::cerr << "\n";
 
-    nlohmann::json j;
+    nlohmann::json& j = outcome.document;
     j["schema"] = "scan2model.bspline/1";
     j["input"] = {{"file", o.file}, {"format", format}, {"points", points.cols()}, {"units", units_out}};
     j["model"] = o.model;
@@ -242,32 +245,27 @@ int RunSplineFit(const FitOptions& o) {
       if (history_path.empty()) history_path = o.output + "_history.csv";
     }
     if (!history_path.empty()) WriteTextAtomically(history_path, HistoryCsv(r.history));
-    if (o.json) {
-      std::cout << j.dump(2) << "\n";
-      return kOk;
-    }
-    std::cout << "scan2model fit: " << model->name() << " (" << model->num_parameters() << " parameters) to "
-              << points.cols() << " points of " << o.file << " (" << format << ", units " << units_out
-              << ")\n\n"
-              << "  method            " << ToString(options.error_term) << " + "
-              << ToString(options.step_control) << ", fairness stretch " << o.stretch << " bending "
-              << o.bending << "\n"
-              << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
-              << Format(r.residuals.max_abs, 6) << "\n"
-              << "  solver            " << r.iterations << " iterations, stopped: " << ToString(r.stop_reason)
-              << ", " << Format(seconds * 1e3, 4) << " ms\n";
-    if (o.verbose) std::cout << HistoryTable(r.history);
+    std::ostringstream text;
+    text << "scan2model fit: " << model->name() << " (" << model->num_parameters() << " parameters) to "
+         << points.cols() << " points of " << o.file << " (" << format << ", units " << units_out << ")\n\n"
+         << "  method            " << ToString(options.error_term) << " + " << ToString(options.step_control)
+         << ", fairness stretch " << o.stretch << " bending " << o.bending << "\n"
+         << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
+         << Format(r.residuals.max_abs, 6) << "\n"
+         << "  solver            " << r.iterations << " iterations, stopped: " << ToString(r.stop_reason)
+         << ", " << Format(seconds * 1e3, 4) << " ms\n";
+    if (o.verbose) text << HistoryTable(r.history);
     if (!o.output.empty()) {
-      std::cout << "  written           " << o.output << ".json, " << o.output << ".ply, " << history_path
-                << "\n";
+      text << "  written           " << o.output << ".json, " << o.output << ".ply, " << history_path << "\n";
     }
-    return kOk;
+    outcome.text = text.str();
+    return outcome;
   } catch (const UsageError& e) {
-    return ReportError("fit", e.what(), kUsage, o.json);
+    throw FitFailure(kUsage, e.what());
   } catch (const FormatError& e) {
-    return ReportError("fit", e.what(), kInputError, o.json);
+    throw FitFailure(kInputError, e.what());
   } catch (const std::exception& e) {  // singular systems, degenerate data, invalid knots
-    return ReportError("fit", o.file + ": " + e.what(), kFitError, o.json);
+    throw FitFailure(kFitError, o.file + ": " + e.what());
   }
 }
 

@@ -14,6 +14,8 @@ packages=(
   libpcl-dev             # optional edge (s2m_pcl): PCL's reference ICP, coarse alignment (FPFH + RANSAC)
   libtiff-dev            # tests only: libtiff decodes the Kinect depth TIFFs independently of our reader
   libopen3d-dev          # optional edge (s2m_virtual_scanner): the virtual scanner's ray casting (RaycastingScene)
+  libopenmpi-dev openmpi-bin  # optional: `scan2model batch` under mpirun (docs/batch.md)
+  chromium               # tests only: the HTML report opens in headless Chromium (tests/report_test.cpp)
 )
 
 missing=()

@@ -1,0 +1,683 @@
+#include "apps/batch.h"
+
+#include <omp.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "acquisition/format_error.h"
+#include "apps/commands.h"
+#include "apps/domain.h"
+#include "apps/output.h"
+#include "apps/report.h"
+
+namespace s2m::app {
+namespace fs = std::filesystem;
+namespace {
+
+// The options an object may set (manifest "options" members or CSV columns), with their FitOptions field.
+const std::set<std::string>& KnownOptions() {
+  static const std::set<std::string> kOptions = {
+      "method",       "max_iterations", "control_points", "order",   "closed",  "stretch",  "bending",
+      "step_control", "units",          "solver",         "contour", "initial", "reference"};
+  return kOptions;
+}
+
+bool ValidId(const std::string& id) {
+  if (id.empty() || id == "." || id == "..") return false;
+  for (const char c : id) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-') return false;
+  }
+  return true;
+}
+
+// A path of the manifest, relative to its folder unless absolute.
+std::string Resolve(const fs::path& base, const std::string& path) {
+  if (path.empty() || fs::path(path).is_absolute()) return path;
+  return (base / path).lexically_normal().string();
+}
+
+// Option values from JSON (numbers, booleans, strings) or CSV (strings): as the string CLI11 would have seen.
+std::string AsText(const nlohmann::json& v) {
+  if (v.is_string()) return v.get<std::string>();
+  if (v.is_boolean()) return v.get<bool>() ? "true" : "false";
+  return v.dump();
+}
+
+double ParseNumber(const std::string& where, const std::string& key, const std::string& text) {
+  try {
+    std::size_t used = 0;
+    const double v = std::stod(text, &used);
+    if (used != text.size() || !std::isfinite(v)) throw std::invalid_argument("");
+    return v;
+  } catch (const std::exception&) {
+    throw FormatError(where, "", "option " + key + ": '" + text + "' is not a number");
+  }
+}
+
+int ParseInteger(const std::string& where, const std::string& key, const std::string& text, int min) {
+  const double v = ParseNumber(where, key, text);
+  if (v != std::floor(v) || v < min || v > 1e9)
+    throw FormatError(where, "",
+                      "option " + key + ": '" + text + "' is not an integer >= " + std::to_string(min));
+  return static_cast<int>(v);
+}
+
+// Builds one object from its members (all as JSON values); `where` names the manifest and the object for
+// errors.
+BatchObject MakeObject(const std::string& where, const fs::path& base, const std::string& id,
+                       const std::string& input, const std::string& model,
+                       const std::map<std::string, nlohmann::json>& options) {
+  if (!ValidId(id))
+    throw FormatError(where, "",
+                      "id '" + id + "' is not usable as a file name (letters, digits, '.', '_', '-')");
+  if (input.empty()) throw FormatError(where, "", "object " + id + " has no input");
+  if (model.empty()) throw FormatError(where, "", "object " + id + " has no model");
+  BatchObject o;
+  o.id = id;
+  o.fit.file = Resolve(base, input);
+  o.fit.model = model.rfind("part:", 0) == 0 ? "part:" + Resolve(base, model.substr(5)) : model;
+  o.fit.interactive = false;
+  nlohmann::json resolved_options = nlohmann::json::object();
+  const std::string at = where + ": object " + id;
+  for (const auto& [key, value] : options) {
+    if (value.is_null() || (value.is_string() && value.get<std::string>().empty())) continue;  // default
+    if (KnownOptions().count(key) == 0) {
+      std::string known;
+      for (const std::string& k : KnownOptions()) known += (known.empty() ? "" : ", ") + k;
+      throw FormatError(where, "",
+                        "object " + id + ": unknown option '" + key + "' (options: " + known + ")");
+    }
+    const std::string text = AsText(value);
+    resolved_options[key] = text;
+    FitOptions& f = o.fit;
+    if (key == "method") {
+      static const std::set<std::string> kMethods = {"pdm", "tdm", "sdm", "cdm", "gtdm", "gn"};
+      if (kMethods.count(text) == 0)
+        throw FormatError(at, "", "method '" + text + "' (pdm, tdm, sdm, cdm, gtdm, gn)");
+      f.method = text;
+    } else if (key == "max_iterations") {
+      f.max_iterations = ParseInteger(at, key, text, 1);
+    } else if (key == "control_points") {
+      f.control_points = text;
+    } else if (key == "order") {
+      f.order = ParseInteger(at, key, text, 2);
+      if (f.order > 8) throw FormatError(at, "", "order " + text + " is above 8");
+    } else if (key == "closed") {
+      if (text != "true" && text != "false" && text != "1" && text != "0")
+        throw FormatError(at, "", "closed: '" + text + "' is not true or false");
+      f.closed = text == "true" || text == "1";
+    } else if (key == "stretch" || key == "bending") {
+      const double v = ParseNumber(at, key, text);
+      if (v < 0) throw FormatError(at, "", key + " is negative");
+      (key == "stretch" ? f.stretch : f.bending) = v;
+    } else if (key == "step_control") {
+      if (text != "lm" && text != "armijo" && text != "none")
+        throw FormatError(at, "", "step_control '" + text + "' (lm, armijo, none)");
+      f.step_control = text;
+    } else if (key == "units") {
+      f.units = text;
+    } else if (key == "solver") {
+      if (text != "joint" && text != "alternating" && text != "register-then-fit")
+        throw FormatError(at, "", "solver '" + text + "' (joint, alternating, register-then-fit)");
+      f.alternating = text == "alternating";
+      f.register_then_fit = text == "register-then-fit";
+    } else if (key == "contour") {
+      f.contour = ParseInteger(at, key, text, 0);
+    } else if (key == "initial") {
+      f.initial = Resolve(base, text);
+      resolved_options[key] = f.initial;
+    } else if (key == "reference") {
+      f.reference = Resolve(base, text);
+      resolved_options[key] = f.reference;
+    }
+  }
+  o.spec = {{"input", o.fit.file}, {"model", o.fit.model}, {"options", resolved_options}};
+  return o;
+}
+
+BatchManifest ReadJsonManifest(const std::string& path, const fs::path& base) {
+  std::ifstream in(path);
+  if (!in) throw FormatError(path, "", "cannot open the manifest");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw FormatError(path, "", std::string("not valid JSON: ") + e.what());
+  }
+  if (!j.is_object() || j.value("schema", "") != "scan2model.batch/1")
+    throw FormatError(path, "",
+                      "not a scan2model.batch/1 manifest (\"schema\": \"scan2model.batch/1\" missing)");
+  if (!j.contains("objects") || !j["objects"].is_array())
+    throw FormatError(path, "", "\"objects\" must be an array");
+  const nlohmann::json defaults = j.value("defaults", nlohmann::json::object());
+  if (!defaults.is_object()) throw FormatError(path, "", "\"defaults\" must be an object");
+  BatchManifest m;
+  m.path = path;
+  for (std::size_t i = 0; i < j["objects"].size(); ++i) {
+    const nlohmann::json& e = j["objects"][i];
+    const std::string where = path + ": objects[" + std::to_string(i) + "]";
+    if (!e.is_object()) throw FormatError(where, "", "not an object");
+    for (const auto& [key, value] : e.items()) {
+      if (key != "id" && key != "input" && key != "model" && key != "options")
+        throw FormatError(where, "", "unknown member '" + key + "' (id, input, model, options)");
+      if (key != "options" && !value.is_string())
+        throw FormatError(where, "", "\"" + key + "\" must be a string");
+    }
+    std::map<std::string, nlohmann::json> options;
+    for (const nlohmann::json* source : {&defaults, &e}) {
+      if (!source->contains("options")) continue;
+      const nlohmann::json& o = (*source)["options"];
+      if (!o.is_object()) throw FormatError(where, "", "\"options\" must be an object");
+      for (const auto& [key, value] : o.items()) options[key] = value;
+    }
+    const std::string id = e.value("id", "");
+    const std::string model =
+        e.contains("model") ? e["model"].get<std::string>() : defaults.value("model", "");
+    m.objects.push_back(MakeObject(path, base, id, e.value("input", ""), model, options));
+  }
+  return m;
+}
+
+// One CSV record (RFC 4180: quotes, doubled quotes inside); `line` is advanced past embedded newlines.
+std::vector<std::string> SplitCsv(std::istream& in, std::string first, int& line, const std::string& path) {
+  std::vector<std::string> fields;
+  std::string field;
+  bool quoted = false;
+  std::string text = std::move(first);
+  for (std::size_t i = 0;; ++i) {
+    if (i == text.size()) {
+      if (!quoted) break;
+      std::string more;
+      if (!std::getline(in, more))
+        throw FormatError(path, "line " + std::to_string(line), "unterminated quote");
+      ++line;
+      text += "\n" + more;
+    }
+    const char c = text[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < text.size() && text[i + 1] == '"') {
+        field += '"';
+        ++i;
+      } else if (c == '"') {
+        quoted = false;
+      } else {
+        field += c;
+      }
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      fields.push_back(field);
+      field.clear();
+    } else if (c != '\r') {
+      field += c;
+    }
+  }
+  fields.push_back(field);
+  for (std::string& f : fields) {  // trim spaces around unquoted content
+    const auto b = f.find_first_not_of(" \t"), e = f.find_last_not_of(" \t");
+    f = b == std::string::npos ? "" : f.substr(b, e - b + 1);
+  }
+  return fields;
+}
+
+BatchManifest ReadCsvManifest(const std::string& path, const fs::path& base) {
+  std::ifstream in(path);
+  if (!in) throw FormatError(path, "", "cannot open the manifest");
+  BatchManifest m;
+  m.path = path;
+  std::vector<std::string> header;
+  std::string text;
+  int line = 0;
+  while (std::getline(in, text)) {
+    ++line;
+    const int first_line = line;
+    if (text.find_first_not_of(" \t\r") == std::string::npos || text[text.find_first_not_of(" \t")] == '#')
+      continue;
+    const std::vector<std::string> fields = SplitCsv(in, text, line, path);
+    const std::string where = path + ": line " + std::to_string(first_line);
+    if (header.empty()) {
+      header = fields;
+      std::set<std::string> seen;
+      for (const std::string& h : header) {
+        if (!seen.insert(h).second) throw FormatError(where, "", "column '" + h + "' appears twice");
+      }
+      for (const char* required : {"id", "input", "model"}) {
+        if (seen.count(required) == 0)
+          throw FormatError(where, "",
+                            std::string("the header has no '") + required + "' column (id,input,model,...)");
+      }
+      continue;
+    }
+    if (fields.size() != header.size()) {
+      throw FormatError(
+          where, "",
+          std::to_string(fields.size()) + " fields, the header has " + std::to_string(header.size()));
+    }
+    std::string id, input, model;
+    std::map<std::string, nlohmann::json> options;
+    for (std::size_t c = 0; c < header.size(); ++c) {
+      if (header[c] == "id") {
+        id = fields[c];
+      } else if (header[c] == "input") {
+        input = fields[c];
+      } else if (header[c] == "model") {
+        model = fields[c];
+      } else {
+        options[header[c]] = fields[c];
+      }
+    }
+    m.objects.push_back(MakeObject(where, base, id, input, model, options));
+  }
+  if (header.empty()) throw FormatError(path, "", "empty manifest (no header line id,input,model,...)");
+  return m;
+}
+
+std::string ObjectsDir(const std::string& output_dir) {
+  return (fs::path(output_dir) / "objects").string();
+}
+
+std::string RecordPath(const std::string& output_dir, const std::string& id) {
+  return (fs::path(ObjectsDir(output_dir)) / (id + ".json")).string();
+}
+
+// The record of a finished object, or null when there is none (or it is unreadable, or for another spec).
+nlohmann::json ReadRecord(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return nullptr;
+  try {
+    nlohmann::json j = nlohmann::json::parse(in);
+    if (j.value("schema", "") != "scan2model.batch_object/1") return nullptr;
+    return j;
+  } catch (const nlohmann::json::exception&) {
+    return nullptr;
+  }
+}
+
+std::string Clock(double seconds) {
+  const long s = std::lround(std::max(seconds, 0.0));
+  std::ostringstream t;
+  if (s >= 3600)
+    t << s / 3600 << ":" << std::setw(2) << std::setfill('0') << (s / 60) % 60;
+  else
+    t << s / 60;
+  t << ":" << std::setw(2) << std::setfill('0') << s % 60;
+  return t.str();
+}
+
+// The progress line: done / total, failures, running, elapsed, estimated time left.
+class Progress {
+ public:
+  Progress(const BatchOptions& o, int total, int to_compute)
+      : options_(o),
+        total_(total),
+        to_compute_(to_compute),
+        tty_(isatty(STDERR_FILENO) != 0),
+        start_(std::chrono::steady_clock::now()) {}
+
+  void Started() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++running_;
+    Print(false);
+  }
+  void Skipped(int count) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    skipped_ += count;
+  }
+  // Returns how many objects this run has computed so far (for the kill hook).
+  int Finished(const std::string& id, bool ok, const std::string& error) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    --running_;
+    ++computed_;
+    if (!ok) ++failed_;
+    if (!ok) {  // errors are printed even without the progress line
+      std::cerr << (tty_ ? "\r\033[K" : "") << options_.progress_prefix << "object " << id
+                << " failed: " << error << "\n";
+    }
+    Print(true);
+    return computed_;
+  }
+  void Done() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (options_.progress && tty_) std::cerr << "\n";
+  }
+
+ private:
+  void Print(bool finished) {
+    if (!options_.progress) return;
+    if (!tty_ && !finished) return;  // in a log: one line per finished object
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    std::ostringstream line;
+    line << options_.progress_prefix << "[batch] " << computed_ + skipped_ << "/" << total_ << " done";
+    if (skipped_ > 0) line << " (" << skipped_ << " skipped)";
+    if (failed_ > 0) line << ", " << failed_ << " failed";
+    line << ", " << running_ << " running, elapsed " << Clock(elapsed);
+    if (computed_ > 0 && computed_ < to_compute_) {
+      line << ", ETA " << Clock(elapsed / computed_ * (to_compute_ - computed_));
+    } else if (computed_ == 0) {
+      line << ", ETA --";
+    }
+    std::cerr << (tty_ ? "\r\033[K" : "") << line.str() << (tty_ ? "" : "\n") << std::flush;
+  }
+
+  const BatchOptions& options_;
+  const int total_, to_compute_;
+  const bool tty_;
+  const std::chrono::steady_clock::time_point start_;
+  std::mutex mutex_;
+  int running_ = 0, computed_ = 0, skipped_ = 0, failed_ = 0;
+};
+
+// Fits one object and writes its files; returns its record.
+nlohmann::json ComputeObject(const BatchObject& object, const BatchOptions& options) {
+  nlohmann::json record = {{"schema", "scan2model.batch_object/1"}, {"id", object.id}, {"spec", object.spec}};
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    const FitOutcome outcome = ComputeFit(object.fit);
+    record["status"] = "ok";
+    record["exit_code"] = static_cast<int>(kOk);
+    record["error"] = nullptr;
+    record["notes"] = outcome.notes;
+    record["result"] = outcome.document;
+  } catch (const FitFailure& e) {
+    record["status"] = "error";
+    record["exit_code"] = e.exit_code();
+    record["error"] = e.what();
+  } catch (const std::exception& e) {  // a bug: recorded like any failure, the batch goes on
+    record["status"] = "error";
+    record["exit_code"] = static_cast<int>(kInternal);
+    record["error"] = std::string("internal error: ") + e.what();
+  }
+  record["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const fs::path dir = ObjectsDir(options.output_dir);
+  if (record["status"] == "ok") {
+    const nlohmann::json& result = record["result"];
+    if (result.contains("vessel")) {
+      const std::string units = result["input"].value("units", "unknown");
+      WriteProfileFiles((dir / object.id).string(), result["vessel"], units);
+    }
+  }
+  if (options.reports) {
+    try {  // a report that cannot be drawn is a note, not a failed object
+      WriteTextAtomically((dir / (object.id + ".html")).string(), ReportHtml(record));
+    } catch (const std::exception& e) {
+      record["notes"].push_back(std::string("no report: ") + e.what());
+    }
+  }
+  // Last: the record's presence under its final name marks the object finished.
+  WriteTextAtomically(RecordPath(options.output_dir, object.id), record.dump(1) + "\n");
+  return record;
+}
+
+nlohmann::json Flat(const std::string& name, double value, const nlohmann::json& uncertainty,
+                    const std::string& unit) {
+  return {{"name", name},
+          {"value", value},
+          {"uncertainty", uncertainty.is_number() ? uncertainty : nullptr},
+          {"unit", unit}};
+}
+
+void AddVector(nlohmann::json& out, const std::string& name, const nlohmann::json& v,
+               const std::string& unit) {
+  static const char* kAxes[] = {"x", "y", "z"};
+  for (std::size_t i = 0; i < 3 && i < v.size(); ++i)
+    out.push_back(Flat(name + "_" + kAxes[i], v[i].get<double>(), nullptr, unit));
+}
+
+std::string CsvField(const std::string& text) {
+  if (text.find_first_of(",\"\n\r") == std::string::npos) return text;
+  std::string out = "\"";
+  for (const char c : text) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
+std::string CsvNumber(const nlohmann::json& v) {
+  if (v.is_number()) {
+    std::ostringstream s;
+    s.precision(15);
+    s << v.get<double>();
+    return s.str();
+  }
+  if (v.is_boolean()) return v.get<bool>() ? "true" : "false";
+  if (v.is_string()) return CsvField(v.get<std::string>());
+  return "";
+}
+
+}  // namespace
+
+BatchManifest ReadBatchManifest(const std::string& path) {
+  const fs::path base = fs::path(path).parent_path();
+  BatchManifest m =
+      fs::path(path).extension() == ".json" ? ReadJsonManifest(path, base) : ReadCsvManifest(path, base);
+  std::set<std::string> ids;
+  for (const BatchObject& o : m.objects) {
+    if (!ids.insert(o.id).second) throw FormatError(path, "", "id '" + o.id + "' appears twice");
+  }
+  if (m.objects.empty()) throw FormatError(path, "", "no objects");
+  return m;
+}
+
+std::vector<std::size_t> ShardPositions(std::size_t objects, int index, int count) {
+  std::vector<std::size_t> out;
+  for (std::size_t i = 0; i < objects; ++i) {
+    if (static_cast<int>(i % static_cast<std::size_t>(count)) == index) out.push_back(i);
+  }
+  return out;
+}
+
+std::vector<nlohmann::json> RunBatchObjects(const BatchManifest& manifest,
+                                            const std::vector<std::size_t>& positions,
+                                            const BatchOptions& options, BatchCounts& counts) {
+  fs::create_directories(ObjectsDir(options.output_dir));
+  std::vector<nlohmann::json> records(positions.size());
+  std::vector<std::size_t> todo;  // indices into positions
+  for (std::size_t p = 0; p < positions.size(); ++p) {
+    const BatchObject& object = manifest.objects[positions[p]];
+    nlohmann::json record =
+        options.force ? nlohmann::json(nullptr) : ReadRecord(RecordPath(options.output_dir, object.id));
+    // Finished: a result for the same spec. Failed objects are retried (the input may have been fixed).
+    if (!record.is_null() && record.value("status", "") == "ok" && record["spec"] == object.spec) {
+      records[p] = std::move(record);
+      ++counts.skipped;
+    } else {
+      todo.push_back(p);
+    }
+  }
+  const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int jobs =
+      std::max(1, std::min(options.jobs > 0 ? options.jobs : cores, static_cast<int>(todo.size())));
+  // Nested parallelism: the fits run OpenMP loops inside; jobs x threads stays at the cores.
+  const int threads = options.threads_per_job > 0 ? options.threads_per_job : std::max(1, cores / jobs);
+  Progress progress(options, static_cast<int>(positions.size()), static_cast<int>(todo.size()));
+  progress.Skipped(counts.skipped);
+  std::atomic<std::size_t> next{0};
+  auto worker = [&]() {
+    omp_set_num_threads(threads);  // per thread: each worker's own OpenMP teams
+    for (std::size_t t = next++; t < todo.size(); t = next++) {
+      const std::size_t p = todo[t];
+      const BatchObject& object = manifest.objects[positions[p]];
+      progress.Started();
+      nlohmann::json record;
+      try {
+        record = ComputeObject(object, options);
+      } catch (const std::exception& e) {  // the output could not be written
+        record = {{"schema", "scan2model.batch_object/1"},
+                  {"id", object.id},
+                  {"spec", object.spec},
+                  {"status", "error"},
+                  {"exit_code", static_cast<int>(kInputError)},
+                  {"error", std::string("cannot write the result: ") + e.what()}};
+      }
+      const bool ok = record["status"] == "ok";
+      const int done = progress.Finished(object.id, ok, ok ? "" : record["error"].get<std::string>());
+      records[p] = std::move(record);
+      if (options.kill_after > 0 && done >= options.kill_after) std::raise(SIGKILL);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int w = 1; w < jobs; ++w) pool.emplace_back(worker);
+  worker();  // the calling thread works too
+  for (std::thread& t : pool) t.join();
+  progress.Done();
+  counts.computed += static_cast<int>(todo.size());
+  std::vector<nlohmann::json> entries;
+  for (std::size_t p = 0; p < positions.size(); ++p) {
+    const BatchObject& object = manifest.objects[positions[p]];
+    entries.push_back(SummaryEntry(object, &records[p], RecordPath(options.output_dir, object.id)));
+    (entries.back()["status"] == "ok" ? counts.ok : counts.failed) += 1;
+  }
+  return entries;
+}
+
+nlohmann::json FlatParameters(const nlohmann::json& d) {
+  nlohmann::json out = nlohmann::json::array();
+  const std::string schema = d.value("schema", "");
+  const std::string units = d.contains("input") ? d["input"].value("units", "unknown") : "unknown";
+  if (schema == "scan2model.fit/1") {
+    const nlohmann::json u = d.value("uncertainties", nlohmann::json::object());
+    for (const auto& [name, value] : d["parameters"].items()) {
+      if (value.is_array()) {
+        AddVector(out, name, value, name.find("direction") != std::string::npos ? "" : units);
+      } else {
+        const bool angle = name.find("angle") != std::string::npos;
+        const nlohmann::json unc =
+            u.contains(name) ? u[name]["standard_uncertainty"] : nlohmann::json(nullptr);
+        out.push_back(Flat(name, value.get<double>(), unc,
+                           name == "apex_angle_deg" ? "deg"
+                           : angle                  ? "rad"
+                                                    : units));
+      }
+    }
+  } else if (schema == "scan2model.multiview/1") {
+    // A spiral's axis point is its centre (the fixed point of the spiral motion).
+    AddVector(out, d.contains("growth") ? "centre" : "axis_point", d["axis"]["point"], units);
+    AddVector(out, "axis_direction", d["axis"]["direction"], "");
+    if (d.contains("pitch")) {
+      out.push_back(
+          Flat("pitch", d["pitch"]["value"].get<double>(), d["pitch"]["uncertainty"], units + "/rad"));
+      out.push_back(Flat("lead_per_turn", d["pitch"]["lead_per_turn"].get<double>(), nullptr, units));
+    }
+    if (d.contains("growth")) {
+      const nlohmann::json& g = d["growth"];
+      out.push_back(Flat("growth", g["value"].get<double>(), g["uncertainty"], "1/rad"));
+      out.push_back(Flat("whorl_expansion_rate", g["whorl_expansion_rate"].get<double>(),
+                         g["whorl_expansion_rate_uncertainty"], ""));
+    }
+    if (d.contains("vessel")) {
+      const nlohmann::json& v = d["vessel"];
+      out.push_back(Flat("height", v["height"].get<double>(), nullptr, units));
+      out.push_back(
+          Flat("rim_diameter", v["rim_diameter"].get<double>(), v["rim_diameter_uncertainty"], units));
+      out.push_back(
+          Flat("base_diameter", v["base_diameter"].get<double>(), v["base_diameter_uncertainty"], units));
+      out.push_back(Flat("max_diameter", v["max_diameter"].get<double>(), nullptr, units));
+    }
+  } else if (schema == "scan2model.part_fit/1") {
+    for (const nlohmann::json& p : d["parameters"]) {
+      nlohmann::json f = Flat(p["name"].get<std::string>(), p["value"].get<double>(),
+                              p["standard_uncertainty"], p.value("unit", units));
+      f["nominal"] = p["nominal"];
+      if (p.contains("tolerance")) f["tolerance"] = p["tolerance"];
+      if (p.contains("verdict")) f["verdict"] = p["verdict"];
+      out.push_back(f);
+    }
+  }
+  return out;
+}
+
+nlohmann::json SummaryEntry(const BatchObject& object, const nlohmann::json* record,
+                            const std::string& record_file) {
+  nlohmann::json e = {{"id", object.id}, {"input", object.fit.file}, {"model", object.fit.model}};
+  if (record == nullptr || record->is_null()) {
+    e["status"] = "missing";
+    return e;
+  }
+  const nlohmann::json& r = *record;
+  e["status"] = r["status"];
+  e["exit_code"] = r["exit_code"];
+  e["error"] = r.value("error", nlohmann::json(nullptr));
+  e["record"] = record_file;
+  if (r["status"] != "ok") return e;
+  const nlohmann::json& d = r["result"];
+  e["schema"] = d["schema"];
+  e["units"] = d["input"].value("units", "unknown");
+  e["views"] = d["input"].value("views", 1);
+  e["points"] = d["input"]["points"];
+  e["rms"] = d["residuals"]["rms"];
+  e["max_abs"] = d["residuals"]["max_abs"];
+  e["iterations"] = d["iterations"];
+  e["stop_reason"] = d["stop_reason"];
+  e["seconds"] = d["seconds"];
+  if (d.contains("adequacy")) {
+    e["rms_to_noise"] = d["adequacy"]["rms_to_noise"];
+    e["adequate"] = d["adequacy"]["adequate"];
+  }
+  e["parameters"] = FlatParameters(d);
+  if (d.contains("verdict")) e["verdict"] = d["verdict"];
+  return e;
+}
+
+void WriteBatchSummary(const std::string& output_dir, const std::string& name, const BatchManifest& manifest,
+                       const std::vector<nlohmann::json>& entries) {
+  fs::create_directories(output_dir);
+  nlohmann::json j = {
+      {"schema", "scan2model.batch_summary/1"}, {"manifest", manifest.path}, {"objects", entries}};
+  std::map<std::string, int> counts;
+  for (const nlohmann::json& e : entries) counts[e["status"].get<std::string>()] += 1;
+  j["counts"] = {{"objects", entries.size()},
+                 {"ok", counts["ok"]},
+                 {"error", counts["error"]},
+                 {"missing", counts["missing"]}};
+  WriteTextAtomically((fs::path(output_dir) / (name + ".json")).string(), j.dump(1) + "\n");
+
+  // CSV: fixed columns, then value and uncertainty of every parameter any object has (first appearance
+  // order).
+  std::vector<std::string> names;
+  std::set<std::string> seen;
+  for (const nlohmann::json& e : entries) {
+    for (const nlohmann::json& p : e.value("parameters", nlohmann::json::array())) {
+      const std::string n = p["name"].get<std::string>();
+      if (seen.insert(n).second) names.push_back(n);
+    }
+  }
+  static const std::vector<std::string> kColumns = {
+      "id",  "status",  "exit_code",  "model",        "input",    "units",   "views",   "points",
+      "rms", "max_abs", "iterations", "rms_to_noise", "adequate", "verdict", "seconds", "error"};
+  std::ostringstream csv;
+  for (std::size_t c = 0; c < kColumns.size(); ++c) csv << (c ? "," : "") << kColumns[c];
+  for (const std::string& n : names) csv << "," << CsvField(n) << "," << CsvField(n + "_uncertainty");
+  csv << "\n";
+  for (const nlohmann::json& e : entries) {
+    for (std::size_t c = 0; c < kColumns.size(); ++c) {
+      csv << (c ? "," : "") << (e.contains(kColumns[c]) ? CsvNumber(e[kColumns[c]]) : "");
+    }
+    std::map<std::string, const nlohmann::json*> by_name;
+    const nlohmann::json none = nlohmann::json::array();
+    const nlohmann::json& params = e.contains("parameters") ? e["parameters"] : none;
+    for (const nlohmann::json& p : params) by_name[p["name"].get<std::string>()] = &p;
+    for (const std::string& n : names) {
+      const auto it = by_name.find(n);
+      if (it == by_name.end()) {
+        csv << ",,";
+      } else {
+        csv << "," << CsvNumber((*it->second)["value"]) << "," << CsvNumber((*it->second)["uncertainty"]);
+      }
+    }
+    csv << "\n";
+  }
+  WriteTextAtomically((fs::path(output_dir) / (name + ".csv")).string(), csv.str());
+}
+
+}  // namespace s2m::app

@@ -1,0 +1,343 @@
+#include "apps/report.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <numeric>
+#include <sstream>
+
+#include "acquisition/format_error.h"
+#include "apps/batch.h"
+#include "apps/domain.h"
+#include "apps/output.h"
+#include "apps/svg.h"
+
+#ifndef S2M_VERSION
+#define S2M_VERSION "unknown"
+#endif
+
+namespace s2m::app {
+namespace {
+
+using svg::Escape;
+
+std::string Number(const nlohmann::json& v, int digits = 8) {
+  if (v.is_number()) return Format(v.get<double>(), digits);
+  if (v.is_boolean()) return v.get<bool>() ? "yes" : "no";
+  if (v.is_string()) return Escape(v.get<std::string>());
+  return "&#8211;";  // en dash: no value
+}
+
+const char* kStyle = R"(
+body { font-family: sans-serif; margin: 2em auto; max-width: 980px; color: #222; }
+h1 { font-size: 1.5em; border-bottom: 2px solid #1f5fa8; padding-bottom: 0.2em; }
+h2 { font-size: 1.15em; margin-top: 1.6em; color: #1f5fa8; }
+table { border-collapse: collapse; margin: 0.5em 0; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
+th { background: #eef2f8; }
+td.name, th.name { text-align: left; }
+.pass { color: #1a7f37; font-weight: bold; }
+.fail { color: #b2182b; font-weight: bold; }
+.error { background: #fde8e8; border: 1px solid #b2182b; padding: 0.6em; }
+.note { color: #555; font-size: 0.9em; }
+figure { margin: 0.8em 0; }
+)";
+
+std::string Row(const std::vector<std::string>& cells, bool header = false) {
+  std::string s = "<tr>";
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    const std::string tag = header ? "th" : "td";
+    s += "<" + tag + (i == 0 ? " class=\"name\"" : "") + ">" + cells[i] + "</" + tag + ">";
+  }
+  return s + "</tr>\n";
+}
+
+std::string ParameterTable(const nlohmann::json& d) {
+  const nlohmann::json params = FlatParameters(d);
+  if (params.empty())
+    return "<p class=\"note\">This model has no named parameters (see the result document).</p>\n";
+  bool nominal = false, tolerance = false;
+  for (const nlohmann::json& p : params) {
+    nominal |= p.contains("nominal");
+    tolerance |= p.contains("tolerance");
+  }
+  std::ostringstream s;
+  s << "<table>\n";
+  std::vector<std::string> header = {"parameter", "value", "standard uncertainty", "unit"};
+  if (nominal) header.push_back("nominal");
+  if (tolerance) header.insert(header.end(), {"tolerance", "verdict"});
+  s << Row(header, true);
+  for (const nlohmann::json& p : params) {
+    std::vector<std::string> cells = {Escape(p["name"].get<std::string>()), Number(p["value"], 10),
+                                      Number(p["uncertainty"], 3), Escape(p.value("unit", ""))};
+    if (nominal) cells.push_back(Number(p.value("nominal", nlohmann::json(nullptr)), 10));
+    if (tolerance) {
+      cells.push_back(p.contains("tolerance") ? "&#177;" + Number(p["tolerance"], 6) : "&#8211;");
+      const std::string verdict = p.value("verdict", "");
+      cells.push_back(verdict.empty() ? "&#8211;"
+                                      : "<span class=\"" + verdict + "\">" + Escape(verdict) + "</span>");
+    }
+    s << Row(cells);
+  }
+  s << "</table>\n";
+  return s.str();
+}
+
+std::string Summary(const nlohmann::json& d) {
+  std::ostringstream s;
+  const nlohmann::json& in = d["input"];
+  s << "<table>\n"
+    << Row({"model", Escape(d.value("model", ""))}) << Row({"result schema", Escape(d.value("schema", ""))})
+    << Row({"input", Escape(in.value("file", ""))});
+  if (in.contains("views")) s << Row({"views", Number(in["views"])});
+  s << Row({"points", Number(in["points"])}) << Row({"units", Escape(in.value("units", "unknown"))});
+  if (d.contains("method")) s << Row({"error term", Escape(d["method"].get<std::string>())});
+  if (d.contains("solver")) s << Row({"solver", Escape(d["solver"].get<std::string>())});
+  s << Row({"residual RMS", Number(d["residuals"]["rms"], 6)})
+    << Row({"largest |residual|", Number(d["residuals"]["max_abs"], 6)})
+    << Row({"iterations", Number(d["iterations"])}) << Row({"stopped", Number(d["stop_reason"])})
+    << Row({"time (s)", Number(d["seconds"], 4)});
+  if (d.contains("unobservable") && !d["unobservable"].empty()) {
+    std::string u;
+    for (const nlohmann::json& n : d["unobservable"]) u += (u.empty() ? "" : "; ") + n.get<std::string>();
+    s << Row({"unobservable", Escape(u)});
+  }
+  s << "</table>\n";
+  return s.str();
+}
+
+std::string Adequacy(const nlohmann::json& a) {
+  std::ostringstream s;
+  s << "<h2>Model adequacy</h2>\n<p>RMS of the fit " << Number(a["fit_rms"], 4)
+    << ", noise of the views estimated "
+    << "without the model " << Number(a["noise_estimate"], 4) << ": ratio <b>" << Number(a["rms_to_noise"], 3)
+    << "</b>. ";
+  if (a["adequate"].is_boolean()) {
+    s << (a["adequate"].get<bool>() ? "<span class=\"pass\">The model is adequate</span>"
+                                    : "<span class=\"fail\">The model is NOT adequate</span>")
+      << " (threshold " << Number(a["threshold"]) << ").";
+  } else {
+    s << "Unknown (too few points per view to estimate their noise).";
+  }
+  s << "</p>\n<p class=\"note\">" << Escape(a.value("noise_method", "")) << "</p>\n";
+  return s.str();
+}
+
+std::string Vessel(const nlohmann::json& v) {
+  const std::string units = v.value("units", "");
+  std::ostringstream s;
+  s << "<h2>Vessel profile</h2>\n<table>\n"
+    << Row({"height", Number(v["height"], 6) + " " + Escape(units)})
+    << Row({"rim diameter", Number(v["rim_diameter"], 6) + " &#177; " +
+                                Number(v["rim_diameter_uncertainty"], 2) + " " + Escape(units)})
+    << Row({"base diameter", Number(v["base_diameter"], 6) + " &#177; " +
+                                 Number(v["base_diameter_uncertainty"], 2) + " " + Escape(units)})
+    << Row({"largest diameter", Number(v["max_diameter"], 6) + " " + Escape(units) + " at " +
+                                    Number(v["max_diameter_height"], 4) + " above the base"})
+    << "</table>\n<figure>" << ProfileSvg(v, units)
+    << "<figcaption class=\"note\">Section left of the axis, outline right; "
+    << Escape(v.value("convention", "")) << ".</figcaption></figure>\n";
+  return s.str();
+}
+
+std::string Convergence(const nlohmann::json& d) {
+  svg::Series rms{{}, {}, "#1f5fa8", "RMS"}, max{{}, {}, "#b2182b", "max distance"};
+  for (const nlohmann::json& h : d.value("history", nlohmann::json::array())) {
+    const double it = h["iteration"].get<double>();
+    rms.x.push_back(it);
+    rms.y.push_back(h["rms"].get<double>());
+    max.x.push_back(it);
+    max.y.push_back(h["max_distance"].get<double>());
+  }
+  if (rms.x.empty())
+    return "<h2>Convergence</h2>\n<p class=\"note\">No iterations (a closed-form fit).</p>\n";
+  return "<h2>Convergence</h2>\n<figure>" +
+         svg::LinePlot("Residuals per iteration", "iteration", "distance (log scale)", {rms, max}, true) +
+         "</figure>\n";
+}
+
+std::string Deviations(const nlohmann::json& d) {
+  if (!d.contains("deviations") || !d["deviations"].contains("histogram"))
+    return "<h2>Residuals</h2>\n<p class=\"note\">This fit stores no per-point deviations.</p>\n";
+  const nlohmann::json& dev = d["deviations"];
+  const std::string units = d["input"].value("units", "");
+  std::ostringstream s;
+  const nlohmann::json& h = dev["histogram"];
+  s << "<h2>Residuals</h2>\n<p>Signed orthogonal distances of all " << Number(dev["count"])
+    << " points from the fitted model (positive outside): mean " << Number(dev["mean"], 3) << ", RMS "
+    << Number(dev["rms"], 4) << ", range " << Number(dev["min"], 4) << " to " << Number(dev["max"], 4) << " "
+    << Escape(units) << "; " << Number(h["below"]) << " below and " << Number(h["above"])
+    << " above the histogram's range.</p>\n<figure>"
+    << svg::Histogram("Residual histogram", "signed distance (" + units + ")",
+                      h["edges"].get<std::vector<double>>(), h["counts"].get<std::vector<double>>())
+    << "</figure>\n";
+  // The sample, projected: for models with an axis, a side view with the axis up; otherwise onto the two
+  // principal directions of the points. Far points first, so that near ones are drawn over them.
+  const nlohmann::json& sample = dev["sample"]["points"];
+  const Eigen::Index n = static_cast<Eigen::Index>(sample.size());
+  if (n == 0) return s.str();
+  Eigen::Matrix3Xd p(3, n);
+  std::vector<double> values;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const nlohmann::json& row = sample[static_cast<std::size_t>(i)];
+    p.col(i) << row[0].get<double>(), row[1].get<double>(), row[2].get<double>();
+    values.push_back(row[3].get<double>());
+  }
+  const Eigen::Vector3d centre = p.rowwise().mean();
+  const Eigen::Matrix3d scatter = (p.colwise() - centre) * (p.colwise() - centre).transpose();
+  Eigen::Vector3d up, across;
+  if (d.contains("axis")) {
+    for (int i = 0; i < 3; ++i) up[i] = d["axis"]["direction"][static_cast<std::size_t>(i)].get<double>();
+    if (d.contains("vessel")) {
+      for (int i = 0; i < 3; ++i) up[i] = d["vessel"]["up"][static_cast<std::size_t>(i)].get<double>();
+    }
+    const Eigen::Matrix3d projector = Eigen::Matrix3d::Identity() - up * up.transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(projector * scatter * projector);
+    across = eig.eigenvectors().col(2);
+    // A shell's whorls show from above: look down the axis.
+    if (d.contains("growth")) up = up.cross(across).normalized();
+  } else {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
+    across = eig.eigenvectors().col(2);
+    up = eig.eigenvectors().col(1);
+  }
+  const Eigen::Vector3d towards_viewer = across.cross(up);
+  std::vector<Eigen::Index> order(static_cast<std::size_t>(n));
+  std::iota(order.begin(), order.end(), Eigen::Index{0});
+  std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) {
+    return towards_viewer.dot(p.col(a)) < towards_viewer.dot(p.col(b));
+  });
+  std::vector<Eigen::Vector2d> projected;
+  std::vector<double> ordered_values;
+  for (const Eigen::Index i : order) {
+    const Eigen::Vector3d q = p.col(i) - centre;
+    projected.emplace_back(across.dot(q), up.dot(q));
+    ordered_values.push_back(values[static_cast<std::size_t>(i)]);
+  }
+  const double range = 3 * dev["rms"].get<double>();
+  s << "<h2>Deviation from the model</h2>\n<figure>"
+    << svg::ColouredScatter("Points coloured by signed deviation (every " +
+                                std::to_string(dev["sample"]["stride"].get<long long>()) + ". point)",
+                            projected, ordered_values, range, units, {640, 480})
+    << "<figcaption class=\"note\">Colour scale &#177;3 RMS; red outside the model, blue inside. "
+    << (d.contains("growth") ? "View down the spiral's axis."
+        : d.contains("axis") ? "Side view, axis up."
+                             : "View along the points' least principal direction.")
+    << "</figcaption></figure>\n";
+  return s.str();
+}
+
+std::string Views(const nlohmann::json& d) {
+  if (!d.contains("views")) return "";
+  const nlohmann::json& views = d["views"];
+  std::ostringstream s;
+  s << "<h2>Views and pose corrections</h2>\n<table>\n"
+    << Row({"view", "source", "points", "RMS", "rotation (deg)", "translation", "&#963; rotation (deg)",
+            "&#963; translation"},
+           true);
+  std::vector<std::string> labels;
+  std::vector<double> rotation, translation;
+  for (std::size_t k = 0; k < views.size(); ++k) {
+    const nlohmann::json& v = views[k];
+    auto norm3 = [](const nlohmann::json& a) {  // null when a component is unknown (unobservable)
+      double sum = 0;
+      for (const nlohmann::json& x : a) {
+        if (!x.is_number()) return nlohmann::json(nullptr);
+        sum += x.get<double>() * x.get<double>();
+      }
+      return nlohmann::json(std::sqrt(sum));
+    };
+    const bool u = v.contains("pose_uncertainty");
+    s << Row({std::to_string(k), Escape(v.value("source", "")), Number(v["points"]), Number(v["rms"], 4),
+              Number(v["correction"]["rotation_deg"], 4), Number(v["correction"]["translation"], 4),
+              u ? Number(norm3(v["pose_uncertainty"]["rotation_deg"]), 2) : "&#8211;",
+              u ? Number(norm3(v["pose_uncertainty"]["translation"]), 2) : "&#8211;"});
+    labels.push_back(std::to_string(k));
+    rotation.push_back(v["correction"]["rotation_deg"].get<double>());
+    translation.push_back(v["correction"]["translation"].get<double>());
+  }
+  s << "</table>\n<p class=\"note\">Correction = corrected pose relative to the recorded one; &#963; = "
+       "length of "
+       "the standard uncertainty vector of the pose.</p>\n<figure>"
+    << svg::BarChart("Pose correction: rotation", "degrees", labels, rotation, {470, 260})
+    << svg::BarChart("Pose correction: translation", d["input"].value("units", ""), labels, translation,
+                     {470, 260})
+    << "</figure>\n";
+  return s.str();
+}
+
+}  // namespace
+
+std::string ReportHtml(const nlohmann::json& in) {
+  const bool record = in.value("schema", "") == "scan2model.batch_object/1";
+  std::string title = record ? "object " + in.value("id", "") : "fit";
+  std::ostringstream body;
+  if (record && in.value("status", "") != "ok") {
+    body << "<h2>Failed</h2>\n<div class=\"error\">" << Escape(in.value("error", "unknown error"))
+         << " (exit code " << Number(in["exit_code"]) << ")</div>\n";
+  } else {
+    const nlohmann::json& d = record ? in.at("result") : in;
+    const std::string schema = d.value("schema", "");
+    if (schema != "scan2model.fit/1" && schema != "scan2model.multiview/1" &&
+        schema != "scan2model.part_fit/1" && schema != "scan2model.bspline/1") {
+      throw std::invalid_argument("not a result of scan2model fit (schema '" + schema + "')");
+    }
+    if (!record) title += " of " + d["input"].value("file", "");
+    body << Summary(d) << "<h2>Parameters</h2>\n" << ParameterTable(d);
+    if (d.contains("verdict")) {
+      const std::string v = d["verdict"].get<std::string>();
+      body << "<p>Tolerance verdict: <span class=\"" << v << "\">" << Escape(v) << "</span></p>\n";
+    }
+    if (d.contains("adequacy")) body << Adequacy(d["adequacy"]);
+    if (d.contains("vessel")) body << Vessel(d["vessel"]);
+    body << Convergence(d) << Deviations(d) << Views(d);
+  }
+  std::ostringstream html;
+  html << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>scan2model report: "
+       << Escape(title) << "</title>\n<style>" << kStyle
+       << "</style>\n</head>\n<body>\n<h1>scan2model report: " << Escape(title) << "</h1>\n"
+       << body.str() << "<p class=\"note\">Generated by scan2model " << S2M_VERSION
+       << ". Uncertainties are standard (type A, GUM) from the Gauss-Newton covariance of the orthogonal "
+          "distances.</p>\n</body>\n</html>\n";
+  return html.str();
+}
+
+Runner AddReportCommand(CLI::App& app) {
+  struct Options {
+    std::string input, output;
+  };
+  auto o = std::make_shared<Options>();
+  CLI::App* cmd = app.add_subcommand(
+      "report", "Write a self-contained HTML report (inline SVG plots, no network) of a fit's JSON result");
+  cmd->add_option("result", o->input,
+                  "A result document: `fit --json` output, `fit -o PREFIX`'s PREFIX.json, or a batch object "
+                  "(OUTPUT/objects/ID.json)")
+      ->required();
+  cmd->add_option("--output,-o", o->output, "The HTML file to write")->required();
+  return [o]() {
+    try {
+      std::ifstream in(o->input);
+      if (!in) throw FormatError(o->input, "", "cannot open");
+      nlohmann::json j;
+      try {
+        j = nlohmann::json::parse(in);
+      } catch (const nlohmann::json::exception& e) {
+        throw FormatError(o->input, "", std::string("not valid JSON: ") + e.what());
+      }
+      std::string html;
+      try {
+        html = ReportHtml(j);
+      } catch (const std::exception& e) {  // missing members, wrong types: not a result we know
+        throw FormatError(o->input, "", e.what());
+      }
+      WriteTextAtomically(o->output, html);
+      return int{kOk};
+    } catch (const FormatError& e) {
+      return ReportError("report", e.what(), kInputError, false);
+    }
+  };
+}
+
+}  // namespace s2m::app
