@@ -45,10 +45,11 @@ std::vector<FittingCase> FittingCases(const std::filesystem::path& glyphs, bool 
       const auto contours = ReadGlifContours(glyphs / (std::string(g) + ".glif"));
       const Eigen::Matrix2Xd c = contours.front();
       const int n = static_cast<int>(c.cols() / 8);
-      cases.push_back({std::string("glyph '") + g[0] + "' outer contour (" + std::to_string(c.cols()) +
-                           " samples, " + std::to_string(n) + " control points)",
-                       c, [c, n] { return std::make_unique<BSplineCurve>(InitialCurveFromQuadtree(c, n, 4, true)); },
-                       1e-4, true});
+      cases.push_back(
+          {std::string("glyph '") + g[0] + "' outer contour (" + std::to_string(c.cols()) + " samples, " +
+               std::to_string(n) + " control points)",
+           c, [c, n] { return std::make_unique<BSplineCurve>(InitialCurveFromQuadtree(c, n, 4, true)); },
+           1e-4, true});
     }
   } else {
     std::fprintf(stderr, "fitting methods: %s absent, glyph cases skipped\n", glyphs.c_str());
@@ -66,7 +67,8 @@ std::vector<FittingCase> FittingCases(const std::filesystem::path& glyphs, bool 
                      [bumps] {
                        Eigen::Matrix3Xd flat = bumps;
                        flat.row(2).setZero();
-                       return std::make_unique<BSplineSurface>(InitialSurfaceByProjection(flat, 6, 6, 4, SurfaceProjection::kPlane));
+                       return std::make_unique<BSplineSurface>(
+                           InitialSurfaceByProjection(flat, 6, 6, 4, SurfaceProjection::kPlane));
                      },
                      1e-5, false});
   }

@@ -33,8 +33,9 @@ int main(int argc, char** argv) {
           std::snprintf(ratio, sizeof ratio, "%.1fx",
                         static_cast<double>(r.iterations_to_target) / sdm.iterations_to_target);
       }
-      std::printf("| %s (target RMS %.3g) | %s | %s | %s | %.3f | %.4g | %s |\n", c.name.c_str(), r.target_rms,
-                  ToString(r.method), it, ms, r.seconds_per_iteration * 1e3, r.lowest_rms, ratio);
+      std::printf("| %s (target RMS %.3g) | %s | %s | %s | %.3f | %.4g | %s |\n", c.name.c_str(),
+                  r.target_rms, ToString(r.method), it, ms, r.seconds_per_iteration * 1e3, r.lowest_rms,
+                  ratio);
     }
   }
   return 0;

@@ -86,7 +86,8 @@ Family MakeFamily(const std::string& name) {
     std::mt19937_64 rng(3);
     std::normal_distribution<double> gauss(0, 1);
     for (Eigen::Index i = 0; i < kPoints; ++i)
-      p.col(i) = Eigen::Vector3d(1, 2, 3) + 25.0 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+      p.col(i) =
+          Eigen::Vector3d(1, 2, 3) + 25.0 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
     return {std::move(model), WithNoise(p, 0.05, 4)};
   }
   if (name == "bspline-curve") {
@@ -124,7 +125,8 @@ Family MakeFamily(const std::string& name) {
     std::uniform_real_distribution<double> u(0.1, 0.9);
     LocalGeometry g;
     for (Eigen::Index i = 0; i < kPoints; ++i) {
-      model->Evaluate({d.lo[0] + u(rng) * (d.hi[0] - d.lo[0]), d.lo[1] + u(rng) * (d.hi[1] - d.lo[1]), 0}, 0, g);
+      model->Evaluate({d.lo[0] + u(rng) * (d.hi[0] - d.lo[0]), d.lo[1] + u(rng) * (d.hi[1] - d.lo[1]), 0}, 0,
+                      g);
       p.col(i) = To3(g.point);
     }
     return {std::move(model), WithNoise(p, 0.02, 7)};
@@ -181,7 +183,8 @@ void FootPointsRefineOnly(benchmark::State& state, const std::string& name) {
   for (auto _ : state) {
     double sum = 0;
     for (Eigen::Index j = 0; j < moved.cols(); ++j)
-      sum += RefineFootPoint(*f.model, d, VecS(moved.col(j)), warm[static_cast<std::size_t>(j)].t, g).distance;
+      sum +=
+          RefineFootPoint(*f.model, d, VecS(moved.col(j)), warm[static_cast<std::size_t>(j)].t, g).distance;
     benchmark::DoNotOptimize(sum);
   }
   state.SetItemsProcessed(state.iterations() * f.points.cols());
@@ -209,7 +212,8 @@ void RigidAssembly(benchmark::State& state) {
 }
 
 // Per point of a model registration step: model evaluation with second derivatives, principal frame, SDM
-// matrix and accumulation (fitting/model_registration.cpp's loop), on the B-spline surface at its foot points.
+// matrix and accumulation (fitting/model_registration.cpp's loop), on the B-spline surface at its foot
+// points.
 void RegistrationAssemblyOnSurface(benchmark::State& state) {
   const Family f = MakeFamily("bspline-surface");
   std::vector<FootPoint> feet;

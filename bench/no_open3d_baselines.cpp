@@ -2,6 +2,10 @@
 #include "bench/icp_baselines.h"
 
 namespace s2m::bench {
-bool HaveOpen3d() { return false; }
-std::unique_ptr<IcpBaseline> MakeOpen3dPointToPlane(const IcpProblem&) { return nullptr; }
+bool HaveOpen3d() {
+  return false;
+}
+std::unique_ptr<IcpBaseline> MakeOpen3dPointToPlane(const IcpProblem&) {
+  return nullptr;
+}
 }  // namespace s2m::bench

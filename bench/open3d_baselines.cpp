@@ -17,7 +17,8 @@ std::shared_ptr<open3d::geometry::PointCloud> ToCloud(const Eigen::Matrix3Xd& po
                                                       const Eigen::Matrix3Xd& normals) {
   auto cloud = std::make_shared<open3d::geometry::PointCloud>();
   cloud->points_.resize(static_cast<std::size_t>(points.cols()));
-  for (Eigen::Index i = 0; i < points.cols(); ++i) cloud->points_[static_cast<std::size_t>(i)] = points.col(i);
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    cloud->points_[static_cast<std::size_t>(i)] = points.col(i);
   if (normals.cols() == points.cols()) {
     cloud->normals_.resize(static_cast<std::size_t>(points.cols()));
     for (Eigen::Index i = 0; i < points.cols(); ++i)
@@ -36,10 +37,9 @@ class Open3dPointToPlane final : public IcpBaseline {
 
   RigidMotion Run(const RigidMotion& start, int iterations) override {
     // Relative fitness and RMSE thresholds 0: Open3D's early stop never fires, exactly `iterations` run.
-    const reg::RegistrationResult r =
-        reg::RegistrationICP(*source_, *target_, max_distance_, start.matrix(),
-                             reg::TransformationEstimationPointToPlane(),
-                             reg::ICPConvergenceCriteria(0.0, 0.0, iterations));
+    const reg::RegistrationResult r = reg::RegistrationICP(*source_, *target_, max_distance_, start.matrix(),
+                                                           reg::TransformationEstimationPointToPlane(),
+                                                           reg::ICPConvergenceCriteria(0.0, 0.0, iterations));
     return RigidMotion::FromMatrix(r.transformation_);
   }
 
@@ -50,7 +50,9 @@ class Open3dPointToPlane final : public IcpBaseline {
 
 }  // namespace
 
-bool HaveOpen3d() { return true; }
+bool HaveOpen3d() {
+  return true;
+}
 std::unique_ptr<IcpBaseline> MakeOpen3dPointToPlane(const IcpProblem& problem) {
   return std::make_unique<Open3dPointToPlane>(problem);
 }

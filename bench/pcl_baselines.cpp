@@ -24,8 +24,8 @@ CloudN::Ptr ToCloud(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& norm
     p.x = x.x();
     p.y = x.y();
     p.z = x.z();
-    const Eigen::Vector3f n =
-        normals.cols() == points.cols() ? Eigen::Vector3f(normals.col(i).cast<float>()) : Eigen::Vector3f::Zero();
+    const Eigen::Vector3f n = normals.cols() == points.cols() ? Eigen::Vector3f(normals.col(i).cast<float>())
+                                                              : Eigen::Vector3f::Zero();
     p.normal_x = n.x();
     p.normal_y = n.y();
     p.normal_z = n.z();
@@ -56,7 +56,8 @@ class PclIcp final : public IcpBaseline {
 
   RigidMotion Run(const RigidMotion& start, int iterations) override {
     icp_.setMaximumIterations(iterations);
-    // In the shifted frame: target'_T_source' = shift(-o) * target_T_source * shift(o) with source' = source - o.
+    // In the shifted frame: target'_T_source' = shift(-o) * target_T_source * shift(o) with source' = source
+    // - o.
     const RigidMotion shift_in(Eigen::Matrix3d::Identity(), origin_);
     const RigidMotion shift_out(Eigen::Matrix3d::Identity(), -origin_);
     const RigidMotion guess = shift_out * start * shift_in;
@@ -74,7 +75,9 @@ class PclIcp final : public IcpBaseline {
 
 }  // namespace
 
-bool HavePcl() { return true; }
+bool HavePcl() {
+  return true;
+}
 std::unique_ptr<IcpBaseline> MakePclPointToPoint(const IcpProblem& problem) {
   return std::make_unique<PclIcp>(problem, false);
 }

@@ -13,6 +13,7 @@ packages=(
   libbenchmark-dev
   libpcl-dev             # optional edge (s2m_pcl): PCL's reference ICP, coarse alignment (FPFH + RANSAC)
   libtiff-dev            # tests only: libtiff decodes the Kinect depth TIFFs independently of our reader
+  libopen3d-dev          # optional: the benchmark's Open3D point-to-plane ICP baseline (bench/open3d_baselines.cpp)
 )
 
 missing=()
