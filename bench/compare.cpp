@@ -691,8 +691,37 @@ struct ScalingResult {
   long long points = 0;
   int iterations = 0;
   double peak_rss_mb = NAN;
+  double cores_used = NAN;  // process CPU time / wall time of the fit (2 = both cores busy with it)
   bool ok = false;
 };
+
+// Process CPU time (user + system), seconds.
+double CpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+// This process's peak resident memory (VmHWM of /proc/self/status), MB; NAN when unavailable. Unlike
+// ru_maxrss, it does not carry over the image the process had before exec.
+double PeakResidentMb() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
+  return NAN;
+}
+
+// The machine's load average (1, 5, 15 minutes) as /proc/loadavg gives it: other processes share the cores.
+std::string LoadAverage() {
+  std::ifstream in("/proc/loadavg");
+  double a = NAN, b = NAN, c = NAN;
+  in >> a >> b >> c;
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.2f %.2f %.2f", a, b, c);
+  return buffer;
+}
 
 // The vase profile refined to 12 control points: a surface of revolution 150 mm tall.
 KinematicSurface TwelvePointVase() {
@@ -731,7 +760,10 @@ ScalingResult RunScaling(long long points, int views, int iterations) {
   o.max_iterations = iterations;
   o.shared_motion_iterations = 0;
   o.objective_tolerance = 0.0;
+  const double cpu0 = CpuSeconds();
+  const auto wall0 = Clock::now();
   const JointFitResult r = FitJointly(start, v.scans, v.model_T_scan_recorded, o);
+  out.cores_used = (CpuSeconds() - cpu0) / Since(wall0);
   // Per iteration: the differences of the iteration clock after the first (which also pays the first foot
   // points from the seed samples).
   std::vector<double> per;
@@ -741,12 +773,13 @@ ScalingResult RunScaling(long long points, int views, int iterations) {
   out.setup_seconds = r.history.empty() ? NAN : r.history[0].seconds;
   out.iterations = r.iterations;
   out.ok = r.iterations >= 2;
+  out.peak_rss_mb = PeakResidentMb();
   return out;
 }
 
 // Runs one scaling configuration in a fresh process (this program re-executed with --scaling-child: a forked
 // copy of a process that already ran OpenMP regions would hang in its first parallel region) and returns its
-// result with the child's peak resident memory.
+// result; the child measures its own peak memory.
 ScalingResult InChild(long long points, int views, int iterations) {
   int fd[2];
   if (pipe(fd) != 0) throw std::runtime_error("pipe failed");
@@ -768,24 +801,23 @@ ScalingResult InChild(long long points, int views, int iterations) {
     text.append(buffer, static_cast<std::size_t>(got));
   close(fd[0]);
   int status = 0;
-  rusage usage{};
-  wait4(pid, &status, 0, &usage);
+  waitpid(pid, &status, 0);
   ScalingResult r;
   std::istringstream in(text);
   int ok = 0;
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 ||
-      !(in >> r.seconds_per_iteration >> r.setup_seconds >> r.points >> r.iterations >> ok))
+      !(in >> r.seconds_per_iteration >> r.setup_seconds >> r.points >> r.iterations >> r.peak_rss_mb >>
+        r.cores_used >> ok))
     return {};
   r.ok = ok != 0;
-  r.peak_rss_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
   return r;
 }
 
 int ScalingChild(long long points, int views, int iterations) {
   try {
     const ScalingResult r = RunScaling(points, views, iterations);
-    std::printf("%.9g %.9g %lld %d %d\n", r.seconds_per_iteration, r.setup_seconds, r.points, r.iterations,
-                r.ok ? 1 : 0);
+    std::printf("%.9g %.9g %lld %d %.9g %.9g %d\n", r.seconds_per_iteration, r.setup_seconds, r.points,
+                r.iterations, r.peak_rss_mb, r.cores_used, r.ok ? 1 : 0);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "scaling case failed: %s\n", e.what());
@@ -813,20 +845,22 @@ void SectionScaling(const Settings& s, Csv& csv, ScalingSummary& summary) {
       "%d iterations from a start 1 %% off in shape and 0.5 deg / 0.5 mm off in pose; time per iteration = "
       "median of the differences of the iteration clock after the first; first = the first iteration "
       "including the initial foot points from seed samples. Each configuration runs in its own child "
-      "process; peak = its maximum resident memory (getrusage). Threads: %d.\n\n",
+      "process; peak = its maximum resident memory (VmHWM); cores used = the fit's process CPU time / wall "
+      "time (2.0: both cores were ours; less: other processes shared them). Threads: %d.\n\n",
       iterations, omp_get_max_threads());
   std::printf(
-      "| points | views | s / iteration | first iteration (s) | us / point / iteration | peak memory (MB) |\n"
-      "|---|---|---|---|---|---|\n");
+      "| points | views | s / iteration | first iteration (s) | us / point / iteration | peak memory (MB) | "
+      "cores "
+      "used |\n|---|---|---|---|---|---|---|\n");
   for (const auto& [n, k] : configs) {
     const ScalingResult r = InChild(n, k, iterations);
     if (!r.ok) {
-      std::printf("| %lld | %d | failed | | | |\n", n, k);
+      std::printf("| %lld | %d | failed | | | | |\n", n, k);
       continue;
     }
-    std::printf("| %lld | %d | %.3f | %.3f | %.3f | %.0f |\n", r.points, k, r.seconds_per_iteration,
-                r.setup_seconds, r.seconds_per_iteration * 1e6 / static_cast<double>(r.points),
-                r.peak_rss_mb);
+    std::printf("| %lld | %d | %.3f | %.3f | %.3f | %.0f | %.2f |\n", r.points, k, r.seconds_per_iteration,
+                r.setup_seconds, r.seconds_per_iteration * 1e6 / static_cast<double>(r.points), r.peak_rss_mb,
+                r.cores_used);
     std::fflush(stdout);
     if (n == 1000000 && k == 8) summary.eight_views_1m = r.seconds_per_iteration;
     Row row;
@@ -840,6 +874,7 @@ void SectionScaling(const Settings& s, Csv& csv, ScalingSummary& summary) {
     row.error = r.setup_seconds;
     row.peak_rss_mb = r.peak_rss_mb;
     row.metric = "seconds: per joint iteration (median); error: first iteration seconds";
+    row.note = "cores used " + Fmt("%.2f", r.cores_used);
     csv.Add(row);
   }
 }
@@ -952,10 +987,19 @@ int main(int argc, char** argv) {
     ScalingSummary scaling;
     double threshold = NAN;
     auto wants = [&](char c) { return s.sections.find(c) != std::string::npos; };
-    if (wants('1')) SectionRegistrationToModel(s, csv, reg, threshold);
-    if (wants('2')) SectionBunny(s, csv);
-    if (wants('3')) SectionFitting(s, csv, fit);
-    if (wants('4')) SectionScaling(s, csv, scaling);
+    // Other processes share the cores: the load average before and after each section says how much.
+    auto section = [&](char c, const std::function<void()>& body) {
+      if (!wants(c)) return;
+      const std::string before = LoadAverage();
+      const auto t1 = Clock::now();
+      body();
+      std::printf("\n(section %c: %.0f s; load average before %s, after %s)\n", c, Since(t1), before.c_str(),
+                  LoadAverage().c_str());
+    };
+    section('1', [&] { SectionRegistrationToModel(s, csv, reg, threshold); });
+    section('2', [&] { SectionBunny(s, csv); });
+    section('3', [&] { SectionFitting(s, csv, fit); });
+    section('4', [&] { SectionScaling(s, csv, scaling); });
     PrintTargets(reg, threshold, fit, scaling, s.quick);
     csv.Write(s.csv);
     std::printf("\nCSV: %s (%zu rows). Total time %.1f s.\n", s.csv.c_str(), csv.rows().size(), Since(t0));
