@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "acquisition/format_error.h"
 #include "acquisition/formats/readers.h"
@@ -180,6 +181,83 @@ class Reader {
     return d.normalized();
   }
 
+  // A spline patch: "control_points" rows along u of points along v, each coordinate a number or an
+  // expression; "degree" (3) or [du, dv]; optional clamped "knots_u"/"knots_v" (default uniform on [0, 1]);
+  // optional "free_along": a direction along which every control point gets its own free displacement
+  // parameter "<face>[i,j]" (nominal 0), which makes the face free-form while the rest stays tied to the
+  // named parameters.
+  SplinePatch Patch(const Json& fj, const Json& net, const std::string& where, const std::string& face,
+                    std::vector<PartParameter>& free_parameters) {
+    const std::string net_where = where + " control_points";
+    if (!net.is_array() || net.empty() || !net[0].is_array() || net[0].empty())
+      Fail(net_where, "expected rows (along u) of [x, y, z] points (along v)");
+    const std::size_t nu = net.size(), nv = net[0].size();
+    std::array<int, 2> degree{3, 3};
+    if (fj.contains("degree")) {
+      const Json& d = fj["degree"];
+      if (d.is_number_integer()) {
+        degree = {d.get<int>(), d.get<int>()};
+      } else if (d.is_array() && d.size() == 2 && d[0].is_number_integer() && d[1].is_number_integer()) {
+        degree = {d[0].get<int>(), d[1].get<int>()};
+      } else {
+        Fail(where + " degree", "expected an integer or [degree_u, degree_v]");
+      }
+    }
+    auto basis = [&](const char* key, const char* direction, int deg, std::size_t count) {
+      const std::string w = where + " " + key;
+      if (deg < 1 || deg + 1 > BSplineBasis::kMaxOrder)
+        Fail(where + " degree", "must lie in 1.." + std::to_string(BSplineBasis::kMaxOrder - 1));
+      if (static_cast<int>(count) < deg + 1) {
+        Fail(net_where, "degree " + std::to_string(deg) + " needs at least " + std::to_string(deg + 1) +
+                            " control points along " + direction + ", not " + std::to_string(count));
+      }
+      try {
+        if (!fj.contains(key)) return BSplineBasis::ClampedUniform(deg + 1, static_cast<int>(count));
+        if (!fj[key].is_array()) Fail(w, "expected an array of knots");
+        std::vector<double> knots;
+        for (const Json& k : fj[key]) {
+          if (!k.is_number() || !std::isfinite(k.get<double>())) Fail(w, "knots must be finite numbers");
+          knots.push_back(k.get<double>());
+        }
+        return BSplineBasis::Clamped(deg + 1, std::move(knots));
+      } catch (const std::invalid_argument& e) {
+        Fail(w, e.what());
+      }
+    };
+    SplinePatch patch{basis("knots_u", "u", degree[0], nu), basis("knots_v", "v", degree[1], nv), {}};
+    if (patch.u.num_control() != static_cast<int>(nu) || patch.v.num_control() != static_cast<int>(nv)) {
+      Fail(where, "the knot vectors are for " + std::to_string(patch.u.num_control()) + " x " +
+                      std::to_string(patch.v.num_control()) + " control points, the net has " +
+                      std::to_string(nu) + " x " + std::to_string(nv));
+    }
+    std::optional<Eigen::Vector3d> free_along;
+    if (fj.contains("free_along")) free_along = Direction(fj["free_along"], where + " free_along");
+    for (std::size_t i = 0; i < nu; ++i) {
+      if (!net[i].is_array() || net[i].size() != nv)
+        Fail(net_where,
+             "row " + std::to_string(i) + " must hold " + std::to_string(nv) + " points like row 0");
+      for (std::size_t j = 0; j < nv; ++j) {
+        const std::string pw = net_where + "[" + std::to_string(i) + "][" + std::to_string(j) + "]";
+        const Json& p = net[i][j];
+        if (!p.is_array() || p.size() != 3) Fail(pw, "expected [x, y, z]");
+        std::array<LinearExpression, 3> point;
+        for (std::size_t c = 0; c < 3; ++c)
+          point[c] = Expression(p[c], pw + "[" + std::to_string(c) + "]", false);
+        if (free_along) {
+          const int index = static_cast<int>(free_parameters.size());
+          free_parameters.push_back(
+              {face + "[" + std::to_string(i) + "," + std::to_string(j) + "]", 0.0, false});
+          for (int c = 0; c < 3; ++c) {
+            if ((*free_along)[c] != 0.0)
+              point[static_cast<std::size_t>(c)].terms.emplace_back(index, (*free_along)[c]);
+          }
+        }
+        patch.control_points.push_back(std::move(point));
+      }
+    }
+    return patch;
+  }
+
   PartFile Parse(const std::string& text) {
     Json j;
     try {
@@ -264,8 +342,12 @@ class Reader {
         point("center");
         f.radius = Expression(need("major_radius"), where + " major_radius", false);
         f.minor_radius = Expression(need("minor_radius"), where + " minor_radius", false);
+      } else if (type == "spline_patch") {
+        f.type = FaceType::kSplinePatch;
+        f.patch = Patch(fj, need("control_points"), where, f.name, out.definition.parameters);
       } else {
-        Fail(where, "unknown face type \"" + type + "\" (plane, cylinder, cone, sphere, torus)");
+        Fail(where,
+             "unknown face type \"" + type + "\" (plane, cylinder, cone, sphere, torus, spline_patch)");
       }
       out.definition.faces.push_back(std::move(f));
     }

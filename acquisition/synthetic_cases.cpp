@@ -90,6 +90,118 @@ ViewOptions StandardErrors(std::uint64_t seed) {
   return o;
 }
 
+// The free-form plate: width x depth, its bottom at z = 0, its top a bicubic Bezier patch over the whole
+// plate whose control points lie on a uniform grid in x and y (so x = (u - 1/2) width and y = (v - 1/2)
+// depth exactly: a B-spline reproduces linear functions from control points at its Greville abscissae) at
+// heights kPlateHeight + the free displacements.
+constexpr double kPlateHeight = 10.0;
+
+PartDefinition FreeformPlate(double width, double depth, const Eigen::Matrix4d& displacement) {
+  PartDefinition d;
+  d.name = "plate with a free-form top";
+  d.parameters = {{"width", width, false}, {"depth", depth, false}};
+  SplinePatch patch{BSplineBasis::ClampedUniform(4, 4), BSplineBasis::ClampedUniform(4, 4), {}};
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      const int index = static_cast<int>(d.parameters.size());
+      d.parameters.push_back(
+          {"top[" + std::to_string(i) + "," + std::to_string(j) + "]", displacement(i, j), false});
+      patch.control_points.push_back({LinearExpression{0.0, {{0, i / 3.0 - 0.5}}},
+                                      LinearExpression{0.0, {{1, j / 3.0 - 0.5}}},
+                                      LinearExpression{kPlateHeight, {{index, 1.0}}}});
+    }
+  }
+  PartFace top;
+  top.name = "top";
+  top.type = FaceType::kSplinePatch;
+  top.patch = std::move(patch);
+  auto plane = [](const std::string& n, const Eigen::Vector3d& normal, LinearExpression offset) {
+    PartFace f;
+    f.name = n;
+    f.frame = FrameWithAxis(normal);
+    f.offset = std::move(offset);
+    return f;
+  };
+  d.faces = {top,
+             plane("bottom", -Eigen::Vector3d::UnitZ(), {0.0, {}}),
+             plane("right", Eigen::Vector3d::UnitX(), {0.0, {{0, 0.5}}}),
+             plane("left", -Eigen::Vector3d::UnitX(), {0.0, {{0, 0.5}}}),
+             plane("back", Eigen::Vector3d::UnitY(), {0.0, {{1, 0.5}}}),
+             plane("front", -Eigen::Vector3d::UnitY(), {0.0, {{1, 0.5}}})};
+  return d;
+}
+
+// The plate's surface, sampled about uniformly by area: the top by its (u, v) (its slopes are small), the
+// sides up to the top's border, the bottom.
+SurfaceSample SampleFreeformPlate(const PartModel& plate, int count, std::uint64_t seed) {
+  const double width = plate.parameters()[0], depth = plate.parameters()[1];
+  std::discrete_distribution<int> face({width * depth, width * depth, depth * kPlateHeight,
+                                        depth * kPlateHeight, width * kPlateHeight, width * kPlateHeight});
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  SurfaceSample s{Eigen::Matrix3Xd(3, count), Eigen::Matrix3Xd(3, count)};
+  LocalGeometry g;
+  for (int j = 0; j < count; ++j) {
+    const int k = face(rng);
+    const double a = uniform(rng), b = uniform(rng);
+    Eigen::Vector3d p, n;
+    if (k == 0) {
+      plate.Evaluate({a, b, 0.0}, 1, g);
+      p = g.point;
+      n = Eigen::Vector3d(g.d1.col(0)).cross(Eigen::Vector3d(g.d1.col(1))).normalized();
+      if (n.z() < 0) n = -n;
+    } else if (k == 1) {
+      p = {(a - 0.5) * width, (b - 0.5) * depth, 0.0};
+      n = -Eigen::Vector3d::UnitZ();
+    } else {
+      // A side: the top's border curve above it bounds it.
+      const bool along_y = k <= 3;  // right/left: x = +-width/2, running along y
+      const double sign = (k % 2 == 0) ? 1.0 : -1.0;
+      const ParamT border =
+          along_y ? ParamT{sign > 0 ? 1.0 : 0.0, a, 0.0} : ParamT{a, sign > 0 ? 1.0 : 0.0, 0.0};
+      plate.Evaluate(border, 0, g);
+      p = g.point;
+      p.z() *= b;
+      n = sign * (along_y ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY());
+    }
+    s.points.col(j) = p;
+    s.normals.col(j) = n;
+  }
+  return s;
+}
+
+// The plate's top height at (x, y) (part frame) over its height at the centre, on a fitted plate, with the
+// uncertainty from the gradient w.r.t. the parameters. The top at (x, y) is z(u, v) at u = x / width + 1/2,
+// v = y / depth + 1/2, so d/dwidth = z_u * (-x / width^2); the displacements enter by their basis products.
+// A difference of heights: the plate's absolute height is the case's gauge (see "freeform" below).
+MeasuredQuantity PlateTopRelief(const PartModel& truth, const PartModel& fitted, const JointFitResult& r,
+                                double x, double y) {
+  auto height = [](const PartModel& m, double px, double py, Eigen::VectorXd& gradient) {
+    const double w = m.parameters()[0], d = m.parameters()[1];
+    const ParamT t{px / w + 0.5, py / d + 0.5, 0.0};
+    LocalGeometry g;
+    m.Evaluate(t, 1, g);
+    gradient = Eigen::VectorXd::Zero(m.num_parameters());
+    gradient[0] = g.d1(2, 0) * (-px / (w * w));
+    gradient[1] = g.d1(2, 1) * (-py / (d * d));
+    std::vector<JacobianEntry> entries;
+    m.ShapeJacobian(t, false, entries);
+    for (const JacobianEntry& e : entries)
+      if (e.index >= 2) gradient[e.index] += e.column.z();
+    return g.point.z();
+  };
+  Eigen::VectorXd at_point, at_centre;
+  MeasuredQuantity q;
+  q.name = "top at (" + std::to_string(static_cast<int>(x)) + ", " + std::to_string(static_cast<int>(y)) +
+           ") over centre";
+  q.truth = height(truth, x, y, at_point) - height(truth, 0.0, 0.0, at_centre);
+  q.value = height(fitted, x, y, at_point) - height(fitted, 0.0, 0.0, at_centre);
+  const Eigen::VectorXd gradient = at_point - at_centre;
+  q.uncertainty =
+      r.shape_covariance.size() > 0 ? std::sqrt(gradient.dot(r.shape_covariance * gradient)) : std::nan("");
+  return q;
+}
+
 }  // namespace
 
 SurfaceSample SampleAroundAxis(const ParametricModel& model, double u0, double u1, double v0, double v1,
@@ -261,7 +373,7 @@ std::vector<Motion6> ObservablePoseErrors(const ParametricModel& model,
 }
 
 std::vector<std::string> SyntheticCaseNames() {
-  return {"vase", "helical", "spiral", "part"};
+  return {"vase", "helical", "spiral", "part", "freeform"};
 }
 
 SyntheticCase MakeSyntheticCase(const std::string& name) {
@@ -428,8 +540,38 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
       return out;
     };
     c.truth = std::move(truth);
+  } else if (name == "freeform") {
+    // A 50 x 30 mm plate, 10 mm thick, whose top is a free-form bicubic patch (up to 0.8 mm off flat) with a
+    // free displacement per control point. It lies on a table: 6 views from 45 degrees above, 2 from 70.
+    // Nothing seen relates the top to the bottom (the sides are vertical), so a common vertical shift of
+    // the views trades with a common displacement of the control points: one unobservable direction, by
+    // design. What the data determine are the width, the depth and the top's relief (heights relative to
+    // one another).
+    Eigen::Matrix4d bump;
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) bump(i, j) = 0.8 * std::sin(1.3 * i + 0.7) * std::cos(0.9 * j - 0.4);
+    const PartDefinition d = FreeformPlate(50.0, 30.0, bump);
+    auto truth = std::make_unique<PartModel>(d);
+    const SurfaceSample s = SampleFreeformPlate(*truth, 12000, 51);
+    std::vector<Eigen::Vector3d> directions = RingOfDirections(6, 45 * kDegree, 30 * kDegree);
+    for (const Eigen::Vector3d& steep : RingOfDirections(2, 70 * kDegree, 0.0)) directions.push_back(steep);
+    c.views = ScanFromDirections(s, directions, StandardErrors(52));
+    c.gauge_directions = 1;
+    // The design: a flat top, the plate 0.5 mm off in width and depth.
+    c.start = std::make_unique<PartModel>(FreeformPlate(50.5, 30.5, Eigen::Matrix4d::Zero()));
+    auto true_plate = std::make_shared<PartModel>(d);
+    c.measure = [true_plate](const ParametricModel& m, const JointFitResult& r) {
+      const auto& fitted = dynamic_cast<const PartModel&>(m);
+      return std::vector<MeasuredQuantity>{Parameter(*true_plate, m, r, "width"),
+                                           Parameter(*true_plate, m, r, "depth"),
+                                           PlateTopRelief(*true_plate, fitted, r, 12.0, 6.0),
+                                           PlateTopRelief(*true_plate, fitted, r, -20.0, -10.0),
+                                           PlateTopRelief(*true_plate, fitted, r, 22.0, -12.0)};
+    };
+    c.truth = std::move(truth);
   } else {
-    throw std::invalid_argument("unknown synthetic case '" + name + "' (vase, helical, spiral, part)");
+    throw std::invalid_argument("unknown synthetic case '" + name +
+                                "' (vase, helical, spiral, part, freeform)");
   }
   return c;
 }

@@ -2,8 +2,9 @@
 // Synthetic multi-view sources with known truth, for tests, benchmarks and demos: a model's surface sampled,
 // seen by a scanner from several directions (a point is seen when its outward normal faces the scanner;
 // self-occlusion is ignored), with Gaussian noise along the normal and device poses that are off by a
-// given rotation and translation. And four reference cases of issue 4: a vase (surface of revolution), a
-// helical screw, a spiral shell and the counterbored block of docs/examples/counterbored_block.part.json.
+// given rotation and translation. And five reference cases of issue 4: a vase (surface of revolution), a
+// helical screw, a spiral shell, the counterbored block of docs/examples/counterbored_block.part.json and a
+// plate with a free-form top (a constrained part with a spline-patch face).
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -70,13 +71,17 @@ struct SyntheticCase {
   SyntheticViews views;
   JointFitOptions options;
   double noise = 0.0;
+  // Directions the case leaves unobservable by design (besides control points sliding along a generatrix,
+  // a re-parametrization): the fit must report exactly this many more.
+  std::size_t gauge_directions = 0;
   // Quantities of the fitted model (gauge-free: comparable with the truth whatever the fixed gauge).
   std::function<std::vector<MeasuredQuantity>(const ParametricModel& fitted, const JointFitResult& result)>
       measure;
 };
 
-// "vase", "helical", "spiral", "part": 8, 6, 6 and 8 views, 0.02 mm noise, device poses off by 2 degrees
-// and 2 mm (deterministic). Throws std::invalid_argument for other names.
+// "vase", "helical", "spiral", "part", "freeform" (a plate with a free-form spline-patch top): 8, 6, 6, 8 and
+// 8 views, 0.02 mm noise, device poses off by 2 degrees and 2 mm (deterministic). Throws
+// std::invalid_argument for other names.
 SyntheticCase MakeSyntheticCase(const std::string& name);
 std::vector<std::string> SyntheticCaseNames();
 

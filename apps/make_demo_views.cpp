@@ -74,13 +74,16 @@ ScanSet MakeVaseViews() {
 int main(int argc, char** argv) {
   using namespace s2m;
   const std::string which = argc == 3 ? argv[1] : "vase";
-  if ((argc != 2 && argc != 3) || (which != "vase" && which != "block")) {
-    std::cerr << "usage: s2m_make_demo_views [vase|block] <manifest.json>\n";
+  if ((argc != 2 && argc != 3) || (which != "vase" && which != "block" && which != "freeform")) {
+    std::cerr << "usage: s2m_make_demo_views [vase|block|freeform] <manifest.json>\n";
     return 2;
   }
   const std::filesystem::path manifest = argv[argc - 1];
-  ScanSet set = which == "vase" ? MakeVaseViews() : RecordedViews(MakeSyntheticCase("part"));
+  ScanSet set =
+      which == "vase" ? MakeVaseViews() : RecordedViews(MakeSyntheticCase(which == "block" ? "part" : which));
   if (which == "block") set.name = "demo block (docs/examples/counterbored_block.part.json), 8 views";
+  if (which == "freeform")
+    set.name = "plate with a free-form top (docs/examples/freeform_plate.part.json), 8 views";
   std::filesystem::create_directories(manifest.parent_path());
   WriteScanSet(manifest, set);
   std::cout << "wrote " << set.scans.size() << " views (" << set.TotalPoints() << " points) to "

@@ -31,7 +31,6 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
   model.Evaluate(t, 2, g);
   VecS r = g.point - x;
   double f = 0.5 * r.squaredNorm();
-  bool on_boundary = false;
   for (int iter = 0; iter < 50; ++iter) {
     // Gradient C_t^T r and Hessian C_t^T C_t + [r . C_tk tl] of f(t) = |C(t) - X|^2 / 2.
     Eigen::Vector2d grad = Eigen::Vector2d::Zero();
@@ -82,7 +81,9 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
     ParamT trial = t;
     bool improved = false;
     for (int ls = 0; ls < 30; ++ls, alpha *= 0.5) {
-      trial = {t[0] + alpha * step[0], t[1] + (m > 1 ? alpha * step[1] : 0.0)};
+      trial = t;  // keeps t[2] (a part's face index)
+      trial[0] += alpha * step[0];
+      if (m > 1) trial[1] += alpha * step[1];
       Confine(d, trial);
       model.Evaluate(trial, 2, g);
       const double ft = 0.5 * (g.point - x).squaredNorm();
@@ -104,16 +105,21 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
     const double span = (d.hi[0] - d.lo[0]) + (m > 1 ? d.hi[1] - d.lo[1] : 0.0);
     if (moved <= 1e-15 * span) break;
   }
+  return {t, std::sqrt(2.0 * f), IsBoundaryFootPoint(d, t, g, x)};
+}
+
+bool IsBoundaryFootPoint(const ParameterDomain& d, const ParamT& t, const LocalGeometry& g, const VecS& x) {
   // On an open boundary the orthogonality condition need not hold: record it for the end rule (METHOD.md
   // section 4).
-  for (int k = 0; k < m; ++k) {
+  const VecS r = g.point - x;
+  for (int k = 0; k < d.dimension; ++k) {
     const auto i = static_cast<std::size_t>(k);
     if (!d.periodic[i] && (t[i] <= d.lo[i] || t[i] >= d.hi[i])) {
       const double c = g.d1.col(k).norm() * r.norm();
-      if (c > 0 && std::abs(g.d1.col(k).dot(r)) > 1e-9 * c) on_boundary = true;
+      if (c > 0 && std::abs(g.d1.col(k).dot(r)) > 1e-9 * c) return true;
     }
   }
-  return {t, std::sqrt(2.0 * f), on_boundary};
+  return false;
 }
 
 FootPointSeeds::FootPointSeeds(const ParametricModel& model) : params_(model.SampleParameters()) {
@@ -149,7 +155,8 @@ void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& poin
       ParamT closed_form{0.0, 0.0, 0.0};
       if (model.ClosedFormFootPoint(x, closed_form)) {
         model.Evaluate(closed_form, 0, g);
-        feet[static_cast<std::size_t>(j)] = {closed_form, (g.point - x).norm(), false,
+        feet[static_cast<std::size_t>(j)] = {closed_form, (g.point - x).norm(),
+                                             model.FootPointOnBoundary(x, closed_form),
                                              model.AmbiguousFootPoint(x, closed_form)};
         continue;
       }

@@ -21,6 +21,10 @@ struct FootPoint {
 FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& domain, const VecS& x,
                           ParamT t0, LocalGeometry& scratch);
 
+// True when t lies on an open end of domain `d` and C(t) - x (C(t) and its first derivatives in `g`) is not
+// orthogonal to the model there: the foot point is the boundary's, not an orthogonal projection.
+bool IsBoundaryFootPoint(const ParameterDomain& d, const ParamT& t, const LocalGeometry& g, const VecS& x);
+
 // Samples of the current model in a k-d tree.
 class FootPointSeeds {
  public:

@@ -393,23 +393,30 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   for (Eigen::Index i = 0; i < dim; ++i) {
     if (eig.eigenvalues()[i] > 1e-10 * top) continue;
     const Eigen::VectorXd v = eig.eigenvectors().col(i);
-    // Name the largest component: a shape parameter, or a scan's motion mapped back to (c, cbar).
-    double best = v.head(r).cwiseAbs().maxCoeff();
-    std::string name;
-    if (r > 0) {
-      Eigen::Index at;
-      v.head(r).cwiseAbs().maxCoeff(&at);
-      name = model.parameter_name(static_cast<int>(at));
-    }
+    // Name it by its largest components (shape parameters, or scans' motions mapped back to (c, cbar)):
+    // those within half of the largest, the three largest spelled out, e.g. "top[1,1] + top[1,2] +
+    // scan 3 translation z + 20 more" for a common shift that displacements absorb.
+    std::vector<std::pair<double, std::string>> components;
+    for (Eigen::Index j = 0; j < r; ++j)
+      components.push_back({std::abs(v[j]), model.parameter_name(static_cast<int>(j))});
     for (const auto& [offset_k, k] : block_offset) {
       const Motion6 m = sys.basis[k] * v.segment(offset_k, sys.basis[k].cols());
-      Eigen::Index at;
-      const double size = m.cwiseAbs().maxCoeff(&at);
-      if (size > best) {
-        best = size;
-        name = "scan " + std::to_string(k) + " " + kMotionNames[at];
+      for (int c = 0; c < 6; ++c)
+        components.push_back({std::abs(m[c]), "scan " + std::to_string(k) + " " + kMotionNames[c]});
+    }
+    std::stable_sort(components.begin(), components.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    std::string name;
+    std::size_t shown = 0, similar = 0;
+    for (const auto& [size, component] : components) {
+      if (size < 0.5 * components.front().first) break;
+      ++similar;
+      if (shown < 3) {
+        name += (shown > 0 ? " + " : "") + component;
+        ++shown;
       }
     }
+    if (similar > shown) name += " + " + std::to_string(similar - shown) + " more";
     result.unobservable.push_back(name);
   }
 

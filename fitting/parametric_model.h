@@ -98,9 +98,16 @@ class ParametricModel {
   }
   // Parameter values whose model points seed the foot-point search (spread over the whole domain).
   virtual std::vector<ParamT> SampleParameters() const = 0;
-  // Models with closed-form foot points (primitives, METHOD.md section 10) fill t and return true; the engine
-  // then skips the sample search and Newton.
+  // Models that compute their own foot points (closed form on primitives, METHOD.md section 10; per face on
+  // parts) fill t and return true; the engine then skips its sample search and Newton.
   virtual bool ClosedFormFootPoint(const VecS& x, ParamT& t) const {
+    (void)x;
+    (void)t;
+    return false;
+  }
+  // Models with their own feet: true when the foot point t of x lies on an open boundary, where the
+  // orthogonality condition need not hold (the end rule applies, METHOD.md section 4).
+  virtual bool FootPointOnBoundary(const VecS& x, const ParamT& t) const {
     (void)x;
     (void)t;
     return false;

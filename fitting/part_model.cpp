@@ -5,6 +5,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "fitting/foot_point.h"
+
 namespace s2m {
 namespace {
 
@@ -53,9 +55,28 @@ std::pair<ParamT, double> FaceFootPoint(const PartFace& f, const Eigen::VectorXd
       return {{u, std::atan2(lz, rho - r), 0.0}, std::abs(std::hypot(rho - r, lz) - tube)};
     }
     case FaceType::kPlane:
+    case FaceType::kSplinePatch:  // no closed form: PartModel::FootPointOnFace
       break;
   }
   return {{0.0, 0.0, 0.0}, std::numeric_limits<double>::infinity()};
+}
+
+ParameterDomain PatchDomain(const SplinePatch& patch) {
+  ParameterDomain d;
+  d.dimension = 2;
+  d.lo = {patch.u.lo(), patch.v.lo()};
+  d.hi = {patch.u.hi(), patch.v.hi()};
+  return d;
+}
+
+// Sample parameters of a patch: at least 16 per direction and 8 per knot span, so that the nearest sample
+// lies in the basin of the true foot point for points near the patch.
+std::vector<double> PatchSamples(const BSplineBasis& basis) {
+  const int spans = static_cast<int>(basis.Breakpoints().size()) - 1;
+  const int n = std::max(16, 8 * spans);
+  std::vector<double> out;
+  for (int i = 0; i < n; ++i) out.push_back(basis.lo() + (basis.hi() - basis.lo()) * (i + 0.5) / n);
+  return out;
 }
 
 // Accumulates coefficient * (column, d/du, d/dv) into the entry of parameter `index`.
@@ -101,6 +122,8 @@ const char* ToString(FaceType type) {
       return "sphere";
     case FaceType::kTorus:
       return "torus";
+    case FaceType::kSplinePatch:
+      return "spline_patch";
   }
   return "?";
 }
@@ -110,6 +133,7 @@ PartModel::PartModel(PartDefinition definition) : definition_(std::move(definiti
   for (std::size_t i = 0; i < definition_.parameters.size(); ++i)
     values_[static_cast<Eigen::Index>(i)] = definition_.parameters[i].value;
   Validate();
+  UpdatePatches();
 }
 
 void PartModel::Validate() const {
@@ -152,7 +176,111 @@ void PartModel::Validate() const {
     if (f.type == FaceType::kCone && !(angle > 0 && angle < M_PI / 2)) {
       throw std::invalid_argument(where + "the half angle must lie in (0, 90) degrees");
     }
+    if (f.type == FaceType::kSplinePatch) {
+      if (!f.patch) throw std::invalid_argument(where + "has no control net");
+      if (f.patch->u.periodic() || f.patch->v.periodic())
+        throw std::invalid_argument(where + "a patch is open (clamped) in both directions");
+      const std::size_t expected = static_cast<std::size_t>(f.patch->u.num_control()) *
+                                   static_cast<std::size_t>(f.patch->v.num_control());
+      if (f.patch->control_points.size() != expected) {
+        throw std::invalid_argument(where + "the bases need " + std::to_string(f.patch->u.num_control()) +
+                                    " x " + std::to_string(f.patch->v.num_control()) +
+                                    " control points, not " + std::to_string(f.patch->control_points.size()));
+      }
+      for (const auto& point : f.patch->control_points)
+        for (const LinearExpression& e : point) check(e, false, "a control point");
+    }
   }
+}
+
+void PartModel::UpdatePatches() {
+  patches_.assign(definition_.faces.size(), PatchState{});
+  LocalGeometry g;
+  for (std::size_t k = 0; k < definition_.faces.size(); ++k) {
+    const PartFace& f = definition_.faces[k];
+    if (f.type != FaceType::kSplinePatch) continue;
+    PatchState& state = patches_[k];
+    state.control_points.resize(3, static_cast<Eigen::Index>(f.patch->control_points.size()));
+    for (std::size_t i = 0; i < f.patch->control_points.size(); ++i)
+      for (std::size_t c = 0; c < 3; ++c)
+        state.control_points(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(i)) =
+            f.patch->control_points[i][c].Evaluate(values_);
+    const std::vector<double> us = PatchSamples(f.patch->u), vs = PatchSamples(f.patch->v);
+    Eigen::Matrix3Xd points(3, static_cast<Eigen::Index>(us.size() * vs.size()));
+    for (double u : us) {
+      for (double v : vs) {
+        const ParamT t{u, v, static_cast<double>(k)};
+        EvaluatePatch(k, t, 0, g);
+        points.col(static_cast<Eigen::Index>(state.sample_parameters.size())) = g.point;
+        state.sample_parameters.push_back(t);
+      }
+    }
+    const auto nv = static_cast<Eigen::Index>(vs.size());
+    for (Eigen::Index i = 0; i + 1 < static_cast<Eigen::Index>(us.size()); ++i) {
+      for (Eigen::Index j = 0; j < nv; ++j) {
+        for (Eigen::Index dj = -1; dj <= 1; ++dj) {
+          if (j + dj >= 0 && j + dj < nv) {
+            state.covering_radius = std::max(
+                state.covering_radius, (points.col((i + 1) * nv + j + dj) - points.col(i * nv + j)).norm());
+          }
+        }
+        if (j + 1 < nv) {
+          state.covering_radius =
+              std::max(state.covering_radius, (points.col(i * nv + j + 1) - points.col(i * nv + j)).norm());
+        }
+      }
+    }
+    state.samples = NearestIndex(std::move(points));
+  }
+}
+
+void PartModel::EvaluatePatch(std::size_t k, const ParamT& t, int derivatives, LocalGeometry& out) const {
+  // S and its derivatives from the bases' derivatives (Piegl & Tiller eq. 3.17).
+  const SplinePatch& patch = *definition_.faces[k].patch;
+  const Eigen::Matrix3Xd& control = patches_[k].control_points;
+  BSplineBasis::Values bu, bv;
+  patch.u.Evaluate(t[0], derivatives, bu);
+  patch.v.Evaluate(t[1], derivatives, bv);
+  const int nv = patch.v.num_control();
+  out.point.setZero(3);
+  if (derivatives >= 1) out.d1.setZero(3, 2);
+  if (derivatives >= 2) out.d2.setZero(3, 3);
+  for (int i = 0; i < patch.u.order(); ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    for (int j = 0; j < patch.v.order(); ++j) {
+      const auto vj = static_cast<std::size_t>(j);
+      const Eigen::Vector3d p =
+          control.col(patch.u.ControlIndex(bu.first, i) * nv + patch.v.ControlIndex(bv.first, j));
+      out.point += bu.values[0][ui] * bv.values[0][vj] * p;
+      if (derivatives >= 1) {
+        out.d1.col(0) += bu.values[1][ui] * bv.values[0][vj] * p;
+        out.d1.col(1) += bu.values[0][ui] * bv.values[1][vj] * p;
+      }
+      if (derivatives >= 2) {
+        out.d2.col(0) += bu.values[2][ui] * bv.values[0][vj] * p;
+        out.d2.col(1) += bu.values[1][ui] * bv.values[1][vj] * p;
+        out.d2.col(2) += bu.values[0][ui] * bv.values[2][vj] * p;
+      }
+    }
+  }
+}
+
+std::pair<ParamT, double> PartModel::FootPointOnFace(std::size_t k, const Eigen::Vector3d& x,
+                                                     double needed_within) const {
+  const PartFace& f = definition_.faces[k];
+  if (f.type != FaceType::kSplinePatch) {
+    auto [t, d] = FaceFootPoint(f, values_, x);
+    t[2] = static_cast<double>(k);
+    return {t, d};
+  }
+  const PatchState& state = patches_[k];
+  const Eigen::Index nearest = state.samples.Nearest(x);
+  if ((state.samples.points().col(nearest) - x).norm() - state.covering_radius > needed_within)
+    return {{0.0, 0.0, static_cast<double>(k)}, std::numeric_limits<double>::infinity()};
+  const ParamT seed = state.sample_parameters[static_cast<std::size_t>(nearest)];
+  LocalGeometry g;
+  const FootPoint foot = RefineFootPoint(*this, PatchDomain(*f.patch), x, seed, g);
+  return {foot.t, foot.distance};
 }
 
 ParameterDomain PartModel::domain() const {
@@ -170,6 +298,7 @@ std::string PartModel::parameter_name(int index) const {
 void PartModel::set_parameters(const Eigen::VectorXd& p) {
   if (p.size() != values_.size()) throw std::invalid_argument("wrong number of part parameters");
   values_ = p;
+  UpdatePatches();
 }
 
 void PartModel::ApplySimilarity(double scale, const VecS& offset) {
@@ -186,12 +315,23 @@ void PartModel::ApplySimilarity(double scale, const VecS& offset) {
     f.offset.constant = scale * f.offset.constant + f.frame.col(2).dot(shift);
     f.radius.constant *= scale;
     f.minor_radius.constant *= scale;
+    if (f.patch) {
+      for (auto& point : f.patch->control_points)
+        for (int c = 0; c < 3; ++c)
+          point[static_cast<std::size_t>(c)].constant =
+              scale * point[static_cast<std::size_t>(c)].constant + shift[c];
+    }
   }
   edge_margin_ *= scale;
+  UpdatePatches();
 }
 
 void PartModel::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
   const PartFace& f = definition_.faces.at(static_cast<std::size_t>(FaceOf(t)));
+  if (f.type == FaceType::kSplinePatch) {
+    EvaluatePatch(static_cast<std::size_t>(FaceOf(t)), t, derivatives, out);
+    return;
+  }
   const double u = t[0], v = t[1];
   const Eigen::Vector3d a = f.frame.col(2);
   Eigen::Vector3d point = Eigen::Vector3d::Zero(), cu = point, cv = point, cuu = point, cuv = point,
@@ -242,6 +382,8 @@ void PartModel::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) c
       cvv = -tube * (cv_ * Radial(f, u) + sv * a);
       break;
     }
+    case FaceType::kSplinePatch:
+      break;  // handled above
   }
   out.point = point;
   if (derivatives >= 1) {
@@ -263,6 +405,29 @@ void PartModel::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Jacobia
   const Eigen::Vector3d w = Radial(f, u), w_u = RadialDu(f, u);
   if (f.type == FaceType::kPlane) {
     AddExpression(out, f.offset, a, zero, zero);
+    return;
+  }
+  if (f.type == FaceType::kSplinePatch) {
+    // dS/dP_ij = N_i(u) M_j(v) I: each coordinate's expression gets the basis product along its axis.
+    const SplinePatch& patch = *f.patch;
+    BSplineBasis::Values bu, bv;
+    patch.u.Evaluate(u, 1, bu);
+    patch.v.Evaluate(v, 1, bv);
+    const int nv = patch.v.num_control();
+    for (int i = 0; i < patch.u.order(); ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      for (int j = 0; j < patch.v.order(); ++j) {
+        const auto vj = static_cast<std::size_t>(j);
+        const auto& point = patch.control_points[static_cast<std::size_t>(
+            patch.u.ControlIndex(bu.first, i) * nv + patch.v.ControlIndex(bv.first, j))];
+        const double b = bu.values[0][ui] * bv.values[0][vj], b_u = bu.values[1][ui] * bv.values[0][vj],
+                     b_v = bu.values[0][ui] * bv.values[1][vj];
+        for (int c = 0; c < 3; ++c) {
+          const Eigen::Vector3d e = Eigen::Vector3d::Unit(c);
+          AddExpression(out, point[static_cast<std::size_t>(c)], b * e, b_u * e, b_v * e);
+        }
+      }
+    }
     return;
   }
   // The origin (axis point or centre) moves every point of the face alike.
@@ -291,6 +456,7 @@ void PartModel::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Jacobia
       break;
     }
     case FaceType::kPlane:
+    case FaceType::kSplinePatch:
       break;
   }
 }
@@ -324,6 +490,11 @@ std::vector<ParamT> PartModel::SampleParameters() const {
           case FaceType::kTorus:
             out.push_back({2 * M_PI * a, 2 * M_PI * b, face});
             break;
+          case FaceType::kSplinePatch: {
+            const SplinePatch& p = *f.patch;
+            out.push_back({p.u.lo() + (p.u.hi() - p.u.lo()) * a, p.v.lo() + (p.v.hi() - p.v.lo()) * b, face});
+            break;
+          }
         }
       }
     }
@@ -334,15 +505,26 @@ std::vector<ParamT> PartModel::SampleParameters() const {
 bool PartModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
   const Eigen::Vector3d x3 = To3(x);
   double best = std::numeric_limits<double>::infinity();
-  for (std::size_t k = 0; k < definition_.faces.size(); ++k) {
-    auto [tk, d] = FaceFootPoint(definition_.faces[k], values_, x3);
-    if (d < best) {
-      best = d;
-      t = tk;
-      t[2] = static_cast<double>(k);
+  // Analytic faces first: their distances let most spline patches be skipped.
+  for (const bool patches : {false, true}) {
+    for (std::size_t k = 0; k < definition_.faces.size(); ++k) {
+      if ((definition_.faces[k].type == FaceType::kSplinePatch) != patches) continue;
+      auto [tk, d] = FootPointOnFace(k, x3, best);
+      if (d < best) {
+        best = d;
+        t = tk;
+      }
     }
   }
   return true;
+}
+
+bool PartModel::FootPointOnBoundary(const VecS& x, const ParamT& t) const {
+  const PartFace& f = definition_.faces.at(static_cast<std::size_t>(FaceOf(t)));
+  if (f.type != FaceType::kSplinePatch) return false;  // analytic faces are unbounded
+  LocalGeometry g;
+  Evaluate(t, 1, g);
+  return IsBoundaryFootPoint(PatchDomain(*f.patch), t, g, x);
 }
 
 bool PartModel::AmbiguousFootPoint(const VecS& x, const ParamT& t) const {
@@ -350,7 +532,7 @@ bool PartModel::AmbiguousFootPoint(const VecS& x, const ParamT& t) const {
   const Eigen::Vector3d x3 = To3(x);
   const auto own = static_cast<std::size_t>(FaceOf(t));
   for (std::size_t k = 0; k < definition_.faces.size(); ++k) {
-    if (k != own && FaceFootPoint(definition_.faces[k], values_, x3).second < edge_margin_) return true;
+    if (k != own && FootPointOnFace(k, x3, edge_margin_).second < edge_margin_) return true;
   }
   return false;
 }

@@ -1,26 +1,33 @@
 #pragma once
 // Constrained parts (METHOD.md section 7, last item; Liu, Pottmann, Wang, CAD 38(6) 2006, section 6): several
-// faces (plane, cylinder, cone, sphere, torus) placed in ONE adapted part frame and sharing named parameters,
-// e.g. a block whose top face lies at z = height and whose counterbore floor at z = height - depth. Every
-// face quantity is a linear expression in the named parameters, so the part's shape Jacobian is exact and
-// cheap; the orientation of each face in the part frame is fixed (it is the design), the part's pose is what
-// the joint solver's per-scan motions find.
+// faces (plane, cylinder, cone, sphere, torus, B-spline patch) placed in ONE adapted part frame and sharing
+// named parameters, e.g. a block whose top face lies at z = height and whose counterbore floor at z = height
+// - depth. Every face quantity is a linear expression in the named parameters, so the part's shape Jacobian
+// is exact and cheap; the orientation of each face in the part frame is fixed (it is the design), the part's
+// pose is what the joint solver's per-scan motions find.
 //
-// Each data point belongs to the face of its nearest foot point (closed form per face, the smallest distance
-// wins). Faces are complete surfaces (an unbounded plane, an infinite cylinder): a point is assigned wrongly
-// only within its own distance of where two faces' extensions cross, which costs at most that distance.
+// Each data point belongs to the face of its nearest foot point (the smallest distance wins): in closed form
+// on the analytic faces, by safeguarded Newton from the nearest of the patch's samples on a spline patch.
+// Analytic faces are complete surfaces (an unbounded plane, an infinite cylinder): a point is assigned
+// wrongly only within its own distance of where two faces' extensions cross, which costs at most that
+// distance. A spline patch is bounded by its parameter rectangle; beyond it its nearest point lies on its
+// border.
 //
 // Parameter t = (u, v, face): planes u, v along the face's e1, e2; surfaces of revolution u the angle about
 // the face's axis; cylinder and cone v along the axis, sphere v the latitude, torus v the angle about the
-// tube.
+// tube; spline patches the B-spline parameters.
 
 #include <array>
+#include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "fitting/bspline_basis.h"
 #include "fitting/fit_result.h"
 #include "fitting/parametric_model.h"
+#include "registration/nearest_index.h"
 
 namespace s2m {
 
@@ -32,8 +39,18 @@ struct LinearExpression {
   double Evaluate(const Eigen::VectorXd& parameters) const;
 };
 
-enum class FaceType { kPlane, kCylinder, kCone, kSphere, kTorus };
+enum class FaceType { kPlane, kCylinder, kCone, kSphere, kTorus, kSplinePatch };
 const char* ToString(FaceType type);
+
+// A tensor-product B-spline patch S(u, v) = sum_i sum_j N_i(u) M_j(v) P_ij (Piegl & Tiller, The NURBS Book,
+// eq. 3.11) over clamped bases, its control points in the part frame with every coordinate a linear
+// expression: a free-form face that moves, stretches or deforms with the part's named parameters.
+struct SplinePatch {
+  BSplineBasis u = BSplineBasis::ClampedUniform(4, 4);
+  BSplineBasis v = BSplineBasis::ClampedUniform(4, 4);
+  // u-major: P_ij at index i * v.num_control() + j.
+  std::vector<std::array<LinearExpression, 3>> control_points;
+};
 
 struct PartFace {
   std::string name;
@@ -47,8 +64,9 @@ struct PartFace {
   // Cylinder, sphere: the radius; cone: the radius of the cross-section through `origin`; torus: the
   // distance from the axis to the tube's centre circle.
   LinearExpression radius;
-  LinearExpression minor_radius;  // torus: the tube's radius
-  LinearExpression half_angle;    // cone, radians, in (0, pi/2)
+  LinearExpression minor_radius;     // torus: the tube's radius
+  LinearExpression half_angle;       // cone, radians, in (0, pi/2)
+  std::optional<SplinePatch> patch;  // spline patches only (their frame is unused)
 };
 
 struct PartParameter {
@@ -66,8 +84,9 @@ struct PartDefinition {
 class PartModel final : public ParametricModel {
  public:
   // Throws std::invalid_argument naming the face for: no faces, a frame that is not a rotation, an
-  // expression that refers to an unknown parameter or mixes lengths and angles, or a radius, angle or
-  // offset out of range at the given values.
+  // expression that refers to an unknown parameter or mixes lengths and angles, a radius, angle or
+  // offset out of range at the given values, or a spline patch whose control net does not match its bases
+  // or is not open (clamped) in both directions.
   explicit PartModel(PartDefinition definition);
 
   const PartDefinition& definition() const { return definition_; }
@@ -87,7 +106,9 @@ class PartModel final : public ParametricModel {
   void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
   std::vector<ParamT> SampleParameters() const override;
+  // The part computes its own feet (closed form per analytic face, Newton on spline patches; see above).
   bool ClosedFormFootPoint(const VecS& x, ParamT& t) const override;
+  bool FootPointOnBoundary(const VecS& x, const ParamT& t) const override;
   // True when another face lies within the edge margin of x: near an edge the nearest face is a guess, and a
   // wrong guess is biased (the top face's points next to a side are all on the material side of that side's
   // plane, pulling it inwards by a fraction of the noise).
@@ -99,10 +120,30 @@ class PartModel final : public ParametricModel {
   double edge_margin() const { return edge_margin_; }
 
  private:
+  // What a spline patch needs at the current parameter values: its evaluated control points, and samples
+  // in a k-d tree that seed its foot points. Rebuilt whenever the values change (never lazily: feet are
+  // computed in parallel).
+  struct PatchState {
+    Eigen::Matrix3Xd control_points;
+    std::vector<ParamT> sample_parameters;
+    NearestIndex samples;
+    // Every point of the patch lies within this distance of a sample (the largest distance between grid
+    // neighbours, diagonals included): dist(x, nearest sample) - covering_radius bounds dist(x, patch) below.
+    double covering_radius = 0.0;
+  };
   void Validate() const;
+  void UpdatePatches();
+  // Foot point on face k (t[2] = k) and its distance. A spline patch that cannot come closer than
+  // `needed_within` is not searched (distance infinity): most points are far from most patches.
+  std::pair<ParamT, double> FootPointOnFace(
+      std::size_t k, const Eigen::Vector3d& x,
+      double needed_within = std::numeric_limits<double>::infinity()) const;
+  void EvaluatePatch(std::size_t k, const ParamT& t, int derivatives, LocalGeometry& out) const;
+
   PartDefinition definition_;
   Eigen::VectorXd values_;
   double edge_margin_ = 0.0;
+  std::vector<PatchState> patches_;  // parallel to the faces; empty for analytic faces
 };
 
 // Distances of the points (part frame) to their nearest faces, grouped by face: per face the count, RMS and

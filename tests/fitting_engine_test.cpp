@@ -115,7 +115,23 @@ std::unique_ptr<ParametricModel> PartWithFace(FaceType type) {
   f.radius = {0.4, {{0, 1.0}, {1, 0.5}}};
   f.minor_radius = {0.1, {{1, 1.0}}};
   f.half_angle = {0.1, {{2, 1.0}}};
+  if (type == FaceType::kSplinePatch) {
+    // A cubic x quadratic patch whose knots span the family tests' parameter band ([-2, 2]); the control
+    // points' coordinates depend on both lengths.
+    SplinePatch patch{BSplineBasis::Clamped(4, {-2, -2, -2, -2, 0, 2, 2, 2, 2}),
+                      BSplineBasis::Clamped(3, {-2, -2, -2, 0.3, 2, 2, 2}),
+                      {}};
+    for (int i = 0; i < 5; ++i) {
+      for (int j = 0; j < 4; ++j) {
+        patch.control_points.push_back(
+            {LinearExpression{i - 2.0, {{0, 0.1 * i}}}, LinearExpression{j - 1.5, {{1, 0.2}}},
+             LinearExpression{0.3 * std::sin(i + 2.0 * j), {{0, 0.05 * j}, {1, 0.3}}}});
+      }
+    }
+    f.patch = std::move(patch);
+  }
   PartFace other = f;
+  other.patch.reset();
   other.name = "other";
   other.type = FaceType::kPlane;
   other.frame = Eigen::Matrix3d::Identity();
@@ -208,6 +224,7 @@ std::vector<NamedFactory> Models() {
       {"part_cone", [] { return PartWithFace(FaceType::kCone); }},
       {"part_sphere", [] { return PartWithFace(FaceType::kSphere); }},
       {"part_torus", [] { return PartWithFace(FaceType::kTorus); }},
+      {"part_spline_patch", [] { return PartWithFace(FaceType::kSplinePatch); }},
       {"circle_3d",
        [] {
          return std::make_unique<Ellipse3D>(Eigen::Vector3d(0, 0, 1), Eigen::Matrix3d::Identity(), 1.5, 1.5,

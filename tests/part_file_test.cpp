@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "acquisition/format_error.h"
+#include "acquisition/synthetic_cases.h"
 #include "fitting/part_model.h"
 
 namespace s2m {
@@ -190,6 +191,79 @@ TEST(PartFile, SpheresAndToriParse) {
   EXPECT_LT((Face(f, "ring").frame.col(2) - Eigen::Vector3d::UnitX()).norm(), 1e-15);
 }
 
+// docs/examples/freeform_plate.part.json is the synthetic "freeform" case's plate: the same parameters in the
+// same order (width, depth, then one displacement per control point, generated), the same surface.
+TEST(PartFile, TheFreeformExampleIsTheSyntheticPlate) {
+  const PartFile f = ReadPartFile(std::string(S2M_SOURCE_DIR) + "/docs/examples/freeform_plate.part.json");
+  const SyntheticCase c = MakeSyntheticCase("freeform");
+  PartModel model(f.definition);
+  ASSERT_EQ(model.num_parameters(), c.truth->num_parameters());
+  for (int i = 0; i < model.num_parameters(); ++i)
+    EXPECT_EQ(model.parameter_name(i), c.truth->parameter_name(i));
+  EXPECT_EQ(model.parameter_name(2), "top[0,0]");
+  EXPECT_EQ(model.parameter_name(17), "top[3,3]");
+  EXPECT_EQ(Face(f, "top").type, FaceType::kSplinePatch);
+  EXPECT_EQ(Face(f, "top").patch->u.degree(), 3);
+  ASSERT_EQ(f.fixed_parameters.size(), 1u);
+  EXPECT_EQ(f.fixed_parameters[0].name, "height");
+  model.set_parameters(c.truth->parameters());  // the true relief
+  LocalGeometry a, b;
+  for (const ParamT& t : model.SampleParameters()) {
+    model.Evaluate(t, 1, a);
+    c.truth->Evaluate(t, 1, b);
+    EXPECT_LT((a.point - b.point).norm(), 1e-12);
+    EXPECT_LT((a.d1 - b.d1).norm(), 1e-12);
+  }
+}
+
+TEST(PartFile, SplinePatchesTakeDegreesKnotsAndExpressions) {
+  // A quadratic x linear patch, 3 x 2 control points, explicit knots along u, corner (2, 1) tied to a.
+  const PartFile f = ParsePartFile(PartText(R"({"a": 4})", R"([{"name": "skin", "type": "spline_patch",
+                   "degree": [2, 1], "knots_u": [0, 0, 0, 2, 2, 2],
+                   "control_points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 1], [1, 1, 1]], [[2, 0, 0], [2, 1, "a / 2"]]]}])"),
+                                   "skin.part.json");
+  const PartFace& skin = Face(f, "skin");
+  ASSERT_TRUE(skin.patch.has_value());
+  EXPECT_EQ(skin.patch->u.order(), 3);
+  EXPECT_EQ(skin.patch->v.order(), 2);
+  EXPECT_DOUBLE_EQ(skin.patch->u.hi(), 2.0);
+  EXPECT_DOUBLE_EQ(skin.patch->v.hi(), 1.0);      // default knots: uniform on [0, 1]
+  ASSERT_EQ(f.definition.parameters.size(), 1u);  // no free_along: no generated parameters
+  const PartModel model(f.definition);
+  LocalGeometry g;
+  model.Evaluate({2.0, 1.0, 0.0}, 0, g);  // a clamped patch interpolates its corners
+  EXPECT_LT((g.point - Eigen::Vector3d(2, 1, 2)).norm(), 1e-14);
+  std::vector<JacobianEntry> entries;
+  model.ShapeJacobian({2.0, 1.0, 0.0}, false, entries);
+  ASSERT_EQ(entries.size(), 1u);
+  EXPECT_LT((entries[0].column - Eigen::Vector3d(0, 0, 0.5)).norm(), 1e-14);  // d(a / 2)/da at that corner
+}
+
+void ExpectError(const std::string& text, const std::vector<std::string>& needles);
+
+TEST(PartFile, SplinePatchErrorsNameTheFaceAndTheProblem) {
+  auto patch = [](const std::string& members) {
+    return PartText("{}", R"([{"name": "skin", "type": "spline_patch", )" + members + "}]");
+  };
+  const std::string net2x2 = R"("control_points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]])";
+  ExpectError(patch(R"("degree": 1)"), {"face 'skin'", "a spline_patch needs \"control_points\""});
+  ExpectError(patch(R"("control_points": [])"), {"face 'skin' control_points", "expected rows"});
+  ExpectError(patch(net2x2),
+              {"face 'skin' control_points", "degree 3 needs at least 4 control points along u"});
+  ExpectError(patch(R"("degree": 1, "control_points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0]]])"),
+              {"face 'skin' control_points", "row 1 must hold 2 points"});
+  ExpectError(patch(R"("degree": 1, "control_points": [[[0, 0, 0], [0, 1]], [[1, 0, 0], [1, 1, 0]]])"),
+              {"face 'skin' control_points[0][1]", "expected [x, y, z]"});
+  ExpectError(patch(R"("degree": 1, "control_points": [[[0, 0, 0], [0, 1, "q"]], [[1, 0, 0], [1, 1, 0]]])"),
+              {"face 'skin' control_points[0][1][2]", "unknown parameter 'q'"});
+  ExpectError(patch(R"("degree": "cubic", )" + net2x2), {"face 'skin' degree", "expected an integer"});
+  ExpectError(patch(R"("degree": 9, )" + net2x2), {"face 'skin' degree", "must lie in 1..7"});
+  ExpectError(patch(R"("degree": 1, "knots_u": [0, 1, 1, 2], )" + net2x2), {"face 'skin' knots_u"});
+  ExpectError(patch(R"("degree": 1, "knots_u": [0, 0, 1, 1, 1], )" + net2x2), {"face 'skin'"});
+  ExpectError(patch(R"("degree": 1, "free_along": [0, 0, 0], )" + net2x2),
+              {"face 'skin' free_along", "non-zero"});
+}
+
 // Expects ParsePartFile(text) to throw a FormatError whose message contains every one of `needles`.
 void ExpectError(const std::string& text, const std::vector<std::string>& needles) {
   try {
@@ -231,7 +305,7 @@ TEST(PartFile, ExpressionErrorsNameTheFaceAndTheProblem) {
 
 TEST(PartFile, FaceErrorsNameTheFace) {
   ExpectError(PartText("{}", R"([{"name": "knob", "type": "ellipsoid"}])"),
-              {"face 'knob'", "unknown face type \"ellipsoid\""});
+              {"face 'knob'", "unknown face type \"ellipsoid\"", "spline_patch"});
   ExpectError(PartText("{}", R"([{"name": "lid", "type": "plane", "normal": [0, 0, 1]}])"),
               {"face 'lid'", "a plane needs \"offset\""});
   ExpectError(PartText("{}", R"([{"name": "lid", "type": "plane", "normal": [0, 0], "offset": 1}])"),
