@@ -2,7 +2,7 @@
 # Builds the benchmarks (Release) and runs them: the side-by-side comparisons (build/bench/compare: markdown
 # tables on standard output, CSV in build/bench/compare.csv) and the micro-benchmarks (foot points per second
 # per core, assembly throughput: build/bench/micro_benchmarks.csv). Arguments go to compare, e.g.
-# `scripts/bench.sh --quick` for a smoke test in seconds. The full run takes about 10-15 minutes on 2 cores.
+# `scripts/bench.sh --quick` for a smoke test in seconds. The full run takes about 6 minutes on 2 idle cores (12 under load).
 # docs/benchmarks.md holds one run's tables and the machine it ran on.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
