@@ -4,6 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace s2m {
 namespace {
@@ -157,13 +158,20 @@ int BSplineBasis::FindSpan(double t) const {
   return std::min(static_cast<int>(it - ext_.begin()) - 1, ext_offset_ + num_control_ - 1);
 }
 
-void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
-  const double t = Normalize(t_in);
-  const int p = order_ - 1;
-  const int span = FindSpan(t);
-  const std::vector<double>& U = ext_;
-  // A2.3: ndu holds basis functions (upper triangle) and knot differences (lower triangle).
+namespace {
+
+// Piegl & Tiller A2.3 (basis functions and derivatives at t in knot span `span` of U). `Degree` is either
+// std::integral_constant<int, p> (the common cubic case: the compiler unrolls every loop) or int. The knot
+// differences are inverted once and multiplied thereafter (A2.3 divides by each of them again for every
+// derivative).
+template <class Degree>
+void BasisAndDerivatives(Degree degree, double t, int span, const std::vector<double>& U, int derivatives,
+                         BSplineBasis::Values& out) {
+  constexpr int kMaxOrder = BSplineBasis::kMaxOrder;
+  const int p = degree;
+  // ndu holds basis functions (upper triangle); inv_diff[j][r] = 1 / (knot difference of the lower triangle).
   double ndu[kMaxOrder][kMaxOrder];
+  double inv_diff[kMaxOrder][kMaxOrder];
   double left[kMaxOrder], right[kMaxOrder];
   ndu[0][0] = 1.0;
   for (int j = 1; j <= p; ++j) {
@@ -171,16 +179,16 @@ void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
     right[j] = U[static_cast<std::size_t>(span + j)] - t;
     double saved = 0.0;
     for (int r = 0; r < j; ++r) {
-      ndu[j][r] = right[r + 1] + left[j - r];
-      const double temp = ndu[r][j - 1] / ndu[j][r];
+      inv_diff[j][r] = 1.0 / (right[r + 1] + left[j - r]);
+      const double temp = ndu[r][j - 1] * inv_diff[j][r];
       ndu[r][j] = saved + right[r + 1] * temp;
       saved = left[j - r] * temp;
     }
     ndu[j][j] = saved;
   }
   for (int j = 0; j <= p; ++j) out.values[0][static_cast<std::size_t>(j)] = ndu[j][p];
-  const int n_der = std::min(derivatives, std::min(p, kMaxDerivative));
-  for (int k = n_der + 1; k <= derivatives && k <= kMaxDerivative; ++k)
+  const int n_der = std::min(derivatives, std::min(p, BSplineBasis::kMaxDerivative));
+  for (int k = n_der + 1; k <= derivatives && k <= BSplineBasis::kMaxDerivative; ++k)
     out.values[static_cast<std::size_t>(k)].fill(0.0);
   double a[2][kMaxOrder];
   for (int r = 0; r <= p; ++r) {
@@ -190,17 +198,17 @@ void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
       double d = 0.0;
       const int rk = r - k, pk = p - k;
       if (r >= k) {
-        a[s2][0] = a[s1][0] / ndu[pk + 1][rk];
+        a[s2][0] = a[s1][0] * inv_diff[pk + 1][rk];
         d = a[s2][0] * ndu[rk][pk];
       }
       const int j1 = rk >= -1 ? 1 : -rk;
       const int j2 = (r - 1 <= pk) ? k - 1 : p - r;
       for (int j = j1; j <= j2; ++j) {
-        a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][rk + j];
+        a[s2][j] = (a[s1][j] - a[s1][j - 1]) * inv_diff[pk + 1][rk + j];
         d += a[s2][j] * ndu[rk + j][pk];
       }
       if (r <= pk) {
-        a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r];
+        a[s2][k] = -a[s1][k - 1] * inv_diff[pk + 1][r];
         d += a[s2][k] * ndu[r][pk];
       }
       out.values[static_cast<std::size_t>(k)][static_cast<std::size_t>(r)] = d;
@@ -212,6 +220,19 @@ void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
     for (int j = 0; j <= p; ++j)
       out.values[static_cast<std::size_t>(k)][static_cast<std::size_t>(j)] *= factor;
     factor *= (p - k);
+  }
+}
+
+}  // namespace
+
+void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
+  const double t = Normalize(t_in);
+  const int p = order_ - 1;
+  const int span = FindSpan(t);
+  if (p == 3) {
+    BasisAndDerivatives(std::integral_constant<int, 3>(), t, span, ext_, derivatives, out);
+  } else {
+    BasisAndDerivatives(p, t, span, ext_, derivatives, out);
   }
   out.first = periodic_ ? ((span - ext_offset_ - p) % num_control_ + num_control_) % num_control_ : span - p;
 }

@@ -179,28 +179,44 @@ void BSplineSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& o
   BSplineBasis::Values bu, bv;
   basis_u_.Evaluate(t[0], derivatives, bu);
   basis_v_.Evaluate(t[1], derivatives, bv);
-  out.point.setZero(3);
-  out.d1.setZero(3, 2);
-  out.d2.setZero(3, 3);
+  // Tensor product in two passes (the foot-point hot path): per row i of the control net, the v-sums
+  // s_d = sum_j B_j^(d)(v) P_ij, then the u-sums of those; fixed-size accumulators, written out once.
+  Eigen::Vector3d point = Eigen::Vector3d::Zero(), su = Eigen::Vector3d::Zero(), sv = Eigen::Vector3d::Zero();
+  Eigen::Vector3d suu = Eigen::Vector3d::Zero(), suv = Eigen::Vector3d::Zero(), svv = Eigen::Vector3d::Zero();
   const int nv = basis_v_.num_control();
+  const int order_v = basis_v_.order();
+  int columns[BSplineBasis::kMaxOrder];
+  for (int j = 0; j < order_v; ++j) columns[j] = basis_v_.ControlIndex(bv.first, j);
   for (int i = 0; i < basis_u_.order(); ++i) {
-    const int iu = basis_u_.ControlIndex(bu.first, i);
+    const int row = basis_u_.ControlIndex(bu.first, i) * nv;
     const auto ui = static_cast<std::size_t>(i);
-    for (int j = 0; j < basis_v_.order(); ++j) {
+    Eigen::Vector3d s0 = Eigen::Vector3d::Zero(), s1 = Eigen::Vector3d::Zero(), s2 = Eigen::Vector3d::Zero();
+    for (int j = 0; j < order_v; ++j) {
       const auto vj = static_cast<std::size_t>(j);
-      const Eigen::Vector3d p = control_.col(iu * nv + basis_v_.ControlIndex(bv.first, j));
-      out.point += bu.values[0][ui] * bv.values[0][vj] * p;
-      if (derivatives >= 1) {
-        out.d1.col(0) += bu.values[1][ui] * bv.values[0][vj] * p;
-        out.d1.col(1) += bu.values[0][ui] * bv.values[1][vj] * p;
-      }
-      if (derivatives >= 2) {
-        out.d2.col(0) += bu.values[2][ui] * bv.values[0][vj] * p;
-        out.d2.col(1) += bu.values[1][ui] * bv.values[1][vj] * p;
-        out.d2.col(2) += bu.values[0][ui] * bv.values[2][vj] * p;
-      }
+      const Eigen::Vector3d p = control_.col(row + columns[j]);
+      s0 += bv.values[0][vj] * p;
+      if (derivatives >= 1) s1 += bv.values[1][vj] * p;
+      if (derivatives >= 2) s2 += bv.values[2][vj] * p;
+    }
+    point += bu.values[0][ui] * s0;
+    if (derivatives >= 1) {
+      su += bu.values[1][ui] * s0;
+      sv += bu.values[0][ui] * s1;
+    }
+    if (derivatives >= 2) {
+      suu += bu.values[2][ui] * s0;
+      suv += bu.values[1][ui] * s1;
+      svv += bu.values[0][ui] * s2;
     }
   }
+  out.point = point;
+  out.d1.resize(3, 2);
+  out.d1.col(0) = su;
+  out.d1.col(1) = sv;
+  out.d2.resize(3, 3);
+  out.d2.col(0) = suu;
+  out.d2.col(1) = suv;
+  out.d2.col(2) = svv;
 }
 
 void BSplineSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {

@@ -42,7 +42,9 @@ Eigen::Matrix<double, 3, 6> MotionJacobian(const Eigen::Vector3d& x) {
 struct State {
   std::unique_ptr<ParametricModel> model;
   std::vector<RigidMotion> poses;
-  std::vector<Eigen::Matrix3Xd> current;  // scan points in the model frame
+  // Scan points in the model frame, 3 x n_k: the dynamic type ComputeFootPoints takes (no temporary copy per
+  // call); overwritten in place by every evaluation.
+  std::vector<Eigen::MatrixXd> current;
   std::vector<std::vector<FootPoint>> feet;
   double objective = 0.0;
   double rms = 0.0;  // normalized units, over the points not excluded
@@ -110,7 +112,9 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     double sum = 0.0, sum_sq = 0.0;
     s.used = 0;
     for (std::size_t k = 0; k < K; ++k) {
-      s.current[k] = s.poses[k].apply(data[k]);
+      s.current[k].resize(3, data[k].cols());  // no-op when the buffer is reused
+      s.current[k].noalias() = s.poses[k].rotation() * data[k];
+      s.current[k].colwise() += s.poses[k].translation();
       ComputeFootPoints(*s.model, s.current[k], s.feet[k], warm ? &warm->feet[k] : nullptr);
       if (!options.left_out.empty()) {
         for (std::size_t j = 0; j < s.feet[k].size(); ++j) s.feet[k][j].excluded = options.left_out[k][j];
@@ -295,22 +299,24 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   };
 
   double lambda_shape = lambda;  // the alternating baseline damps its two half-steps separately
+  State trial;
   while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
-    State trial;
+    // `trial` keeps its buffers across iterations: an accepted trial is swapped in and the old state's
+    // buffers are overwritten by the next trial (no per-iteration allocation of points and foot points).
     bool accepted = false;
     const double objective_before = state.objective;
     if (!options.alternating) {
       accepted = step(assemble(state, shared, options.error_term), Unknowns::kAll, lambda, trial);
-      if (accepted) state = std::move(trial);
+      if (accepted) std::swap(state, trial);
     } else {
       // Alternating baseline: a registration step (motions, model fixed), then a fitting step (model, poses
       // fixed).
       if (step(assemble(state, shared, options.error_term), Unknowns::kMotions, lambda, trial)) {
-        state = std::move(trial);
+        std::swap(state, trial);
         accepted = true;
       }
       if (step(assemble(state, shared, options.error_term), Unknowns::kShape, lambda_shape, trial)) {
-        state = std::move(trial);
+        std::swap(state, trial);
         accepted = true;
       }
     }

@@ -1,5 +1,7 @@
 #include "fitting/model_registration.h"
 
+#include <omp.h>
+
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -29,28 +31,46 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
 
   ModelRegistrationResult result;
   result.model_T_scan = initial;
-  Eigen::Matrix3Xd current = initial.apply(scan_points);
+  // Both point buffers are allocated once (the dynamic type ComputeFootPoints takes, so no temporary copy per
+  // call); every trial overwrites `moved` in place.
+  Eigen::MatrixXd current(3, scan_points.cols()), moved(3, scan_points.cols());
+  auto place = [&scan_points](const RigidMotion& pose, Eigen::MatrixXd& out) {
+    out.noalias() = pose.rotation() * scan_points;
+    out.colwise() += pose.translation();
+  };
+  place(initial, current);
   std::vector<FootPoint> feet, trial_feet;
   ComputeFootPoints(model, current, feet);
   double mean_square = MeanSquare(feet);
   double lambda = options.damping ? 1e-6 : 0.0;
-  LocalGeometry geo;
   result.stop_reason = StopReason::kMaxIterations;
   if (options.target_rms > 0 && std::sqrt(mean_square) <= options.target_rms)
     result.stop_reason = StopReason::kTargetReached;
+  // GN's implicit-function Jacobian is for shape parameters; for a rigid motion of the data SDM is its
+  // analogue.
+  const ErrorTerm term = options.error_term == ErrorTerm::kGn ? ErrorTerm::kSdm : options.error_term;
+  const double weight = 1.0 / static_cast<double>(scan_points.cols());
 
   while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
+    // The 6x6 normal equations, accumulated per thread and summed in thread order (deterministic for a given
+    // thread count).
     RigidNormalEquations eq;
-    for (Eigen::Index j = 0; j < current.cols(); ++j) {
-      const FootPoint& f = feet[static_cast<std::size_t>(j)];
-      model.Evaluate(f.t, 2, geo);
-      const PrincipalFrame frame = ComputePrincipalFrame(geo, current.col(j));
-      // GN's implicit-function Jacobian is for shape parameters; for a rigid motion of the data SDM is its
-      // analogue.
-      const ErrorTerm term = options.error_term == ErrorTerm::kGn ? ErrorTerm::kSdm : options.error_term;
-      eq.Add({current.col(j), To3(geo.point), ErrorMatrix(term, frame, 3),
-              1.0 / static_cast<double>(current.cols())});
+    std::vector<RigidNormalEquations> partial;
+#pragma omp parallel
+    {
+#pragma omp single
+      partial.resize(static_cast<std::size_t>(omp_get_num_threads()));
+      RigidNormalEquations& mine = partial[static_cast<std::size_t>(omp_get_thread_num())];
+      LocalGeometry geo;
+#pragma omp for schedule(static)
+      for (Eigen::Index j = 0; j < current.cols(); ++j) {
+        const FootPoint& f = feet[static_cast<std::size_t>(j)];
+        model.Evaluate(f.t, 2, geo);
+        const PrincipalFrame frame = ComputePrincipalFrame(geo, current.col(j));
+        mine.Add({current.col(j), To3(geo.point), ErrorMatrix(term, frame, 3), weight});
+      }
     }
+    for (const RigidNormalEquations& p : partial) eq.Add(p);
     bool accepted = false;
     Eigen::Matrix<double, 6, 1> velocity;
     RigidMotion step;
@@ -58,12 +78,12 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
       velocity = SolveRigidVelocity(eq, lambda);
       step = RigidMotion::FromHelicalVelocity(velocity.head<3>(), velocity.tail<3>());
       const RigidMotion trial = step * result.model_T_scan;
-      const Eigen::Matrix3Xd moved = trial.apply(scan_points);  // from the original scan: no drift
+      place(trial, moved);  // from the original scan: no drift
       ComputeFootPoints(model, moved, trial_feet, &feet);
       const double trial_mean_square = MeanSquare(trial_feet);
       if (!options.damping || trial_mean_square < mean_square) {
         result.model_T_scan = trial;
-        current = moved;
+        current.swap(moved);
         feet.swap(trial_feet);
         mean_square = trial_mean_square;
         lambda = options.damping ? std::max(lambda * 0.1, 1e-12) : 0.0;
@@ -87,6 +107,7 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
     rec.step_norm = velocity.norm();
     rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     result.history.push_back(rec);
+    result.pose_history.push_back(result.model_T_scan);
     if (options.target_rms > 0 && rec.rms <= options.target_rms) {
       result.stop_reason = StopReason::kTargetReached;
     } else if (step.angle() <= options.rotation_tolerance &&

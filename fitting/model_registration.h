@@ -31,6 +31,7 @@ struct ModelRegistrationResult {
   int iterations = 0;
   StopReason stop_reason = StopReason::kMaxIterations;
   std::vector<IterationRecord> history;
+  std::vector<RigidMotion> pose_history;  // model_T_scan after each iteration (history[i]'s pose)
 };
 
 // Registers `scan_points` (3 x n, scan coordinates) to `model` starting from `initial` (model_T_scan).

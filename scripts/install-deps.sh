@@ -13,7 +13,8 @@ packages=(
   libbenchmark-dev
   libpcl-dev             # optional edge (s2m_pcl): PCL's reference ICP, coarse alignment (FPFH + RANSAC)
   libtiff-dev            # tests only: libtiff decodes the Kinect depth TIFFs independently of our reader
-  libopen3d-dev          # optional edge (s2m_virtual_scanner): the virtual scanner's ray casting (RaycastingScene)
+  libopen3d-dev          # optional edge (s2m_virtual_scanner): the virtual scanner's ray casting (RaycastingScene) and the
+                         # benchmark's Open3D point-to-plane ICP baseline (bench/open3d_baselines.cpp)
   libopenmpi-dev openmpi-bin  # optional: `scan2model batch` under mpirun (docs/batch.md)
   chromium               # tests only: the HTML report opens in headless Chromium (tests/report_test.cpp)
 )

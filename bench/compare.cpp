@@ -1,0 +1,1011 @@
+// The end-to-end comparisons of issue 7 (docs/benchmarks.md), every side run in this one process on the same
+// data from the same perturbed starts:
+//   1. registration of a scan to a known surface: our SDM and TDM to the parametric model against PCL ICP,
+//   PCL
+//      point-to-plane ICP and Open3D point-to-plane ICP to a dense sampling of the same model;
+//   2. scan-to-scan registration of Stanford bunny views against PCL and Open3D point-to-plane ICP;
+//   3. fitting methods (PDM, TDM, SDM, CDM, GTDM, GN) to a common RMS, and joint against alternating
+//      registration + fitting on the multi-view vase;
+//   4. scaling of a joint iteration with points and views, with each configuration's peak memory;
+// then the issue's targets, met or not, with the measured ratios. Prints markdown tables, writes one CSV.
+//
+// Usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234]
+//   --quick     small sizes and few iterations: a smoke test (seconds), not numbers to quote
+//   --csv       where the CSV goes (default compare.csv in the working directory)
+//   --data      the team's third-party data (default ../shared/data beside the repository); section 2 and the
+//               glyph cases of section 3 are skipped with a note when it is absent
+
+#include <omp.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "acquisition/scan_set_io.h"
+#include "acquisition/synthetic_cases.h"
+#include "bench/fitting_method_cases.h"
+#include "bench/icp_baselines.h"
+#include "fitting/bspline_models.h"
+#include "fitting/initial_models.h"
+#include "fitting/joint_fit.h"
+#include "fitting/kinematic_surfaces.h"
+#include "fitting/model_registration.h"
+#include "registration/scan_to_scan.h"
+
+using namespace s2m;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr double kDegree = M_PI / 180.0;
+
+double Since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+struct Settings {
+  bool quick = false;
+  std::filesystem::path csv = "compare.csv";
+  std::filesystem::path data;
+  std::string sections = "1234";
+};
+
+// One CSV row: every section uses the same columns, empty where a column does not apply.
+struct Row {
+  std::string section, case_name, method;
+  long long points = -1, views = -1;
+  int start = -1;
+  int iterations = -1;
+  double seconds = NAN;      // to the threshold / the whole run / per iteration (see `metric`)
+  double error = NAN;        // pose error or RMS reached (units in `metric`)
+  double final_error = NAN;  // at the end of the run
+  double peak_rss_mb = NAN;
+  std::string metric, note;
+};
+
+class Csv {
+ public:
+  void Add(const Row& r) { rows_.push_back(r); }
+  const std::vector<Row>& rows() const { return rows_; }
+  void Write(const std::filesystem::path& path) const {
+    std::ofstream out(path);
+    if (!out) throw std::runtime_error("cannot write " + path.string());
+    out << "section,case,method,points,views,start,iterations,seconds,error,final_error,peak_rss_mb,metric,"
+           "note\n";
+    auto num = [](double v) {
+      if (std::isnan(v)) return std::string();
+      char b[64];
+      std::snprintf(b, sizeof b, "%.6g", v);
+      return std::string(b);
+    };
+    auto integer = [](long long v) { return v < 0 ? std::string() : std::to_string(v); };
+    auto text = [](const std::string& s) {
+      std::string q = "\"";
+      for (char c : s) q += (c == '"') ? std::string("\"\"") : std::string(1, c);
+      return q + "\"";
+    };
+    for (const Row& r : rows_)
+      out << r.section << ',' << text(r.case_name) << ',' << text(r.method) << ',' << integer(r.points) << ','
+          << integer(r.views) << ',' << integer(r.start) << ',' << integer(r.iterations) << ','
+          << num(r.seconds) << ',' << num(r.error) << ',' << num(r.final_error) << ',' << num(r.peak_rss_mb)
+          << ',' << text(r.metric) << ',' << text(r.note) << '\n';
+    if (!out) throw std::runtime_error("error writing " + path.string());
+  }
+
+ private:
+  std::vector<Row> rows_;
+};
+
+std::string Fmt(const char* format, double v) {
+  if (std::isnan(v)) return "-";
+  char b[64];
+  std::snprintf(b, sizeof b, format, v);
+  return b;
+}
+
+Eigen::Vector3d RandomUnit(std::mt19937_64& rng) {
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  return Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+}
+
+// A start `angle` about a random axis through `centre` and `shift` in a random direction away from `truth`
+// (model_T_scan or target_T_source), the perturbation applied in the target frame.
+RigidMotion Perturbed(const RigidMotion& truth, const Eigen::Vector3d& centre, double angle, double shift,
+                      std::mt19937_64& rng) {
+  const Eigen::Matrix3d rotation = RotationAboutAxis(RandomUnit(rng), angle);
+  const RigidMotion perturbation(rotation, centre - rotation * centre + shift * RandomUnit(rng));
+  return perturbation * truth;
+}
+
+// RMS displacement of a point set between two poses, from the set's mean and covariance in the target frame:
+// E|D y - y|^2 = trace(A S A^T) + |A mu + t|^2 with D = estimate * truth^-1 = (R, t), A = R - I.
+struct PoseErrorMeasure {
+  Eigen::Vector3d mean;
+  Eigen::Matrix3d covariance;
+  RigidMotion truth;
+  PoseErrorMeasure(const Eigen::Matrix3Xd& points_in_target_frame, const RigidMotion& truth_)
+      : truth(truth_) {
+    mean = points_in_target_frame.rowwise().mean();
+    const Eigen::Matrix3Xd c = points_in_target_frame.colwise() - mean;
+    covariance = c * c.transpose() / static_cast<double>(points_in_target_frame.cols());
+  }
+  double operator()(const RigidMotion& estimate) const {
+    const RigidMotion d = estimate * truth.inverse();
+    const Eigen::Matrix3d a = d.rotation() - Eigen::Matrix3d::Identity();
+    return std::sqrt(
+        std::max(0.0, (a * covariance * a.transpose()).trace() + (a * mean + d.translation()).squaredNorm()));
+  }
+};
+
+// ---------------------------------------------------------------------------------------------------------
+// Section 1: registration of a scan to a known surface.
+
+// A bumpy 100 mm x 100 mm freeform patch (bicubic, 10 x 10 control points) whose shape fixes all six degrees
+// of freedom of a scan on it.
+BSplineSurface KnownSurface() {
+  const int n = 10;
+  Eigen::Matrix3Xd control(3, n * n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const double x = -50 + 100.0 * i / (n - 1), y = -50 + 100.0 * j / (n - 1);
+      control.col(i * n + j) << x, y,
+          10 * std::sin(0.07 * x + 0.4) * std::cos(0.05 * y - 0.3) + 0.002 * x * y + 0.03 * x;
+    }
+  return BSplineSurface(UnitSpacedClamped(4, n), UnitSpacedClamped(4, n), control);
+}
+
+struct SurfaceSampling {
+  Eigen::Matrix3Xd points, normals;
+};
+
+// `count` points of the model: random parameters in the inner part of the domain (so that the true foot
+// points are interior) with Gaussian noise along the normal, or (noise < 0) a regular grid over the whole
+// domain without noise (the dense sampling the ICP baselines register to), with unit normals.
+SurfaceSampling SampleSurface(const ParametricModel& model, long long count, double noise,
+                              std::uint64_t seed) {
+  const ParameterDomain d = model.domain();
+  SurfaceSampling s{Eigen::Matrix3Xd(3, count), Eigen::Matrix3Xd(3, count)};
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uniform(0.1, 0.9);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  const long long side = static_cast<long long>(std::ceil(std::sqrt(static_cast<double>(count))));
+  LocalGeometry g;
+  for (long long j = 0; j < count; ++j) {
+    double a, b;
+    if (noise >= 0) {
+      a = uniform(rng);
+      b = uniform(rng);
+    } else {
+      a = static_cast<double>(j % side) / static_cast<double>(side - 1);
+      b = static_cast<double>(j / side) / static_cast<double>(side - 1);
+    }
+    model.Evaluate({d.lo[0] + a * (d.hi[0] - d.lo[0]), d.lo[1] + b * (d.hi[1] - d.lo[1]), 0.0}, 1, g);
+    const Eigen::Vector3d normal =
+        Eigen::Vector3d(g.d1.col(0)).cross(Eigen::Vector3d(g.d1.col(1))).normalized();
+    s.points.col(j) = To3(g.point) + (noise > 0 ? noise * gauss(rng) : 0.0) * normal;
+    s.normals.col(j) = normal;
+  }
+  return s;
+}
+
+// One method's trajectory from one start: pose error after each iteration, the iterations and time to the
+// threshold, the final error.
+struct Trajectory {
+  std::vector<double> errors;  // after iteration 1, 2, ...
+  int iterations_to_threshold = -1;
+  double seconds_to_threshold = NAN;
+  double final_error = NAN;
+  std::string note;
+};
+
+int FirstBelow(const std::vector<double>& errors, double threshold) {
+  for (std::size_t i = 0; i < errors.size(); ++i)
+    if (errors[i] <= threshold) return static_cast<int>(i) + 1;
+  return -1;
+}
+
+// Our registration to the model; time to the threshold from its own per-iteration clock (which includes the
+// first foot points).
+Trajectory OursToModel(const ParametricModel& model, const Eigen::Matrix3Xd& scan, const RigidMotion& start,
+                       ErrorTerm term, const PoseErrorMeasure& measure, double threshold,
+                       int max_iterations) {
+  ModelRegistrationOptions o;
+  o.error_term = term;
+  o.max_iterations = max_iterations;
+  o.rotation_tolerance = 1e-9;
+  o.translation_tolerance = 1e-9;
+  const ModelRegistrationResult r = RegisterToModel(model, scan, start, o);
+  Trajectory t;
+  for (const RigidMotion& pose : r.pose_history) t.errors.push_back(measure(pose));
+  t.iterations_to_threshold = FirstBelow(t.errors, threshold);
+  if (t.iterations_to_threshold > 0)
+    t.seconds_to_threshold = r.history[static_cast<std::size_t>(t.iterations_to_threshold - 1)].seconds;
+  t.final_error = measure(r.model_T_scan);
+  t.note = std::string("stop: ") + ToString(r.stop_reason);
+  return t;
+}
+
+// An outside ICP: iterations are stepped one at a time (untimed) to record the trajectory until the pose
+// settles, `max_iterations` or `time_cap` seconds of stepping; then one fresh run of exactly the iterations
+// the threshold needs is timed, set-up (clouds, k-d tree) included.
+Trajectory Baseline(const std::function<std::unique_ptr<bench::IcpBaseline>()>& make,
+                    const RigidMotion& start, const PoseErrorMeasure& measure, double threshold,
+                    int max_iterations, double time_cap, double size) {
+  Trajectory t;
+  std::unique_ptr<bench::IcpBaseline> stepper = make();
+  RigidMotion pose = start;
+  const auto t0 = Clock::now();
+  for (int k = 0; k < max_iterations; ++k) {
+    const RigidMotion next = stepper->Run(pose, 1);
+    const RigidMotion step = next * pose.inverse();
+    pose = next;
+    t.errors.push_back(measure(pose));
+    if (step.angle() < 1e-9 && step.translation().norm() < 1e-9 * size) break;
+    if (Since(t0) > time_cap) {
+      t.note =
+          "stepping capped at " + Fmt("%.0f", time_cap) + " s after " + std::to_string(k + 1) + " iterations";
+      break;
+    }
+  }
+  if (t.note.empty())
+    t.note = static_cast<int>(t.errors.size()) == max_iterations ? "iteration cap" : "settled";
+  t.final_error = t.errors.empty() ? measure(start) : t.errors.back();
+  t.iterations_to_threshold = FirstBelow(t.errors, threshold);
+  if (t.iterations_to_threshold > 0) {
+    const auto t1 = Clock::now();
+    std::unique_ptr<bench::IcpBaseline> timed = make();
+    timed->Run(start, t.iterations_to_threshold);
+    t.seconds_to_threshold = Since(t1);
+  }
+  return t;
+}
+
+struct RegistrationSummary {
+  std::map<std::pair<std::string, long long>, std::vector<Trajectory>> runs;  // (method, points) -> per start
+};
+
+double Median(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return std::isnan(x); }), v.end());
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary& summary,
+                                double& threshold_out) {
+  const BSplineSurface model = KnownSurface();
+  const std::vector<long long> counts =
+      s.quick ? std::vector<long long>{2000} : std::vector<long long>{10000, 100000, 1000000};
+  const double noise = 0.02;  // mm
+  // Pose error threshold: the RMS displacement of the scan's points between the estimated and the true pose.
+  const double threshold = 0.01;  // mm, half the noise
+  threshold_out = threshold;
+  const double cap = s.quick ? 5.0 : 60.0;
+  const int max_iterations = s.quick ? 10 : 50;
+  std::printf("\n## 1. Registration of a scan to a known surface\n\n");
+  std::printf(
+      "Model: bicubic B-spline patch 100 x 100 mm (10 x 10 control points, bumps of 10 mm). Scan: random "
+      "points "
+      "of the inner 80 %% of the patch, noise %.2f mm along the normal, true pose 25 deg / 30 mm from the "
+      "model frame; starts 3 deg about a random axis through the centroid and 2 mm off. Ours registers to "
+      "the "
+      "parametric model; the ICPs to the model sampled on a regular grid with as many points as the scan "
+      "(exact normals), max correspondence distance 10 mm. Pose error = RMS displacement of the scan points "
+      "between estimated and true pose; threshold %.3g mm. Time to threshold: ours from its own iteration "
+      "clock; each ICP a fresh run of exactly the iterations it needed (library set-up and k-d tree "
+      "included). Stepping of the ICPs capped at %d iterations and %.0f s. Threads: %d (PCL's ICP is "
+      "single-threaded).\n\n",
+      noise, threshold, max_iterations, cap, omp_get_max_threads());
+  std::printf(
+      "| points | method | starts reaching threshold | iterations to threshold (median) | time to threshold "
+      "(s, median) | final pose error (mm, median) | notes |\n|---|---|---|---|---|---|---|\n");
+  const RigidMotion truth(RotationAboutAxis(Eigen::Vector3d(1, 2, 3).normalized(), 25 * kDegree),
+                          Eigen::Vector3d(30, -10, 5));
+  for (long long n : counts) {
+    const SurfaceSampling scan_model = SampleSurface(model, n, noise, 7);
+    const Eigen::Matrix3Xd scan = truth.inverse().apply(scan_model.points);
+    const SurfaceSampling dense = SampleSurface(model, n, -1.0, 0);
+    const PoseErrorMeasure measure(scan_model.points, truth);
+    const Eigen::Vector3d centre = scan_model.points.rowwise().mean();
+    const int starts = s.quick ? 1 : (n >= 1000000 ? 1 : 3);
+    std::mt19937_64 rng(100 + static_cast<std::uint64_t>(n));
+    std::vector<RigidMotion> start_poses;
+    for (int k = 0; k < starts; ++k) start_poses.push_back(Perturbed(truth, centre, 3 * kDegree, 2.0, rng));
+    bench::IcpProblem problem{scan, dense.points, dense.normals, 10.0};
+    struct Method {
+      std::string name;
+      std::function<Trajectory(const RigidMotion&)> run;
+      bool available;
+    };
+    std::vector<Method> methods = {
+        {"ours SDM (to the model)",
+         [&](const RigidMotion& st) {
+           return OursToModel(model, scan, st, ErrorTerm::kSdm, measure, threshold, max_iterations);
+         },
+         true},
+        {"ours TDM (to the model)",
+         [&](const RigidMotion& st) {
+           return OursToModel(model, scan, st, ErrorTerm::kTdm, measure, threshold, max_iterations);
+         },
+         true},
+        {"PCL ICP (point-to-point)",
+         [&](const RigidMotion& st) {
+           return Baseline([&] { return bench::MakePclPointToPoint(problem); }, st, measure, threshold,
+                           max_iterations, cap, 100.0);
+         },
+         bench::HavePcl()},
+        {"PCL point-to-plane ICP",
+         [&](const RigidMotion& st) {
+           return Baseline([&] { return bench::MakePclPointToPlane(problem); }, st, measure, threshold,
+                           max_iterations, cap, 100.0);
+         },
+         bench::HavePcl()},
+        {"Open3D point-to-plane ICP",
+         [&](const RigidMotion& st) {
+           return Baseline([&] { return bench::MakeOpen3dPointToPlane(problem); }, st, measure, threshold,
+                           max_iterations, cap, 100.0);
+         },
+         bench::HaveOpen3d()},
+    };
+    for (const Method& m : methods) {
+      if (!m.available) {
+        std::printf("| %lld | %s | not built | - | - | - | library absent |\n", n, m.name.c_str());
+        continue;
+      }
+      std::vector<Trajectory>& runs = summary.runs[{m.name, n}];
+      for (int k = 0; k < starts; ++k) {
+        runs.push_back(m.run(start_poses[static_cast<std::size_t>(k)]));
+        const Trajectory& t = runs.back();
+        Row r;
+        r.section = "1 registration to model";
+        r.case_name = "bumpy B-spline patch";
+        r.method = m.name;
+        r.points = n;
+        r.start = k;
+        r.iterations = t.iterations_to_threshold;
+        r.seconds = t.seconds_to_threshold;
+        r.error = threshold;
+        r.final_error = t.final_error;
+        r.metric = "seconds and iterations to pose error <= error (mm); final_error mm";
+        r.note = t.note;
+        csv.Add(r);
+      }
+      std::vector<double> its, secs, finals;
+      int reached = 0;
+      std::string notes;
+      for (const Trajectory& t : runs) {
+        if (t.iterations_to_threshold > 0) {
+          ++reached;
+          its.push_back(t.iterations_to_threshold);
+          secs.push_back(t.seconds_to_threshold);
+        }
+        finals.push_back(t.final_error);
+        if (notes.find(t.note) == std::string::npos) notes += (notes.empty() ? "" : "; ") + t.note;
+      }
+      std::printf("| %lld | %s | %d / %d | %s | %s | %s | %s |\n", n, m.name.c_str(), reached, starts,
+                  Fmt("%.0f", Median(its)).c_str(), Fmt("%.3f", Median(secs)).c_str(),
+                  Fmt("%.2e", Median(finals)).c_str(), notes.c_str());
+      std::fflush(stdout);
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Section 2: scan-to-scan registration of the Stanford bunny views.
+
+void SectionBunny(const Settings& s, Csv& csv) {
+  std::printf("\n## 2. Scan-to-scan registration: Stanford bunny\n\n");
+  const std::filesystem::path conf = s.data / "stanford_bunny_scans" / "bun.conf";
+  if (!std::filesystem::exists(conf)) {
+    std::printf("%s is absent: section skipped.\n", conf.c_str());
+    return;
+  }
+  const ScanSet set = ReadScanSet(conf);
+  // Views by file name (bun000, bun045, ...), found in each view's recorded source.
+  std::map<std::string, std::size_t> index;
+  for (std::size_t k = 0; k < set.scans.size(); ++k) {
+    const std::string name = std::filesystem::path(set.scans[k].metadata.source).filename().string();
+    index[name.substr(0, name.find('.'))] = k;
+  }
+  // Neighbouring turntable views (45-90 degrees apart): the pairs a user would register.
+  std::vector<std::pair<std::string, std::string>> pairs = {
+      {"bun000", "bun045"}, {"bun045", "bun090"}, {"bun270", "bun315"}, {"bun315", "bun000"}};
+  if (s.quick) pairs.resize(1);
+  const double angle = 3 * kDegree, shift = 0.003;  // metres: the scans are in metres
+  const int samples = 1500;
+  std::printf(
+      "Pairs of neighbouring views, the second registered to the first from its reference pose (bun.conf) "
+      "perturbed by %.0f deg about a random axis through its centroid and %.0f mm. Ours: "
+      "RegisterScansToEachOther on the pair (%d samples per view, correspondences beyond 3x the median "
+      "distance ignored). ICPs: the source's %d evenly spaced samples (the same count of pairs per iteration "
+      "as "
+      "ours) against the whole target with normals from 12-neighbour plane fits, max correspondence 10 mm, "
+      "run until the step falls below 1e-5 rad and 1.5e-6 m, the settling rule of ours (max 50 iterations), "
+      "then timed again for exactly "
+      "that many iterations. Pose error against the reference relative pose: rotation angle and RMS "
+      "displacement of the source points.\n\n",
+      angle / kDegree, shift * 1e3, samples, 2 * samples);
+  std::printf(
+      "| pair | method | iterations | time (s) | rotation error (deg) | displacement RMS (mm) |\n"
+      "|---|---|---|---|---|---|\n");
+  std::mt19937_64 rng(42);
+  for (const auto& [a_name, b_name] : pairs) {
+    if (!index.count(a_name) || !index.count(b_name)) {
+      std::printf("| %s-%s | - | view missing | | | |\n", a_name.c_str(), b_name.c_str());
+      continue;
+    }
+    const Scan& a = set.scans[index[a_name]];
+    const Scan& b = set.scans[index[b_name]];
+    const RigidMotion reference = a.world_T_scan.inverse() * b.world_T_scan;  // a_T_b
+    const Eigen::Vector3d centre = reference * Eigen::Vector3d(b.points.rowwise().mean());
+    const RigidMotion start = Perturbed(reference, centre, angle, shift, rng);
+    const PoseErrorMeasure measure(reference.apply(b.points), reference);
+    auto report = [&](const std::string& method, int iterations, double seconds, const RigidMotion& result,
+                      const std::string& note) {
+      const double rotation = (result * reference.inverse()).angle() / kDegree;
+      const double displacement = measure(result) * 1e3;
+      std::printf("| %s-%s | %s | %d | %.3f | %.4f | %.4f |\n", a_name.c_str(), b_name.c_str(),
+                  method.c_str(), iterations, seconds, rotation, displacement);
+      std::fflush(stdout);
+      Row r;
+      r.section = "2 bunny scan-to-scan";
+      r.case_name = a_name + "-" + b_name;
+      r.method = method;
+      r.points = b.points.cols();
+      r.views = 2;
+      r.iterations = iterations;
+      r.seconds = seconds;
+      r.error = rotation;
+      r.final_error = displacement;
+      r.metric = "error: rotation deg; final_error: displacement RMS mm; seconds: whole run";
+      r.note = note;
+      csv.Add(r);
+    };
+    for (ScanErrorTerm term : {ScanErrorTerm::kTdm, ScanErrorTerm::kSdm}) {
+      ScanToScanOptions o;
+      o.error_term = term;
+      o.samples_per_view = samples;
+      const auto t0 = Clock::now();
+      const ScanToScanResult r = RegisterScansToEachOther({a.points, b.points}, {RigidMotion(), start}, o);
+      const double seconds = Since(t0);
+      report(term == ScanErrorTerm::kTdm ? "ours TDM (scan-to-scan)" : "ours SDM (scan-to-scan)", r.sweeps,
+             seconds, r.world_T_scan[0].inverse() * r.world_T_scan[1],
+             r.converged ? "converged" : "sweep cap");
+    }
+    // The ICPs' source: evenly spaced samples of b; their target: all of a with normals.
+    const Eigen::Index n = b.points.cols();
+    const Eigen::Index m = std::min<Eigen::Index>(2 * samples, n);
+    Eigen::Matrix3Xd source(3, m);
+    for (Eigen::Index i = 0; i < m; ++i) source.col(i) = b.points.col(i * n / m);
+    bench::IcpProblem problem{source, a.points, EstimateNormals(a.points, 12), 0.01};
+    const std::vector<std::pair<std::string, std::function<std::unique_ptr<bench::IcpBaseline>()>>>
+        baselines = {{"PCL ICP (point-to-point)", [&] { return bench::MakePclPointToPoint(problem); }},
+                     {"PCL point-to-plane ICP", [&] { return bench::MakePclPointToPlane(problem); }},
+                     {"Open3D point-to-plane ICP", [&] { return bench::MakeOpen3dPointToPlane(problem); }}};
+    for (const auto& [name, make] : baselines) {
+      if (!make()) continue;
+      std::unique_ptr<bench::IcpBaseline> stepper = make();
+      RigidMotion pose = start;
+      int iterations = 0;
+      for (; iterations < 50;) {
+        const RigidMotion next = stepper->Run(pose, 1);
+        const RigidMotion step = next * pose.inverse();
+        pose = next;
+        ++iterations;
+        // The settling rule of ours (ScanToScanOptions: 1e-5 rad, 1e-5 of the views' extent, ~0.15 m here).
+        if (step.angle() < 1e-5 && step.translation().norm() < 1.5e-6) break;
+      }
+      const auto t0 = Clock::now();
+      const RigidMotion result = make()->Run(start, iterations);
+      report(name, iterations, Since(t0), result, iterations == 50 ? "iteration cap" : "settled");
+    }
+  }
+  // All ten views at once (ours only: the ICPs register pairs).
+  if (!s.quick) {
+    std::vector<Eigen::Matrix3Xd> scans;
+    std::vector<RigidMotion> reference, start;
+    for (const Scan& v : set.scans) {
+      scans.push_back(v.points);
+      reference.push_back(v.world_T_scan);
+      const Eigen::Vector3d centre = v.world_T_scan * Eigen::Vector3d(v.points.rowwise().mean());
+      start.push_back(Perturbed(v.world_T_scan, centre, angle, shift, rng));
+    }
+    start[0] = reference[0];
+    for (ScanErrorTerm term : {ScanErrorTerm::kTdm, ScanErrorTerm::kSdm}) {
+      ScanToScanOptions o;
+      o.error_term = term;
+      o.samples_per_view = samples;
+      const auto t0 = Clock::now();
+      const ScanToScanResult r = RegisterScansToEachOther(scans, start, o);
+      const double seconds = Since(t0);
+      double worst_rotation = 0, worst_displacement = 0;
+      for (std::size_t k = 1; k < scans.size(); ++k) {
+        const RigidMotion fit = r.world_T_scan[0].inverse() * r.world_T_scan[k];
+        const RigidMotion ref = reference[0].inverse() * reference[k];
+        worst_rotation = std::max(worst_rotation, (fit * ref.inverse()).angle() / kDegree);
+        worst_displacement =
+            std::max(worst_displacement, PoseErrorMeasure(ref.apply(scans[k]), ref)(fit) * 1e3);
+      }
+      const std::string method =
+          term == ScanErrorTerm::kTdm ? "ours TDM (all 10 views)" : "ours SDM (all 10 views)";
+      std::printf("| all 10 views (worst view) | %s | %d | %.3f | %.4f | %.4f |\n", method.c_str(), r.sweeps,
+                  seconds, worst_rotation, worst_displacement);
+      std::fflush(stdout);
+      Row row;
+      row.section = "2 bunny scan-to-scan";
+      row.case_name = "all 10 views (worst view)";
+      row.method = method;
+      row.views = 10;
+      row.iterations = r.sweeps;
+      row.seconds = seconds;
+      row.error = worst_rotation;
+      row.final_error = worst_displacement;
+      row.metric = "error: worst rotation deg; final_error: worst displacement RMS mm; seconds: whole run";
+      row.note = r.converged ? "converged" : "sweep cap";
+      csv.Add(row);
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Section 3: fitting methods, and joint against alternating.
+
+struct FittingSummary {
+  struct Curve {
+    std::string name;
+    int sdm = -1, pdm = -1;  // iterations to the common RMS; -1: not reached within `budget`
+    int budget = 0;
+  };
+  std::vector<Curve> curves;
+};
+
+void SectionFitting(const Settings& s, Csv& csv, FittingSummary& summary) {
+  std::printf("\n## 3. Fitting methods to a common RMS\n\n");
+  const int budget = s.quick ? 30 : 300;
+  std::printf(
+      "The cases of docs/fitting-engine.md plus a surface; each method from the same start for %d "
+      "iterations; the common target is 5 %% above the lowest RMS any method reaches.\n\n",
+      budget);
+  std::printf(
+      "| case | method | iterations to target | time to target (ms) | ms / iteration | lowest RMS | "
+      "iterations "
+      "vs SDM |\n|---|---|---|---|---|---|---|\n");
+  for (const bench::FittingCase& c : bench::FittingCases(s.data / "font_glyphs", true)) {
+    if (s.quick && !c.curve) continue;
+    const std::vector<bench::MethodRow> rows = bench::RunFittingMethods(c, budget);
+    const bench::MethodRow& sdm = rows[2];
+    for (const bench::MethodRow& r : rows) {
+      std::string ratio = "-";
+      if (r.iterations_to_target > 0 && sdm.iterations_to_target > 0)
+        ratio = Fmt("%.1fx", static_cast<double>(r.iterations_to_target) / sdm.iterations_to_target);
+      std::printf("| %s (target RMS %.3g) | %s | %s | %s | %.3f | %.4g | %s |\n", c.name.c_str(),
+                  r.target_rms, ToString(r.method),
+                  r.iterations_to_target > 0 ? std::to_string(r.iterations_to_target).c_str() : "not reached",
+                  Fmt("%.2f", r.iterations_to_target > 0 ? r.seconds_to_target * 1e3 : NAN).c_str(),
+                  r.seconds_per_iteration * 1e3, r.lowest_rms, ratio.c_str());
+      Row row;
+      row.section = "3 fitting methods";
+      row.case_name = c.name;
+      row.method = ToString(r.method);
+      row.points = c.points.cols();
+      row.iterations = r.iterations_to_target;
+      row.seconds = r.iterations_to_target > 0 ? r.seconds_to_target : NAN;
+      row.error = r.target_rms;
+      row.final_error = r.lowest_rms;
+      row.metric = "iterations and seconds to RMS <= error; final_error: lowest RMS in the budget";
+      csv.Add(row);
+    }
+    std::fflush(stdout);
+    if (c.curve)
+      summary.curves.push_back({c.name, sdm.iterations_to_target, rows[0].iterations_to_target, budget});
+  }
+
+  std::printf("\n### Joint against alternating registration + fitting (vase, 8 views)\n\n");
+  SyntheticCase vase = MakeSyntheticCase("vase");
+  std::printf(
+      "The synthetic vase of docs/multiview-cases.md (surface of revolution, 8 views, noise 0.02 mm, device "
+      "poses off by 2 deg and 2 mm), SDM, from the automatic initial model. Target: 5 %% above the lower of "
+      "the two final RMS.\n\n");
+  std::printf(
+      "| solver | iterations | time (s) | final RMS (mm) | iterations to target | time to target (s) | worst "
+      "observable pose error (deg, mm) |\n|---|---|---|---|---|---|---|\n");
+  struct Run {
+    std::string name;
+    JointFitResult result;
+    double worst_angle = 0, worst_shift = 0;
+  };
+  std::vector<Run> runs;
+  for (bool alternating : {false, true}) {
+    std::unique_ptr<ParametricModel> model = vase.start->Clone();
+    JointFitOptions o = vase.options;
+    o.alternating = alternating;
+    if (s.quick) o.max_iterations = 10;
+    Run run{alternating ? "alternating" : "joint",
+            FitJointly(*model, vase.views.scans, vase.views.model_T_scan_recorded, o)};
+    for (const Motion6& e :
+         ObservablePoseErrors(*model, run.result.model_T_scan, vase.views.model_T_scan_true)) {
+      run.worst_angle = std::max(run.worst_angle, e.head<3>().norm() / kDegree);
+      run.worst_shift = std::max(run.worst_shift, e.tail<3>().norm());
+    }
+    runs.push_back(std::move(run));
+  }
+  const double target = 1.05 * std::min(runs[0].result.residuals.rms, runs[1].result.residuals.rms);
+  for (const Run& run : runs) {
+    const auto& h = run.result.history;
+    int reached = -1;
+    double at = NAN;
+    for (const IterationRecord& r : h)
+      if (r.rms <= target) {
+        reached = r.iteration;
+        at = r.seconds;
+        break;
+      }
+    const double total = h.empty() ? 0.0 : h.back().seconds;
+    std::printf("| %s | %d | %.2f | %.5f | %s | %s | %.4f, %.4f |\n", run.name.c_str(), run.result.iterations,
+                total, run.result.residuals.rms,
+                reached > 0 ? std::to_string(reached).c_str() : "not reached", Fmt("%.2f", at).c_str(),
+                run.worst_angle, run.worst_shift);
+    Row row;
+    row.section = "3 joint vs alternating";
+    row.case_name = "vase, 8 views";
+    row.method = run.name;
+    row.views = 8;
+    long long points = 0;
+    for (const auto& sc : vase.views.scans) points += sc.cols();
+    row.points = points;
+    row.iterations = reached;
+    row.seconds = at;
+    row.error = target;
+    row.final_error = run.result.residuals.rms;
+    row.metric = "iterations and seconds to RMS <= error (mm); final_error: final RMS mm";
+    row.note = std::string("stop: ") + ToString(run.result.stop_reason) + "; " +
+               std::to_string(run.result.iterations) + " iterations in " + Fmt("%.2f", total) + " s";
+    csv.Add(row);
+  }
+  std::fflush(stdout);
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Section 4: scaling of one joint iteration, each configuration in a child process (its own peak memory).
+
+struct ScalingResult {
+  double seconds_per_iteration = NAN;
+  double setup_seconds = NAN;
+  long long points = 0;
+  int iterations = 0;
+  double peak_rss_mb = NAN;
+  double cores_used = NAN;  // process CPU time / wall time of the fit (2 = both cores busy with it)
+  bool ok = false;
+};
+
+// Process CPU time (user + system), seconds.
+double CpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+// This process's peak resident memory (VmHWM of /proc/self/status), MB; NAN when unavailable. Unlike
+// ru_maxrss, it does not carry over the image the process had before exec.
+double PeakResidentMb() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
+  return NAN;
+}
+
+// The machine's load average (1, 5, 15 minutes) as /proc/loadavg gives it: other processes share the cores.
+std::string LoadAverage() {
+  std::ifstream in("/proc/loadavg");
+  double a = NAN, b = NAN, c = NAN;
+  in >> a >> b >> c;
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.2f %.2f %.2f", a, b, c);
+  return buffer;
+}
+
+// The vase profile refined to 12 control points: a surface of revolution 150 mm tall.
+KinematicSurface TwelvePointVase() {
+  const KinematicSurface eight = KinematicSurface::Revolution(
+      UnitSpacedClamped(4, 8),
+      (Eigen::Matrix2Xd(2, 8) << 30, 42, 58, 66, 55, 38, 34, 41, 0, 20, 45, 70, 95, 120, 135, 150)
+          .finished());
+  Eigen::Matrix2Xd profile(2, 12);
+  const double lo = eight.basis().lo(), hi = eight.basis().hi();
+  for (int i = 0; i < 12; ++i) profile.col(i) = eight.ProfilePoint(lo + (hi - lo) * i / 11.0);
+  return KinematicSurface::Revolution(UnitSpacedClamped(4, 12), profile);
+}
+
+ScalingResult RunScaling(long long points, int views, int iterations) {
+  const KinematicSurface truth = TwelvePointVase();
+  const std::vector<Eigen::Vector3d> directions = RingOfDirections(views, 20 * kDegree);
+  ViewOptions vo;
+  vo.noise = 0.02;
+  vo.rotation_error = 0.5 * kDegree;
+  vo.translation_error = 0.5;
+  vo.seed = 5;
+  // A pilot sampling tells how many of the sampled points the views see (with repeats across views).
+  const SurfaceSample pilot =
+      SampleAroundAxis(truth, truth.basis().lo(), truth.basis().hi(), -M_PI, M_PI, 4000, 3);
+  long long seen = 0;
+  for (const auto& sc : ScanFromDirections(pilot, directions, vo).scans) seen += sc.cols();
+  const double per_sample = static_cast<double>(seen) / 4000.0;
+  const int count = static_cast<int>(std::ceil(static_cast<double>(points) / per_sample));
+  const SyntheticViews v = ScanFromDirections(
+      SampleAroundAxis(truth, truth.basis().lo(), truth.basis().hi(), -M_PI, M_PI, count, 4), directions, vo);
+  ScalingResult out;
+  for (const auto& sc : v.scans) out.points += sc.cols();
+  KinematicSurface start = KinematicSurface::Revolution(truth.basis(), truth.profile() * 1.01);
+  JointFitOptions o;
+  o.error_term = ErrorTerm::kSdm;
+  o.max_iterations = iterations;
+  o.shared_motion_iterations = 0;
+  o.objective_tolerance = 0.0;
+  const double cpu0 = CpuSeconds();
+  const auto wall0 = Clock::now();
+  const JointFitResult r = FitJointly(start, v.scans, v.model_T_scan_recorded, o);
+  out.cores_used = (CpuSeconds() - cpu0) / Since(wall0);
+  // Per iteration: the differences of the iteration clock after the first (which also pays the first foot
+  // points from the seed samples).
+  std::vector<double> per;
+  for (std::size_t i = 1; i < r.history.size(); ++i)
+    per.push_back(r.history[i].seconds - r.history[i - 1].seconds);
+  out.seconds_per_iteration = Median(per);
+  out.setup_seconds = r.history.empty() ? NAN : r.history[0].seconds;
+  out.iterations = r.iterations;
+  out.ok = r.iterations >= 2;
+  out.peak_rss_mb = PeakResidentMb();
+  return out;
+}
+
+// Runs one scaling configuration in a fresh process (this program re-executed with --scaling-child: a forked
+// copy of a process that already ran OpenMP regions would hang in its first parallel region) and returns its
+// result; the child measures its own peak memory.
+ScalingResult InChild(long long points, int views, int iterations) {
+  int fd[2];
+  if (pipe(fd) != 0) throw std::runtime_error("pipe failed");
+  std::fflush(stdout);
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    close(fd[0]);
+    dup2(fd[1], STDOUT_FILENO);
+    const std::string n = std::to_string(points), k = std::to_string(views), it = std::to_string(iterations);
+    execl("/proc/self/exe", "compare", "--scaling-child", n.c_str(), k.c_str(), it.c_str(),
+          static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  close(fd[1]);
+  std::string text;
+  char buffer[256];
+  for (ssize_t got; (got = read(fd[0], buffer, sizeof buffer)) > 0;)
+    text.append(buffer, static_cast<std::size_t>(got));
+  close(fd[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ScalingResult r;
+  std::istringstream in(text);
+  int ok = 0;
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 ||
+      !(in >> r.seconds_per_iteration >> r.setup_seconds >> r.points >> r.iterations >> r.peak_rss_mb >>
+        r.cores_used >> ok))
+    return {};
+  r.ok = ok != 0;
+  return r;
+}
+
+int ScalingChild(long long points, int views, int iterations) {
+  try {
+    const ScalingResult r = RunScaling(points, views, iterations);
+    std::printf("%.9g %.9g %lld %d %.9g %.9g %d\n", r.seconds_per_iteration, r.setup_seconds, r.points,
+                r.iterations, r.peak_rss_mb, r.cores_used, r.ok ? 1 : 0);
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "scaling case failed: %s\n", e.what());
+    return 1;
+  }
+}
+
+struct ScalingSummary {
+  double eight_views_1m = NAN;
+};
+
+void SectionScaling(const Settings& s, Csv& csv, ScalingSummary& summary) {
+  std::printf("\n## 4. Scaling of one joint iteration\n\n");
+  const int iterations = s.quick ? 2 : 4;
+  std::vector<std::pair<long long, int>> configs;
+  if (s.quick) {
+    configs = {{10000, 8}, {10000, 2}};
+  } else {
+    for (long long n : {10000LL, 100000LL, 1000000LL, 3000000LL, 10000000LL}) configs.push_back({n, 8});
+    for (int k : {1, 2, 4, 16, 32}) configs.push_back({1000000, k});
+  }
+  std::printf(
+      "Surface of revolution with 12 control points (the vase profile), SDM, per-view motions from the "
+      "start, "
+      "%d iterations from a start 1 %% off in shape and 0.5 deg / 0.5 mm off in pose; time per iteration = "
+      "median of the differences of the iteration clock after the first; first = the first iteration "
+      "including the initial foot points from seed samples. Each configuration runs in its own child "
+      "process; peak = its maximum resident memory (VmHWM); cores used = the fit's process CPU time / wall "
+      "time (2.0: both cores were ours; less: other processes shared them). Threads: %d.\n\n",
+      iterations, omp_get_max_threads());
+  std::printf(
+      "| points | views | s / iteration | first iteration (s) | us / point / iteration | peak memory (MB) | "
+      "cores "
+      "used |\n|---|---|---|---|---|---|---|\n");
+  for (const auto& [n, k] : configs) {
+    const ScalingResult r = InChild(n, k, iterations);
+    if (!r.ok) {
+      std::printf("| %lld | %d | failed | | | | |\n", n, k);
+      continue;
+    }
+    std::printf("| %lld | %d | %.3f | %.3f | %.3f | %.0f | %.2f |\n", r.points, k, r.seconds_per_iteration,
+                r.setup_seconds, r.seconds_per_iteration * 1e6 / static_cast<double>(r.points), r.peak_rss_mb,
+                r.cores_used);
+    std::fflush(stdout);
+    if (n == 1000000 && k == 8) summary.eight_views_1m = r.seconds_per_iteration;
+    Row row;
+    row.section = "4 scaling";
+    row.case_name = "revolution, 12 control points";
+    row.method = "joint SDM";
+    row.points = r.points;
+    row.views = k;
+    row.iterations = r.iterations;
+    row.seconds = r.seconds_per_iteration;
+    row.error = r.setup_seconds;
+    row.peak_rss_mb = r.peak_rss_mb;
+    row.metric = "seconds: per joint iteration (median); error: first iteration seconds";
+    row.note = "cores used " + Fmt("%.2f", r.cores_used);
+    csv.Add(row);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+
+void PrintTargets(const RegistrationSummary& reg, double threshold, const FittingSummary& fit,
+                  const ScalingSummary& scaling, bool quick) {
+  std::printf("\n## Targets of issue 7 (this run%s)\n\n", quick ? ", QUICK MODE: not numbers to quote" : "");
+  std::printf("| target | measured | met |\n|---|---|---|\n");
+  // Registration at 100k points against Open3D point-to-plane.
+  const long long n = quick ? 2000 : 100000;
+  auto median_of = [&](const std::string& method, auto field) -> double {
+    auto it = reg.runs.find({method, n});
+    if (it == reg.runs.end()) return NAN;
+    std::vector<double> v;
+    for (const Trajectory& t : it->second) v.push_back(field(t));
+    return Median(v);
+  };
+  const auto seconds = [](const Trajectory& t) { return t.seconds_to_threshold; };
+  const auto final_error = [](const Trajectory& t) { return t.final_error; };
+  const double open3d_s = median_of("Open3D point-to-plane ICP", seconds);
+  const double open3d_e = median_of("Open3D point-to-plane ICP", final_error);
+  for (const char* ours : {"ours SDM (to the model)", "ours TDM (to the model)"}) {
+    const double s = median_of(ours, seconds), e = median_of(ours, final_error);
+    if (std::isnan(open3d_e) || std::isnan(e)) {
+      std::printf("| registration at %lld points (%s) vs Open3D | not measured | - |\n", n, ours);
+      continue;
+    }
+    const double speedup = open3d_s / s;
+    const bool met = speedup >= 5.0 && e < open3d_e;
+    std::printf(
+        "| registration at %lld points, %s: >= 5x less time than Open3D point-to-plane to pose error %.3g "
+        "mm, "
+        "lower final error | time ratio %s (%.3f s vs %s s); final error %.2e vs %.2e mm | %s |\n",
+        n, ours, threshold, Fmt("%.2fx", speedup).c_str(), s, Fmt("%.3f", open3d_s).c_str(), e, open3d_e,
+        met ? "met" : "not met");
+  }
+  if (!std::isnan(scaling.eight_views_1m))
+    std::printf(
+        "| joint iteration, 8 views, 1M points, revolution with 12 control points < 0.5 s | %.3f s (%.2fx "
+        "the budget) | %s |\n",
+        scaling.eight_views_1m, scaling.eight_views_1m / 0.5,
+        scaling.eight_views_1m < 0.5 ? "met" : "not met");
+  else
+    std::printf("| joint iteration, 8 views, 1M points < 0.5 s | not run in this mode | - |\n");
+  for (const FittingSummary::Curve& c : fit.curves) {
+    std::string measured, met = "-";
+    if (c.sdm < 0) {
+      measured = "SDM did not reach the common RMS";
+    } else if (c.pdm < 0) {
+      // PDM never reached it: the ratio is at least budget / SDM's iterations.
+      measured = "PDM not reached in " + std::to_string(c.budget) + ", SDM " + std::to_string(c.sdm) +
+                 ": ratio > " + Fmt("%.0f", static_cast<double>(c.budget) / c.sdm);
+      met = static_cast<double>(c.budget) / c.sdm >= 5.0 ? "met" : "not decided (budget too short)";
+    } else {
+      const double ratio = static_cast<double>(c.pdm) / c.sdm;
+      measured =
+          "PDM " + std::to_string(c.pdm) + " / SDM " + std::to_string(c.sdm) + " = " + Fmt("%.1f", ratio);
+      met = ratio >= 5.0 ? "met" : "not met";
+    }
+    std::printf("| SDM <= 1/5 of PDM's iterations: %s | %s | %s |\n", c.name.c_str(), measured.c_str(),
+                met.c_str());
+  }
+  std::printf(
+      "| foot points: primitives >= 20M/s/core, B-spline surfaces >= 1M/s/core warm | see micro_benchmarks "
+      "(docs/benchmarks.md) | - |\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc == 5 && std::string(argv[1]) == "--scaling-child")
+    return ScalingChild(std::atoll(argv[2]), std::atoi(argv[3]), std::atoi(argv[4]));
+  Settings s;
+  s.data = std::filesystem::path(S2M_SOURCE_DIR) / ".." / "shared" / "data";
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "compare: %s needs a value\n", a.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--quick") {
+      s.quick = true;
+    } else if (a == "--csv") {
+      s.csv = value();
+    } else if (a == "--data") {
+      s.data = value();
+    } else if (a == "--sections") {
+      s.sections = value();
+    } else if (a == "--help" || a == "-h") {
+      std::printf("usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234]\n");
+      return 0;
+    } else {
+      std::fprintf(stderr, "compare: unknown argument %s (see --help)\n", a.c_str());
+      return 2;
+    }
+  }
+  try {
+    const auto t0 = Clock::now();
+    std::printf("# scan2model benchmark: compare%s\n\n", s.quick ? " --quick" : "");
+    std::printf("Threads (OpenMP): %d; PCL baselines: %s; Open3D baselines: %s.\n", omp_get_max_threads(),
+                bench::HavePcl() ? "yes" : "no (not built)", bench::HaveOpen3d() ? "yes" : "no (not built)");
+    Csv csv;
+    RegistrationSummary reg;
+    FittingSummary fit;
+    ScalingSummary scaling;
+    double threshold = NAN;
+    auto wants = [&](char c) { return s.sections.find(c) != std::string::npos; };
+    // Other processes share the cores: the load average before and after each section says how much.
+    auto section = [&](char c, const std::function<void()>& body) {
+      if (!wants(c)) return;
+      const std::string before = LoadAverage();
+      const auto t1 = Clock::now();
+      body();
+      std::printf("\n(section %c: %.0f s; load average before %s, after %s)\n", c, Since(t1), before.c_str(),
+                  LoadAverage().c_str());
+    };
+    section('1', [&] { SectionRegistrationToModel(s, csv, reg, threshold); });
+    section('2', [&] { SectionBunny(s, csv); });
+    section('3', [&] { SectionFitting(s, csv, fit); });
+    section('4', [&] { SectionScaling(s, csv, scaling); });
+    PrintTargets(reg, threshold, fit, scaling, s.quick);
+    csv.Write(s.csv);
+    std::printf("\nCSV: %s (%zu rows). Total time %.1f s.\n", s.csv.c_str(), csv.rows().size(), Since(t0));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "compare: %s\n", e.what());
+    return 70;
+  }
+  return 0;
+}

@@ -1,0 +1,263 @@
+// Micro-benchmarks of issue 7 (Google Benchmark; docs/benchmarks.md): foot points per second per core for
+// each model family, and normal-equation assembly throughput. One OpenMP thread throughout (per core: the
+// engine's loops are parallel over points, so the rate on c cores is about c times this).
+//
+// Foot points are timed through the engine's own entry point ComputeFootPoints (fitting/foot_point.h), which
+// is what every fit and registration calls per iteration:
+//   - closed-form models (primitives, part faces): the closed-form foot point and the distance;
+//   - Newton models cold: seed from the nearest model sample (k-d tree built per call), then Newton;
+//   - Newton models warm: the previous iteration's foot points passed as `warm`, the points moved by a small
+//     rigid motion (0.05 degree, 0.01 % of the size), as between two iterations of a converging fit;
+//   - Newton only ("refine"): RefineFootPoint from the previous parameter, i.e. the warm start without the
+//     seed-tree search that ComputeFootPoints still does per point.
+// Usage: micro_benchmarks [Google Benchmark flags, e.g. --benchmark_format=csv --benchmark_filter=Spline]
+
+#include <benchmark/benchmark.h>
+#include <omp.h>
+
+#include <memory>
+#include <random>
+
+#include "acquisition/synthetic_cases.h"
+#include "fitting/bspline_models.h"
+#include "fitting/foot_point.h"
+#include "fitting/geometric_fit.h"
+#include "fitting/initial_models.h"
+#include "fitting/primitive_models.h"
+#include "registration/rigid_step.h"
+
+using namespace s2m;
+
+namespace {
+
+constexpr Eigen::Index kPoints = 20000;
+
+struct Family {
+  std::unique_ptr<ParametricModel> model;
+  Eigen::MatrixXd points;  // near the model
+};
+
+Eigen::MatrixXd WithNoise(const Eigen::Matrix3Xd& p, double sigma, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> gauss(0.0, sigma);
+  Eigen::MatrixXd out = p;
+  for (Eigen::Index i = 0; i < out.size(); ++i) out.data()[i] += gauss(rng);
+  return out;
+}
+
+Eigen::Matrix3Xd Columns(const Eigen::Matrix3Xd& p, Eigen::Index count) {
+  Eigen::Matrix3Xd out(3, count);
+  for (Eigen::Index i = 0; i < count; ++i) out.col(i) = p.col(i % p.cols());
+  return out;
+}
+
+// The reference models of acquisition/synthetic_cases.h (truth), with their views' points in the model frame.
+Family FromCase(const std::string& name) {
+  SyntheticCase c = MakeSyntheticCase(name);
+  Eigen::Index total = 0;
+  for (const auto& s : c.views.scans) total += s.cols();
+  Eigen::Matrix3Xd all(3, total);
+  Eigen::Index at = 0;
+  for (std::size_t k = 0; k < c.views.scans.size(); ++k) {
+    all.middleCols(at, c.views.scans[k].cols()) = c.views.model_T_scan_true[k].apply(c.views.scans[k]);
+    at += c.views.scans[k].cols();
+  }
+  return {std::move(c.truth), Columns(all, kPoints)};
+}
+
+Family MakeFamily(const std::string& name) {
+  if (name == "cylinder") {
+    Cylinder cyl{Eigen::Vector3d(1, 2, 3), Eigen::Vector3d(0.2, 0.3, 1).normalized(), 20.0};
+    auto model = std::make_unique<CylinderModel>(cyl);
+    const ParameterDomain d = model->domain();
+    Eigen::Matrix3Xd p(3, kPoints);
+    std::mt19937_64 rng(1);
+    std::uniform_real_distribution<double> a(d.lo[0], d.hi[0]), h(-30, 30);
+    LocalGeometry g;
+    for (Eigen::Index i = 0; i < kPoints; ++i) {
+      model->Evaluate({a(rng), h(rng), 0}, 0, g);
+      p.col(i) = To3(g.point);
+    }
+    return {std::move(model), WithNoise(p, 0.05, 2)};
+  }
+  if (name == "sphere") {
+    auto model = std::make_unique<SphereModel>(Sphere{Eigen::Vector3d(1, 2, 3), 25.0});
+    Eigen::Matrix3Xd p(3, kPoints);
+    std::mt19937_64 rng(3);
+    std::normal_distribution<double> gauss(0, 1);
+    for (Eigen::Index i = 0; i < kPoints; ++i)
+      p.col(i) =
+          Eigen::Vector3d(1, 2, 3) + 25.0 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+    return {std::move(model), WithNoise(p, 0.05, 4)};
+  }
+  if (name == "bspline-curve") {
+    // A closed planar curve with 40 control points around a wobbly circle.
+    Eigen::MatrixXd control(2, 40);
+    for (int i = 0; i < 40; ++i) {
+      const double a = 2 * M_PI * i / 40, r = 10 + 1.5 * std::sin(5 * a);
+      control.col(i) << r * std::cos(a), r * std::sin(a);
+    }
+    auto model = std::make_unique<BSplineCurve>(UnitSpacedPeriodic(4, 40), control);
+    const ParameterDomain d = model->domain();
+    Eigen::MatrixXd p(2, kPoints);
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> t(d.lo[0], d.hi[0]);
+    std::normal_distribution<double> gauss(0, 0.05);
+    LocalGeometry g;
+    for (Eigen::Index i = 0; i < kPoints; ++i) {
+      model->Evaluate({t(rng), 0, 0}, 0, g);
+      p.col(i) = g.point + Eigen::Vector2d(gauss(rng), gauss(rng));
+    }
+    return {std::move(model), p};
+  }
+  if (name == "bspline-surface") {
+    const int n = 10;
+    Eigen::Matrix3Xd control(3, n * n);
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        const double x = -50 + 100.0 * i / (n - 1), y = -50 + 100.0 * j / (n - 1);
+        control.col(i * n + j) << x, y, 10 * std::sin(0.07 * x + 0.4) * std::cos(0.05 * y - 0.3);
+      }
+    auto model = std::make_unique<BSplineSurface>(UnitSpacedClamped(4, n), UnitSpacedClamped(4, n), control);
+    const ParameterDomain d = model->domain();
+    Eigen::Matrix3Xd p(3, kPoints);
+    std::mt19937_64 rng(6);
+    std::uniform_real_distribution<double> u(0.1, 0.9);
+    LocalGeometry g;
+    for (Eigen::Index i = 0; i < kPoints; ++i) {
+      model->Evaluate({d.lo[0] + u(rng) * (d.hi[0] - d.lo[0]), d.lo[1] + u(rng) * (d.hi[1] - d.lo[1]), 0}, 0,
+                      g);
+      p.col(i) = To3(g.point);
+    }
+    return {std::move(model), WithNoise(p, 0.02, 7)};
+  }
+  if (name == "revolution") return FromCase("vase");
+  if (name == "helical") return FromCase("helical");
+  if (name == "spiral") return FromCase("spiral");
+  if (name == "part") return FromCase("part");
+  throw std::invalid_argument("unknown family " + name);
+}
+
+// The points moved by a small rigid motion about their centroid: the next iteration's points.
+Eigen::MatrixXd Moved(const Eigen::MatrixXd& points) {
+  const Eigen::Index s = points.rows();
+  const Eigen::VectorXd centre = points.rowwise().mean();
+  const double size = (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).norm();
+  Eigen::MatrixXd r = Eigen::MatrixXd::Identity(s, s);
+  const double a = 0.05 * M_PI / 180;
+  r.topLeftCorner(2, 2) << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
+  Eigen::MatrixXd out = r * (points.colwise() - centre);
+  out.colwise() += centre + Eigen::VectorXd::Constant(s, 1e-4 * size / std::sqrt(double(s)));
+  return out;
+}
+
+void FootPointsCold(benchmark::State& state, const std::string& name) {
+  const Family f = MakeFamily(name);
+  std::vector<FootPoint> feet;
+  for (auto _ : state) {
+    ComputeFootPoints(*f.model, f.points, feet);
+    benchmark::DoNotOptimize(feet.data());
+  }
+  state.SetItemsProcessed(state.iterations() * f.points.cols());
+}
+
+void FootPointsWarm(benchmark::State& state, const std::string& name) {
+  const Family f = MakeFamily(name);
+  std::vector<FootPoint> warm, feet;
+  ComputeFootPoints(*f.model, f.points, warm);
+  const Eigen::MatrixXd moved = Moved(f.points);
+  for (auto _ : state) {
+    ComputeFootPoints(*f.model, moved, feet, &warm);
+    benchmark::DoNotOptimize(feet.data());
+  }
+  state.SetItemsProcessed(state.iterations() * f.points.cols());
+}
+
+void FootPointsRefineOnly(benchmark::State& state, const std::string& name) {
+  const Family f = MakeFamily(name);
+  std::vector<FootPoint> warm;
+  ComputeFootPoints(*f.model, f.points, warm);
+  const Eigen::MatrixXd moved = Moved(f.points);
+  const ParameterDomain d = f.model->domain();
+  LocalGeometry g;
+  for (auto _ : state) {
+    double sum = 0;
+    for (Eigen::Index j = 0; j < moved.cols(); ++j)
+      sum +=
+          RefineFootPoint(*f.model, d, VecS(moved.col(j)), warm[static_cast<std::size_t>(j)].t, g).distance;
+    benchmark::DoNotOptimize(sum);
+  }
+  state.SetItemsProcessed(state.iterations() * f.points.cols());
+}
+
+// Assembly of the 6x6 rigid normal equations (registration/rigid_step.h) from per-point SDM constraints:
+// the model-registration step's accumulation, excluding the model evaluation.
+void RigidAssembly(benchmark::State& state) {
+  std::mt19937_64 rng(9);
+  std::normal_distribution<double> gauss(0, 1);
+  std::vector<PointConstraint> constraints(4096);
+  for (PointConstraint& c : constraints) {
+    c.x = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    c.target = c.x + 0.01 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    const Eigen::Vector3d n = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+    c.M = n * n.transpose() + 0.1 * (Eigen::Matrix3d::Identity() - n * n.transpose());
+    c.weight = 1e-4;
+  }
+  for (auto _ : state) {
+    RigidNormalEquations eq;
+    for (const PointConstraint& c : constraints) eq.Add(c);
+    benchmark::DoNotOptimize(eq.H.data());
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<long long>(constraints.size()));
+}
+
+// Per point of a model registration step: model evaluation with second derivatives, principal frame, SDM
+// matrix and accumulation (fitting/model_registration.cpp's loop), on the B-spline surface at its foot
+// points.
+void RegistrationAssemblyOnSurface(benchmark::State& state) {
+  const Family f = MakeFamily("bspline-surface");
+  std::vector<FootPoint> feet;
+  ComputeFootPoints(*f.model, f.points, feet);
+  LocalGeometry g;
+  for (auto _ : state) {
+    RigidNormalEquations eq;
+    for (Eigen::Index j = 0; j < f.points.cols(); ++j) {
+      f.model->Evaluate(feet[static_cast<std::size_t>(j)].t, 2, g);
+      const Eigen::Vector3d x = f.points.col(j);
+      const PrincipalFrame frame = ComputePrincipalFrame(g, x);
+      eq.Add({x, To3(g.point), ErrorMatrix(ErrorTerm::kSdm, frame, 3), 1.0});
+    }
+    benchmark::DoNotOptimize(eq.H.data());
+  }
+  state.SetItemsProcessed(state.iterations() * f.points.cols());
+}
+
+}  // namespace
+
+BENCHMARK_CAPTURE(FootPointsCold, cylinder, std::string("cylinder"));
+BENCHMARK_CAPTURE(FootPointsCold, sphere, std::string("sphere"));
+BENCHMARK_CAPTURE(FootPointsCold, part_faces, std::string("part"));
+BENCHMARK_CAPTURE(FootPointsCold, bspline_curve, std::string("bspline-curve"));
+BENCHMARK_CAPTURE(FootPointsWarm, bspline_curve, std::string("bspline-curve"));
+BENCHMARK_CAPTURE(FootPointsRefineOnly, bspline_curve, std::string("bspline-curve"));
+BENCHMARK_CAPTURE(FootPointsCold, bspline_surface, std::string("bspline-surface"));
+BENCHMARK_CAPTURE(FootPointsWarm, bspline_surface, std::string("bspline-surface"));
+BENCHMARK_CAPTURE(FootPointsRefineOnly, bspline_surface, std::string("bspline-surface"));
+BENCHMARK_CAPTURE(FootPointsCold, revolution, std::string("revolution"));
+BENCHMARK_CAPTURE(FootPointsWarm, revolution, std::string("revolution"));
+BENCHMARK_CAPTURE(FootPointsRefineOnly, revolution, std::string("revolution"));
+BENCHMARK_CAPTURE(FootPointsCold, helical, std::string("helical"));
+BENCHMARK_CAPTURE(FootPointsWarm, helical, std::string("helical"));
+BENCHMARK_CAPTURE(FootPointsCold, spiral, std::string("spiral"));
+BENCHMARK_CAPTURE(FootPointsWarm, spiral, std::string("spiral"));
+BENCHMARK(RigidAssembly);
+BENCHMARK(RegistrationAssemblyOnSurface);
+
+int main(int argc, char** argv) {
+  omp_set_num_threads(1);  // per core
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,0 +1,11 @@
+// Stand-in when Open3D is absent from the build: the benchmark reports the Open3D rows as not run.
+#include "bench/icp_baselines.h"
+
+namespace s2m::bench {
+bool HaveOpen3d() {
+  return false;
+}
+std::unique_ptr<IcpBaseline> MakeOpen3dPointToPlane(const IcpProblem&) {
+  return nullptr;
+}
+}  // namespace s2m::bench
