@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# The main job on the embedded default recording: installs what is needed, builds, and fits a vase (surface of
-# revolution) jointly with the poses of the four views that recorded it (recordings/demo_vase).
+# The main job on the embedded default recordings: installs what is needed, builds, fits a vase (surface of
+# revolution) jointly with the poses of the four views that recorded it (recordings/demo_vase), and runs the full
+# pipeline on the pot recording (recordings/pot.s2mrec: a virtual Kinect-class camera around a pot on a turntable):
+# replay, outlier removal and normals (PCL), then the joint fit.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$root/scripts/install-deps.sh"
@@ -12,5 +14,9 @@ echo
 "$build/apps/scan2model" fit --model revolution "$root/recordings/demo_vase/views.json" -o "$out/vase"
 # The same result as a self-contained HTML report (docs/batch.md), and the vessel's profile drawing.
 "$build/apps/scan2model" report "$out/vase.json" -o "$out/vase_report.html"
+echo
+"$build/apps/scan2model" export "$root/recordings/pot.s2mrec" --out "$out/pot_views" --remove-outliers \
+  --outlier-stddev 3 --normals -q
+"$build/apps/scan2model" fit --model revolution "$out/pot_views/views.json" -o "$out/pot"
 echo
 echo "report: $out/vase_report.html (profile drawing: $out/vase_profile.svg)"
