@@ -93,6 +93,26 @@ DepthIntrinsics IntrinsicsFromJson(const nlohmann::json& calibration, const std:
   return out;
 }
 
+// The views of a frame sequence (RecordingFrame or Frame), in order of first appearance.
+template <typename FrameT>
+std::vector<std::int64_t> DistinctViews(const std::vector<FrameT>& frames) {
+  std::vector<std::int64_t> views;
+  for (const FrameT& f : frames) {
+    if (std::find(views.begin(), views.end(), f.view) == views.end()) views.push_back(f.view);
+  }
+  return views;
+}
+
+// Index of the first frame of `view`; std::out_of_range (prefixed by `source`) when there is none.
+template <typename FrameT>
+std::size_t FirstFrameOfView(const std::vector<FrameT>& frames, std::int64_t view,
+                             const std::string& source) {
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (frames[k].view == view) return k;
+  }
+  throw std::out_of_range(source + "no view " + std::to_string(view));
+}
+
 // -------------------------------------------------------------------------------------------- recording
 
 class RecordingSource final : public FrameSource {
@@ -172,23 +192,11 @@ class RecordingSource final : public FrameSource {
     return out;
   }
 
-  std::vector<std::int64_t> Views() const override {
-    std::vector<std::int64_t> views;
-    for (const RecordingFrame& f : frames_) {
-      if (std::find(views.begin(), views.end(), f.view) == views.end()) views.push_back(f.view);
-    }
-    return views;
-  }
+  std::vector<std::int64_t> Views() const override { return DistinctViews(frames_); }
 
   void SeekView(std::int64_t view) override {
-    for (std::size_t k = 0; k < frames_.size(); ++k) {
-      if (frames_[k].view == view) {
-        next_ = k;
-        anchor_.reset();  // timing restarts at the seek
-        return;
-      }
-    }
-    throw std::out_of_range(reader_.path().string() + ": no view " + std::to_string(view));
+    next_ = FirstFrameOfView(frames_, view, reader_.path().string() + ": ");
+    anchor_.reset();  // timing restarts at the seek
   }
 
   std::optional<std::int64_t> FrameCount() const override {
@@ -218,22 +226,8 @@ class VectorSource final : public FrameSource {
     if (next_ >= frames_.size()) return std::nullopt;
     return frames_[next_++];
   }
-  std::vector<std::int64_t> Views() const override {
-    std::vector<std::int64_t> views;
-    for (const Frame& f : frames_) {
-      if (std::find(views.begin(), views.end(), f.view) == views.end()) views.push_back(f.view);
-    }
-    return views;
-  }
-  void SeekView(std::int64_t view) override {
-    for (std::size_t k = 0; k < frames_.size(); ++k) {
-      if (frames_[k].view == view) {
-        next_ = k;
-        return;
-      }
-    }
-    throw std::out_of_range("no view " + std::to_string(view));
-  }
+  std::vector<std::int64_t> Views() const override { return DistinctViews(frames_); }
+  void SeekView(std::int64_t view) override { next_ = FirstFrameOfView(frames_, view, ""); }
   std::optional<std::int64_t> FrameCount() const override {
     return static_cast<std::int64_t>(frames_.size());
   }

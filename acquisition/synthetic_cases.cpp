@@ -90,6 +90,15 @@ ViewOptions StandardErrors(std::uint64_t seed) {
   return o;
 }
 
+// A plane face n . x = offset of a part (n: the outward unit normal).
+PartFace PlaneFace(const std::string& name, const Eigen::Vector3d& normal, LinearExpression offset) {
+  PartFace f;
+  f.name = name;
+  f.frame = FrameWithAxis(normal);
+  f.offset = std::move(offset);
+  return f;
+}
+
 // The free-form plate: width x depth, its bottom at z = 0, its top a bicubic Bezier patch over the whole
 // plate whose control points lie on a uniform grid in x and y (so x = (u - 1/2) width and y = (v - 1/2)
 // depth exactly: a B-spline reproduces linear functions from control points at its Greville abscissae) at
@@ -115,19 +124,12 @@ PartDefinition FreeformPlate(double width, double depth, const Eigen::Matrix4d& 
   top.name = "top";
   top.type = FaceType::kSplinePatch;
   top.patch = std::move(patch);
-  auto plane = [](const std::string& n, const Eigen::Vector3d& normal, LinearExpression offset) {
-    PartFace f;
-    f.name = n;
-    f.frame = FrameWithAxis(normal);
-    f.offset = std::move(offset);
-    return f;
-  };
   d.faces = {top,
-             plane("bottom", -Eigen::Vector3d::UnitZ(), {0.0, {}}),
-             plane("right", Eigen::Vector3d::UnitX(), {0.0, {{0, 0.5}}}),
-             plane("left", -Eigen::Vector3d::UnitX(), {0.0, {{0, 0.5}}}),
-             plane("back", Eigen::Vector3d::UnitY(), {0.0, {{1, 0.5}}}),
-             plane("front", -Eigen::Vector3d::UnitY(), {0.0, {{1, 0.5}}})};
+             PlaneFace("bottom", -Eigen::Vector3d::UnitZ(), {0.0, {}}),
+             PlaneFace("right", Eigen::Vector3d::UnitX(), {0.0, {{0, 0.5}}}),
+             PlaneFace("left", -Eigen::Vector3d::UnitX(), {0.0, {{0, 0.5}}}),
+             PlaneFace("back", Eigen::Vector3d::UnitY(), {0.0, {{1, 0.5}}}),
+             PlaneFace("front", -Eigen::Vector3d::UnitY(), {0.0, {{1, 0.5}}})};
   return d;
 }
 
@@ -499,13 +501,6 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
     for (int i = 0; i < 5; ++i)
       d.parameters.push_back({names[static_cast<std::size_t>(i)], free_values[i], false});
     const Eigen::VectorXd values = (Eigen::VectorXd(6) << 60, 40, height, 10, 18, 6).finished();
-    auto plane = [](const std::string& n, const Eigen::Vector3d& normal, LinearExpression offset) {
-      PartFace f;
-      f.name = n;
-      f.frame = FrameWithAxis(normal);
-      f.offset = std::move(offset);
-      return f;
-    };
     auto bore = [](const std::string& n, int diameter) {
       PartFace f;
       f.name = n;
@@ -513,15 +508,15 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
       f.radius = {0.0, {{diameter, 0.5}}};
       return f;
     };
-    d.faces = {plane("top", Eigen::Vector3d::UnitZ(), {height, {}}),
-               plane("bottom", -Eigen::Vector3d::UnitZ(), {0.0, {}}),
-               plane("right", Eigen::Vector3d::UnitX(), {0.0, {{0, 0.5}}}),
-               plane("left", -Eigen::Vector3d::UnitX(), {0.0, {{0, 0.5}}}),
-               plane("back", Eigen::Vector3d::UnitY(), {0.0, {{1, 0.5}}}),
-               plane("front", -Eigen::Vector3d::UnitY(), {0.0, {{1, 0.5}}}),
+    d.faces = {PlaneFace("top", Eigen::Vector3d::UnitZ(), {height, {}}),
+               PlaneFace("bottom", -Eigen::Vector3d::UnitZ(), {0.0, {}}),
+               PlaneFace("right", Eigen::Vector3d::UnitX(), {0.0, {{0, 0.5}}}),
+               PlaneFace("left", -Eigen::Vector3d::UnitX(), {0.0, {{0, 0.5}}}),
+               PlaneFace("back", Eigen::Vector3d::UnitY(), {0.0, {{1, 0.5}}}),
+               PlaneFace("front", -Eigen::Vector3d::UnitY(), {0.0, {{1, 0.5}}}),
                bore("bore", 2),
                bore("counterbore", 3),
-               plane("counterbore floor", Eigen::Vector3d::UnitZ(), {height, {{4, -1.0}}})};
+               PlaneFace("counterbore floor", Eigen::Vector3d::UnitZ(), {height, {{4, -1.0}}})};
     auto truth = std::make_unique<PartModel>(d);
     const SurfaceSample s = SampleCounterboredBlock(values, 16000, 41);
     // The block lies on a table: 6 views from 45 degrees above, 2 from 70 degrees; the bottom is never seen.

@@ -5,6 +5,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "fitting/bspline_models.h"
 #include "fitting/foot_point.h"
 
 namespace s2m {
@@ -200,17 +201,18 @@ void PartModel::UpdatePatches() {
     const PartFace& f = definition_.faces[k];
     if (f.type != FaceType::kSplinePatch) continue;
     PatchState& state = patches_[k];
-    state.control_points.resize(3, static_cast<Eigen::Index>(f.patch->control_points.size()));
+    Eigen::Matrix3Xd control(3, static_cast<Eigen::Index>(f.patch->control_points.size()));
     for (std::size_t i = 0; i < f.patch->control_points.size(); ++i)
       for (std::size_t c = 0; c < 3; ++c)
-        state.control_points(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(i)) =
+        control(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(i)) =
             f.patch->control_points[i][c].Evaluate(values_);
+    state.surface.emplace(f.patch->u, f.patch->v, std::move(control));
     const std::vector<double> us = PatchSamples(f.patch->u), vs = PatchSamples(f.patch->v);
     Eigen::Matrix3Xd points(3, static_cast<Eigen::Index>(us.size() * vs.size()));
     for (double u : us) {
       for (double v : vs) {
         const ParamT t{u, v, static_cast<double>(k)};
-        EvaluatePatch(k, t, 0, g);
+        state.surface->Evaluate(t, 0, g);
         points.col(static_cast<Eigen::Index>(state.sample_parameters.size())) = g.point;
         state.sample_parameters.push_back(t);
       }
@@ -231,37 +233,6 @@ void PartModel::UpdatePatches() {
       }
     }
     state.samples = NearestIndex(std::move(points));
-  }
-}
-
-void PartModel::EvaluatePatch(std::size_t k, const ParamT& t, int derivatives, LocalGeometry& out) const {
-  // S and its derivatives from the bases' derivatives (Piegl & Tiller eq. 3.17).
-  const SplinePatch& patch = *definition_.faces[k].patch;
-  const Eigen::Matrix3Xd& control = patches_[k].control_points;
-  BSplineBasis::Values bu, bv;
-  patch.u.Evaluate(t[0], derivatives, bu);
-  patch.v.Evaluate(t[1], derivatives, bv);
-  const int nv = patch.v.num_control();
-  out.point.setZero(3);
-  if (derivatives >= 1) out.d1.setZero(3, 2);
-  if (derivatives >= 2) out.d2.setZero(3, 3);
-  for (int i = 0; i < patch.u.order(); ++i) {
-    const auto ui = static_cast<std::size_t>(i);
-    for (int j = 0; j < patch.v.order(); ++j) {
-      const auto vj = static_cast<std::size_t>(j);
-      const Eigen::Vector3d p =
-          control.col(patch.u.ControlIndex(bu.first, i) * nv + patch.v.ControlIndex(bv.first, j));
-      out.point += bu.values[0][ui] * bv.values[0][vj] * p;
-      if (derivatives >= 1) {
-        out.d1.col(0) += bu.values[1][ui] * bv.values[0][vj] * p;
-        out.d1.col(1) += bu.values[0][ui] * bv.values[1][vj] * p;
-      }
-      if (derivatives >= 2) {
-        out.d2.col(0) += bu.values[2][ui] * bv.values[0][vj] * p;
-        out.d2.col(1) += bu.values[1][ui] * bv.values[1][vj] * p;
-        out.d2.col(2) += bu.values[0][ui] * bv.values[2][vj] * p;
-      }
-    }
   }
 }
 
@@ -329,7 +300,7 @@ void PartModel::ApplySimilarity(double scale, const VecS& offset) {
 void PartModel::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
   const PartFace& f = definition_.faces.at(static_cast<std::size_t>(FaceOf(t)));
   if (f.type == FaceType::kSplinePatch) {
-    EvaluatePatch(static_cast<std::size_t>(FaceOf(t)), t, derivatives, out);
+    patches_[static_cast<std::size_t>(FaceOf(t))].surface->Evaluate(t, derivatives, out);
     return;
   }
   const double u = t[0], v = t[1];

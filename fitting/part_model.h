@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "fitting/bspline_basis.h"
+#include "fitting/bspline_models.h"
 #include "fitting/fit_result.h"
 #include "fitting/parametric_model.h"
 #include "registration/nearest_index.h"
@@ -120,11 +121,11 @@ class PartModel final : public ParametricModel {
   double edge_margin() const { return edge_margin_; }
 
  private:
-  // What a spline patch needs at the current parameter values: its evaluated control points, and samples
-  // in a k-d tree that seed its foot points. Rebuilt whenever the values change (never lazily: feet are
-  // computed in parallel).
+  // What a spline patch needs at the current parameter values: the B-spline surface of its evaluated
+  // control points, and samples in a k-d tree that seed its foot points. Rebuilt whenever the values change
+  // (never lazily: feet are computed in parallel).
   struct PatchState {
-    Eigen::Matrix3Xd control_points;
+    std::optional<BSplineSurface> surface;
     std::vector<ParamT> sample_parameters;
     NearestIndex samples;
     // Every point of the patch lies within this distance of a sample (the largest distance between grid
@@ -138,7 +139,6 @@ class PartModel final : public ParametricModel {
   std::pair<ParamT, double> FootPointOnFace(
       std::size_t k, const Eigen::Vector3d& x,
       double needed_within = std::numeric_limits<double>::infinity()) const;
-  void EvaluatePatch(std::size_t k, const ParamT& t, int derivatives, LocalGeometry& out) const;
 
   PartDefinition definition_;
   Eigen::VectorXd values_;

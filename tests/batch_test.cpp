@@ -16,47 +16,22 @@
 #include <string>
 
 #include "acquisition/synthetic_batch.h"
+#include "test_support.h"
 
 namespace s2m {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Result {
-  int exit_code = -1;  // -1: killed by a signal
-  int signal = 0;
-  std::string out;
-};
-
-// Runs a shell command line (stdout and stderr together).
-Result Shell(const std::string& command) {
-  Result r;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return r;
-  char buffer[4096];
-  std::size_t n;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) r.out.append(buffer, n);
-  const int status = pclose(pipe);
-  if (WIFEXITED(status)) {
-    r.exit_code = WEXITSTATUS(status);
-    if (r.exit_code > 128)
-      r.signal = r.exit_code - 128;  // the shell reports a child killed by signal s as 128+s
-  } else if (WIFSIGNALED(status)) {
-    r.signal = WTERMSIG(status);
-  }
-  return r;
-}
+using Result = test::ShellResult;
+using test::Shell;
 
 std::string Cli() {
   return S2M_CLI_PATH;
 }
 
 fs::path FreshDir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("s2m_batch_test_" + std::to_string(getpid()) + "_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return test::FreshTempDir("batch_test_" + name);
 }
 
 nlohmann::json ReadJson(const fs::path& path) {

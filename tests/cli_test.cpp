@@ -20,26 +20,15 @@
 #include "acquisition/scan_set_io.h"
 #include "acquisition/synthetic_cases.h"
 #include "test_paths.h"
+#include "test_support.h"
 
 namespace s2m {
 namespace {
 
-struct Result {
-  int exit_code = -1;
-  std::string out;  // stdout and stderr together unless stderr is redirected by the command
-};
+using Result = test::ShellResult;
 
 Result RunCli(const std::string& args, bool with_stderr = true) {
-  const std::string cmd = std::string(S2M_CLI_PATH) + " " + args + (with_stderr ? " 2>&1" : " 2>/dev/null");
-  Result r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return r;
-  char buffer[4096];
-  std::size_t n;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) r.out.append(buffer, n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  return test::Shell(std::string(S2M_CLI_PATH) + " " + args, with_stderr);
 }
 
 std::string Data(const std::string& name) {

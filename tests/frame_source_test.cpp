@@ -12,7 +12,9 @@
 
 #include "acquisition/format_error.h"
 #include "acquisition/recording.h"
+#include "raw_sql.h"
 #include "test_paths.h"
+#include "test_support.h"
 
 namespace s2m {
 namespace {
@@ -20,20 +22,10 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("s2m_frames_" + name + "_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return test::FreshTempDir("frames_" + name);
 }
 
-void RawExec(const fs::path& file, const std::string& sql) {
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(file.string().c_str(), &db), SQLITE_OK);
-  char* message = nullptr;
-  EXPECT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &message), SQLITE_OK) << (message ? message : "");
-  sqlite3_free(message);
-  sqlite3_close(db);
-}
+using test::RawExec;
 
 // A source of prepared frames (what a device driver would hand over).
 class ListSource final : public FrameSource {

@@ -185,7 +185,8 @@ TEST(PrimitiveFit, SphereRadiusIsStatisticallyEfficient) {
     sum_sq += std::pow(fit.shape.radius - truth.radius, 2);
   }
   const double rmse = std::sqrt(sum_sq / trials);
-  std::printf("sphere radius RMSE %.3g = %.3f sigma/sqrt(N) over %d trials\n", rmse, rmse / (sigma / std::sqrt(n)), trials);
+  std::printf("sphere radius RMSE %.3g = %.3f sigma/sqrt(N) over %d trials\n", rmse,
+              rmse / (sigma / std::sqrt(n)), trials);
   EXPECT_LE(rmse, 1.3 * sigma / std::sqrt(n)) << "radius RMSE " << rmse;
   EXPECT_GE(rmse, 0.7 * sigma / std::sqrt(n)) << "suspiciously small: is the noise applied?";
 }
@@ -201,7 +202,8 @@ TEST(PrimitiveFit, CylinderRadiusIsStatisticallyEfficient) {
     sum_sq += std::pow(fit.shape.radius - truth.radius, 2);
   }
   const double rmse = std::sqrt(sum_sq / trials);
-  std::printf("cylinder radius RMSE %.3g = %.3f sigma/sqrt(N) over %d trials\n", rmse, rmse / (sigma / std::sqrt(n)), trials);
+  std::printf("cylinder radius RMSE %.3g = %.3f sigma/sqrt(N) over %d trials\n", rmse,
+              rmse / (sigma / std::sqrt(n)), trials);
   EXPECT_LE(rmse, 1.3 * sigma / std::sqrt(n)) << "radius RMSE " << rmse;
   EXPECT_GE(rmse, 0.7 * sigma / std::sqrt(n));
 }

@@ -16,6 +16,8 @@
 #include "acquisition/format_error.h"
 #include "acquisition/scan_set_io.h"
 #include "acquisition/synthetic_cases.h"
+#include "raw_sql.h"
+#include "test_support.h"
 
 namespace s2m {
 namespace {
@@ -23,22 +25,10 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("s2m_recording_" + name + "_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return test::FreshTempDir("recording_" + name);
 }
 
-// Runs SQL on a recording behind the library's back, as a damaged or foreign file would be made.
-void RawExec(const fs::path& file, const std::string& sql) {
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(file.string().c_str(), &db), SQLITE_OK);
-  char* message = nullptr;
-  const int rc = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &message);
-  EXPECT_EQ(rc, SQLITE_OK) << (message ? message : "");
-  sqlite3_free(message);
-  sqlite3_close(db);
-}
+using test::RawExec;
 
 // The FormatError of opening and reading `file` as views; fails the test when there is none.
 std::string ReadError(const fs::path& file) {

@@ -9,6 +9,7 @@
 #include "acquisition/format_error.h"
 #include "registration/nearest_index.h"
 #include "test_paths.h"
+#include "test_support.h"
 
 namespace s2m {
 namespace {
@@ -16,10 +17,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("s2m_views_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return test::FreshTempDir("views_" + name);
 }
 
 TEST(ScanSetIo, ManifestRoundTrip) {

@@ -16,6 +16,7 @@
 #include "acquisition/recording.h"
 #include "acquisition/scan_set_io.h"
 #include "acquisition/synthetic_cases.h"
+#include "test_support.h"
 
 namespace s2m {
 namespace {
@@ -23,10 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("s2m_virtual_" + name + "_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return test::FreshTempDir("virtual_" + name);
 }
 
 // Distance from p to a surface of revolution about z, computed independently of the ray caster: in p's
