@@ -177,6 +177,27 @@ RecordingWriter RecordingWriter::Create(const fs::path& path) {
   return RecordingWriter(path, std::move(db));
 }
 
+RecordingWriter RecordingWriter::OpenForAppend(const fs::path& path) {
+  const std::string file = path.string();
+  {
+    // The reader's checks (SQLite, integrity, tables, format), closed again before writing.
+    const RecordingReader reader = RecordingReader::Open(path);
+    if (reader.Meta(kStatusMeta).value_or("") == kStatusComplete) {
+      throw FormatError(file, "", "the acquisition is complete (meta status 'complete'); nothing to append");
+    }
+  }
+  auto db = std::make_unique<Db>();
+  db->file = file;
+  if (sqlite3_open_v2(file.c_str(), &db->db, SQLITE_OPEN_READWRITE, nullptr) != SQLITE_OK) {
+    db->Fail("cannot open the recording for appending");
+  }
+  // As Create: every appended frame is one fsynced WAL commit.
+  db->Exec("PRAGMA journal_mode=WAL");
+  db->Exec("PRAGMA synchronous=FULL");
+  db->Exec("PRAGMA foreign_keys=ON");
+  return RecordingWriter(path, std::move(db));
+}
+
 void RecordingWriter::SetMeta(const std::string& key, const std::string& value) {
   if (!db_ || !db_->db) throw std::logic_error("recording closed");
   if (key == "format") throw std::invalid_argument("meta key 'format' is reserved");

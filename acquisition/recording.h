@@ -27,6 +27,12 @@ inline constexpr const char* kPointsEncoding = "xyz_f64le";
 // zlib stream (RFC 1950). Depth images, mostly "no return" zeros, shrink several-fold.
 inline constexpr const char* kNoCompression = "none";
 inline constexpr const char* kZlibCompression = "zlib";
+// Meta key "status" of an acquisition recorded as it goes (docs/recordings.md): kStatusInProgress while
+// frames arrive, kStatusComplete when the acquisition finished, "interrupted: <reason>" when it stopped early
+// (the frames so far are kept; the acquisition may be resumed with RecordingWriter::OpenForAppend).
+inline constexpr const char* kStatusMeta = "status";
+inline constexpr const char* kStatusInProgress = "in_progress";
+inline constexpr const char* kStatusComplete = "complete";
 
 struct RecordingStream {
   std::int64_t id = 0;
@@ -64,6 +70,11 @@ class RecordingWriter {
   // Creates a new recording; throws FormatError naming the file when it exists already (a recording is never
   // overwritten) or cannot be created.
   static RecordingWriter Create(const std::filesystem::path& path);
+  // Reopens an existing recording to append frames (an interrupted acquisition resumed):
+  // RecordingReader::Open's checks first, then read-write in WAL mode as Create. Refuses, with FormatError
+  // naming the file, a recording whose meta "status" is kStatusComplete (a finished acquisition is never
+  // extended). Streams are found with RecordingReader::Streams (their ids stay valid).
+  static RecordingWriter OpenForAppend(const std::filesystem::path& path);
   RecordingWriter(RecordingWriter&&) noexcept;
   RecordingWriter& operator=(RecordingWriter&&) noexcept;
   ~RecordingWriter();  // closes (see Close) and swallows errors; call Close to see them

@@ -1,0 +1,538 @@
+// The Horus scan loop (devices/horus_scan.h) against a fake board and camera: what it records, the board's
+// command sequence, a disconnect mid-scan, resuming, refusals, and the hardware switched off after errors.
+
+#include "devices/horus_scan.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <nlohmann/json.hpp>
+
+#include "acquisition/format_error.h"
+#include "acquisition/frame_source.h"
+#include "acquisition/recording.h"
+#include "test_support.h"
+
+namespace s2m {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kRadius = 40.0;  // mm: the cylinder the fake profiles lie on
+
+// The board: logs every command (the camera logs its captures into the same log), knows the table's angle
+// and the lasers' state, and fails on demand.
+class FakeBoard : public TurntableBoard {
+ public:
+  std::vector<std::string> log;
+  double angle_deg = 0.0;
+  std::array<bool, 2> laser_on{};
+  bool motor = false;
+  int moves = 0;
+  int disconnect_at_move = -1;  // this move (0-based) unplugs the board: it and every later call throw
+  int timeout_at_move = -1;     // this move times out once
+  bool gone = false;
+
+  std::string Banner() const override { return "Horus 0.1 ['$' for help]"; }
+  void EnableMotor(bool on) override {
+    Check();
+    motor = on;
+    log.push_back(on ? "M17" : "M18");
+  }
+  void SetFeedRate(double v) override {
+    Check();
+    log.push_back("G1 F" + Num(v));
+  }
+  void SetAcceleration(double v) override {
+    Check();
+    log.push_back("$120=" + Num(v));
+  }
+  void MoveTo(double degrees) override {
+    Check();
+    const int move = moves++;
+    if (move == disconnect_at_move) {
+      gone = true;
+      throw DeviceError(DeviceError::Kind::kDisconnected, "fake board: disconnected (USB device gone)");
+    }
+    if (move == timeout_at_move)
+      throw DeviceError(DeviceError::Kind::kTimeout, "fake board: no 'ok' within 2000 ms after G1 X");
+    angle_deg = degrees;
+    log.push_back("G1 X" + Num(degrees));
+  }
+  void SetLaser(int laser, bool on) override {
+    Check();
+    laser_on.at(static_cast<std::size_t>(laser)) = on;
+    log.push_back((on ? "M71 T" : "M70 T") + std::to_string(laser + 1));
+  }
+  int ReadLightSensor(int) override { return 0; }
+  void Reset() override {
+    Check();
+    log.push_back("reset");
+  }
+
+ private:
+  void Check() const {
+    if (gone)
+      throw DeviceError(DeviceError::Kind::kDisconnected, "fake board: disconnected (USB device gone)");
+  }
+  static std::string Num(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", v);
+    return b;
+  }
+};
+
+// The camera: each image encodes the table's angle (8 bytes, a double) and the lasers' state (one byte, bit
+// n = laser n on), so the profile function can check it was given the right pair.
+class FakeCamera : public ImageCamera {
+ public:
+  explicit FakeCamera(FakeBoard& board) : board_(board) {}
+  int captures = 0;
+  int disconnect_at_capture = -1;
+  int timeout_at_capture = -1;
+  bool gone = false;
+
+  std::string Name() const override { return "fake camera"; }
+  Image8 Capture() override {
+    if (gone) throw DeviceError(DeviceError::Kind::kDisconnected, "fake camera: /dev/video9 disappeared");
+    const int capture = captures++;
+    if (capture == disconnect_at_capture) {
+      gone = true;
+      throw DeviceError(DeviceError::Kind::kDisconnected, "fake camera: /dev/video9 disappeared");
+    }
+    if (capture == timeout_at_capture)
+      throw DeviceError(DeviceError::Kind::kTimeout, "fake camera: no frame within 1000 ms");
+    board_.log.push_back("capture");
+    Image8 image;
+    image.width = 9;
+    image.height = 1;
+    image.pixels.resize(9);
+    std::memcpy(image.pixels.data(), &board_.angle_deg, 8);
+    image.pixels[8] = static_cast<std::uint8_t>((board_.laser_on[0] ? 1 : 0) | (board_.laser_on[1] ? 2 : 0));
+    return image;
+  }
+
+ private:
+  FakeBoard& board_;
+};
+
+double AngleOf(const Image8& image) {
+  double a = 0;
+  std::memcpy(&a, image.pixels.data(), 8);
+  return a;
+}
+
+HorusCalibration TestCalibration() {
+  HorusCalibration c;
+  c.camera = {1280, 960, 1430.0, 1430.0, 640.0, 480.0, {0.1, -0.2, 0.0, 0.0, 0.0}};
+  c.lasers = {{Eigen::Vector3d(0.8, 0.0, 0.6), 150.0}, {Eigen::Vector3d(-0.8, 0.0, 0.6), 150.0}};
+  // A camera 300 mm from the axis, 60 mm up, looking at it (tilted a little).
+  c.platform_T_camera = RigidMotion(RotationAboutAxis(Eigen::Vector3d(1, 0.2, 0.1).normalized(), -1.7),
+                                    Eigen::Vector3d(0, -300, 60));
+  return c;
+}
+
+// Laser n's plane passes through the axis at azimuth +-30 degrees in the (fixed) platform frame; it lights
+// the cylinder along a vertical line. The heights depend on the angle so every profile is distinct.
+Eigen::Matrix3Xd PlatformLine(double angle_deg, int laser) {
+  const double phi = (laser == 0 ? 30.0 : -30.0) * kPi / 180.0;
+  Eigen::Matrix3Xd q(3, 6);
+  for (int k = 0; k < 6; ++k)
+    q.col(k) =
+        Eigen::Vector3d(kRadius * std::cos(phi), kRadius * std::sin(phi), 5.0 + 10.0 * k + 0.01 * angle_deg);
+  return q;
+}
+
+// The fake profile: checks it got a laser-off and the right laser-on image of the same table angle, and
+// returns the lit points in the camera frame.
+LaserProfileFunction FakeProfile(const HorusCalibration& calibration) {
+  return [calibration](const Image8& on, const Image8& off, int laser) -> Eigen::Matrix3Xd {
+    if (off.pixels.at(8) != 0)
+      throw std::runtime_error("fake profile: a laser was on in the laser-off image");
+    if (on.pixels.at(8) != (1 << laser)) throw std::runtime_error("fake profile: wrong laser on");
+    if (AngleOf(on) != AngleOf(off)) throw std::runtime_error("fake profile: the table moved between images");
+    return calibration.platform_T_camera.inverse().apply(PlatformLine(AngleOf(on), laser));
+  };
+}
+
+HorusScanOptions TestOptions(int steps) {
+  HorusScanOptions o;
+  o.steps = steps;
+  o.settle_s = 0.0;
+  o.sleep = [](double) {};
+  return o;
+}
+
+std::vector<RecordingFrame> ProfileFrames(const fs::path& path) {
+  const RecordingReader reader = RecordingReader::Open(path);
+  for (const RecordingStream& s : reader.Streams()) {
+    if (s.kind == "profile") return reader.Frames(s.id);
+  }
+  return {};
+}
+
+class HorusScanTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = test::FreshTempDir(std::string("horus_scan_") +
+                              ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  }
+  fs::path dir_;
+  HorusCalibration calibration_ = TestCalibration();
+};
+
+TEST_F(HorusScanTest, CompleteScanRecordsOneViewPerStepAndLaser) {
+  FakeBoard board;
+  FakeCamera camera(board);
+  const fs::path out = dir_ / "scan.s2mrec";
+  const HorusScanOptions options = TestOptions(12);
+  std::vector<HorusScanProgress> seen;
+  const HorusScanResult r = RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), out, options,
+                                         [&](const HorusScanProgress& p) { seen.push_back(p); });
+  EXPECT_TRUE(r.complete);
+  EXPECT_EQ(r.status, "complete");
+  EXPECT_EQ(r.done, 24);
+  EXPECT_EQ(r.total, 24);
+  EXPECT_EQ(r.frames, 24);
+  EXPECT_FALSE(r.error_kind);
+  ASSERT_EQ(seen.size(), 24u);
+  EXPECT_EQ(seen.back().done, 24);
+  EXPECT_EQ(seen.back().total, 24);
+  ASSERT_TRUE(seen.back().eta_s);
+  EXPECT_EQ(*seen.back().eta_s, 0.0);
+  EXPECT_EQ(seen[5].step, 2);
+  EXPECT_EQ(seen[5].laser, 1);
+
+  const RecordingReader reader = RecordingReader::Open(out);
+  EXPECT_EQ(reader.Meta("status").value_or(""), "complete");
+  const nlohmann::json stored_options = nlohmann::json::parse(*reader.Meta("horus.scan_options"));
+  EXPECT_EQ(stored_options["steps"], 12);
+  EXPECT_EQ(stored_options["views"], "step_and_laser");
+  const RecordingSummary summary = reader.Summary();
+  const nlohmann::json device = nlohmann::json::parse(summary.device);
+  EXPECT_EQ(device["name"], "horus");
+  EXPECT_EQ(device["board"], "Horus 0.1 ['$' for help]");
+  const nlohmann::json calibration = nlohmann::json::parse(summary.calibration);
+  EXPECT_EQ(calibration["horus"]["camera"]["fx"], 1430.0);
+  EXPECT_EQ(calibration["horus"]["lasers"].size(), 2u);
+  EXPECT_EQ(calibration["horus"]["platform_T_camera"][7], -300.0);  // row-major: row 1, column 3
+  EXPECT_EQ(calibration["horus"]["platform_T_camera"][11], 60.0);
+
+  const std::vector<RecordingFrame> frames = ProfileFrames(out);
+  ASSERT_EQ(frames.size(), 24u);
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const int step = static_cast<int>(k / 2);
+    const double theta = step * 2 * kPi / 12;
+    EXPECT_EQ(frames[k].view, static_cast<std::int64_t>(k));
+    ASSERT_TRUE(frames[k].turntable_angle_rad);
+    EXPECT_NEAR(*frames[k].turntable_angle_rad, theta, 1e-12);
+    ASSERT_TRUE(frames[k].world_T_scan);
+    const RigidMotion expected =
+        RigidMotion(RotationAboutAxis(Eigen::Vector3d::UnitZ(), -theta), Eigen::Vector3d::Zero()) *
+        calibration_.platform_T_camera;
+    EXPECT_LT((frames[k].world_T_scan->matrix() - expected.matrix()).norm(), 1e-12);
+    // The world points: the platform line turned back by the table's angle.
+    const Eigen::Matrix3Xd world = frames[k].world_T_scan->apply(DecodePoints(frames[k].payload, "", ""));
+    const Eigen::Matrix3Xd truth = RotationAboutAxis(Eigen::Vector3d::UnitZ(), -theta) *
+                                   PlatformLine(step * 30.0, static_cast<int>(k % 2));
+    EXPECT_LT((world - truth).cwiseAbs().maxCoeff(), 1e-9);
+    ASSERT_TRUE(frames[k].timestamp_ns);
+  }
+
+  // Replayed as views: one per (step, laser), every point on the cylinder.
+  const std::unique_ptr<FrameSource> source = OpenRecordingSource(out);
+  const ScanSet set = FramesToScanSet(*source);
+  ASSERT_EQ(set.scans.size(), 24u);
+  for (const Scan& scan : set.scans) {
+    EXPECT_EQ(scan.units, "mm");
+    const Eigen::Matrix3Xd world = scan.world_T_scan.apply(scan.points);
+    for (Eigen::Index i = 0; i < world.cols(); ++i) EXPECT_NEAR(world.col(i).head<2>().norm(), kRadius, 1e-9);
+  }
+}
+
+TEST_F(HorusScanTest, LaserSweepGroupingMakesOneViewPerLaser) {
+  FakeBoard board;
+  FakeCamera camera(board);
+  const fs::path out = dir_ / "sweep.s2mrec";
+  HorusScanOptions options = TestOptions(10);
+  options.views = HorusScanOptions::ViewGrouping::kLaserSweep;
+  ASSERT_TRUE(RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), out, options).complete);
+  const std::unique_ptr<FrameSource> source = OpenRecordingSource(out);
+  const ScanSet set = FramesToScanSet(*source);
+  ASSERT_EQ(set.scans.size(), 2u);
+  for (const Scan& scan : set.scans) {
+    EXPECT_EQ(scan.points.cols(), 60);  // 10 profiles of 6 points
+    const Eigen::Matrix3Xd world = scan.world_T_scan.apply(scan.points);
+    for (Eigen::Index i = 0; i < world.cols(); ++i) EXPECT_NEAR(world.col(i).head<2>().norm(), kRadius, 1e-9);
+  }
+}
+
+TEST_F(HorusScanTest, BoardCommandSequence) {
+  FakeBoard board;
+  FakeCamera camera(board);
+  HorusScanOptions options = TestOptions(2);
+  options.feed_rate_deg_s = 150;
+  options.acceleration_deg_s2 = 300;
+  options.start_angle_deg = 10;
+  ASSERT_TRUE(
+      RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), dir_ / "seq.s2mrec", options)
+          .complete);
+  const std::vector<std::string> expected = {
+      "reset",   "G1 F150", "$120=300", "M17",     "M70 T1", "M70 T2",  "G1 X10",  "capture", "M71 T1",
+      "capture", "M70 T1",  "M71 T2",   "capture", "M70 T2", "G1 X190", "capture", "M71 T1",  "capture",
+      "M70 T1",  "M71 T2",  "capture",  "M70 T2",  "M70 T1", "M70 T2",  "M18"};
+  EXPECT_EQ(board.log, expected);
+  EXPECT_FALSE(board.motor);
+  EXPECT_FALSE(board.laser_on[0] || board.laser_on[1]);
+}
+
+TEST_F(HorusScanTest, BoardDisconnectKeepsEveryFrameBeforeIt) {
+  FakeBoard board;
+  board.disconnect_at_move = 5;  // steps 0-4 done
+  FakeCamera camera(board);
+  const fs::path out = dir_ / "cut.s2mrec";
+  const HorusScanResult r =
+      RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), out, TestOptions(12));
+  EXPECT_FALSE(r.complete);
+  ASSERT_TRUE(r.error_kind);
+  EXPECT_EQ(*r.error_kind, DeviceError::Kind::kDisconnected);
+  EXPECT_EQ(r.error, "fake board: disconnected (USB device gone)");
+  EXPECT_EQ(r.status, "interrupted: fake board: disconnected (USB device gone)");
+  EXPECT_EQ(r.done, 10);
+  EXPECT_EQ(r.frames, 10);
+  const RecordingReader reader = RecordingReader::Open(out);
+  EXPECT_EQ(reader.Meta("status").value_or(""), r.status);
+  const std::vector<RecordingFrame> frames = ProfileFrames(out);
+  ASSERT_EQ(frames.size(), 10u);
+  for (std::size_t k = 0; k < frames.size(); ++k) EXPECT_EQ(frames[k].view, static_cast<std::int64_t>(k));
+  const std::unique_ptr<FrameSource> source = OpenRecordingSource(out);
+  EXPECT_EQ(FramesToScanSet(*source).scans.size(), 10u);
+  EXPECT_FALSE(fs::exists(out.string() + "-wal"));  // closed cleanly: one self-contained file
+}
+
+TEST_F(HorusScanTest, CameraDisconnectMidStepKeepsTheFirstLaser) {
+  FakeBoard board;
+  FakeCamera camera(board);
+  camera.disconnect_at_capture = 3 * 3 + 2;  // 3 captures per step; step 3's laser 1 image
+  const fs::path out = dir_ / "cam.s2mrec";
+  const HorusScanResult r =
+      RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), out, TestOptions(12));
+  ASSERT_TRUE(r.error_kind);
+  EXPECT_EQ(*r.error_kind, DeviceError::Kind::kDisconnected);
+  EXPECT_EQ(r.done, 7);
+  EXPECT_EQ(ProfileFrames(out).size(), 7u);
+  // The board is still there: the laser that was on when the camera went is off again, the motor too.
+  EXPECT_FALSE(board.laser_on[0] || board.laser_on[1]);
+  EXPECT_FALSE(board.motor);
+}
+
+// Frames without their timestamps, for comparing two scans.
+void ExpectSameFrames(const fs::path& a, const fs::path& b) {
+  const std::vector<RecordingFrame> fa = ProfileFrames(a), fb = ProfileFrames(b);
+  ASSERT_EQ(fa.size(), fb.size());
+  for (std::size_t k = 0; k < fa.size(); ++k) {
+    EXPECT_EQ(fa[k].view, fb[k].view) << k;
+    EXPECT_EQ(fa[k].payload, fb[k].payload) << k;
+    ASSERT_TRUE(fa[k].world_T_scan && fb[k].world_T_scan);
+    EXPECT_EQ(fa[k].world_T_scan->matrix(), fb[k].world_T_scan->matrix()) << k;
+    EXPECT_EQ(fa[k].turntable_angle_rad, fb[k].turntable_angle_rad) << k;
+  }
+}
+
+TEST_F(HorusScanTest, ResumeCompletesAnInterruptedScan) {
+  const fs::path whole = dir_ / "whole.s2mrec", cut = dir_ / "cut.s2mrec";
+  {
+    FakeBoard board;
+    FakeCamera camera(board);
+    ASSERT_TRUE(RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), whole, TestOptions(12))
+                    .complete);
+  }
+  {
+    FakeBoard board;
+    FakeCamera camera(board);
+    camera.disconnect_at_capture = 3 * 3 + 2;  // mid-step 3: laser 0 recorded, laser 1 not
+    ASSERT_FALSE(
+        RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), cut, TestOptions(12)).complete);
+  }
+  FakeBoard board;  // plugged in again
+  FakeCamera camera(board);
+  HorusScanOptions options = TestOptions(12);
+  options.resume = true;
+  std::vector<std::int64_t> done;
+  const HorusScanResult r = RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), cut, options,
+                                         [&](const HorusScanProgress& p) { done.push_back(p.done); });
+  EXPECT_TRUE(r.complete);
+  EXPECT_EQ(r.resumed_from, 7);
+  EXPECT_EQ(r.done, 24);
+  EXPECT_EQ(r.frames, 24);
+  ASSERT_EQ(done.size(), 17u);
+  EXPECT_EQ(done.front(), 8);
+  // The resumed run starts at step 3 (a new laser-off frame there), laser 1 (firmware T2).
+  const auto first_move = std::find_if(board.log.begin(), board.log.end(),
+                                       [](const std::string& c) { return c.rfind("G1 X", 0) == 0; });
+  ASSERT_NE(first_move, board.log.end());
+  EXPECT_EQ(*first_move, "G1 X90");
+  EXPECT_EQ(*(first_move + 2), "M71 T2");
+  EXPECT_EQ(RecordingReader::Open(cut).Meta("status").value_or(""), "complete");
+  ExpectSameFrames(whole, cut);
+}
+
+TEST_F(HorusScanTest, ResumeOfASweepGroupedScan) {
+  const fs::path whole = dir_ / "whole.s2mrec", cut = dir_ / "cut.s2mrec";
+  HorusScanOptions options = TestOptions(8);
+  options.views = HorusScanOptions::ViewGrouping::kLaserSweep;
+  {
+    FakeBoard board;
+    FakeCamera camera(board);
+    ASSERT_TRUE(
+        RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), whole, options).complete);
+  }
+  {
+    FakeBoard board;
+    board.disconnect_at_move = 6;
+    FakeCamera camera(board);
+    ASSERT_EQ(RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), cut, options).done, 12);
+  }
+  FakeBoard board;
+  FakeCamera camera(board);
+  options.resume = true;
+  const HorusScanResult r =
+      RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), cut, options);
+  EXPECT_TRUE(r.complete);
+  EXPECT_EQ(r.resumed_from, 12);
+  ExpectSameFrames(whole, cut);
+}
+
+TEST_F(HorusScanTest, ResumeRefusedForACompleteScanOrDifferentOptions) {
+  const fs::path done = dir_ / "done.s2mrec", cut = dir_ / "cut.s2mrec";
+  {
+    FakeBoard board;
+    FakeCamera camera(board);
+    ASSERT_TRUE(
+        RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), done, TestOptions(6)).complete);
+    FakeBoard board2;
+    board2.disconnect_at_move = 2;
+    FakeCamera camera2(board2);
+    ASSERT_FALSE(
+        RunHorusScan(board2, camera2, calibration_, FakeProfile(calibration_), cut, TestOptions(6)).complete);
+  }
+  FakeBoard board;
+  FakeCamera camera(board);
+  HorusScanOptions options = TestOptions(6);
+  options.resume = true;
+  try {
+    RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), done, options);
+    ADD_FAILURE() << "a complete scan was resumed";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("complete"), std::string::npos) << e.what();
+  }
+  options.steps = 8;
+  try {
+    RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), cut, options);
+    ADD_FAILURE() << "resumed with different options";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("steps 6 (recorded) vs 8 (given)"), std::string::npos) << e.what();
+  }
+  options.steps = 6;
+  HorusCalibration other = calibration_;
+  other.lasers[1].distance = 151.0;
+  EXPECT_THROW(RunHorusScan(board, camera, other, FakeProfile(other), cut, options), std::invalid_argument);
+  // Refusals do not touch the hardware.
+  EXPECT_TRUE(board.log.empty());
+  // Not resuming: an existing recording is never overwritten.
+  options.resume = false;
+  EXPECT_THROW(RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), cut, options),
+               std::invalid_argument);
+  // The append API itself refuses a complete recording.
+  EXPECT_THROW(RecordingWriter::OpenForAppend(done), FormatError);
+  EXPECT_EQ(ProfileFrames(cut).size(), 4u);
+}
+
+TEST_F(HorusScanTest, TimeoutStopsTheScanAndSwitchesTheHardwareOff) {
+  FakeBoard board;
+  board.timeout_at_move = 3;
+  FakeCamera camera(board);
+  const fs::path out = dir_ / "timeout.s2mrec";
+  const HorusScanResult r =
+      RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), out, TestOptions(12));
+  ASSERT_TRUE(r.error_kind);
+  EXPECT_EQ(*r.error_kind, DeviceError::Kind::kTimeout);
+  EXPECT_EQ(r.status, "interrupted: fake board: no 'ok' within 2000 ms after G1 X");
+  EXPECT_EQ(r.frames, 6);
+  const std::vector<std::string> tail(board.log.end() - 3, board.log.end());
+  EXPECT_EQ(tail, (std::vector<std::string>{"M70 T1", "M70 T2", "M18"}));
+  // A camera timeout while a laser is on: that laser goes off.
+  FakeBoard board2;
+  FakeCamera camera2(board2);
+  camera2.timeout_at_capture = 4;  // step 1's laser 0 image
+  const HorusScanResult r2 = RunHorusScan(board2, camera2, calibration_, FakeProfile(calibration_),
+                                          dir_ / "t2.s2mrec", TestOptions(12));
+  EXPECT_EQ(*r2.error_kind, DeviceError::Kind::kTimeout);
+  EXPECT_EQ(r2.frames, 2);
+  EXPECT_FALSE(board2.laser_on[0] || board2.laser_on[1]);
+  EXPECT_FALSE(board2.motor);
+}
+
+TEST_F(HorusScanTest, AFailingProfileThrowsWithTheHardwareOff) {
+  FakeBoard board;
+  FakeCamera camera(board);
+  const fs::path out = dir_ / "bad.s2mrec";
+  int calls = 0;
+  const LaserProfileFunction good = FakeProfile(calibration_);
+  const LaserProfileFunction bad = [&](const Image8& on, const Image8& off, int laser) {
+    if (++calls == 4) throw std::runtime_error("triangulation failed");
+    return good(on, off, laser);
+  };
+  EXPECT_THROW(RunHorusScan(board, camera, calibration_, bad, out, TestOptions(12)), std::runtime_error);
+  EXPECT_FALSE(board.laser_on[0] || board.laser_on[1]);
+  EXPECT_FALSE(board.motor);
+  EXPECT_EQ(RecordingReader::Open(out).Meta("status").value_or(""), "interrupted: triangulation failed");
+  EXPECT_EQ(ProfileFrames(out).size(), 3u);
+}
+
+TEST_F(HorusScanTest, EmptyProfilesAreSkippedAndImagesStored) {
+  FakeBoard board;
+  FakeCamera camera(board);
+  const fs::path out = dir_ / "img.s2mrec";
+  HorusScanOptions options = TestOptions(4);
+  options.lasers = {1};
+  options.store_images = true;
+  const LaserProfileFunction good = FakeProfile(calibration_);
+  const LaserProfileFunction some_empty = [&](const Image8& on, const Image8& off, int laser) {
+    return AngleOf(on) == 90.0 ? Eigen::Matrix3Xd(3, 0) : good(on, off, laser);
+  };
+  const HorusScanResult r = RunHorusScan(board, camera, calibration_, some_empty, out, options);
+  EXPECT_TRUE(r.complete);
+  EXPECT_EQ(r.frames, 3);
+  EXPECT_EQ(r.empty_profiles, 1);
+  const std::vector<RecordingFrame> frames = ProfileFrames(out);
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[1].view, 2);  // step 1 had no points
+  const fs::path images = HorusImageFolder(out);
+  EXPECT_TRUE(fs::exists(images / "step_0003_off.pgm"));
+  EXPECT_TRUE(fs::exists(images / "step_0003_laser1.pgm"));
+  EXPECT_EQ(fs::file_size(images / "step_0003_laser1.pgm"), std::string("P5\n9 1\n255\n").size() + 9);
+}
+
+TEST_F(HorusScanTest, BadOptionsAreRefusedBeforeAnything) {
+  FakeBoard board;
+  FakeCamera camera(board);
+  HorusScanOptions options = TestOptions(0);
+  EXPECT_THROW(
+      RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), dir_ / "a.s2mrec", options),
+      std::invalid_argument);
+  options = TestOptions(10);
+  options.lasers = {0, 2};
+  try {
+    RunHorusScan(board, camera, calibration_, FakeProfile(calibration_), dir_ / "a.s2mrec", options);
+    ADD_FAILURE();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "scan: laser 2 is not calibrated (the calibration has 2 laser planes)");
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "a.s2mrec"));
+  EXPECT_TRUE(board.log.empty());
+}
+
+}  // namespace
+}  // namespace s2m
