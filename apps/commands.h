@@ -13,6 +13,8 @@ enum ExitCode : int {
   kInputError = 3,  // unreadable, corrupt, empty or degenerate input
   kFitError = 4,    // the fit could not be computed
   kInternal = 70,   // a bug: please report it
+  // A device failed: not found, no permission, disconnected, timed out (docs/horus-scan.md).
+  kDeviceError = 5,
 };
 
 using Runner = std::function<int()>;
@@ -23,5 +25,6 @@ Runner AddRecordCommand(CLI::App& app);  // apps/acquire_commands.cpp
 Runner AddExportCommand(CLI::App& app);
 Runner AddBatchCommand(CLI::App& app);   // apps/batch_command.cpp, docs/batch.md
 Runner AddReportCommand(CLI::App& app);  // apps/report.cpp
+Runner AddScanCommand(CLI::App& app);    // apps/scan_command.cpp, docs/horus-scan.md
 
 }  // namespace s2m::app
