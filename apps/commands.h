@@ -23,5 +23,6 @@ Runner AddRecordCommand(CLI::App& app);  // apps/acquire_commands.cpp
 Runner AddExportCommand(CLI::App& app);
 Runner AddBatchCommand(CLI::App& app);   // apps/batch_command.cpp, docs/batch.md
 Runner AddReportCommand(CLI::App& app);  // apps/report.cpp
+Runner AddDevicesCommand(CLI::App& app);  // apps/devices_command.cpp, docs/devices.md
 
 }  // namespace s2m::app

@@ -72,20 +72,26 @@ UsbDeviceInfo DescribeDevice(libusb_device* dev) {
   return info;
 }
 
-// The kernel driver bound to an interface, from sysfs
-// (/sys/bus/usb/devices/<bus>-<ports>:<config>.<iface>/driver); empty when unknown.
-std::string KernelDriverName(libusb_device_handle* handle, int interface_number) {
+// The interface's sysfs name, <bus>-<port>[.<port>...]:<config>.<interface> ("1-2:1.0"); empty when unknown.
+std::string InterfaceSysfsName(libusb_device_handle* handle, int interface_number) {
   libusb_device* dev = libusb_get_device(handle);
   std::uint8_t ports[8];
   const int n = libusb_get_port_numbers(dev, ports, sizeof(ports));
   if (n <= 0) return "";
-  std::string path = "/sys/bus/usb/devices/" + std::to_string(libusb_get_bus_number(dev)) + "-";
-  for (int i = 0; i < n; ++i) path += (i ? "." : "") + std::to_string(ports[i]);
+  std::string name = std::to_string(libusb_get_bus_number(dev)) + "-";
+  for (int i = 0; i < n; ++i) name += (i ? "." : "") + std::to_string(ports[i]);
   int config = 1;
   if (libusb_get_configuration(handle, &config) != 0 || config <= 0) config = 1;
-  path += ":" + std::to_string(config) + "." + std::to_string(interface_number) + "/driver";
+  return name + ":" + std::to_string(config) + "." + std::to_string(interface_number);
+}
+
+// The kernel driver bound to an interface, from sysfs (/sys/bus/usb/devices/<interface>/driver); empty when
+// unknown.
+std::string KernelDriverName(const std::string& interface_name) {
+  if (interface_name.empty()) return "";
   std::error_code ec;
-  const std::filesystem::path target = std::filesystem::read_symlink(path, ec);
+  const std::filesystem::path target =
+      std::filesystem::read_symlink("/sys/bus/usb/devices/" + interface_name + "/driver", ec);
   return ec ? "" : target.filename().string();
 }
 
@@ -367,18 +373,19 @@ void UsbDevice::ClaimInterface(int interface_number) {
   }
   const std::string what = "claiming interface " + std::to_string(interface_number);
   if (r != LIBUSB_ERROR_BUSY) throw UsbError(r, impl_->info, what);
-  const std::string driver = KernelDriverName(h, interface_number);
+  const std::string interface_name = InterfaceSysfsName(h, interface_number);
+  const std::string driver = KernelDriverName(interface_name);
   const bool kernel = libusb_kernel_driver_active(h, interface_number) == 1 || !driver.empty();
   std::string holder;
   if (kernel) {
-    const std::string name = driver.empty() ? "cdc_acm" : driver;
     holder =
         "the kernel driver " + (driver.empty() ? std::string("(probably cdc_acm)") : driver) + " holds it" +
         (detach != 0 ? " and libusb cannot detach kernel drivers on this platform"
-                     : " and would not let go (a program has its serial port, e.g. /dev/ttyACM0, open)") +
-        ". Close programs using the serial port (fuser -v /dev/ttyACM*), or unbind the driver: echo -n "
-        "'<bus>-<port>:1." +
-        std::to_string(interface_number) + "' | sudo tee /sys/bus/usb/drivers/" + name + "/unbind";
+                     : " and would not let go (a program has its serial port open)") +
+        ". Close programs using the serial port (see fuser -v /dev/ttyACM*), or unbind the driver: echo -n "
+        "'" +
+        (interface_name.empty() ? "<bus>-<port>:1." + std::to_string(interface_number) : interface_name) +
+        "' | sudo tee /sys/bus/usb/drivers/" + (driver.empty() ? "cdc_acm" : driver) + "/unbind";
   } else {
     holder =
         "another program has claimed it (Horus, a second scan2model, ModemManager?). Close it and try again";

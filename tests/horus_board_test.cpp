@@ -263,6 +263,17 @@ TEST_F(HorusBoardTest, BusyInterfaceSaysWhoToAsk) {
   EXPECT_NO_THROW(OpenHorusBoard(context, Fast()));
 }
 
+TEST_F(HorusBoardTest, BusyKernelDriverIsNamed) {
+  EmulatedHorusBoard emu;
+  UsbContext context;
+  emu.SetBusy(true, "cdc_acm");
+  std::string message;
+  EXPECT_EQ(KindOf([&] { OpenHorusBoard(context, Fast()); }, &message), DeviceError::Kind::kBusy);
+  EXPECT_NE(message.find("the kernel driver cdc_acm holds it"), std::string::npos) << message;
+  EXPECT_NE(message.find("/sys/bus/usb/drivers/cdc_acm/unbind"), std::string::npos) << message;
+  EXPECT_NE(message.find("fuser -v /dev/ttyACM*"), std::string::npos) << message;
+}
+
 TEST_F(HorusBoardTest, WrongBannerIsAProtocolError) {
   EmulatedHorusBoard::Options o;
   o.banner = "Grbl 0.9j ['$' for help]";
