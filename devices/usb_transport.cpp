@@ -312,7 +312,7 @@ struct UsbDevice::Impl {
   // backoff, a stall after clearing the endpoint's halt (USB 2.0 section 9.4.5: the host clears a halted
   // endpoint).
   template <class Attempt>
-  void WithRetries(std::uint8_t endpoint, const std::string& what, Attempt attempt) {
+  void WithRetries(std::uint8_t endpoint, const std::string& what, int timeout_ms, Attempt attempt) {
     int backoff_ms = options.backoff_ms;
     int last = 0;
     for (int k = 0; k <= options.retries; ++k) {
@@ -344,7 +344,7 @@ struct UsbDevice::Impl {
     }
     throw UsbError(last, info,
                    what + " (" + std::to_string(options.retries + 1) + " attempts of " +
-                       std::to_string(options.timeout_ms) + " ms)");
+                       std::to_string(timeout_ms) + " ms)");
   }
 };
 
@@ -397,7 +397,7 @@ void UsbDevice::ClaimInterface(int interface_number) {
 void UsbDevice::BulkWrite(std::uint8_t endpoint, const std::vector<std::uint8_t>& data,
                           const std::string& what) {
   std::size_t offset = 0;
-  impl_->WithRetries(endpoint, what, [&] {
+  impl_->WithRetries(endpoint, what, impl_->options.timeout_ms, [&] {
     while (offset < data.size()) {
       int sent = 0;
       const int r =
@@ -415,7 +415,7 @@ std::vector<std::uint8_t> UsbDevice::BulkRead(std::uint8_t endpoint, std::size_t
   std::vector<std::uint8_t> buf(capacity);
   int got = 0;
   const unsigned timeout = static_cast<unsigned>(timeout_ms < 0 ? impl_->options.timeout_ms : timeout_ms);
-  impl_->WithRetries(endpoint, what, [&] {
+  impl_->WithRetries(endpoint, what, static_cast<int>(timeout), [&] {
     got = 0;
     const int r =
         libusb_bulk_transfer(impl_->handle, endpoint, buf.data(), static_cast<int>(capacity), &got, timeout);
@@ -440,7 +440,7 @@ std::vector<std::uint8_t> UsbDevice::BulkReadAvailable(std::uint8_t endpoint, st
 void UsbDevice::Control(std::uint8_t request_type, std::uint8_t request, std::uint16_t value,
                         std::uint16_t index, std::vector<std::uint8_t>& data, const std::string& what) {
   int got = 0;
-  impl_->WithRetries(0, what, [&] {
+  impl_->WithRetries(0, what, impl_->options.timeout_ms, [&] {
     const int r = libusb_control_transfer(impl_->handle, request_type, request, value, index, data.data(),
                                           static_cast<std::uint16_t>(data.size()),
                                           static_cast<unsigned>(impl_->options.timeout_ms));

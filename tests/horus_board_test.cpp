@@ -194,6 +194,17 @@ TEST_F(HorusBoardTest, SilentBoardTimesOutAfterTheRetries) {
   EXPECT_EQ(stats.retries, 2);
 }
 
+TEST_F(HorusBoardTest, SilentAtOpenTimesOutWaitingForTheBanner) {
+  EmulatedHorusBoard emu;
+  emu.SetUnresponsive(true);
+  UsbContext context;
+  std::string message;
+  EXPECT_EQ(KindOf([&] { OpenHorusBoard(context, Fast()); }, &message), DeviceError::Kind::kTimeout);
+  EXPECT_NE(message.find("reset (Ctrl-X), waiting for the Horus banner"), std::string::npos) << message;
+  EXPECT_NE(message.find("3 attempts of 300 ms"), std::string::npos) << message;
+  EXPECT_EQ(emu.Resets(), 1);  // the reset reached the board; its answer did not come back
+}
+
 TEST_F(HorusBoardTest, VanishingMidScanKeepsWhatWasDone) {
   EmulatedHorusBoard emu;
   UsbContext context;
@@ -245,6 +256,7 @@ TEST_F(HorusBoardTest, NoPermissionGivesTheUdevRule) {
   }
   EXPECT_EQ(kind, DeviceError::Kind::kPermission);
   EXPECT_NE(message.find(UdevRuleFor(0x2341, 0x0043)), std::string::npos) << message;
+  EXPECT_NE(message.find("opening: no permission"), std::string::npos) << message;
   EXPECT_NE(message.find("/etc/udev/rules.d/60-scan2model.rules"), std::string::npos) << message;
   emu.DenyAccess(false);
   EXPECT_EQ(OpenHorusBoard(context, Fast())->Banner(), "Horus 0.1 ['$' for help]");
