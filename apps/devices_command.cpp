@@ -58,8 +58,10 @@ int ListDevices(bool json) {
                      {"serial_number", d.serial_number},
                      {"supported_as", d.supported_as},
                      {"cdc_acm", d.has_cdc_acm},
+                     {"accessible", d.accessible},
                      // What drives it: the Horus board driver needs CDC-ACM (docs/devices.md).
                      {"driver", d.has_cdc_acm ? "horus" : "none"}});
+      if (!d.accessible) usb.back()["open_error"] = d.open_error;
     }
   } catch (const std::exception& e) {
     usb_error = e.what();
@@ -98,6 +100,7 @@ int ListDevices(bool json) {
     if (!serial.empty()) std::cout << "  serial " << serial;
     if (!d["cdc_acm"].get<bool>()) std::cout << "  (not CDC-ACM: the Horus driver cannot use it)";
     std::cout << "\n";
+    if (!d["accessible"].get<bool>()) std::cout << "        " << d["open_error"].get<std::string>() << "\n";
   }
   for (const std::string& c : cameras) std::cout << "camera  " << c << "\n";
   for (const std::string& h : hints) std::cout << "hint: " << h << "\n";

@@ -230,7 +230,11 @@ std::vector<UsbDeviceInfo> UsbContext::Enumerate() const {
     // business).
     if (!info.supported_as.empty() || info.has_cdc_acm) {
       libusb_device_handle* handle = nullptr;
-      if (libusb_open(list[i], &handle) == 0) {
+      const int r = libusb_open(list[i], &handle);
+      if (r != 0) {
+        info.accessible = false;
+        info.open_error = UsbError(r, info, "reading its strings").what();
+      } else {
         libusb_device_descriptor desc{};
         libusb_get_device_descriptor(list[i], &desc);
         info.manufacturer = ReadString(handle, desc.iManufacturer);

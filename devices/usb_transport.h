@@ -28,6 +28,8 @@ struct UsbDeviceInfo {
   std::vector<std::uint8_t> interface_classes;       // of the active configuration, in interface order
   std::string manufacturer, product, serial_number;  // empty when unreadable (no permission, no string)
   std::string supported_as;                          // which supported device this is; empty: not one
+  bool accessible = true;  // false: enumeration could not open it (usually no permission: the udev rule)
+  std::string open_error;  // why, with the action to take, when not accessible
   // "2341:0043 (bus 1, address 5)": how messages name the device.
   std::string Name() const;
 };

@@ -98,6 +98,7 @@ TEST_F(HorusBoardTest, EnumerationSeesTheEmulatedBoard) {
   EXPECT_EQ(d.product, "Horus turntable (emulated)");
   EXPECT_EQ(d.serial_number, "EMU0001");
   EXPECT_EQ(d.supported_as, "Arduino board (CDC-ACM)");
+  EXPECT_TRUE(d.accessible);
   EXPECT_EQ(context.FindByVidPid(0x2341, 0).size(), 1u);
   EXPECT_EQ(context.FindByVidPid(0x0403, 0x6001).size(), 0u);
   EXPECT_EQ(context.FindByInterfaceClass(kUsbClassCdcData).size(), 1u);
@@ -256,6 +257,15 @@ TEST_F(HorusBoardTest, NoPermissionGivesTheUdevRule) {
     kind = KindOf([&] { OpenHorusBoard(context, Fast()); }, &message);
   }
   EXPECT_EQ(kind, DeviceError::Kind::kPermission);
+  {
+    test::ScopedNoDacOverride unprivileged;
+    const std::vector<UsbDeviceInfo> listed = ListSupportedDevices(context);
+    ASSERT_EQ(listed.size(), 1u);  // enumeration needs no access (sysfs); its strings do
+    EXPECT_FALSE(listed[0].accessible);
+    EXPECT_EQ(listed[0].product, "");
+    EXPECT_NE(listed[0].open_error.find(UdevRuleFor(0x2341, 0x0043)), std::string::npos)
+        << listed[0].open_error;
+  }
   EXPECT_NE(message.find(UdevRuleFor(0x2341, 0x0043)), std::string::npos) << message;
   EXPECT_NE(message.find("opening: no permission"), std::string::npos) << message;
   EXPECT_NE(message.find("/etc/udev/rules.d/60-scan2model.rules"), std::string::npos) << message;
