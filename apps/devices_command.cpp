@@ -75,7 +75,7 @@ int ListDevices(bool json) {
     hints = {"connect the scanner's board by USB and check its power",
              "run `lsusb`: the board shows as an Arduino (2341:xxxx), CH340 (1a86:7523) or FTDI (0403:xxxx) "
              "device",
-             "if it is listed there but not here, install the udev rule in docs/devices.md (USB setup)"};
+             "if it is listed there but not here, its USB id is not a known one: see docs/devices.md"};
   }
   if (cameras.empty()) hints.push_back("no camera: check `v4l2-ctl --list-devices` (package v4l-utils)");
   if (json) {
