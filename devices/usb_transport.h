@@ -123,7 +123,8 @@ class UsbContext {
   UsbContext(const UsbContext&) = delete;
   UsbContext& operator=(const UsbContext&) = delete;
 
-  // Every device on the buses (strings read when the device can be opened).
+  // Every device on the buses. Strings are read (by opening the device) only for supported and CDC-ACM
+  // devices.
   std::vector<UsbDeviceInfo> Enumerate() const;
   // Devices with this vendor id and product id (product_id 0: any product of the vendor).
   std::vector<UsbDeviceInfo> FindByVidPid(std::uint16_t vendor_id, std::uint16_t product_id) const;
