@@ -30,7 +30,8 @@ struct UsbDeviceInfo {
   std::string supported_as;                          // which supported device this is; empty: not one
   bool accessible = true;  // false: enumeration could not open it (usually no permission: the udev rule)
   std::string open_error;  // why, with the action to take, when not accessible
-  // "2341:0043 (bus 1, address 5)": how messages name the device.
+  // "2341:0043 'Arduino Uno' (bus 1, address 5)" (the product string when known): how messages name the
+  // device.
   std::string Name() const;
 };
 

@@ -109,6 +109,45 @@ TEST_F(HorusBoardTest, EnumerationSeesTheEmulatedBoard) {
   EXPECT_EQ(ListSupportedDevices().size(), 1u);  // its own context
 }
 
+TEST_F(HorusBoardTest, TransportTransfersAndOutlivesItsContext) {
+  EmulatedHorusBoard emu;
+  std::unique_ptr<UsbDevice> device;
+  {
+    UsbContext context;
+    const std::vector<UsbDeviceInfo> found = context.FindByInterfaceClass(kUsbClassCdcComm);
+    ASSERT_EQ(found.size(), 1u);
+    UsbDevice::Options options;
+    options.timeout_ms = 300;
+    options.retries = 1;
+    device = context.Open(found[0], options);
+  }  // the device keeps libusb (and its event thread) alive
+  const UsbDevice::CdcAcmEndpoints ep = device->FindCdcAcm();
+  EXPECT_EQ(ep.comm_interface, 0);
+  EXPECT_EQ(ep.data_interface, 1);
+  EXPECT_EQ(ep.bulk_out, 0x04);
+  EXPECT_EQ(ep.bulk_in, 0x83);
+  // GET_DESCRIPTOR (string 2, English) as a raw control transfer: bLength, bDescriptorType 3, UTF-16LE.
+  std::vector<std::uint8_t> data(255);
+  device->Control(0x80, 6, 0x0302, 0x0409, data, "reading the product string");
+  ASSERT_EQ(data.size(), 2u + 2u * std::string("Horus turntable (emulated)").size());
+  EXPECT_EQ(data[1], 3);
+  EXPECT_EQ(data[2], 'H');
+  device->ClaimInterface(1);
+  device->BulkWrite(ep.bulk_out, {0x18, '\r', '\n'}, "reset");
+  std::string text;
+  while (text.find("help]") == std::string::npos) {
+    const std::vector<std::uint8_t> got = device->BulkRead(ep.bulk_in, 64, "banner");
+    text.append(got.begin(), got.end());
+  }
+  EXPECT_EQ(text, "\r\nHorus 0.1 ['$' for help]\r\n");
+  EXPECT_TRUE(device->BulkReadAvailable(ep.bulk_in, 64, 50, "nothing more").empty());
+  const UsbDevice::Stats stats = device->GetStats();
+  EXPECT_EQ(stats.timeouts, 0);
+  EXPECT_EQ(stats.retries, 0);
+  EXPECT_GE(stats.transfers, 3);
+  device.reset();  // closes the device, then libusb_exit and the event thread's join
+}
+
 TEST_F(HorusBoardTest, HandshakeSetsTheLineAndReadsTheBanner) {
   EmulatedHorusBoard emu;
   UsbContext context;
