@@ -26,5 +26,6 @@ Runner AddExportCommand(CLI::App& app);
 Runner AddBatchCommand(CLI::App& app);   // apps/batch_command.cpp, docs/batch.md
 Runner AddReportCommand(CLI::App& app);  // apps/report.cpp
 Runner AddScanCommand(CLI::App& app);    // apps/scan_command.cpp, docs/horus-scan.md
+Runner AddDevicesCommand(CLI::App& app);  // apps/devices_command.cpp, docs/devices.md
 
 }  // namespace s2m::app

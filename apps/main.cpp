@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   const s2m::app::Runner batch = s2m::app::AddBatchCommand(app);
   const s2m::app::Runner report = s2m::app::AddReportCommand(app);
   const s2m::app::Runner scan = s2m::app::AddScanCommand(app);
+  const s2m::app::Runner devices = s2m::app::AddDevicesCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -44,6 +45,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("batch")) return batch();
     if (app.got_subcommand("report")) return report();
     if (app.got_subcommand("scan")) return scan();
+    if (app.got_subcommand("devices")) return devices();
   } catch (const std::exception& e) {
     std::cerr << "scan2model: internal error: " << e.what() << "\n";
     return s2m::app::kInternal;

@@ -13,7 +13,6 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
-#include <sstream>
 #include <system_error>
 #include <thread>
 
@@ -72,20 +71,26 @@ UsbDeviceInfo DescribeDevice(libusb_device* dev) {
   return info;
 }
 
-// The kernel driver bound to an interface, from sysfs
-// (/sys/bus/usb/devices/<bus>-<ports>:<config>.<iface>/driver); empty when unknown.
-std::string KernelDriverName(libusb_device_handle* handle, int interface_number) {
+// The interface's sysfs name, <bus>-<port>[.<port>...]:<config>.<interface> ("1-2:1.0"); empty when unknown.
+std::string InterfaceSysfsName(libusb_device_handle* handle, int interface_number) {
   libusb_device* dev = libusb_get_device(handle);
   std::uint8_t ports[8];
   const int n = libusb_get_port_numbers(dev, ports, sizeof(ports));
   if (n <= 0) return "";
-  std::string path = "/sys/bus/usb/devices/" + std::to_string(libusb_get_bus_number(dev)) + "-";
-  for (int i = 0; i < n; ++i) path += (i ? "." : "") + std::to_string(ports[i]);
+  std::string name = std::to_string(libusb_get_bus_number(dev)) + "-";
+  for (int i = 0; i < n; ++i) name += (i ? "." : "") + std::to_string(ports[i]);
   int config = 1;
   if (libusb_get_configuration(handle, &config) != 0 || config <= 0) config = 1;
-  path += ":" + std::to_string(config) + "." + std::to_string(interface_number) + "/driver";
+  return name + ":" + std::to_string(config) + "." + std::to_string(interface_number);
+}
+
+// The kernel driver bound to an interface, from sysfs (/sys/bus/usb/devices/<interface>/driver); empty when
+// unknown.
+std::string KernelDriverName(const std::string& interface_name) {
+  if (interface_name.empty()) return "";
   std::error_code ec;
-  const std::filesystem::path target = std::filesystem::read_symlink(path, ec);
+  const std::filesystem::path target =
+      std::filesystem::read_symlink("/sys/bus/usb/devices/" + interface_name + "/driver", ec);
   return ec ? "" : target.filename().string();
 }
 
@@ -224,7 +229,11 @@ std::vector<UsbDeviceInfo> UsbContext::Enumerate() const {
     // business).
     if (!info.supported_as.empty() || info.has_cdc_acm) {
       libusb_device_handle* handle = nullptr;
-      if (libusb_open(list[i], &handle) == 0) {
+      const int r = libusb_open(list[i], &handle);
+      if (r != 0) {
+        info.accessible = false;
+        info.open_error = UsbError(r, info, "reading its strings").what();
+      } else {
         libusb_device_descriptor desc{};
         libusb_get_device_descriptor(list[i], &desc);
         info.manufacturer = ReadString(handle, desc.iManufacturer);
@@ -306,7 +315,7 @@ struct UsbDevice::Impl {
   // backoff, a stall after clearing the endpoint's halt (USB 2.0 section 9.4.5: the host clears a halted
   // endpoint).
   template <class Attempt>
-  void WithRetries(std::uint8_t endpoint, const std::string& what, Attempt attempt) {
+  void WithRetries(std::uint8_t endpoint, const std::string& what, int timeout_ms, Attempt attempt) {
     int backoff_ms = options.backoff_ms;
     int last = 0;
     for (int k = 0; k <= options.retries; ++k) {
@@ -338,7 +347,7 @@ struct UsbDevice::Impl {
     }
     throw UsbError(last, info,
                    what + " (" + std::to_string(options.retries + 1) + " attempts of " +
-                       std::to_string(options.timeout_ms) + " ms)");
+                       std::to_string(timeout_ms) + " ms)");
   }
 };
 
@@ -367,18 +376,19 @@ void UsbDevice::ClaimInterface(int interface_number) {
   }
   const std::string what = "claiming interface " + std::to_string(interface_number);
   if (r != LIBUSB_ERROR_BUSY) throw UsbError(r, impl_->info, what);
-  const std::string driver = KernelDriverName(h, interface_number);
+  const std::string interface_name = InterfaceSysfsName(h, interface_number);
+  const std::string driver = KernelDriverName(interface_name);
   const bool kernel = libusb_kernel_driver_active(h, interface_number) == 1 || !driver.empty();
   std::string holder;
   if (kernel) {
-    const std::string name = driver.empty() ? "cdc_acm" : driver;
     holder =
         "the kernel driver " + (driver.empty() ? std::string("(probably cdc_acm)") : driver) + " holds it" +
         (detach != 0 ? " and libusb cannot detach kernel drivers on this platform"
-                     : " and would not let go (a program has its serial port, e.g. /dev/ttyACM0, open)") +
-        ". Close programs using the serial port (fuser -v /dev/ttyACM*), or unbind the driver: echo -n "
-        "'<bus>-<port>:1." +
-        std::to_string(interface_number) + "' | sudo tee /sys/bus/usb/drivers/" + name + "/unbind";
+                     : " and would not let go (a program has its serial port open)") +
+        ". Close programs using the serial port (see fuser -v /dev/ttyACM*), or unbind the driver: echo -n "
+        "'" +
+        (interface_name.empty() ? "<bus>-<port>:1." + std::to_string(interface_number) : interface_name) +
+        "' | sudo tee /sys/bus/usb/drivers/" + (driver.empty() ? "cdc_acm" : driver) + "/unbind";
   } else {
     holder =
         "another program has claimed it (Horus, a second scan2model, ModemManager?). Close it and try again";
@@ -390,7 +400,7 @@ void UsbDevice::ClaimInterface(int interface_number) {
 void UsbDevice::BulkWrite(std::uint8_t endpoint, const std::vector<std::uint8_t>& data,
                           const std::string& what) {
   std::size_t offset = 0;
-  impl_->WithRetries(endpoint, what, [&] {
+  impl_->WithRetries(endpoint, what, impl_->options.timeout_ms, [&] {
     while (offset < data.size()) {
       int sent = 0;
       const int r =
@@ -408,7 +418,7 @@ std::vector<std::uint8_t> UsbDevice::BulkRead(std::uint8_t endpoint, std::size_t
   std::vector<std::uint8_t> buf(capacity);
   int got = 0;
   const unsigned timeout = static_cast<unsigned>(timeout_ms < 0 ? impl_->options.timeout_ms : timeout_ms);
-  impl_->WithRetries(endpoint, what, [&] {
+  impl_->WithRetries(endpoint, what, static_cast<int>(timeout), [&] {
     got = 0;
     const int r =
         libusb_bulk_transfer(impl_->handle, endpoint, buf.data(), static_cast<int>(capacity), &got, timeout);
@@ -433,7 +443,7 @@ std::vector<std::uint8_t> UsbDevice::BulkReadAvailable(std::uint8_t endpoint, st
 void UsbDevice::Control(std::uint8_t request_type, std::uint8_t request, std::uint16_t value,
                         std::uint16_t index, std::vector<std::uint8_t>& data, const std::string& what) {
   int got = 0;
-  impl_->WithRetries(0, what, [&] {
+  impl_->WithRetries(0, what, impl_->options.timeout_ms, [&] {
     const int r = libusb_control_transfer(impl_->handle, request_type, request, value, index, data.data(),
                                           static_cast<std::uint16_t>(data.size()),
                                           static_cast<unsigned>(impl_->options.timeout_ms));

@@ -28,7 +28,10 @@ struct UsbDeviceInfo {
   std::vector<std::uint8_t> interface_classes;       // of the active configuration, in interface order
   std::string manufacturer, product, serial_number;  // empty when unreadable (no permission, no string)
   std::string supported_as;                          // which supported device this is; empty: not one
-  // "2341:0043 (bus 1, address 5)": how messages name the device.
+  bool accessible = true;  // false: enumeration could not open it (usually no permission: the udev rule)
+  std::string open_error;  // why, with the action to take, when not accessible
+  // "2341:0043 'Arduino Uno' (bus 1, address 5)" (the product string when known): how messages name the
+  // device.
   std::string Name() const;
 };
 
@@ -121,7 +124,8 @@ class UsbContext {
   UsbContext(const UsbContext&) = delete;
   UsbContext& operator=(const UsbContext&) = delete;
 
-  // Every device on the buses (strings read when the device can be opened).
+  // Every device on the buses. Strings are read (by opening the device) only for supported and CDC-ACM
+  // devices.
   std::vector<UsbDeviceInfo> Enumerate() const;
   // Devices with this vendor id and product id (product_id 0: any product of the vendor).
   std::vector<UsbDeviceInfo> FindByVidPid(std::uint16_t vendor_id, std::uint16_t product_id) const;

@@ -17,6 +17,8 @@ packages=(
                          # benchmark's Open3D point-to-plane ICP baseline (bench/open3d_baselines.cpp)
   libopenmpi-dev openmpi-bin  # optional: `scan2model batch` under mpirun (docs/batch.md)
   chromium               # tests only: the HTML report opens in headless Chromium (tests/report_test.cpp)
+  libusb-1.0-0-dev       # optional edge (s2m_usb): USB transport and the Horus turntable board (docs/devices.md)
+  umockdev libumockdev-dev  # tests only: the emulated USB board (tests/emulated_horus_board.h, umockdev-wrapper)
 )
 
 missing=()

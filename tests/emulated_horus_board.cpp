@@ -88,7 +88,8 @@ struct EmulatedHorusBoard::Impl {
   Options options;
   UMockdevTestbed* testbed = nullptr;
   UMockdevIoctlBase* handler = nullptr;
-  std::string syspath, devnode, root;
+  std::string syspath, devnode, root, interface_syspath;
+  std::string kernel_driver;  // bound to the interfaces while busy
 
   mutable std::mutex mutex;
   // Faults.
@@ -255,9 +256,18 @@ struct EmulatedHorusBoard::Impl {
       case USBDEVFS_DISCONNECT_CLAIM:
         umockdev_ioctl_client_complete(client, busy ? -1 : 0, busy ? EBUSY : 0);
         return TRUE;
-      case USBDEVFS_GETDRIVER:
-        umockdev_ioctl_client_complete(client, -1, ENODATA);  // no kernel driver bound (usbfs has it)
+      case USBDEVFS_GETDRIVER: {
+        if (kernel_driver.empty()) {
+          umockdev_ioctl_client_complete(client, -1, ENODATA);  // no kernel driver bound
+          return TRUE;
+        }
+        UMockdevIoctlData* d = umockdev_ioctl_data_resolve(arg, 0, sizeof(usbdevfs_getdriver), nullptr);
+        auto* g = reinterpret_cast<usbdevfs_getdriver*>(d->data);
+        std::snprintf(g->driver, sizeof(g->driver), "%s", kernel_driver.c_str());
+        g_object_unref(d);
+        umockdev_ioctl_client_complete(client, 0, 0);
         return TRUE;
+      }
       case USBDEVFS_CLEAR_HALT: {
         UMockdevIoctlData* d = umockdev_ioctl_data_resolve(arg, 0, sizeof(unsigned int), nullptr);
         unsigned int ep = 0;
@@ -415,6 +425,12 @@ void EmulatedHorusBoard::Plug() {
     if (error) g_error_free(error);
     throw std::runtime_error("umockdev could not add the emulated board: " + msg);
   }
+  // Interface 0 (CDC comm) as its own sysfs device, where the kernel driver's link lives.
+  gchar* iface = umockdev_testbed_add_device(
+      impl_->testbed, "usb", (name + ":1.0").c_str(), impl_->syspath.c_str(), "bInterfaceNumber", "00",
+      "bInterfaceClass", "02", nullptr, "DEVTYPE", "usb_interface", nullptr);
+  impl_->interface_syspath = iface != nullptr ? iface : "";
+  g_free(iface);
 }
 
 void EmulatedHorusBoard::StallOnce(std::uint8_t endpoint) {
@@ -450,9 +466,17 @@ void EmulatedHorusBoard::DenyAccess(bool deny) {
   }
 }
 
-void EmulatedHorusBoard::SetBusy(bool busy) {
-  std::lock_guard<std::mutex> lock(impl_->mutex);
-  impl_->busy = busy;
+void EmulatedHorusBoard::SetBusy(bool busy, const std::string& kernel_driver) {
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->busy = busy;
+    impl_->kernel_driver = busy ? kernel_driver : "";
+  }
+  if (busy && !kernel_driver.empty()) {
+    // The interface's sysfs entry names its driver, as /sys/bus/usb/devices/1-2:1.0/driver does.
+    umockdev_testbed_set_attribute_link(impl_->testbed, impl_->interface_syspath.c_str(), "driver",
+                                        ("../../../../../../bus/usb/drivers/" + kernel_driver).c_str());
+  }
 }
 
 std::vector<std::string> EmulatedHorusBoard::CommandLog() const {

@@ -49,7 +49,9 @@ class EmulatedHorusBoard {
   void VanishAfterCommands(int n);    // after n command lines the device is gone (-ENODEV everywhere)
   void Vanish();                      // gone now, and removed from sysfs (a udev "remove" event)
   void DenyAccess(bool deny);         // device node mode 0000 (root also needs CAP_DAC_OVERRIDE dropped)
-  void SetBusy(bool busy);            // claiming an interface fails with -EBUSY (another owner)
+  // Claiming an interface fails with -EBUSY: another program owns it, or (kernel_driver not empty) a kernel
+  // driver that would not let go (USBDEVFS_GETDRIVER and sysfs name it).
+  void SetBusy(bool busy, const std::string& kernel_driver = "");
 
   // What the firmware saw and did.
   std::vector<std::string> CommandLog() const;  // lines as received, without "\r\n"; "^X" for a reset

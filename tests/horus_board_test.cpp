@@ -28,13 +28,14 @@ class HorusBoardTest : public ::testing::Test {
                       "board is unavailable";
     }
   }
-  // Short timeouts: the emulator answers at once or never.
+  // Short timeouts: the emulator answers at once or never (still generous for a loaded 2-core machine, where
+  // an answer takes a few milliseconds).
   static HorusBoardOptions Fast() {
     HorusBoardOptions o;
-    o.timeout_ms = 150;
+    o.timeout_ms = 400;
     o.retries = 2;
-    o.banner_timeout_ms = 300;
-    o.move_timeout_ms = 300;
+    o.banner_timeout_ms = 500;
+    o.move_timeout_ms = 500;
     return o;
   }
   static DeviceError::Kind KindOf(const std::function<void()>& f, std::string* message) {
@@ -97,6 +98,7 @@ TEST_F(HorusBoardTest, EnumerationSeesTheEmulatedBoard) {
   EXPECT_EQ(d.product, "Horus turntable (emulated)");
   EXPECT_EQ(d.serial_number, "EMU0001");
   EXPECT_EQ(d.supported_as, "Arduino board (CDC-ACM)");
+  EXPECT_TRUE(d.accessible);
   EXPECT_EQ(context.FindByVidPid(0x2341, 0).size(), 1u);
   EXPECT_EQ(context.FindByVidPid(0x0403, 0x6001).size(), 0u);
   EXPECT_EQ(context.FindByInterfaceClass(kUsbClassCdcData).size(), 1u);
@@ -105,6 +107,45 @@ TEST_F(HorusBoardTest, EnumerationSeesTheEmulatedBoard) {
   ASSERT_EQ(supported.size(), 1u);
   EXPECT_EQ(supported[0].Name(), "2341:0043 'Horus turntable (emulated)' (bus 1, address 5)");
   EXPECT_EQ(ListSupportedDevices().size(), 1u);  // its own context
+}
+
+TEST_F(HorusBoardTest, TransportTransfersAndOutlivesItsContext) {
+  EmulatedHorusBoard emu;
+  std::unique_ptr<UsbDevice> device;
+  {
+    UsbContext context;
+    const std::vector<UsbDeviceInfo> found = context.FindByInterfaceClass(kUsbClassCdcComm);
+    ASSERT_EQ(found.size(), 1u);
+    UsbDevice::Options options;
+    options.timeout_ms = 300;
+    options.retries = 1;
+    device = context.Open(found[0], options);
+  }  // the device keeps libusb (and its event thread) alive
+  const UsbDevice::CdcAcmEndpoints ep = device->FindCdcAcm();
+  EXPECT_EQ(ep.comm_interface, 0);
+  EXPECT_EQ(ep.data_interface, 1);
+  EXPECT_EQ(ep.bulk_out, 0x04);
+  EXPECT_EQ(ep.bulk_in, 0x83);
+  // GET_DESCRIPTOR (string 2, English) as a raw control transfer: bLength, bDescriptorType 3, UTF-16LE.
+  std::vector<std::uint8_t> data(255);
+  device->Control(0x80, 6, 0x0302, 0x0409, data, "reading the product string");
+  ASSERT_EQ(data.size(), 2u + 2u * std::string("Horus turntable (emulated)").size());
+  EXPECT_EQ(data[1], 3);
+  EXPECT_EQ(data[2], 'H');
+  device->ClaimInterface(1);
+  device->BulkWrite(ep.bulk_out, {0x18, '\r', '\n'}, "reset");
+  std::string text;
+  while (text.find("help]") == std::string::npos) {
+    const std::vector<std::uint8_t> got = device->BulkRead(ep.bulk_in, 64, "banner");
+    text.append(got.begin(), got.end());
+  }
+  EXPECT_EQ(text, "\r\nHorus 0.1 ['$' for help]\r\n");
+  EXPECT_TRUE(device->BulkReadAvailable(ep.bulk_in, 64, 50, "nothing more").empty());
+  const UsbDevice::Stats stats = device->GetStats();
+  EXPECT_EQ(stats.timeouts, 0);
+  EXPECT_EQ(stats.retries, 0);
+  EXPECT_GE(stats.transfers, 3);
+  device.reset();  // closes the device, then libusb_exit and the event thread's join
 }
 
 TEST_F(HorusBoardTest, HandshakeSetsTheLineAndReadsTheBanner) {
@@ -188,10 +229,21 @@ TEST_F(HorusBoardTest, SilentBoardTimesOutAfterTheRetries) {
   EXPECT_NE(message.find("2341:0043"), std::string::npos) << message;
   EXPECT_NE(message.find("bus 1, address 5"), std::string::npos) << message;
   EXPECT_NE(message.find("command 'M71T2'"), std::string::npos) << message;
-  EXPECT_NE(message.find("3 attempts of 150 ms"), std::string::npos) << message;
+  EXPECT_NE(message.find("3 attempts of 400 ms"), std::string::npos) << message;
   const UsbDevice::Stats stats = board->TransportStats();
   EXPECT_EQ(stats.timeouts, 3);
   EXPECT_EQ(stats.retries, 2);
+}
+
+TEST_F(HorusBoardTest, SilentAtOpenTimesOutWaitingForTheBanner) {
+  EmulatedHorusBoard emu;
+  emu.SetUnresponsive(true);
+  UsbContext context;
+  std::string message;
+  EXPECT_EQ(KindOf([&] { OpenHorusBoard(context, Fast()); }, &message), DeviceError::Kind::kTimeout);
+  EXPECT_NE(message.find("reset (Ctrl-X), waiting for the Horus banner"), std::string::npos) << message;
+  EXPECT_NE(message.find("3 attempts of 500 ms"), std::string::npos) << message;
+  EXPECT_EQ(emu.Resets(), 1);  // the reset reached the board; its answer did not come back
 }
 
 TEST_F(HorusBoardTest, VanishingMidScanKeepsWhatWasDone) {
@@ -244,7 +296,17 @@ TEST_F(HorusBoardTest, NoPermissionGivesTheUdevRule) {
     kind = KindOf([&] { OpenHorusBoard(context, Fast()); }, &message);
   }
   EXPECT_EQ(kind, DeviceError::Kind::kPermission);
+  {
+    test::ScopedNoDacOverride unprivileged;
+    const std::vector<UsbDeviceInfo> listed = ListSupportedDevices(context);
+    ASSERT_EQ(listed.size(), 1u);  // enumeration needs no access (sysfs); its strings do
+    EXPECT_FALSE(listed[0].accessible);
+    EXPECT_EQ(listed[0].product, "");
+    EXPECT_NE(listed[0].open_error.find(UdevRuleFor(0x2341, 0x0043)), std::string::npos)
+        << listed[0].open_error;
+  }
   EXPECT_NE(message.find(UdevRuleFor(0x2341, 0x0043)), std::string::npos) << message;
+  EXPECT_NE(message.find("opening: no permission"), std::string::npos) << message;
   EXPECT_NE(message.find("/etc/udev/rules.d/60-scan2model.rules"), std::string::npos) << message;
   emu.DenyAccess(false);
   EXPECT_EQ(OpenHorusBoard(context, Fast())->Banner(), "Horus 0.1 ['$' for help]");
@@ -261,6 +323,17 @@ TEST_F(HorusBoardTest, BusyInterfaceSaysWhoToAsk) {
   EXPECT_NE(message.find("2341:0043"), std::string::npos) << message;
   emu.SetBusy(false);
   EXPECT_NO_THROW(OpenHorusBoard(context, Fast()));
+}
+
+TEST_F(HorusBoardTest, BusyKernelDriverIsNamed) {
+  EmulatedHorusBoard emu;
+  UsbContext context;
+  emu.SetBusy(true, "cdc_acm");
+  std::string message;
+  EXPECT_EQ(KindOf([&] { OpenHorusBoard(context, Fast()); }, &message), DeviceError::Kind::kBusy);
+  EXPECT_NE(message.find("the kernel driver cdc_acm holds it"), std::string::npos) << message;
+  EXPECT_NE(message.find("/sys/bus/usb/drivers/cdc_acm/unbind"), std::string::npos) << message;
+  EXPECT_NE(message.find("fuser -v /dev/ttyACM*"), std::string::npos) << message;
 }
 
 TEST_F(HorusBoardTest, WrongBannerIsAProtocolError) {
