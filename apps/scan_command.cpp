@@ -149,7 +149,8 @@ Runner AddScanCommand(CLI::App& app) {
       if (!calibration) {
         if (!rig.truth) throw std::invalid_argument("--calibration is required for this device");
         calibration = rig.truth;
-        if (!o->quiet) std::cerr << "scan: no --calibration: using the virtual rig's true calibration\n";
+        // Said even with --quiet: a scan with a perfect calibration is not a real one.
+        std::cerr << "scan: no --calibration: using the virtual rig's true calibration\n";
       }
       HorusScanOptions options;
       options.steps = o->steps;

@@ -195,9 +195,7 @@ std::string HorusCalibrationJson(const HorusCalibration& c) {
     lasers.push_back({{"normal", {p.normal.x(), p.normal.y(), p.normal.z()}}, {"distance", p.distance}});
   json m = json::array();
   const Eigen::Matrix4d t = c.platform_T_camera.matrix();
-  for (int r = 0; r < 4; ++r) {
-    for (int col = 0; col < 4; ++col) m.push_back(t(r, col));
-  }
+  for (int r = 0; r < 4; ++r) m.push_back({t(r, 0), t(r, 1), t(r, 2), t(r, 3)});
   return json{{"camera",
                {{"width", c.camera.width},
                 {"height", c.camera.height},
@@ -207,7 +205,8 @@ std::string HorusCalibrationJson(const HorusCalibration& c) {
                 {"cy", c.camera.cy},
                 {"distortion", c.camera.distortion}}},
               {"lasers", lasers},
-              {"platform_T_camera", m}}
+              {"platform_T_camera", m},
+              {"units", "mm"}}
       .dump();
 }
 

@@ -95,8 +95,9 @@ HorusScanResult RunHorusScan(TurntableBoard& board, ImageCamera& camera, const H
 // lasers, start angle, view grouping, feed rate, acceleration, settle time); a resume must match them.
 std::string HorusScanOptionsToJson(const HorusScanOptions& options);
 
-// The "horus" member of the recording's calibration JSON (minimal serializer of this module: camera
-// intrinsics, laser planes, platform_T_camera row-major).
+// The "horus" member of the recording's calibration JSON: exactly HorusCalibrationToJson's form
+// (devices/horus_calibration.h; tested equal), written here so that the scan loop needs no OpenCV library:
+// {"camera": {...}, "lasers": [...], "platform_T_camera": 4 rows of 4, "units": "mm"}.
 std::string HorusCalibrationJson(const HorusCalibration& calibration);
 
 // Where a scan's images go when HorusScanOptions::store_images is set.

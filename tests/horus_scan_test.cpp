@@ -7,11 +7,15 @@
 
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "acquisition/format_error.h"
 #include "acquisition/frame_source.h"
 #include "acquisition/recording.h"
+#ifdef S2M_HAVE_HORUS_OPENCV
+#include "devices/horus_calibration.h"
+#endif
 #include "test_support.h"
 
 namespace s2m {
@@ -216,8 +220,13 @@ TEST_F(HorusScanTest, CompleteScanRecordsOneViewPerStepAndLaser) {
   const nlohmann::json calibration = nlohmann::json::parse(summary.calibration);
   EXPECT_EQ(calibration["horus"]["camera"]["fx"], 1430.0);
   EXPECT_EQ(calibration["horus"]["lasers"].size(), 2u);
-  EXPECT_EQ(calibration["horus"]["platform_T_camera"][7], -300.0);  // row-major: row 1, column 3
-  EXPECT_EQ(calibration["horus"]["platform_T_camera"][11], 60.0);
+  EXPECT_EQ(calibration["horus"]["platform_T_camera"][1][3], -300.0);
+  EXPECT_EQ(calibration["horus"]["platform_T_camera"][2][3], 60.0);
+#ifdef S2M_HAVE_HORUS_OPENCV
+  // The same form as the calibration module's, and read back by it.
+  EXPECT_EQ(calibration["horus"], HorusCalibrationToJson(calibration_));
+  EXPECT_EQ(HorusCalibrationToJson(HorusCalibrationFromJson(calibration["horus"])), calibration["horus"]);
+#endif
 
   const std::vector<RecordingFrame> frames = ProfileFrames(out);
   ASSERT_EQ(frames.size(), 24u);
@@ -533,6 +542,67 @@ TEST_F(HorusScanTest, BadOptionsAreRefusedBeforeAnything) {
   EXPECT_FALSE(fs::exists(dir_ / "a.s2mrec"));
   EXPECT_TRUE(board.log.empty());
 }
+
+// ----------------------------------------------------------------------------------------- the command
+
+std::string Cli() {
+  return std::string(S2M_CLI_PATH);
+}
+
+TEST_F(HorusScanTest, ScanCommandRefusesClearly) {
+  // A real scanner needs a calibration; an unknown device is a usage error.
+  test::ShellResult r = test::Shell(Cli() + " scan --device horus --out " + (dir_ / "a.s2mrec").string());
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("--calibration is required"), std::string::npos) << r.out;
+  r = test::Shell(Cli() + " scan --device kinect --out " + (dir_ / "a.s2mrec").string());
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("unknown --device 'kinect'"), std::string::npos) << r.out;
+  // No board connected (or no USB at all here): a device error (exit 5), nothing recorded.
+  const fs::path calibration = dir_ / "calibration.json";
+  std::ofstream(calibration) << "{\"horus\": " << HorusCalibrationJson(calibration_) << "}";
+#ifdef S2M_HAVE_HORUS_OPENCV
+  r = test::Shell(Cli() + " scan --device horus,vid=0x2341,pid=0x0043 --calibration " + calibration.string() +
+                  " --out " + (dir_ / "a.s2mrec").string());
+  EXPECT_EQ(r.exit_code, 5) << r.out;
+  EXPECT_NE(r.out.find("scan2model scan: error:"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir_ / "a.s2mrec"));
+#endif
+}
+
+#ifdef S2M_HAVE_VIRTUAL_HORUS
+// The virtual rig end to end: rendered images -> laser line -> triangulation -> recording -> fit.
+TEST_F(HorusScanTest, VirtualVaseScanFitsItsSurface) {
+  const std::string out = (dir_ / "vase.s2mrec").string();
+  const std::string scan = Cli() + " scan --device horus-virtual:vase --steps 24 --views sweep --out " + out;
+  test::ShellResult r = test::Shell(scan + " -q");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("using the virtual rig's true calibration"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("complete, 48 (step, laser) pairs, 48 profile frames"), std::string::npos) << r.out;
+  {
+    const RecordingReader reader = RecordingReader::Open(out);
+    EXPECT_EQ(reader.Meta("status").value_or(""), "complete");
+    EXPECT_EQ(nlohmann::json::parse(reader.Summary().device)["name"], "horus-virtual:vase");
+  }
+  const std::unique_ptr<FrameSource> source = OpenRecordingSource(out);
+  const ScanSet set = FramesToScanSet(*source);
+  ASSERT_EQ(set.scans.size(), 2u);
+  EXPECT_GT(set.TotalPoints(), 10000);
+  // The revolution fit of both sweeps: the rendered stripes' sub-pixel centres give about 0.01 mm.
+  r = test::Shell(Cli() + " fit --model revolution " + out, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const std::size_t at = r.out.find("residuals         RMS ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const double rms = std::stod(r.out.substr(at + 22));
+  EXPECT_LT(rms, 0.05) << r.out;
+  // Never overwritten; a complete scan is not resumed.
+  r = test::Shell(scan + " -q");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("exists already"), std::string::npos) << r.out;
+  r = test::Shell(scan + " -q --resume");
+  EXPECT_EQ(r.exit_code, 3) << r.out;
+  EXPECT_NE(r.out.find("the scan is complete"), std::string::npos) << r.out;
+}
+#endif
 
 }  // namespace
 }  // namespace s2m
