@@ -602,6 +602,25 @@ TEST_F(HorusScanTest, VirtualVaseScanFitsItsSurface) {
   EXPECT_EQ(r.exit_code, 3) << r.out;
   EXPECT_NE(r.out.find("the scan is complete"), std::string::npos) << r.out;
 }
+
+// Ctrl-C: the scan stops after the pair in progress, the recording says interrupted and how to resume.
+TEST_F(HorusScanTest, InterruptedByCtrlCIsResumable) {
+  const std::string out = (dir_ / "ctrl_c.s2mrec").string();
+  const test::ShellResult r =
+      test::Shell("( " + Cli() + " scan -q --device horus-virtual:vase --steps 200 --out " + out +
+                  " & pid=$!; sleep 5; kill -INT $pid; wait $pid; echo rc=$? )");
+  EXPECT_NE(r.out.find("rc=5"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("interrupted by the user (Ctrl-C); the lasers and the motor are off"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("--steps 200 --resume"), std::string::npos) << r.out;
+  const RecordingReader reader = RecordingReader::Open(out);
+  EXPECT_EQ(reader.Meta("status").value_or(""), "interrupted: interrupted by the user (Ctrl-C)");
+  const std::size_t frames = ProfileFrames(out).size();
+  EXPECT_GT(frames, 0u);
+  EXPECT_LT(frames, 400u);
+  EXPECT_EQ(reader.Meta("horus.acquired").value_or(""), std::to_string(frames));
+}
 #endif
 
 }  // namespace
