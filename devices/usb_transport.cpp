@@ -384,7 +384,7 @@ void UsbDevice::ClaimInterface(int interface_number) {
     holder =
         "the kernel driver " + (driver.empty() ? std::string("(probably cdc_acm)") : driver) + " holds it" +
         (detach != 0 ? " and libusb cannot detach kernel drivers on this platform"
-                     : " and would not let go (a program has its serial port open)") +
+                     : " and could not be detached") +
         ". Close programs using the serial port (see fuser -v /dev/ttyACM*), or unbind the driver: echo -n "
         "'" +
         (interface_name.empty() ? "<bus>-<port>:1." + std::to_string(interface_number) : interface_name) +
