@@ -23,5 +23,6 @@ Runner AddRecordCommand(CLI::App& app);  // apps/acquire_commands.cpp
 Runner AddExportCommand(CLI::App& app);
 Runner AddBatchCommand(CLI::App& app);   // apps/batch_command.cpp, docs/batch.md
 Runner AddReportCommand(CLI::App& app);  // apps/report.cpp
+Runner AddCalibrateCommand(CLI::App& app);  // apps/calibrate_command.cpp, docs/laser-scanning.md
 
 }  // namespace s2m::app

@@ -71,8 +71,8 @@ VirtualHorus Rig(const std::string& extra = "") {
 // The whole image -> points path on the vase with the true calibration: the extracted line against the
 // rendered stripe's true centre (pixels), and the triangulated points against the exact surface (the distance
 // along the camera's ray to where that ray meets the surface).
-TEST(VirtualHorus, ScanOfVaseLiesOnTheTrueSurface) {
-  VirtualHorus v = Rig();
+void ScanOfVaseLiesOnTheTrueSurface(const std::string& extra) {
+  VirtualHorus v = Rig(extra);
   v.board->EnableMotor(true);
   const RigidMotion camera_in_platform = v.truth.platform_T_camera;
   double pixel_sum = 0, range_sum = 0, range_max = 0;
@@ -126,6 +126,15 @@ TEST(VirtualHorus, ScanOfVaseLiesOnTheTrueSurface) {
   EXPECT_LT(pixel_rms, 0.05);
   EXPECT_LT(range_rms, 0.05);
   EXPECT_LT(range_max, 0.3);
+}
+
+TEST(VirtualHorus, ScanOfVaseLiesOnTheTrueSurface) {
+  ScanOfVaseLiesOnTheTrueSurface("");
+}
+
+// The same through a lens with barrel distortion (rendered with it, undistorted by cv::undistortPoints).
+TEST(VirtualHorus, ScanThroughDistortedLensLiesOnTheTrueSurface) {
+  ScanOfVaseLiesOnTheTrueSurface(",k1=-0.12,k2=0.05,p1=0.001");
 }
 
 // ------------------------------------------------------------------------------------------ calibration
@@ -291,6 +300,45 @@ TEST(ImageCameras, MissingV4l2CameraIsAClearError) {
               std::string::npos)
         << e.what();
   }
+}
+
+// `scan2model calibrate` on the virtual rig writes the calibration under "horus" with its residuals and its
+// errors against the truth; the saved image set calibrates to the same result; bad input gives clear errors.
+TEST(CalibrateCommand, VirtualRigThenSavedImages) {
+  const fs::path dir = test::FreshTempDir("horus_calibrate");
+  const std::string cli = S2M_CLI_PATH;
+  const test::ShellResult first =
+      test::Shell(cli + " calibrate --device horus-virtual:vase --poses 8 --angles 7 --out " +
+                  (dir / "calib.json").string() + " --save-images " + (dir / "images").string());
+  ASSERT_EQ(first.exit_code, 0) << first.out;
+  EXPECT_NE(first.out.find("calibrate: pattern sweep: 7/7"), std::string::npos) << first.out;
+  nlohmann::json doc = nlohmann::json::parse(std::ifstream(dir / "calib.json"));
+  const HorusCalibration c = HorusCalibrationFromJson(doc.at("horus"), "calib.json");
+  EXPECT_EQ(c.lasers.size(), 2u);
+  EXPECT_LT(doc["residuals"]["intrinsics"]["rms_px"].get<double>(), 0.1);
+  EXPECT_LT(std::abs(doc["errors_vs_truth"]["fx_px"].get<double>()), 3.0);
+  EXPECT_LT(doc["errors_vs_truth"]["axis_direction_deg"].get<double>(), 0.2);
+  EXPECT_LT(doc["errors_vs_truth"]["platform_origin_mm"].get<double>(), 1.5);
+  for (const auto& l : doc["errors_vs_truth"]["lasers"]) {
+    EXPECT_LT(l["normal_deg"].get<double>(), 0.2);
+    EXPECT_LT(std::abs(l["distance_mm"].get<double>()), 1.0);
+  }
+  const test::ShellResult again = test::Shell(cli + " calibrate -q --images " + (dir / "images").string() +
+                                              " --out " + (dir / "again.json").string());
+  ASSERT_EQ(again.exit_code, 0) << again.out;
+  const nlohmann::json redo = nlohmann::json::parse(std::ifstream(dir / "again.json"));
+  EXPECT_NEAR(redo["horus"]["camera"]["fx"].get<double>(), doc["horus"]["camera"]["fx"].get<double>(), 1e-9);
+  EXPECT_NEAR(redo["horus"]["lasers"][1]["distance"].get<double>(),
+              doc["horus"]["lasers"][1]["distance"].get<double>(), 1e-9);
+  const test::ShellResult missing = test::Shell(cli + " calibrate --images " + (dir / "nothing").string() +
+                                                " --out " + (dir / "x.json").string());
+  EXPECT_EQ(missing.exit_code, 3);
+  EXPECT_NE(missing.out.find("calibration_images.json' does not exist"), std::string::npos) << missing.out;
+  const test::ShellResult bad =
+      test::Shell(cli + " calibrate --device horus-virtual:vase,fov=9 --out " + (dir / "x.json").string());
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.out.find("unknown device option 'fov'"), std::string::npos) << bad.out;
+  fs::remove_all(dir);
 }
 
 TEST(VirtualHorus, SpecErrorsNameTheOption) {
