@@ -158,11 +158,13 @@ std::optional<std::vector<Eigen::Vector2d>> DetectChessboard(const Image8& image
   const cv::Mat grey = ToGrey(image);
   std::vector<cv::Point2f> corners;
   const cv::Size size(pattern.columns, pattern.rows);
-  if (!cv::findChessboardCorners(grey, size, corners,
-                                 cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE))
+  if (!cv::findChessboardCorners(
+          grey, size, corners,
+          cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK))
     return std::nullopt;
   cv::cornerSubPix(grey, corners, cv::Size(5, 5), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::EPS | cv::TermCriteria::COUNT, 100, 1e-4));
+  // (CALIB_CB_FAST_CHECK: images without a pattern are rejected quickly instead of after seconds of search.)
   // findChessboardCorners may return the grid turned by 180 degrees (its only ambiguity for columns != rows).
   if (corners.front().y + corners.front().x > corners.back().y + corners.back().x)
     std::reverse(corners.begin(), corners.end());

@@ -254,6 +254,41 @@ TEST(HorusCalibration, RecoversIntrinsicsLaserPlanesAndAxis) {
   EXPECT_LT(worst, 1.0);
 }
 
+// What the procedures say when the images cannot calibrate: no pattern in the intrinsics images, a pattern
+// whose plane contains the axis (every laser line on one line), too few turntable stops.
+TEST(HorusCalibration, DegenerateInputIsExplained) {
+  VirtualHorus v = Rig();
+  ChessboardPattern pattern;
+  std::vector<Image8> vase;
+  for (int k = 0; k < 3; ++k) vase.push_back(v.camera->Capture());
+  try {
+    CalibrateIntrinsics(vase, pattern);
+    FAIL() << "calibrated without a pattern";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("pattern was found in 0 of 3 images"), std::string::npos)
+        << e.what();
+  }
+  // The pattern's plane through the axis: the laser planes (1.5 mm off the axis) meet it near the axis at
+  // every angle.
+  v.rig->PlacePattern(pattern, VirtualHorusRig::StandingPatternPose(pattern, 0.0));
+  const std::vector<PatternCapture> sweep =
+      CapturePatternSweep(*v.board, *v.camera, {-20 * kDegree, 0.0, 20 * kDegree}, 2);
+  try {
+    CalibrateLaserPlanes(sweep, v.truth.camera, pattern);
+    FAIL() << "a plane from (nearly) collinear points";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("lie (nearly) on one line"), std::string::npos) << e.what();
+  }
+  const std::vector<PatternCapture> two(sweep.begin(), sweep.begin() + 2);
+  try {
+    CalibrateTurntableAxis(two, v.truth.camera, pattern);
+    FAIL() << "an axis from two poses";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("found at 2 of 2 angles; at least 3"), std::string::npos)
+        << e.what();
+  }
+}
+
 // ------------------------------------------------------------------------------------------------ JSON
 
 TEST(HorusCalibration, JsonRoundTrip) {
