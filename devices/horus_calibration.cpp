@@ -145,6 +145,24 @@ HorusCalibration HorusCalibrationFromJson(const nlohmann::json& j, const std::st
   return c;
 }
 
+HorusCalibration HorusCalibrationFromDocument(const nlohmann::json& document, const std::string& what) {
+  if (!document.is_object() || !document.contains("horus"))
+    throw std::invalid_argument(what + ": no 'horus' calibration (run `scan2model calibrate`)");
+  return HorusCalibrationFromJson(document.at("horus"), what + ": horus");
+}
+
+HorusCalibration ReadHorusCalibrationFile(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("calibration '" + path.string() + "' cannot be opened");
+  try {
+    return HorusCalibrationFromDocument(nlohmann::json::parse(in), "'" + path.string() + "'");
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error("calibration '" + path.string() + "' is not JSON: " + e.what());
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(e.what());
+  }
+}
+
 std::vector<Eigen::Vector3d> ChessboardPattern::ObjectPoints() const {
   std::vector<Eigen::Vector3d> p;
   for (int r = 0; r < rows; ++r)

@@ -33,6 +33,12 @@ nlohmann::json HorusCalibrationToJson(const HorusCalibration& calibration);
 // Throws std::invalid_argument naming the missing or malformed field (and `what`, e.g. the file name).
 HorusCalibration HorusCalibrationFromJson(const nlohmann::json& json,
                                           const std::string& what = "calibration");
+// A calibration document (a recording's calibration JSON, or the file `scan2model calibrate` writes): the
+// calibration under its "horus" key. ReadHorusCalibrationFile throws std::runtime_error naming the file when
+// it is missing, not JSON, has no "horus" key or a malformed calibration.
+HorusCalibration HorusCalibrationFromDocument(const nlohmann::json& document,
+                                              const std::string& what = "calibration");
+HorusCalibration ReadHorusCalibrationFile(const std::filesystem::path& path);
 
 // --------------------------------------------------------------------------------------------- pattern
 

@@ -336,6 +336,21 @@ TEST(HorusCalibration, BadJsonIsRefusedWithTheField) {
   j["platform_T_camera"][3] = {0, 0};
   EXPECT_NE(message(j).find("platform_T_camera row 3"), std::string::npos) << message(j);
   EXPECT_NE(message(nlohmann::json::array()).find("must be a JSON object"), std::string::npos);
+  // Files: the calibration under "horus", named in every error.
+  const fs::path dir = test::FreshTempDir("horus_json");
+  std::ofstream(dir / "good.json") << nlohmann::json{{"horus", good}}.dump();
+  EXPECT_DOUBLE_EQ(ReadHorusCalibrationFile(dir / "good.json").camera.fx, good["camera"]["fx"].get<double>());
+  std::ofstream(dir / "other.json") << good.dump();
+  std::ofstream(dir / "broken.json") << "{\"horus\": ";
+  for (const char* name : {"other.json", "broken.json", "absent.json"}) {
+    try {
+      ReadHorusCalibrationFile(dir / name);
+      ADD_FAILURE() << name;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  }
+  fs::remove_all(dir);
 }
 
 // ---------------------------------------------------------------------------------------------- cameras
@@ -397,7 +412,7 @@ TEST(CalibrateCommand, VirtualRigThenSavedImages) {
   ASSERT_EQ(first.exit_code, 0) << first.out;
   EXPECT_NE(first.out.find("calibrate: pattern sweep: 7/7"), std::string::npos) << first.out;
   nlohmann::json doc = nlohmann::json::parse(std::ifstream(dir / "calib.json"));
-  const HorusCalibration c = HorusCalibrationFromJson(doc.at("horus"), "calib.json");
+  const HorusCalibration c = ReadHorusCalibrationFile(dir / "calib.json");
   EXPECT_EQ(c.lasers.size(), 2u);
   EXPECT_LT(doc["residuals"]["intrinsics"]["rms_px"].get<double>(), 0.1);
   EXPECT_LT(std::abs(doc["errors_vs_truth"]["fx_px"].get<double>()), 3.0);
