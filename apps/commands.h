@@ -27,5 +27,6 @@ Runner AddBatchCommand(CLI::App& app);   // apps/batch_command.cpp, docs/batch.m
 Runner AddReportCommand(CLI::App& app);  // apps/report.cpp
 Runner AddScanCommand(CLI::App& app);    // apps/scan_command.cpp, docs/horus-scan.md
 Runner AddDevicesCommand(CLI::App& app);  // apps/devices_command.cpp, docs/devices.md
+Runner AddCalibrateCommand(CLI::App& app);  // apps/calibrate_command.cpp, docs/laser-scanning.md
 
 }  // namespace s2m::app

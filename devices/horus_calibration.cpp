@@ -6,11 +6,14 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
 #include "devices/laser_line.h"
+#include "devices/opencv_camera.h"
 
 namespace s2m {
 namespace {
@@ -142,6 +145,24 @@ HorusCalibration HorusCalibrationFromJson(const nlohmann::json& j, const std::st
   return c;
 }
 
+HorusCalibration HorusCalibrationFromDocument(const nlohmann::json& document, const std::string& what) {
+  if (!document.is_object() || !document.contains("horus"))
+    throw std::invalid_argument(what + ": no 'horus' calibration (run `scan2model calibrate`)");
+  return HorusCalibrationFromJson(document.at("horus"), what + ": horus");
+}
+
+HorusCalibration ReadHorusCalibrationFile(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("calibration '" + path.string() + "' cannot be opened");
+  try {
+    return HorusCalibrationFromDocument(nlohmann::json::parse(in), "'" + path.string() + "'");
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error("calibration '" + path.string() + "' is not JSON: " + e.what());
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(e.what());
+  }
+}
+
 std::vector<Eigen::Vector3d> ChessboardPattern::ObjectPoints() const {
   std::vector<Eigen::Vector3d> p;
   for (int r = 0; r < rows; ++r)
@@ -155,11 +176,13 @@ std::optional<std::vector<Eigen::Vector2d>> DetectChessboard(const Image8& image
   const cv::Mat grey = ToGrey(image);
   std::vector<cv::Point2f> corners;
   const cv::Size size(pattern.columns, pattern.rows);
-  if (!cv::findChessboardCorners(grey, size, corners,
-                                 cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE))
+  if (!cv::findChessboardCorners(
+          grey, size, corners,
+          cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK))
     return std::nullopt;
   cv::cornerSubPix(grey, corners, cv::Size(5, 5), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::EPS | cv::TermCriteria::COUNT, 100, 1e-4));
+  // (CALIB_CB_FAST_CHECK: images without a pattern are rejected quickly instead of after seconds of search.)
   // findChessboardCorners may return the grid turned by 180 degrees (its only ambiguity for columns != rows).
   if (corners.front().y + corners.front().x > corners.back().y + corners.back().x)
     std::reverse(corners.begin(), corners.end());
@@ -266,6 +289,98 @@ std::vector<PatternCapture> CapturePatternSweep(TurntableBoard& board, ImageCame
                std::to_string(angles_rad[k] * 180.0 / M_PI) + " deg");
   }
   return captures;
+}
+
+std::vector<Image8> CaptureIntrinsicsImages(TurntableBoard& board, ImageCamera& camera, int count,
+                                            const std::function<void(int)>& present_pose,
+                                            const CalibrationProgress& progress) {
+  board.SetLaser(0, false);
+  board.SetLaser(1, false);
+  std::vector<Image8> images;
+  for (int k = 0; k < count; ++k) {
+    if (present_pose) present_pose(k);
+    images.push_back(camera.Capture());
+    if (progress) progress("intrinsics: pattern pose " + std::to_string(k + 1) + "/" + std::to_string(count));
+  }
+  return images;
+}
+
+void WriteCalibrationImages(const std::filesystem::path& directory,
+                            const std::vector<Image8>& intrinsics_images,
+                            const std::vector<PatternCapture>& sweep, const ChessboardPattern& pattern) {
+  std::error_code error;
+  std::filesystem::create_directories(directory, error);
+  if (error) throw std::runtime_error("cannot create '" + directory.string() + "': " + error.message());
+  nlohmann::json j;
+  j["format"] = "scan2model.horus_images/1";
+  j["pattern"] = {{"columns", pattern.columns},
+                  {"rows", pattern.rows},
+                  {"square", pattern.square},
+                  {"bottom_row_height", pattern.bottom_row_height}};
+  j["intrinsics"] = nlohmann::json::array();
+  char name[64];
+  for (std::size_t k = 0; k < intrinsics_images.size(); ++k) {
+    std::snprintf(name, sizeof name, "intrinsics_%03zu.png", k);
+    WriteImagePng(intrinsics_images[k], directory / name);
+    j["intrinsics"].push_back(name);
+  }
+  j["sweep"] = nlohmann::json::array();
+  for (std::size_t k = 0; k < sweep.size(); ++k) {
+    nlohmann::json stop = {{"angle_deg", sweep[k].angle_rad * 180.0 / M_PI}};
+    std::snprintf(name, sizeof name, "sweep_%03zu_off.png", k);
+    WriteImagePng(sweep[k].off, directory / name);
+    stop["off"] = name;
+    stop["lasers"] = nlohmann::json::array();
+    for (std::size_t l = 0; l < sweep[k].lasers.size(); ++l) {
+      std::snprintf(name, sizeof name, "sweep_%03zu_laser%zu.png", k, l);
+      WriteImagePng(sweep[k].lasers[l], directory / name);
+      stop["lasers"].push_back(name);
+    }
+    j["sweep"].push_back(stop);
+  }
+  const std::filesystem::path manifest = directory / "calibration_images.json";
+  std::ofstream out(manifest);
+  out << j.dump(2) << "\n";
+  if (!out) throw std::runtime_error("cannot write '" + manifest.string() + "'");
+}
+
+CalibrationImages ReadCalibrationImages(const std::filesystem::path& directory) {
+  const std::filesystem::path manifest = directory / "calibration_images.json";
+  std::ifstream in(manifest);
+  if (!in)
+    throw std::runtime_error("'" + manifest.string() + "' does not exist (a calibration image set has one)");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error("'" + manifest.string() + "' is not JSON: " + e.what());
+  }
+  const std::string where = manifest.string();
+  try {
+    if (!j.is_object() || j.value("format", "") != "scan2model.horus_images/1")
+      throw std::invalid_argument(where + ": not a scan2model.horus_images/1 document");
+    CalibrationImages set;
+    const nlohmann::json& p = Field(j, "pattern", where);
+    set.pattern.columns = static_cast<int>(Number(p, "columns", where + ": pattern"));
+    set.pattern.rows = static_cast<int>(Number(p, "rows", where + ": pattern"));
+    set.pattern.square = Number(p, "square", where + ": pattern");
+    set.pattern.bottom_row_height = Number(p, "bottom_row_height", where + ": pattern");
+    auto image = [&](const nlohmann::json& name) {
+      if (!name.is_string()) throw std::invalid_argument(where + ": an image name is not a string");
+      return ReadImagePng(directory / name.get<std::string>());
+    };
+    for (const auto& name : Field(j, "intrinsics", where)) set.intrinsics_images.push_back(image(name));
+    for (const auto& stop : Field(j, "sweep", where)) {
+      PatternCapture c;
+      c.angle_rad = Number(stop, "angle_deg", where + ": sweep") * M_PI / 180.0;
+      c.off = image(Field(stop, "off", where + ": sweep"));
+      for (const auto& name : Field(stop, "lasers", where + ": sweep")) c.lasers.push_back(image(name));
+      set.sweep.push_back(std::move(c));
+    }
+    return set;
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(e.what());
+  }
 }
 
 namespace {

@@ -14,6 +14,7 @@
 // and camera or the virtual rig (devices/virtual_horus.h). OpenCV appears only in horus_calibration.cpp.
 
 #include <Eigen/Core>
+#include <filesystem>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -32,6 +33,12 @@ nlohmann::json HorusCalibrationToJson(const HorusCalibration& calibration);
 // Throws std::invalid_argument naming the missing or malformed field (and `what`, e.g. the file name).
 HorusCalibration HorusCalibrationFromJson(const nlohmann::json& json,
                                           const std::string& what = "calibration");
+// A calibration document (a recording's calibration JSON, or the file `scan2model calibrate` writes): the
+// calibration under its "horus" key. ReadHorusCalibrationFile throws std::runtime_error naming the file when
+// it is missing, not JSON, has no "horus" key or a malformed calibration.
+HorusCalibration HorusCalibrationFromDocument(const nlohmann::json& document,
+                                              const std::string& what = "calibration");
+HorusCalibration ReadHorusCalibrationFile(const std::filesystem::path& path);
 
 // --------------------------------------------------------------------------------------------- pattern
 
@@ -77,6 +84,26 @@ using CalibrationProgress = std::function<void(const std::string& message)>;
 std::vector<PatternCapture> CapturePatternSweep(TurntableBoard& board, ImageCamera& camera,
                                                 const std::vector<double>& angles_rad, int lasers,
                                                 const CalibrationProgress& progress = {});
+
+// Captures `count` images for intrinsics calibration: before each, `present_pose(k)` puts the pattern in its
+// k-th pose (the virtual rig places it; with a real camera, ask the user to move it and wait). Lasers off.
+std::vector<Image8> CaptureIntrinsicsImages(TurntableBoard& board, ImageCamera& camera, int count,
+                                            const std::function<void(int)>& present_pose,
+                                            const CalibrationProgress& progress = {});
+
+// A captured calibration set on disk: <dir>/calibration_images.json (format "scan2model.horus_images/1": the
+// pattern, the intrinsics images' and the sweep's file names and angles) beside the PNG images, so a set
+// taken on a real device can be calibrated again later (`scan2model calibrate --images <dir>`). Write throws
+// std::runtime_error naming the file; Read throws std::runtime_error naming the missing or bad file or field.
+void WriteCalibrationImages(const std::filesystem::path& directory,
+                            const std::vector<Image8>& intrinsics_images,
+                            const std::vector<PatternCapture>& sweep, const ChessboardPattern& pattern);
+struct CalibrationImages {
+  ChessboardPattern pattern;
+  std::vector<Image8> intrinsics_images;
+  std::vector<PatternCapture> sweep;
+};
+CalibrationImages ReadCalibrationImages(const std::filesystem::path& directory);
 
 struct LaserPlanesEstimate {
   std::vector<LaserPlane> planes;  // camera frame

@@ -3,7 +3,7 @@
 #include "devices/opencv_camera.h"
 
 #include <algorithm>
-#include <cstring>
+#include <cctype>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -28,7 +28,8 @@ class OpenCvCamera : public ImageCamera {
  public:
   OpenCvCamera(std::string device, const OpenCvCameraOptions& options)
       : device_(std::move(device)), options_(options) {
-    const bool index = !device_.empty() && std::all_of(device_.begin(), device_.end(), ::isdigit);
+    const bool index = !device_.empty() && std::all_of(device_.begin(), device_.end(),
+                                                       [](unsigned char c) { return std::isdigit(c) != 0; });
     const bool opened =
         index ? capture_.open(std::stoi(device_), cv::CAP_V4L2) : capture_.open(device_, cv::CAP_V4L2);
     if (!opened || !capture_.isOpened())

@@ -309,30 +309,44 @@ Image8 VirtualHorusRig::Render() {
     const double s = pattern_->square;
     const int ss = o.supersampling;
     const double columns = pattern_->columns, rows = pattern_->rows;
+    const CameraIntrinsics& k = truth_.camera;
+    auto albedo = [&](double x, double y) {
+      const Eigen::Vector3d r = distorted ? PixelRay(k, Eigen::Vector2d(x, y))
+                                          : Eigen::Vector3d((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.0);
+      const Eigen::Vector3d h = G * r;
+      if (h.z() <= 1e-12) return o.background;
+      const double i = std::floor(h.x() / h.z() / s), j = std::floor(h.y() / h.z() / s);
+      if (i >= -1 && i < columns && j >= -1 && j < rows)
+        return (static_cast<long>(i + j) % 2 == 0) ? 30.0 : 200.0;
+      if (i >= -2 && i < columns + 1 && j >= -2 && j < rows + 1) return 200.0;  // the white margin
+      return o.background;
+    };
+    // The albedo at the pixels' corners; a pixel is supersampled only where the corners of its 3 x 3
+    // neighbourhood differ (an edge or a square's tip may cross it; squares are many pixels wide).
+    const int W = o.width + 1, H = o.height + 1;
+    std::vector<double> corner(static_cast<std::size_t>(W) * H);
+    for (int row = 0; row < H; ++row)
+      for (int col = 0; col < W; ++col)
+        corner[static_cast<std::size_t>(row) * W + col] = albedo(col - 0.5, row - 0.5);
     for (int row = 0; row < o.height; ++row)
       for (int col = 0; col < o.width; ++col) {
-        double sum = 0;
-        for (int a = 0; a < ss; ++a)
-          for (int b = 0; b < ss; ++b) {
-            const Eigen::Vector2d sub(col - 0.5 + (b + 0.5) / ss, row - 0.5 + (a + 0.5) / ss);
-            const Eigen::Vector3d r =
-                distorted ? PixelRay(truth_.camera, sub)
-                          : Eigen::Vector3d((sub.x() - truth_.camera.cx) / truth_.camera.fx,
-                                            (sub.y() - truth_.camera.cy) / truth_.camera.fy, 1.0);
-            const Eigen::Vector3d h = G * r;
-            double value = o.background;
-            if (h.z() > 1e-12) {
-              const double i = std::floor(h.x() / h.z() / s), j = std::floor(h.y() / h.z() / s);
-              const bool squares = i >= -1 && i < columns && j >= -1 && j < rows;
-              const bool board = i >= -2 && i < columns + 1 && j >= -2 && j < rows + 1;
-              if (squares)
-                value = (static_cast<long>(i + j) % 2 == 0) ? 30.0 : 200.0;
-              else if (board)
-                value = 200.0;
+        const double first = corner[static_cast<std::size_t>(row) * W + col];
+        bool uniform = true;
+        for (int r = std::max(0, row - 1); r <= std::min(H - 1, row + 2) && uniform; ++r)
+          for (int c = std::max(0, col - 1); c <= std::min(W - 1, col + 2); ++c)
+            if (corner[static_cast<std::size_t>(r) * W + c] != first) {
+              uniform = false;
+              break;
             }
-            sum += value;
-          }
-        grey[static_cast<std::size_t>(row) * o.width + col] = static_cast<float>(sum / (ss * ss));
+        double value = first;
+        if (!uniform) {
+          double sum = 0;
+          for (int a = 0; a < ss; ++a)
+            for (int b = 0; b < ss; ++b)
+              sum += albedo(col - 0.5 + (b + 0.5) / ss, row - 0.5 + (a + 0.5) / ss);
+          value = sum / (ss * ss);
+        }
+        grey[static_cast<std::size_t>(row) * o.width + col] = static_cast<float>(value);
       }
     // The lens's blur (a Gaussian point spread function): smooths the supersampling's coverage steps, which
     // otherwise bias cv::cornerSubPix by about 0.1 px (measured).

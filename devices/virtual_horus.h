@@ -15,6 +15,9 @@
 // surface's albedo and slope.
 
 #include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
