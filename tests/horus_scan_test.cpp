@@ -543,6 +543,45 @@ TEST_F(HorusScanTest, BadOptionsAreRefusedBeforeAnything) {
   EXPECT_TRUE(board.log.empty());
 }
 
+TEST_F(HorusScanTest, OpenForAppendAddsFramesToAnExistingRecording) {
+  const fs::path path = dir_ / "append.s2mrec";
+  const Eigen::Matrix3Xd points = Eigen::Matrix3Xd::Random(3, 5);
+  std::int64_t stream = 0;
+  {
+    RecordingWriter w = RecordingWriter::Create(path);
+    stream = w.AddStream("profile", "profile", kPointsEncoding, "mm");
+    w.AppendFrame(stream, 0, EncodePoints(points));
+    w.SetMeta(kStatusMeta, "interrupted: cable");
+    w.Close();
+  }
+  {
+    RecordingWriter w = RecordingWriter::OpenForAppend(path);
+    w.AppendFrame(stream, 1, EncodePoints(2 * points), RigidMotion::Identity(), 7, 0.5);
+    w.SetMeta(kStatusMeta, kStatusComplete);
+    w.Close();
+  }
+  EXPECT_FALSE(fs::exists(path.string() + "-wal"));
+  const std::vector<RecordingFrame> frames = ProfileFrames(path);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(DecodePoints(frames[0].payload, "", ""), points);
+  EXPECT_EQ(DecodePoints(frames[1].payload, "", ""), 2 * points);
+  EXPECT_EQ(frames[1].turntable_angle_rad, 0.5);
+  EXPECT_EQ(frames[1].timestamp_ns, 7);
+  // Complete now: refused, naming the file; so is a file that is not a recording.
+  try {
+    RecordingWriter::OpenForAppend(path);
+    ADD_FAILURE();
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find(path.string()), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("complete"), std::string::npos) << e.what();
+  }
+  std::ofstream(dir_ / "text.s2mrec")
+      << "not a recording, not even SQLite: a long enough line of text to be read "
+         "as a header of one hundred bytes or more, which it is now";
+  EXPECT_THROW(RecordingWriter::OpenForAppend(dir_ / "text.s2mrec"), FormatError);
+  EXPECT_THROW(RecordingWriter::OpenForAppend(dir_ / "missing.s2mrec"), FormatError);
+}
+
 // ----------------------------------------------------------------------------------------- the command
 
 std::string Cli() {
