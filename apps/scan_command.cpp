@@ -188,8 +188,23 @@ Runner AddScanCommand(CLI::App& app) {
 
       resume_hint = "scan2model scan --device " + o->device +
                     (o->calibration.empty() ? "" : " --calibration " + o->calibration) + " --out " + o->out +
-                    " --steps " + std::to_string(o->steps) + (o->views == "sweep" ? " --views sweep" : "") +
-                    " --resume";
+                    " --steps " + std::to_string(o->steps) + (o->views == "sweep" ? " --views sweep" : "");
+      // The options recorded in horus.scan_options that differ from their defaults must be given again.
+      if (o->lasers != std::vector<int>{0, 1}) {
+        resume_hint += " --lasers ";
+        for (std::size_t k = 0; k < o->lasers.size(); ++k)
+          resume_hint += (k ? "," : "") + std::to_string(o->lasers[k]);
+      }
+      const auto number = [](double v) {
+        std::ostringstream s;
+        s << v;
+        return s.str();
+      };
+      if (o->feed_rate != 200.0) resume_hint += " --feed-rate " + number(o->feed_rate);
+      if (o->acceleration != 200.0) resume_hint += " --acceleration " + number(o->acceleration);
+      if (settle->count() > 0) resume_hint += " --settle " + number(o->settle);
+      if (o->start_angle != 0.0) resume_hint += " --start-angle " + number(o->start_angle);
+      resume_hint += " --resume";
       g_stop = false;
       const auto previous = std::signal(SIGINT, OnInterrupt);
       HorusScanResult r;

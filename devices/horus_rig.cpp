@@ -1,6 +1,7 @@
 #include "devices/horus_rig.h"
 
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -141,11 +142,75 @@ HorusRig OpenRealRig(const std::string& spec) {
   return rig;
 }
 
-HorusRig OpenVirtualRig(const std::string& spec) {
+// The virtual board, unplugged on its n-th move (0-based): that move and every later call throw
+// kDisconnected, as a real board whose cable is pulled. For trying (and testing) the scan's disconnect and
+// resume end to end.
+class UnpluggedBoard : public TurntableBoard {
+ public:
+  UnpluggedBoard(std::unique_ptr<TurntableBoard> board, long at_move)
+      : board_(std::move(board)), at_(at_move) {}
+  std::string Banner() const override { return board_->Banner(); }
+  void EnableMotor(bool on) override {
+    Check();
+    board_->EnableMotor(on);
+  }
+  void SetFeedRate(double v) override {
+    Check();
+    board_->SetFeedRate(v);
+  }
+  void SetAcceleration(double v) override {
+    Check();
+    board_->SetAcceleration(v);
+  }
+  void MoveTo(double degrees) override {
+    Check();
+    if (moves_++ == at_) {
+      gone_ = true;
+      Check();
+    }
+    board_->MoveTo(degrees);
+  }
+  void SetLaser(int laser, bool on) override {
+    Check();
+    board_->SetLaser(laser, on);
+  }
+  int ReadLightSensor(int sensor) override {
+    Check();
+    return board_->ReadLightSensor(sensor);
+  }
+  void Reset() override {
+    Check();
+    board_->Reset();
+  }
+
+ private:
+  void Check() const {
+    if (gone_)
+      throw DeviceError(DeviceError::Kind::kDisconnected,
+                        "horus-virtual board: disconnected (unplug_at_move=" + std::to_string(at_) + ")");
+  }
+  std::unique_ptr<TurntableBoard> board_;
+  long at_;
+  long moves_ = 0;
+  bool gone_ = false;
+};
+
+HorusRig OpenVirtualRig(const std::string& full_spec) {
 #ifdef S2M_HAVE_VIRTUAL_HORUS
+  // Our own key, unplug_at_move=N, is taken out before the rest goes to the virtual rig.
+  std::optional<long> unplug_at;
+  std::string spec;
+  for (const std::string& part : Split(full_spec, ',')) {
+    if (part.rfind("unplug_at_move=", 0) == 0) {
+      unplug_at = Number("unplug_at_move", part.substr(15));
+    } else {
+      spec += (spec.empty() ? "" : ",") + part;
+    }
+  }
   VirtualHorus v = MakeVirtualHorus(spec);
   HorusRig rig;
   rig.board = std::move(v.board);
+  if (unplug_at) rig.board = std::make_unique<UnpluggedBoard>(std::move(rig.board), *unplug_at);
   rig.camera = std::move(v.camera);
   rig.truth = v.truth;
   rig.keep_alive = v.rig;
@@ -153,7 +218,7 @@ HorusRig OpenVirtualRig(const std::string& spec) {
   return rig;
 #else
   throw DeviceError(DeviceError::Kind::kOther,
-                    "device " + spec +
+                    "device " + full_spec +
                         ": the virtual Horus rig is not built (it needs OpenCV and Open3D when scan2model is "
                         "built)");
 #endif

@@ -24,9 +24,10 @@ struct HorusRig {
 // "horus[,camera=/dev/video0,vid=0x2341,pid=0x0043,serial=...,width=1280,height=960,exposure=...,
 //  timeout_ms=...]": the real scanner (vid/pid in hex with 0x or decimal; no vid: every supported
 // Arduino-class board is tried; camera default /dev/video0).
-// "horus-virtual:<scene>[,key=value...]": the virtual rig (scene and keys as ParseVirtualHorus takes them).
-// Throws std::invalid_argument for a malformed string, DeviceError when a part cannot be opened or is not
-// built.
+// "horus-virtual:<scene>[,key=value...]": the virtual rig (scene and keys as ParseVirtualHorus takes them),
+// plus unplug_at_move=N: the board is disconnected on its N-th move (0-based), to try a scan's disconnect and
+// resume. Throws std::invalid_argument for a malformed string, DeviceError when a part cannot be opened or is
+// not built.
 HorusRig OpenHorusRig(const std::string& device_spec);
 
 // True for "horus" and "horus-virtual:..." strings (what OpenHorusRig accepts).

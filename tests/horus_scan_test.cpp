@@ -642,6 +642,48 @@ TEST_F(HorusScanTest, VirtualVaseScanFitsItsSurface) {
   EXPECT_NE(r.out.find("the scan is complete"), std::string::npos) << r.out;
 }
 
+// A board unplugged mid-scan (the rig's unplug_at_move key), then the scan resumed: exit 5 with the path and
+// the resume command, then the recording completed with every view and pose of an uninterrupted scan.
+TEST_F(HorusScanTest, VirtualDisconnectThenResumeFromTheCommandLine) {
+  const std::string whole = (dir_ / "whole.s2mrec").string(), cut = (dir_ / "cut.s2mrec").string();
+  const std::string options = " -q --steps 16 --lasers 1,0 --start-angle 5 --out ";
+  test::ShellResult r = test::Shell(Cli() + " scan --device horus-virtual:vase" + options + whole);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  r = test::Shell(Cli() + " scan --device horus-virtual:vase,unplug_at_move=6" + options + cut);
+  EXPECT_EQ(r.exit_code, 5) << r.out;
+  EXPECT_NE(
+      r.out.find("the scan stopped after 12 of 32 (step, laser) pairs: horus-virtual board: disconnected"),
+      std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("every profile acquired so far is in " + cut + " (12 frames, status 'interrupted')"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("--steps 16 --lasers 1,0 --start-angle 5 --resume"), std::string::npos) << r.out;
+  EXPECT_EQ(ProfileFrames(cut).size(), 12u);
+  // Resumed with other options: refused, naming the difference.
+  r = test::Shell(Cli() + " scan --device horus-virtual:vase -q --steps 16 --start-angle 5 --resume --out " +
+                  cut);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("lasers [1,0] (recorded) vs [0,1] (given)"), std::string::npos) << r.out;
+  r = test::Shell(Cli() + " scan --device horus-virtual:vase --resume" + options + cut);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("complete, 32 (step, laser) pairs (resumed at 12), 32 profile frames"),
+            std::string::npos)
+      << r.out;
+  // The rendered noise differs between runs; views, angles and poses are those of the uninterrupted scan.
+  const std::vector<RecordingFrame> a = ProfileFrames(whole), b = ProfileFrames(cut);
+  ASSERT_EQ(a.size(), 32u);
+  ASSERT_EQ(b.size(), 32u);
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(a[k].view, b[k].view);
+    EXPECT_EQ(a[k].turntable_angle_rad, b[k].turntable_angle_rad);
+    ASSERT_TRUE(a[k].world_T_scan && b[k].world_T_scan);
+    EXPECT_EQ(a[k].world_T_scan->matrix(), b[k].world_T_scan->matrix());
+    EXPECT_NEAR(static_cast<double>(DecodePoints(b[k].payload, "", "").cols()),
+                static_cast<double>(DecodePoints(a[k].payload, "", "").cols()), 5.0);
+  }
+}
+
 // Ctrl-C: the scan stops after the pair in progress, the recording says interrupted and how to resume.
 TEST_F(HorusScanTest, InterruptedByCtrlCIsResumable) {
   const std::string out = (dir_ / "ctrl_c.s2mrec").string();
