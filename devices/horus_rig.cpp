@@ -142,6 +142,7 @@ HorusRig OpenRealRig(const std::string& spec) {
   return rig;
 }
 
+#ifdef S2M_HAVE_VIRTUAL_HORUS
 // The virtual board, unplugged on its n-th move (0-based): that move and every later call throw
 // kDisconnected, as a real board whose cable is pulled. For trying (and testing) the scan's disconnect and
 // resume end to end.
@@ -194,6 +195,7 @@ class UnpluggedBoard : public TurntableBoard {
   long moves_ = 0;
   bool gone_ = false;
 };
+#endif
 
 HorusRig OpenVirtualRig(const std::string& full_spec) {
 #ifdef S2M_HAVE_VIRTUAL_HORUS
