@@ -24,5 +24,6 @@ Runner AddExportCommand(CLI::App& app);
 Runner AddBatchCommand(CLI::App& app);   // apps/batch_command.cpp, docs/batch.md
 Runner AddReportCommand(CLI::App& app);  // apps/report.cpp
 Runner AddDevicesCommand(CLI::App& app);  // apps/devices_command.cpp, docs/devices.md
+Runner AddCalibrateCommand(CLI::App& app);  // apps/calibrate_command.cpp, docs/laser-scanning.md
 
 }  // namespace s2m::app

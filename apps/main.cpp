@@ -24,6 +24,9 @@ int main(int argc, char** argv) {
   const s2m::app::Runner batch = s2m::app::AddBatchCommand(app);
   const s2m::app::Runner report = s2m::app::AddReportCommand(app);
   const s2m::app::Runner devices = s2m::app::AddDevicesCommand(app);
+#ifdef S2M_HAVE_HORUS
+  const s2m::app::Runner calibrate = s2m::app::AddCalibrateCommand(app);
+#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -44,6 +47,9 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("batch")) return batch();
     if (app.got_subcommand("report")) return report();
     if (app.got_subcommand("devices")) return devices();
+#ifdef S2M_HAVE_HORUS
+    if (app.got_subcommand("calibrate")) return calibrate();
+#endif
   } catch (const std::exception& e) {
     std::cerr << "scan2model: internal error: " << e.what() << "\n";
     return s2m::app::kInternal;

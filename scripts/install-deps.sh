@@ -16,6 +16,8 @@ packages=(
   libopen3d-dev          # optional edge (s2m_virtual_scanner): the virtual scanner's ray casting (RaycastingScene) and the
                          # benchmark's Open3D point-to-plane ICP baseline (bench/open3d_baselines.cpp)
   libopenmpi-dev openmpi-bin  # optional: `scan2model batch` under mpirun (docs/batch.md)
+  libopencv-dev          # optional edge (s2m_horus): the Horus laser scanner's camera (V4L2), laser-line triangulation
+                         # and chessboard calibration (devices/opencv_camera.cpp, laser_line.cpp, horus_calibration.cpp)
   chromium               # tests only: the HTML report opens in headless Chromium (tests/report_test.cpp)
   libusb-1.0-0-dev       # optional edge (s2m_usb): USB transport and the Horus turntable board (docs/devices.md)
   umockdev libumockdev-dev  # tests only: the emulated USB board (tests/emulated_horus_board.h, umockdev-wrapper)
