@@ -2,7 +2,6 @@
 
 #include <Eigen/Dense>
 #include <cmath>
-#include <optional>
 
 namespace s2m {
 namespace {
@@ -136,39 +135,54 @@ ParamT FootPointSeeds::Nearest(const VecS& x) const {
   return params_[static_cast<std::size_t>(index_.Nearest(To3(x)))];
 }
 
-void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& points,
-                       std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm) {
-  const ParameterDomain d = model.domain();
+const FootPointSeeds& LazyFootPointSeeds::get() const {
+  std::call_once(once_, [this] { seeds_.emplace(model_); });
+  return *seeds_;
+}
+
+FootPointContext::FootPointContext(const ParametricModel& m) : model(m), domain(m.domain()), seeds(m) {
+  ParamT probe{0.0, 0.0, 0.0};
+  closed_form = m.ClosedFormFootPoint(VecS::Zero(m.ambient_dimension()), probe);
+}
+
+FootPoint FootPointOf(const FootPointContext& c, const VecS& x, const ParamT* previous, WarmStart mode,
+                      LocalGeometry& g) {
+  if (c.closed_form) {
+    FootPoint foot;
+    c.model.ClosedFormFoot(x, foot.t, foot.distance, foot.on_boundary, foot.excluded);
+    return foot;
+  }
+  if (previous != nullptr && mode == WarmStart::kTrusted) {
+    const FootPoint warm = RefineFootPoint(c.model, c.domain, x, *previous, g);
+    if (!warm.on_boundary) return warm;
+    const FootPoint cold = RefineFootPoint(c.model, c.domain, x, c.seeds.get().Nearest(x), g);
+    if (cold.distance < warm.distance) return cold;
+    c.model.Evaluate(warm.t, 2, g);  // g at the returned foot
+    return warm;
+  }
+  ParamT start = c.seeds.get().Nearest(x);
+  if (previous != nullptr) {
+    c.model.Evaluate(start, 0, g);
+    const double d_seed = (g.point - x).squaredNorm();
+    c.model.Evaluate(*previous, 0, g);
+    if ((g.point - x).squaredNorm() <= d_seed) start = *previous;
+  }
+  return RefineFootPoint(c.model, c.domain, x, start, g);
+}
+
+void ComputeFootPoints(const ParametricModel& model, const Eigen::Ref<const Eigen::MatrixXd>& points,
+                       std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm, WarmStart mode) {
   const Eigen::Index n = points.cols();
   feet.resize(static_cast<std::size_t>(n));
-  // A model has closed-form feet everywhere or nowhere: the sample tree is built only when Newton needs
-  // seeds.
-  ParamT probe{0.0, 0.0, 0.0};
-  std::optional<FootPointSeeds> seeds;
-  if (n > 0 && !model.ClosedFormFootPoint(VecS(points.col(0)), probe)) seeds.emplace(model);
+  if (n == 0) return;
+  const FootPointContext context(model);
 #pragma omp parallel
   {
     LocalGeometry g;
 #pragma omp for schedule(static)
     for (Eigen::Index j = 0; j < n; ++j) {
-      const VecS x = points.col(j);
-      ParamT closed_form{0.0, 0.0, 0.0};
-      if (model.ClosedFormFootPoint(x, closed_form)) {
-        model.Evaluate(closed_form, 0, g);
-        feet[static_cast<std::size_t>(j)] = {closed_form, (g.point - x).norm(),
-                                             model.FootPointOnBoundary(x, closed_form),
-                                             model.AmbiguousFootPoint(x, closed_form)};
-        continue;
-      }
-      ParamT start = seeds->Nearest(x);
-      if (warm != nullptr) {
-        const ParamT previous = (*warm)[static_cast<std::size_t>(j)].t;
-        model.Evaluate(start, 0, g);
-        const double d_seed = (g.point - x).squaredNorm();
-        model.Evaluate(previous, 0, g);
-        if ((g.point - x).squaredNorm() <= d_seed) start = previous;
-      }
-      feet[static_cast<std::size_t>(j)] = RefineFootPoint(model, d, x, start, g);
+      const auto i = static_cast<std::size_t>(j);
+      feet[i] = FootPointOf(context, points.col(j), warm != nullptr ? &(*warm)[i].t : nullptr, mode, g);
     }
   }
 }

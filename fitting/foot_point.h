@@ -3,6 +3,8 @@
 // previous parameter, then safeguarded Newton on the orthogonality condition C_t^T (C - X) = 0 that stays in
 // the domain, wraps periodic seams and stops on a boundary when the closest point is there.
 
+#include <mutex>
+#include <optional>
 #include <vector>
 
 #include "fitting/parametric_model.h"
@@ -36,9 +38,52 @@ class FootPointSeeds {
   NearestIndex index_;
 };
 
-// Foot points of all data points (columns of `points`), in parallel. With `warm` (one parameter per point)
-// the better of the warm start and the nearest sample seeds Newton.
-void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& points,
-                       std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm = nullptr);
+// The sample tree built on first use, once, by whichever thread needs it first: warm starts need it only for
+// the few points they fall back on, and closed-form models never.
+class LazyFootPointSeeds {
+ public:
+  explicit LazyFootPointSeeds(const ParametricModel& model) : model_(model) {}
+  const FootPointSeeds& get() const;
+
+ private:
+  const ParametricModel& model_;
+  mutable std::once_flag once_;
+  mutable std::optional<FootPointSeeds> seeds_;
+};
+
+// What every foot point of one model needs: its domain, whether it has closed-form feet (everywhere or
+// nowhere), and its seeds.
+struct FootPointContext {
+  explicit FootPointContext(const ParametricModel& model);
+  const ParametricModel& model;
+  ParameterDomain domain;
+  bool closed_form = false;
+  LazyFootPointSeeds seeds;
+};
+
+// How a warm start (the previous foot's parameter) is used.
+enum class WarmStart {
+  // Newton from the better of the previous parameter and the nearest model sample (the one whose model point
+  // is closer to x). Safe when the model itself changed since the previous feet (fits: a large shape step can
+  // move the basin of a point's foot, e.g. near the ends of an open curve).
+  kVerified,
+  // Newton straight from the previous parameter, no sample search; only a foot ending on an open boundary
+  // (where Newton stops at a bound even if a closer interior foot exists) falls back to the nearest sample,
+  // keeping the closer foot. For a fixed model and points that moved a little (rigid registration steps).
+  kTrusted,
+};
+
+// The foot point of one data point x. Closed-form models answer directly (ParametricModel::ClosedFormFoot).
+// Others run Newton: cold (`previous` null) from the nearest model sample, warm as `mode` says. On return
+// `g` holds C and its first and second derivatives at the foot's t for Newton models; for closed-form models
+// it is unspecified.
+FootPoint FootPointOf(const FootPointContext& context, const VecS& x, const ParamT* previous, WarmStart mode,
+                      LocalGeometry& g);
+
+// Foot points of all data points (columns of `points`; any column-major storage binds without a copy), in
+// parallel, by FootPointOf. With `warm` (one foot per point) each starts from its previous parameter.
+void ComputeFootPoints(const ParametricModel& model, const Eigen::Ref<const Eigen::MatrixXd>& points,
+                       std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm = nullptr,
+                       WarmStart mode = WarmStart::kVerified);
 
 }  // namespace s2m
