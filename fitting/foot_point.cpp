@@ -24,12 +24,13 @@ void Confine(const ParameterDomain& d, ParamT& t) {
 }  // namespace
 
 FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d, const VecS& x, ParamT t,
-                          LocalGeometry& g) {
+                          LocalGeometry& g, bool g_at_t0) {
   const int m = d.dimension;
   Confine(d, t);
-  model.Evaluate(t, 2, g);
+  if (!g_at_t0) model.Evaluate(t, 2, g);
   VecS r = g.point - x;
   double f = 0.5 * r.squaredNorm();
+  const double span = (d.hi[0] - d.lo[0]) + (m > 1 ? d.hi[1] - d.lo[1] : 0.0);
   for (int iter = 0; iter < 50; ++iter) {
     // Gradient C_t^T r and Hessian C_t^T C_t + [r . C_tk tl] of f(t) = |C(t) - X|^2 / 2.
     Eigen::Vector2d grad = Eigen::Vector2d::Zero();
@@ -75,6 +76,10 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
       step = hh.ldlt().solve(-grad);
     }
     if (!step.allFinite() || step.norm() == 0.0) break;
+    // A full step below the stop tolerance (1e-15 of the span: the rounding level of t) would be taken and
+    // then end the loop; stop here instead, without the model evaluation that step would cost. `g` and `f`
+    // stay those of t, the foot returned.
+    if (std::abs(step[0]) + (m > 1 ? std::abs(step[1]) : 0.0) <= 1e-15 * span) break;
     // Backtracking: halve until |C - X| decreases (the orthogonality residual may be far from zero).
     double alpha = 1.0;
     ParamT trial = t;
@@ -101,7 +106,6 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
     const double moved = std::abs(trial[0] - t[0]) + (m > 1 ? std::abs(trial[1] - t[1]) : 0.0);
     t = trial;
     r = g.point - x;
-    const double span = (d.hi[0] - d.lo[0]) + (m > 1 ? d.hi[1] - d.lo[1] : 0.0);
     if (moved <= 1e-15 * span) break;
   }
   return {t, std::sqrt(2.0 * f), IsBoundaryFootPoint(d, t, g, x)};
@@ -146,14 +150,14 @@ FootPointContext::FootPointContext(const ParametricModel& m) : model(m), domain(
 }
 
 FootPoint FootPointOf(const FootPointContext& c, const VecS& x, const ParamT* previous, WarmStart mode,
-                      LocalGeometry& g) {
+                      LocalGeometry& g, bool g_at_previous) {
   if (c.closed_form) {
     FootPoint foot;
     c.model.ClosedFormFoot(x, foot.t, foot.distance, foot.on_boundary, foot.excluded);
     return foot;
   }
   if (previous != nullptr && mode == WarmStart::kTrusted) {
-    const FootPoint warm = RefineFootPoint(c.model, c.domain, x, *previous, g);
+    const FootPoint warm = RefineFootPoint(c.model, c.domain, x, *previous, g, g_at_previous);
     if (!warm.on_boundary) return warm;
     const FootPoint cold = RefineFootPoint(c.model, c.domain, x, c.seeds.get().Nearest(x), g);
     if (cold.distance < warm.distance) return cold;

@@ -19,9 +19,12 @@ struct FootPoint {
   bool excluded = false;     // the model cannot tell which of its pieces the point belongs to: left out
 };
 
-// Newton from t0. `scratch` avoids allocations on the hot path.
+// Newton from t0. `scratch` avoids allocations on the hot path; on return it holds C and its first and
+// second derivatives at the returned foot. With `g_at_t0`, `scratch` already holds them at t0 (a parameter
+// inside the domain, e.g. the previous foot on the same model): the first evaluation is skipped, with the
+// same result.
 FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& domain, const VecS& x,
-                          ParamT t0, LocalGeometry& scratch);
+                          ParamT t0, LocalGeometry& scratch, bool g_at_t0 = false);
 
 // True when t lies on an open end of domain `d` and C(t) - x (C(t) and its first derivatives in `g`) is not
 // orthogonal to the model there: the foot point is the boundary's, not an orthogonal projection.
@@ -77,8 +80,10 @@ enum class WarmStart {
 // Others run Newton: cold (`previous` null) from the nearest model sample, warm as `mode` says. On return
 // `g` holds C and its first and second derivatives at the foot's t for Newton models; for closed-form models
 // it is unspecified.
+// With `g_at_previous` (trusted warm starts only), `g` holds the model's geometry at `previous` on entry
+// (RefineFootPoint's `g_at_t0`).
 FootPoint FootPointOf(const FootPointContext& context, const VecS& x, const ParamT* previous, WarmStart mode,
-                      LocalGeometry& g);
+                      LocalGeometry& g, bool g_at_previous = false);
 
 // Foot points of all data points (columns of `points`; any column-major storage binds without a copy), in
 // parallel, by FootPointOf. With `warm` (one foot per point) each starts from its previous parameter.

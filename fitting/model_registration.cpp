@@ -46,10 +46,13 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
   // contribution to the 6x6 normal equations of the next step, accumulated per thread and summed in thread
   // order (deterministic for a given thread count). Newton leaves the model's point and derivatives at the
   // foot in `geo`, so the assembly evaluates the model again only for closed-form feet. The normal equations
-  // of a rejected trial are simply dropped.
+  // of a rejected trial are simply dropped. The model's geometry at each foot is kept for the next pass: the
+  // model is fixed, so Newton's first evaluation at the previous foot would recompute exactly these numbers.
   auto feet_and_equations = [&](const Eigen::MatrixXd& points, const std::vector<FootPoint>* warm,
-                                std::vector<FootPoint>& out, RigidNormalEquations& eq) {
+                                const std::vector<LocalGeometry>* warm_geometry, std::vector<FootPoint>& out,
+                                std::vector<LocalGeometry>& out_geometry, RigidNormalEquations& eq) {
     out.resize(static_cast<std::size_t>(points.cols()));
+    out_geometry.resize(static_cast<std::size_t>(points.cols()));
     std::vector<RigidNormalEquations> partial;
 #pragma omp parallel
     {
@@ -62,8 +65,12 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
         const auto i = static_cast<std::size_t>(j);
         const VecS x = points.col(j);
         // The model is fixed and the points moved by one small rigid step: the previous feet are trusted.
-        out[i] = FootPointOf(context, x, warm != nullptr ? &(*warm)[i].t : nullptr, WarmStart::kTrusted, geo);
+        const bool reuse = warm != nullptr && !context.closed_form;
+        if (reuse) geo = (*warm_geometry)[i];
+        out[i] = FootPointOf(context, x, warm != nullptr ? &(*warm)[i].t : nullptr, WarmStart::kTrusted, geo,
+                             reuse);
         if (context.closed_form) model.Evaluate(out[i].t, 2, geo);
+        out_geometry[i] = geo;
         const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
         mine.Add({points.col(j), To3(geo.point), ErrorMatrix(term, frame, 3), weight});
       }
@@ -73,8 +80,9 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
   };
   place(initial, current);
   std::vector<FootPoint> feet, trial_feet;
+  std::vector<LocalGeometry> geometry, trial_geometry;
   RigidNormalEquations eq, trial_eq;
-  feet_and_equations(current, nullptr, feet, eq);
+  feet_and_equations(current, nullptr, nullptr, feet, geometry, eq);
   double mean_square = MeanSquare(feet);
   double lambda = options.damping ? 1e-6 : 0.0;
   result.stop_reason = StopReason::kMaxIterations;
@@ -90,12 +98,13 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
       step = RigidMotion::FromHelicalVelocity(velocity.head<3>(), velocity.tail<3>());
       const RigidMotion trial = step * result.model_T_scan;
       place(trial, moved);  // from the original scan: no drift
-      feet_and_equations(moved, &feet, trial_feet, trial_eq);
+      feet_and_equations(moved, &feet, &geometry, trial_feet, trial_geometry, trial_eq);
       const double trial_mean_square = MeanSquare(trial_feet);
       if (!options.damping || trial_mean_square < mean_square) {
         result.model_T_scan = trial;
         current.swap(moved);
         feet.swap(trial_feet);
+        geometry.swap(trial_geometry);
         std::swap(eq, trial_eq);
         mean_square = trial_mean_square;
         lambda = options.damping ? std::max(lambda * 0.1, 1e-12) : 0.0;

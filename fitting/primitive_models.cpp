@@ -111,7 +111,8 @@ bool CylinderModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, b
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - point_);
   t = {std::atan2(q.y(), q.x()), q.z(), 0.0};
   if (t[0] < 0) t[0] += 2 * M_PI;
-  distance = std::abs(radius_ - std::hypot(q.x(), q.y()));
+  // sqrt rather than hypot: no overflow is possible at model coordinates, and hypot costs as much as atan2.
+  distance = std::abs(radius_ - std::sqrt(q.x() * q.x() + q.y() * q.y()));
   on_boundary = false;  // the domain is periodic in theta and unbounded along the axis
   ambiguous = false;
   return true;
@@ -189,7 +190,7 @@ std::vector<ParamT> SphereModel::SampleParameters() const {
 
 bool SphereModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - center_);
-  t = {std::atan2(q.y(), q.x()), std::atan2(q.z(), std::hypot(q.x(), q.y()))};
+  t = {std::atan2(q.y(), q.x()), std::atan2(q.z(), std::sqrt(q.x() * q.x() + q.y() * q.y()))};
   if (t[0] < 0) t[0] += 2 * M_PI;
   return true;
 }
@@ -198,7 +199,7 @@ bool SphereModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
 bool SphereModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
                                  bool& ambiguous) const {
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - center_);
-  const double rho = std::hypot(q.x(), q.y());
+  const double rho = std::sqrt(q.x() * q.x() + q.y() * q.y());  // as ClosedFormFootPoint
   t = {std::atan2(q.y(), q.x()), std::atan2(q.z(), rho), 0.0};
   if (t[0] < 0) t[0] += 2 * M_PI;
   distance = std::abs(radius_ - q.norm());

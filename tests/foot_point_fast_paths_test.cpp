@@ -88,6 +88,32 @@ TEST(FootPointFastPaths, WarmStartedFeetEqualColdFeetOnASurfaceOfRevolution) {
     ExpectWarmEqualsCold(*c.truth, points, mode);
 }
 
+// Newton handed the model's geometry at its start (RefineFootPoint's g_at_t0, as the model registration does
+// from the previous pass) skips one evaluation and must return exactly the same foot.
+TEST(FootPointFastPaths, NewtonFromAKnownGeometryReturnsTheSameFoot) {
+  const BSplineSurface patch = BumpyPatch();
+  const Eigen::Matrix3Xd points = PointsNear(patch, 500, 0.05, 11);
+  std::vector<FootPoint> previous;
+  ComputeFootPoints(patch, points, previous);
+  const Eigen::Matrix3Xd moved = Moved(points);
+  const ParameterDomain d = patch.domain();
+  LocalGeometry g_plain, g_known;
+  for (Eigen::Index j = 0; j < moved.cols(); ++j) {
+    const ParamT t0 = previous[static_cast<std::size_t>(j)].t;
+    const FootPoint plain = RefineFootPoint(patch, d, VecS(moved.col(j)), t0, g_plain);
+    patch.Evaluate(t0, 2, g_known);
+    const FootPoint known = RefineFootPoint(patch, d, VecS(moved.col(j)), t0, g_known, true);
+    ASSERT_EQ(plain.t, known.t) << "point " << j;
+    ASSERT_EQ(plain.distance, known.distance) << "point " << j;
+    ASSERT_EQ(g_plain.point, g_known.point) << "point " << j;
+    // And g is the geometry at the returned foot.
+    LocalGeometry at_foot;
+    patch.Evaluate(known.t, 2, at_foot);
+    ASSERT_EQ(at_foot.point, g_known.point) << "point " << j;
+    ASSERT_EQ(at_foot.d2, g_known.d2) << "point " << j;
+  }
+}
+
 // An open arc (a 'C' of radius 10 from 20 to 340 degrees) and a point in its gap nearer the 340-degree end:
 // Newton from the 20-degree end stops there (the distance grows inwards), a local minimum on the boundary.
 // The warm start must fall back to the nearest sample and find the nearer end, as the cold search does.
