@@ -825,6 +825,32 @@ int ScalingChild(long long points, int views, int iterations) {
   }
 }
 
+// One of section 1's runs on its own (start 0 of the given size), for profiling (e.g. under valgrind
+// --tool=callgrind with OMP_NUM_THREADS=1): prints the pose error after each iteration and the stop reason.
+int RegistrationChild(long long n, const std::string& term_name) {
+  try {
+    const BSplineSurface model = KnownSurface();
+    const RigidMotion truth(RotationAboutAxis(Eigen::Vector3d(1, 2, 3).normalized(), 25 * kDegree),
+                            Eigen::Vector3d(30, -10, 5));
+    const SurfaceSampling scan_model = SampleSurface(model, n, 0.02, 7);
+    const Eigen::Matrix3Xd scan = truth.inverse().apply(scan_model.points);
+    const PoseErrorMeasure measure(scan_model.points, truth);
+    const Eigen::Vector3d centre = scan_model.points.rowwise().mean();
+    std::mt19937_64 rng(100 + static_cast<std::uint64_t>(n));
+    const RigidMotion start = Perturbed(truth, centre, 3 * kDegree, 2.0, rng);
+    const Trajectory t = OursToModel(
+        model, scan, start, term_name == "tdm" ? ErrorTerm::kTdm : ErrorTerm::kSdm, measure, 0.01, 50);
+    for (std::size_t i = 0; i < t.errors.size(); ++i)
+      std::printf("iteration %zu: pose error %.6e mm\n", i + 1, t.errors[i]);
+    std::printf("to threshold: %d iterations, %.4f s; final %.6e mm; %s\n", t.iterations_to_threshold,
+                t.seconds_to_threshold, t.final_error, t.note.c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "registration case failed: %s\n", e.what());
+    return 1;
+  }
+}
+
 struct ScalingSummary {
   double eight_views_1m = NAN;
 };
@@ -949,6 +975,8 @@ void PrintTargets(const RegistrationSummary& reg, double threshold, const Fittin
 int main(int argc, char** argv) {
   if (argc == 5 && std::string(argv[1]) == "--scaling-child")
     return ScalingChild(std::atoll(argv[2]), std::atoi(argv[3]), std::atoi(argv[4]));
+  if (argc == 4 && std::string(argv[1]) == "--registration-child")
+    return RegistrationChild(std::atoll(argv[2]), argv[3]);
   Settings s;
   s.data = std::filesystem::path(S2M_SOURCE_DIR) / ".." / "shared" / "data";
   for (int i = 1; i < argc; ++i) {
@@ -969,7 +997,9 @@ int main(int argc, char** argv) {
     } else if (a == "--sections") {
       s.sections = value();
     } else if (a == "--help" || a == "-h") {
-      std::printf("usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234]\n");
+      std::printf(
+          "usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234]\n"
+          "       compare --registration-child POINTS sdm|tdm   (one run of section 1, for profiling)\n");
       return 0;
     } else {
       std::fprintf(stderr, "compare: unknown argument %s (see --help)\n", a.c_str());

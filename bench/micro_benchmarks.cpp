@@ -8,6 +8,7 @@
 //   - Newton models cold: seed from the nearest model sample (k-d tree built per call), then Newton;
 //   - Newton models warm: the previous iteration's foot points passed as `warm`, the points moved by a small
 //     rigid motion (0.05 degree, 0.01 % of the size), as between two iterations of a converging fit;
+//   - Newton models warm, trusted: the same with WarmStart::kTrusted (no sample search; rigid registration);
 //   - Newton only ("refine"): RefineFootPoint from the previous parameter, i.e. the warm start without the
 //     seed-tree search that ComputeFootPoints still does per point.
 // Usage: micro_benchmarks [Google Benchmark flags, e.g. --benchmark_format=csv --benchmark_filter=Spline]
@@ -15,8 +16,10 @@
 #include <benchmark/benchmark.h>
 #include <omp.h>
 
+#include <cstdio>
 #include <memory>
 #include <random>
+#include <string>
 
 #include "acquisition/synthetic_cases.h"
 #include "fitting/bspline_models.h"
@@ -173,6 +176,20 @@ void FootPointsWarm(benchmark::State& state, const std::string& name) {
   state.SetItemsProcessed(state.iterations() * f.points.cols());
 }
 
+// Warm with WarmStart::kTrusted: Newton straight from the previous parameter, no sample search (what a rigid
+// registration to a fixed model uses, fitting/model_registration.cpp).
+void FootPointsWarmTrusted(benchmark::State& state, const std::string& name) {
+  const Family f = MakeFamily(name);
+  std::vector<FootPoint> warm, feet;
+  ComputeFootPoints(*f.model, f.points, warm);
+  const Eigen::MatrixXd moved = Moved(f.points);
+  for (auto _ : state) {
+    ComputeFootPoints(*f.model, moved, feet, &warm, WarmStart::kTrusted);
+    benchmark::DoNotOptimize(feet.data());
+  }
+  state.SetItemsProcessed(state.iterations() * f.points.cols());
+}
+
 void FootPointsRefineOnly(benchmark::State& state, const std::string& name) {
   const Family f = MakeFamily(name);
   std::vector<FootPoint> warm;
@@ -232,6 +249,36 @@ void RegistrationAssemblyOnSurface(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * f.points.cols());
 }
 
+// Fixed work for instruction counting (`micro_benchmarks --probe FAMILY cold|warm|trusted REPETITIONS` under
+// valgrind
+// --tool=callgrind --toggle-collect='*ProbeFootPoints*'): Google Benchmark picks its own repetition counts,
+// so its loops cannot be compared by instruction totals.
+__attribute__((noinline)) double ProbeFootPoints(const Family& f, const Eigen::MatrixXd& points,
+                                                 const std::vector<FootPoint>* warm, WarmStart mode,
+                                                 int repetitions) {
+  std::vector<FootPoint> feet;
+  double sum = 0.0;
+  for (int r = 0; r < repetitions; ++r) {
+    ComputeFootPoints(*f.model, points, feet, warm, mode);
+    sum += feet.back().distance;
+  }
+  return sum;
+}
+
+int Probe(const std::string& name, const std::string& mode, int repetitions) {
+  const Family f = MakeFamily(name);
+  std::vector<FootPoint> previous;
+  ComputeFootPoints(*f.model, f.points, previous);
+  const Eigen::MatrixXd moved = Moved(f.points);
+  const bool warm = mode == "warm" || mode == "trusted";
+  const double sum =
+      ProbeFootPoints(f, warm ? moved : f.points, warm ? &previous : nullptr,
+                      mode == "trusted" ? WarmStart::kTrusted : WarmStart::kVerified, repetitions);
+  std::printf("%s %s: %d x %ld points, checksum %.17g\n", name.c_str(), mode.c_str(), repetitions,
+              static_cast<long>(f.points.cols()), sum);
+  return 0;
+}
+
 }  // namespace
 
 BENCHMARK_CAPTURE(FootPointsCold, cylinder, std::string("cylinder"));
@@ -239,12 +286,15 @@ BENCHMARK_CAPTURE(FootPointsCold, sphere, std::string("sphere"));
 BENCHMARK_CAPTURE(FootPointsCold, part_faces, std::string("part"));
 BENCHMARK_CAPTURE(FootPointsCold, bspline_curve, std::string("bspline-curve"));
 BENCHMARK_CAPTURE(FootPointsWarm, bspline_curve, std::string("bspline-curve"));
+BENCHMARK_CAPTURE(FootPointsWarmTrusted, bspline_curve, std::string("bspline-curve"));
 BENCHMARK_CAPTURE(FootPointsRefineOnly, bspline_curve, std::string("bspline-curve"));
 BENCHMARK_CAPTURE(FootPointsCold, bspline_surface, std::string("bspline-surface"));
 BENCHMARK_CAPTURE(FootPointsWarm, bspline_surface, std::string("bspline-surface"));
+BENCHMARK_CAPTURE(FootPointsWarmTrusted, bspline_surface, std::string("bspline-surface"));
 BENCHMARK_CAPTURE(FootPointsRefineOnly, bspline_surface, std::string("bspline-surface"));
 BENCHMARK_CAPTURE(FootPointsCold, revolution, std::string("revolution"));
 BENCHMARK_CAPTURE(FootPointsWarm, revolution, std::string("revolution"));
+BENCHMARK_CAPTURE(FootPointsWarmTrusted, revolution, std::string("revolution"));
 BENCHMARK_CAPTURE(FootPointsRefineOnly, revolution, std::string("revolution"));
 BENCHMARK_CAPTURE(FootPointsCold, helical, std::string("helical"));
 BENCHMARK_CAPTURE(FootPointsWarm, helical, std::string("helical"));
@@ -255,6 +305,7 @@ BENCHMARK(RegistrationAssemblyOnSurface);
 
 int main(int argc, char** argv) {
   omp_set_num_threads(1);  // per core
+  if (argc == 5 && std::string(argv[1]) == "--probe") return Probe(argv[2], argv[3], std::atoi(argv[4]));
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

@@ -2,7 +2,6 @@
 
 #include <Eigen/Dense>
 #include <cmath>
-#include <optional>
 
 namespace s2m {
 namespace {
@@ -25,12 +24,13 @@ void Confine(const ParameterDomain& d, ParamT& t) {
 }  // namespace
 
 FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d, const VecS& x, ParamT t,
-                          LocalGeometry& g) {
+                          LocalGeometry& g, bool g_at_t0) {
   const int m = d.dimension;
   Confine(d, t);
-  model.Evaluate(t, 2, g);
+  if (!g_at_t0) model.Evaluate(t, 2, g);
   VecS r = g.point - x;
   double f = 0.5 * r.squaredNorm();
+  const double span = (d.hi[0] - d.lo[0]) + (m > 1 ? d.hi[1] - d.lo[1] : 0.0);
   for (int iter = 0; iter < 50; ++iter) {
     // Gradient C_t^T r and Hessian C_t^T C_t + [r . C_tk tl] of f(t) = |C(t) - X|^2 / 2.
     Eigen::Vector2d grad = Eigen::Vector2d::Zero();
@@ -76,6 +76,10 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
       step = hh.ldlt().solve(-grad);
     }
     if (!step.allFinite() || step.norm() == 0.0) break;
+    // A full step below the stop tolerance (1e-15 of the span: the rounding level of t) would be taken and
+    // then end the loop; stop here instead, without the model evaluation that step would cost. `g` and `f`
+    // stay those of t, the foot returned.
+    if (std::abs(step[0]) + (m > 1 ? std::abs(step[1]) : 0.0) <= 1e-15 * span) break;
     // Backtracking: halve until |C - X| decreases (the orthogonality residual may be far from zero).
     double alpha = 1.0;
     ParamT trial = t;
@@ -102,7 +106,6 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
     const double moved = std::abs(trial[0] - t[0]) + (m > 1 ? std::abs(trial[1] - t[1]) : 0.0);
     t = trial;
     r = g.point - x;
-    const double span = (d.hi[0] - d.lo[0]) + (m > 1 ? d.hi[1] - d.lo[1] : 0.0);
     if (moved <= 1e-15 * span) break;
   }
   return {t, std::sqrt(2.0 * f), IsBoundaryFootPoint(d, t, g, x)};
@@ -136,39 +139,54 @@ ParamT FootPointSeeds::Nearest(const VecS& x) const {
   return params_[static_cast<std::size_t>(index_.Nearest(To3(x)))];
 }
 
-void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& points,
-                       std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm) {
-  const ParameterDomain d = model.domain();
+const FootPointSeeds& LazyFootPointSeeds::get() const {
+  std::call_once(once_, [this] { seeds_.emplace(model_); });
+  return *seeds_;
+}
+
+FootPointContext::FootPointContext(const ParametricModel& m) : model(m), domain(m.domain()), seeds(m) {
+  ParamT probe{0.0, 0.0, 0.0};
+  closed_form = m.ClosedFormFootPoint(VecS::Zero(m.ambient_dimension()), probe);
+}
+
+FootPoint FootPointOf(const FootPointContext& c, const VecS& x, const ParamT* previous, WarmStart mode,
+                      LocalGeometry& g, bool g_at_previous) {
+  if (c.closed_form) {
+    FootPoint foot;
+    c.model.ClosedFormFoot(x, foot.t, foot.distance, foot.on_boundary, foot.excluded);
+    return foot;
+  }
+  if (previous != nullptr && mode == WarmStart::kTrusted) {
+    const FootPoint warm = RefineFootPoint(c.model, c.domain, x, *previous, g, g_at_previous);
+    if (!warm.on_boundary) return warm;
+    const FootPoint cold = RefineFootPoint(c.model, c.domain, x, c.seeds.get().Nearest(x), g);
+    if (cold.distance < warm.distance) return cold;
+    c.model.Evaluate(warm.t, 2, g);  // g at the returned foot
+    return warm;
+  }
+  ParamT start = c.seeds.get().Nearest(x);
+  if (previous != nullptr) {
+    c.model.Evaluate(start, 0, g);
+    const double d_seed = (g.point - x).squaredNorm();
+    c.model.Evaluate(*previous, 0, g);
+    if ((g.point - x).squaredNorm() <= d_seed) start = *previous;
+  }
+  return RefineFootPoint(c.model, c.domain, x, start, g);
+}
+
+void ComputeFootPoints(const ParametricModel& model, const Eigen::Ref<const Eigen::MatrixXd>& points,
+                       std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm, WarmStart mode) {
   const Eigen::Index n = points.cols();
   feet.resize(static_cast<std::size_t>(n));
-  // A model has closed-form feet everywhere or nowhere: the sample tree is built only when Newton needs
-  // seeds.
-  ParamT probe{0.0, 0.0, 0.0};
-  std::optional<FootPointSeeds> seeds;
-  if (n > 0 && !model.ClosedFormFootPoint(VecS(points.col(0)), probe)) seeds.emplace(model);
+  if (n == 0) return;
+  const FootPointContext context(model);
 #pragma omp parallel
   {
     LocalGeometry g;
 #pragma omp for schedule(static)
     for (Eigen::Index j = 0; j < n; ++j) {
-      const VecS x = points.col(j);
-      ParamT closed_form{0.0, 0.0, 0.0};
-      if (model.ClosedFormFootPoint(x, closed_form)) {
-        model.Evaluate(closed_form, 0, g);
-        feet[static_cast<std::size_t>(j)] = {closed_form, (g.point - x).norm(),
-                                             model.FootPointOnBoundary(x, closed_form),
-                                             model.AmbiguousFootPoint(x, closed_form)};
-        continue;
-      }
-      ParamT start = seeds->Nearest(x);
-      if (warm != nullptr) {
-        const ParamT previous = (*warm)[static_cast<std::size_t>(j)].t;
-        model.Evaluate(start, 0, g);
-        const double d_seed = (g.point - x).squaredNorm();
-        model.Evaluate(previous, 0, g);
-        if ((g.point - x).squaredNorm() <= d_seed) start = previous;
-      }
-      feet[static_cast<std::size_t>(j)] = RefineFootPoint(model, d, x, start, g);
+      const auto i = static_cast<std::size_t>(j);
+      feet[i] = FootPointOf(context, points.col(j), warm != nullptr ? &(*warm)[i].t : nullptr, mode, g);
     }
   }
 }

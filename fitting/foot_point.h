@@ -3,6 +3,8 @@
 // previous parameter, then safeguarded Newton on the orthogonality condition C_t^T (C - X) = 0 that stays in
 // the domain, wraps periodic seams and stops on a boundary when the closest point is there.
 
+#include <mutex>
+#include <optional>
 #include <vector>
 
 #include "fitting/parametric_model.h"
@@ -17,9 +19,12 @@ struct FootPoint {
   bool excluded = false;     // the model cannot tell which of its pieces the point belongs to: left out
 };
 
-// Newton from t0. `scratch` avoids allocations on the hot path.
+// Newton from t0. `scratch` avoids allocations on the hot path; on return it holds C and its first and
+// second derivatives at the returned foot. With `g_at_t0`, `scratch` already holds them at t0 (a parameter
+// inside the domain, e.g. the previous foot on the same model): the first evaluation is skipped, with the
+// same result.
 FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& domain, const VecS& x,
-                          ParamT t0, LocalGeometry& scratch);
+                          ParamT t0, LocalGeometry& scratch, bool g_at_t0 = false);
 
 // True when t lies on an open end of domain `d` and C(t) - x (C(t) and its first derivatives in `g`) is not
 // orthogonal to the model there: the foot point is the boundary's, not an orthogonal projection.
@@ -36,9 +41,54 @@ class FootPointSeeds {
   NearestIndex index_;
 };
 
-// Foot points of all data points (columns of `points`), in parallel. With `warm` (one parameter per point)
-// the better of the warm start and the nearest sample seeds Newton.
-void ComputeFootPoints(const ParametricModel& model, const Eigen::MatrixXd& points,
-                       std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm = nullptr);
+// The sample tree built on first use, once, by whichever thread needs it first: warm starts need it only for
+// the few points they fall back on, and closed-form models never.
+class LazyFootPointSeeds {
+ public:
+  explicit LazyFootPointSeeds(const ParametricModel& model) : model_(model) {}
+  const FootPointSeeds& get() const;
+
+ private:
+  const ParametricModel& model_;
+  mutable std::once_flag once_;
+  mutable std::optional<FootPointSeeds> seeds_;
+};
+
+// What every foot point of one model needs: its domain, whether it has closed-form feet (everywhere or
+// nowhere), and its seeds.
+struct FootPointContext {
+  explicit FootPointContext(const ParametricModel& model);
+  const ParametricModel& model;
+  ParameterDomain domain;
+  bool closed_form = false;
+  LazyFootPointSeeds seeds;
+};
+
+// How a warm start (the previous foot's parameter) is used.
+enum class WarmStart {
+  // Newton from the better of the previous parameter and the nearest model sample (the one whose model point
+  // is closer to x). Safe when the model itself changed since the previous feet (fits: a large shape step can
+  // move the basin of a point's foot, e.g. near the ends of an open curve).
+  kVerified,
+  // Newton straight from the previous parameter, no sample search; only a foot ending on an open boundary
+  // (where Newton stops at a bound even if a closer interior foot exists) falls back to the nearest sample,
+  // keeping the closer foot. For a fixed model and points that moved a little (rigid registration steps).
+  kTrusted,
+};
+
+// The foot point of one data point x. Closed-form models answer directly (ParametricModel::ClosedFormFoot).
+// Others run Newton: cold (`previous` null) from the nearest model sample, warm as `mode` says. On return
+// `g` holds C and its first and second derivatives at the foot's t for Newton models; for closed-form models
+// it is unspecified.
+// With `g_at_previous` (trusted warm starts only), `g` holds the model's geometry at `previous` on entry
+// (RefineFootPoint's `g_at_t0`).
+FootPoint FootPointOf(const FootPointContext& context, const VecS& x, const ParamT* previous, WarmStart mode,
+                      LocalGeometry& g, bool g_at_previous = false);
+
+// Foot points of all data points (columns of `points`; any column-major storage binds without a copy), in
+// parallel, by FootPointOf. With `warm` (one foot per point) each starts from its previous parameter.
+void ComputeFootPoints(const ParametricModel& model, const Eigen::Ref<const Eigen::MatrixXd>& points,
+                       std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm = nullptr,
+                       WarmStart mode = WarmStart::kVerified);
 
 }  // namespace s2m

@@ -31,30 +31,28 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
 
   ModelRegistrationResult result;
   result.model_T_scan = initial;
-  // Both point buffers are allocated once (the dynamic type ComputeFootPoints takes, so no temporary copy per
-  // call); every trial overwrites `moved` in place.
+  // Both point buffers are allocated once; every trial overwrites `moved` in place.
   Eigen::MatrixXd current(3, scan_points.cols()), moved(3, scan_points.cols());
   auto place = [&scan_points](const RigidMotion& pose, Eigen::MatrixXd& out) {
     out.noalias() = pose.rotation() * scan_points;
     out.colwise() += pose.translation();
   };
-  place(initial, current);
-  std::vector<FootPoint> feet, trial_feet;
-  ComputeFootPoints(model, current, feet);
-  double mean_square = MeanSquare(feet);
-  double lambda = options.damping ? 1e-6 : 0.0;
-  result.stop_reason = StopReason::kMaxIterations;
-  if (options.target_rms > 0 && std::sqrt(mean_square) <= options.target_rms)
-    result.stop_reason = StopReason::kTargetReached;
   // GN's implicit-function Jacobian is for shape parameters; for a rigid motion of the data SDM is its
   // analogue.
   const ErrorTerm term = options.error_term == ErrorTerm::kGn ? ErrorTerm::kSdm : options.error_term;
   const double weight = 1.0 / static_cast<double>(scan_points.cols());
-
-  while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
-    // The 6x6 normal equations, accumulated per thread and summed in thread order (deterministic for a given
-    // thread count).
-    RigidNormalEquations eq;
+  const FootPointContext context(model);
+  // One pass over the points per pose: the foot point (warm from `warm` when given) and, at it, the point's
+  // contribution to the 6x6 normal equations of the next step, accumulated per thread and summed in thread
+  // order (deterministic for a given thread count). Newton leaves the model's point and derivatives at the
+  // foot in `geo`, so the assembly evaluates the model again only for closed-form feet. The normal equations
+  // of a rejected trial are simply dropped. The model's geometry at each foot is kept for the next pass: the
+  // model is fixed, so Newton's first evaluation at the previous foot would recompute exactly these numbers.
+  auto feet_and_equations = [&](const Eigen::MatrixXd& points, const std::vector<FootPoint>* warm,
+                                const std::vector<LocalGeometry>* warm_geometry, std::vector<FootPoint>& out,
+                                std::vector<LocalGeometry>& out_geometry, RigidNormalEquations& eq) {
+    out.resize(static_cast<std::size_t>(points.cols()));
+    out_geometry.resize(static_cast<std::size_t>(points.cols()));
     std::vector<RigidNormalEquations> partial;
 #pragma omp parallel
     {
@@ -63,14 +61,35 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
       RigidNormalEquations& mine = partial[static_cast<std::size_t>(omp_get_thread_num())];
       LocalGeometry geo;
 #pragma omp for schedule(static)
-      for (Eigen::Index j = 0; j < current.cols(); ++j) {
-        const FootPoint& f = feet[static_cast<std::size_t>(j)];
-        model.Evaluate(f.t, 2, geo);
-        const PrincipalFrame frame = ComputePrincipalFrame(geo, current.col(j));
-        mine.Add({current.col(j), To3(geo.point), ErrorMatrix(term, frame, 3), weight});
+      for (Eigen::Index j = 0; j < points.cols(); ++j) {
+        const auto i = static_cast<std::size_t>(j);
+        const VecS x = points.col(j);
+        // The model is fixed and the points moved by one small rigid step: the previous feet are trusted.
+        const bool reuse = warm != nullptr && !context.closed_form;
+        if (reuse) geo = (*warm_geometry)[i];
+        out[i] = FootPointOf(context, x, warm != nullptr ? &(*warm)[i].t : nullptr, WarmStart::kTrusted, geo,
+                             reuse);
+        if (context.closed_form) model.Evaluate(out[i].t, 2, geo);
+        out_geometry[i] = geo;
+        const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
+        mine.Add({points.col(j), To3(geo.point), ErrorMatrix(term, frame, 3), weight});
       }
     }
+    eq = RigidNormalEquations();
     for (const RigidNormalEquations& p : partial) eq.Add(p);
+  };
+  place(initial, current);
+  std::vector<FootPoint> feet, trial_feet;
+  std::vector<LocalGeometry> geometry, trial_geometry;
+  RigidNormalEquations eq, trial_eq;
+  feet_and_equations(current, nullptr, nullptr, feet, geometry, eq);
+  double mean_square = MeanSquare(feet);
+  double lambda = options.damping ? 1e-6 : 0.0;
+  result.stop_reason = StopReason::kMaxIterations;
+  if (options.target_rms > 0 && std::sqrt(mean_square) <= options.target_rms)
+    result.stop_reason = StopReason::kTargetReached;
+
+  while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
     bool accepted = false;
     Eigen::Matrix<double, 6, 1> velocity;
     RigidMotion step;
@@ -79,12 +98,14 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
       step = RigidMotion::FromHelicalVelocity(velocity.head<3>(), velocity.tail<3>());
       const RigidMotion trial = step * result.model_T_scan;
       place(trial, moved);  // from the original scan: no drift
-      ComputeFootPoints(model, moved, trial_feet, &feet);
+      feet_and_equations(moved, &feet, &geometry, trial_feet, trial_geometry, trial_eq);
       const double trial_mean_square = MeanSquare(trial_feet);
       if (!options.damping || trial_mean_square < mean_square) {
         result.model_T_scan = trial;
         current.swap(moved);
         feet.swap(trial_feet);
+        geometry.swap(trial_geometry);
+        std::swap(eq, trial_eq);
         mean_square = trial_mean_square;
         lambda = options.damping ? std::max(lambda * 0.1, 1e-12) : 0.0;
         accepted = true;

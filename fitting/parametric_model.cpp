@@ -74,4 +74,15 @@ PrincipalFrame ComputePrincipalFrame(const LocalGeometry& g, const VecS& data_po
   return f;
 }
 
+bool ParametricModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                                     bool& ambiguous) const {
+  if (!ClosedFormFootPoint(x, t)) return false;
+  LocalGeometry g;
+  Evaluate(t, 0, g);
+  distance = (g.point - x).norm();
+  on_boundary = FootPointOnBoundary(x, t);
+  ambiguous = AmbiguousFootPoint(x, t);
+  return true;
+}
+
 }  // namespace s2m

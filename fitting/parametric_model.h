@@ -105,6 +105,12 @@ class ParametricModel {
     (void)t;
     return false;
   }
+  // Models with their own feet, everything the engine needs of one foot in one call: t, the distance |C(t) -
+  // x|, FootPointOnBoundary and AmbiguousFootPoint. The default composes those calls and Evaluate; models
+  // override it when they know the distance without evaluating C again (primitives) or can share work
+  // between the foot and the ambiguity test (parts). Returns false for models without closed-form feet.
+  virtual bool ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                              bool& ambiguous) const;
   // Models with their own feet: true when the foot point t of x lies on an open boundary, where the
   // orthogonality condition need not hold (the end rule applies, METHOD.md section 4).
   virtual bool FootPointOnBoundary(const VecS& x, const ParamT& t) const {

@@ -508,6 +508,46 @@ bool PartModel::AmbiguousFootPoint(const VecS& x, const ParamT& t) const {
   return false;
 }
 
+bool PartModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                               bool& ambiguous) const {
+  const Eigen::Vector3d x3 = To3(x);
+  // The distance to every face searched, for the ambiguity test (fixed capacity: no allocation per point;
+  // faces beyond it are searched again there). Infinity: a patch skipped as farther than the best so far.
+  constexpr std::size_t kKept = 32;
+  std::array<double, kKept> face_distance;
+  const std::size_t faces = definition_.faces.size();
+  double best = std::numeric_limits<double>::infinity();
+  t = {0.0, 0.0, 0.0};
+  // As ClosedFormFootPoint: analytic faces first, their distances let most spline patches be skipped.
+  for (const bool patches : {false, true}) {
+    for (std::size_t k = 0; k < faces; ++k) {
+      if ((definition_.faces[k].type == FaceType::kSplinePatch) != patches) continue;
+      auto [tk, d] = FootPointOnFace(k, x3, best);
+      if (k < kKept) face_distance[k] = d;
+      if (d < best) {
+        best = d;
+        t = tk;
+      }
+    }
+  }
+  distance = best;
+  const auto own = static_cast<std::size_t>(FaceOf(t));
+  on_boundary = definition_.faces[own].type == FaceType::kSplinePatch && FootPointOnBoundary(x, t);
+  ambiguous = false;
+  if (edge_margin_ > 0.0) {
+    for (std::size_t k = 0; k < faces && !ambiguous; ++k) {
+      if (k == own) continue;
+      // A foot found above is the one FootPointOnFace would find again (same seed, same Newton); a skipped
+      // patch is searched now within the margin.
+      const double d = k < kKept && std::isfinite(face_distance[k])
+                           ? face_distance[k]
+                           : FootPointOnFace(k, x3, edge_margin_).second;
+      ambiguous = d < edge_margin_;
+    }
+  }
+  return true;
+}
+
 std::vector<ResidualStatistics> PerFaceResiduals(const PartModel& part, const Eigen::Matrix3Xd& points) {
   std::vector<std::vector<double>> distances(static_cast<std::size_t>(part.face_count()));
   LocalGeometry g;

@@ -114,6 +114,10 @@ class PartModel final : public ParametricModel {
   // wrong guess is biased (the top face's points next to a side are all on the material side of that side's
   // plane, pulling it inwards by a fraction of the noise).
   bool AmbiguousFootPoint(const VecS& x, const ParamT& t) const override;
+  // All three in one pass: the distance is the face's own (closed form or Newton's), and the ambiguity test
+  // reuses the feet on the other faces found while searching for the nearest one.
+  bool ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                      bool& ambiguous) const override;
 
   // Points closer than this (model units) to a second face are left out of fits; 0 (default) keeps all.
   // About 3 x the scanner's noise: FitPartJointly (joint_fit.h) sets it from a first pass.

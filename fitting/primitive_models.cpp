@@ -103,6 +103,21 @@ bool CylinderModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
   return true;
 }
 
+// In the cylinder's frame C(t) - x = (r - rho) (cos theta, sin theta, 0) with rho = |(q_x, q_y)| at the foot
+// theta = atan2(q_y, q_x): the distance is |r - rho| (also for rho = 0 and a negative r during a fit),
+// without evaluating C again.
+bool CylinderModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                                   bool& ambiguous) const {
+  const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - point_);
+  t = {std::atan2(q.y(), q.x()), q.z(), 0.0};
+  if (t[0] < 0) t[0] += 2 * M_PI;
+  // sqrt rather than hypot: no overflow is possible at model coordinates, and hypot costs as much as atan2.
+  distance = std::abs(radius_ - std::sqrt(q.x() * q.x() + q.y() * q.y()));
+  on_boundary = false;  // the domain is periodic in theta and unbounded along the axis
+  ambiguous = false;
+  return true;
+}
+
 // ---- SphereModel
 // -----------------------------------------------------------------------------------------------
 
@@ -175,8 +190,21 @@ std::vector<ParamT> SphereModel::SampleParameters() const {
 
 bool SphereModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - center_);
-  t = {std::atan2(q.y(), q.x()), std::atan2(q.z(), std::hypot(q.x(), q.y()))};
+  t = {std::atan2(q.y(), q.x()), std::atan2(q.z(), std::sqrt(q.x() * q.x() + q.y() * q.y()))};
   if (t[0] < 0) t[0] += 2 * M_PI;
+  return true;
+}
+
+// C(t) - x = (r - |q|) q / |q| at the foot: the distance is |r - |q||.
+bool SphereModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                                 bool& ambiguous) const {
+  const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - center_);
+  const double rho = std::sqrt(q.x() * q.x() + q.y() * q.y());  // as ClosedFormFootPoint
+  t = {std::atan2(q.y(), q.x()), std::atan2(q.z(), rho), 0.0};
+  if (t[0] < 0) t[0] += 2 * M_PI;
+  distance = std::abs(radius_ - q.norm());
+  on_boundary = false;  // the poles are not boundaries of the surface
+  ambiguous = false;
   return true;
 }
 

@@ -30,6 +30,8 @@ class CylinderModel final : public ParametricModel {
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
   std::vector<ParamT> SampleParameters() const override;
   bool ClosedFormFootPoint(const VecS& x, ParamT& t) const override;
+  bool ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                      bool& ambiguous) const override;
   // Per scan in the joint solver: the rotation about and the translation along the (start) axis.
   std::vector<Motion6> InvariantMotions() const override;
   // The cylinder carries its own pose: any motion of all scans together is a motion of the cylinder.
@@ -62,6 +64,8 @@ class SphereModel final : public ParametricModel {
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
   std::vector<ParamT> SampleParameters() const override;
   bool ClosedFormFootPoint(const VecS& x, ParamT& t) const override;
+  bool ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                      bool& ambiguous) const override;
   // Per scan in the joint solver: the three rotations about the (start) centre.
   std::vector<Motion6> InvariantMotions() const override;
   // The sphere carries its own position: a common translation of all scans moves its centre.
