@@ -1,7 +1,8 @@
 // `scan2model calibrate`: calibrates a Horus-style laser-line turntable scanner (camera intrinsics, laser
 // planes, turntable axis; devices/horus_calibration.h, docs/laser-scanning.md) by driving its board and
-// camera -- the virtual rig today (horus-virtual:<scene>,...) -- or from a captured image set (--images
-// <dir>), and writes the calibration JSON ({"horus": ..., "residuals": ...}) with a summary of the residuals.
+// camera -- a real scanner (horus,...: the user presents the pattern when asked) or the virtual rig
+// (horus-virtual:<scene>,...) -- or from a captured image set (--images <dir>), and writes the calibration
+// JSON ({"horus": ..., "residuals": ...}) with a summary of the residuals.
 
 #include <cmath>
 #include <filesystem>
@@ -14,6 +15,7 @@
 #include "apps/commands.h"
 #include "apps/output.h"
 #include "devices/horus_calibration.h"
+#include "devices/horus_rig.h"
 #ifdef S2M_HAVE_VIRTUAL_HORUS
 #include "devices/virtual_horus.h"
 #endif
@@ -24,7 +26,7 @@ namespace {
 constexpr double kDegree = M_PI / 180.0;
 
 // What a rig gives the calibration: the board and camera to drive, and how to present the pattern (the
-// virtual rig places it; a real rig would ask the user). A real device plugs in here (issue 6's rig factory).
+// virtual rig places it; with a real scanner the user does, prompted on the terminal).
 struct CalibrationRig {
   std::unique_ptr<TurntableBoard> board;
   std::unique_ptr<ImageCamera> camera;
@@ -51,18 +53,41 @@ CalibrationRig OpenRig(const std::string& device, const ChessboardPattern& patte
     };
     return rig;
   }
-#else
-  (void)pattern;
-  (void)poses;
 #endif
-  throw std::invalid_argument("device '" + device +
-                              "': calibrate drives horus-virtual:<scene>[,key=value...] (this build: " +
+  if (IsHorusDeviceSpec(device)) {
+    // A real scanner (devices/horus_rig.h): the user moves the pattern; each capture waits for Enter, so the
+    // pattern is still when the image is taken. A closed stdin (a script) stops the calibration cleanly.
+    HorusRig opened = OpenHorusRig(device);
+    CalibrationRig rig;
+    rig.board = std::move(opened.board);
+    rig.camera = std::move(opened.camera);
+    rig.truth = opened.truth;
+    auto keep_alive = opened.keep_alive;
+    auto wait_for_enter = [keep_alive](const std::string& instruction) {
+      std::cerr << instruction << " -- press Enter when it is still" << std::endl;
+      std::string line;
+      if (!std::getline(std::cin, line))
+        throw std::runtime_error("calibration stopped: standard input closed while waiting for the pattern");
+    };
+    rig.present_hand_held = [wait_for_enter, pattern, poses](int k) {
+      wait_for_enter("pose " + std::to_string(k + 1) + "/" + std::to_string(poses) + ": hold the " +
+                     std::to_string(pattern.columns) + "x" + std::to_string(pattern.rows) +
+                     " chessboard (inner corners) in view, tilted differently from the last pose");
+    };
+    rig.present_standing = [wait_for_enter]() {
+      wait_for_enter("stand the chessboard upright on the platform, facing the camera");
+    };
+    return rig;
+  }
+  throw std::invalid_argument(
+      "device '" + device +
+      "': calibrate drives horus[,key=value...] or horus-virtual:<scene>[,key=value...] (this build: " +
 #ifdef S2M_HAVE_VIRTUAL_HORUS
-                              "virtual rig available"
+      "virtual rig available"
 #else
-                              "no virtual rig: OpenCV or Open3D missing"
+      "no virtual rig: OpenCV or Open3D missing"
 #endif
-                              "); or give --images <dir>");
+      "); or give --images <dir>");
 }
 
 double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {

@@ -403,6 +403,19 @@ TEST(ImageCameras, MissingV4l2CameraIsAClearError) {
 
 // `scan2model calibrate` on the virtual rig writes the calibration under "horus" with its residuals and its
 // errors against the truth; the saved image set calibrates to the same result; bad input gives clear errors.
+// A real scanner that is not connected: the calibration stops before asking for anything, says what to check,
+// and writes no file (the emulated board's own tests are in horus_board_test).
+TEST(CalibrateCommand, RealScannerNotConnectedIsAClearError) {
+  const fs::path dir = test::FreshTempDir("horus_calibrate_real");
+  const test::ShellResult result =
+      test::Shell(std::string(S2M_CLI_PATH) + " calibrate --device horus,vid=0xffff,pid=0xfffe --out " +
+                  (dir / "calib.json").string() + " < /dev/null");
+  EXPECT_EQ(result.exit_code, 3) << result.out;
+  EXPECT_NE(result.out.find("no Horus board found with id ffff:fffe"), std::string::npos) << result.out;
+  EXPECT_NE(result.out.find("scan2model devices"), std::string::npos) << result.out;
+  EXPECT_FALSE(fs::exists(dir / "calib.json"));
+}
+
 TEST(CalibrateCommand, VirtualRigThenSavedImages) {
   const fs::path dir = test::FreshTempDir("horus_calibrate");
   const std::string cli = S2M_CLI_PATH;
