@@ -31,6 +31,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <memory>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -46,6 +47,7 @@
 #include "fitting/joint_fit.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/model_registration.h"
+#include "fitting/squared_distance_field.h"
 #include "registration/scan_to_scan.h"
 
 using namespace s2m;
@@ -211,6 +213,8 @@ struct Trajectory {
   int iterations_to_threshold = -1;
   double seconds_to_threshold = NAN;
   double final_error = NAN;
+  double total_seconds =
+      NAN;  // ours: the whole registration (with the field, its final exact iterations too)
   std::string note;
 };
 
@@ -223,10 +227,11 @@ int FirstBelow(const std::vector<double>& errors, double threshold) {
 // Our registration to the model; time to the threshold from its own per-iteration clock (which includes the
 // first foot points).
 Trajectory OursToModel(const ParametricModel& model, const Eigen::Matrix3Xd& scan, const RigidMotion& start,
-                       ErrorTerm term, const PoseErrorMeasure& measure, double threshold,
-                       int max_iterations) {
+                       ErrorTerm term, const PoseErrorMeasure& measure, double threshold, int max_iterations,
+                       const SquaredDistanceField* field = nullptr) {
   ModelRegistrationOptions o;
   o.error_term = term;
+  o.squared_distance_field = field;
   o.max_iterations = max_iterations;
   o.rotation_tolerance = 1e-9;
   o.translation_tolerance = 1e-9;
@@ -237,7 +242,11 @@ Trajectory OursToModel(const ParametricModel& model, const Eigen::Matrix3Xd& sca
   if (t.iterations_to_threshold > 0)
     t.seconds_to_threshold = r.history[static_cast<std::size_t>(t.iterations_to_threshold - 1)].seconds;
   t.final_error = measure(r.model_T_scan);
+  t.total_seconds = r.history.empty() ? NAN : r.history.back().seconds;
   t.note = std::string("stop: ") + ToString(r.stop_reason);
+  if (field != nullptr)
+    t.note += ", " + std::to_string(r.field_iterations) + " field + " +
+              std::to_string(r.iterations - r.field_iterations) + " exact iterations";
   return t;
 }
 
@@ -827,7 +836,8 @@ int ScalingChild(long long points, int views, int iterations) {
 
 // One of section 1's runs on its own (start 0 of the given size), for profiling (e.g. under valgrind
 // --tool=callgrind with OMP_NUM_THREADS=1): prints the pose error after each iteration and the stop reason.
-int RegistrationChild(long long n, const std::string& term_name) {
+// Terms "sdm-field" and "tdm-field" register with the squared distance field (cell size `cell`, mm).
+int RegistrationChild(long long n, const std::string& term_name, double cell) {
   try {
     const BSplineSurface model = KnownSurface();
     const RigidMotion truth(RotationAboutAxis(Eigen::Vector3d(1, 2, 3).normalized(), 25 * kDegree),
@@ -838,12 +848,23 @@ int RegistrationChild(long long n, const std::string& term_name) {
     const Eigen::Vector3d centre = scan_model.points.rowwise().mean();
     std::mt19937_64 rng(100 + static_cast<std::uint64_t>(n));
     const RigidMotion start = Perturbed(truth, centre, 3 * kDegree, 2.0, rng);
-    const Trajectory t = OursToModel(
-        model, scan, start, term_name == "tdm" ? ErrorTerm::kTdm : ErrorTerm::kSdm, measure, 0.01, 50);
+    std::unique_ptr<SquaredDistanceField> field;
+    if (term_name.size() > 6 && term_name.substr(term_name.size() - 6) == "-field") {
+      SquaredDistanceField::Options fo;
+      fo.cell_size = cell;
+      field = std::make_unique<SquaredDistanceField>(model, fo);
+      std::printf("field: cell %.3g mm, band %.3g mm, %zu cells (+%zu left to exact feet), built in %.4f s\n",
+                  fo.cell_size, fo.band, field->cell_count(), field->untrusted_cell_count(),
+                  field->build_seconds());
+    }
+    const Trajectory t =
+        OursToModel(model, scan, start, term_name.rfind("tdm", 0) == 0 ? ErrorTerm::kTdm : ErrorTerm::kSdm,
+                    measure, 0.01, 50, field.get());
     for (std::size_t i = 0; i < t.errors.size(); ++i)
       std::printf("iteration %zu: pose error %.6e mm\n", i + 1, t.errors[i]);
-    std::printf("to threshold: %d iterations, %.4f s; final %.6e mm; %s\n", t.iterations_to_threshold,
-                t.seconds_to_threshold, t.final_error, t.note.c_str());
+    std::printf("to threshold: %d iterations, %.4f s; whole registration %.4f s; final %.6e mm; %s\n",
+                t.iterations_to_threshold, t.seconds_to_threshold, t.total_seconds, t.final_error,
+                t.note.c_str());
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "registration case failed: %s\n", e.what());
@@ -975,8 +996,8 @@ void PrintTargets(const RegistrationSummary& reg, double threshold, const Fittin
 int main(int argc, char** argv) {
   if (argc == 5 && std::string(argv[1]) == "--scaling-child")
     return ScalingChild(std::atoll(argv[2]), std::atoi(argv[3]), std::atoi(argv[4]));
-  if (argc == 4 && std::string(argv[1]) == "--registration-child")
-    return RegistrationChild(std::atoll(argv[2]), argv[3]);
+  if ((argc == 4 || argc == 5) && std::string(argv[1]) == "--registration-child")
+    return RegistrationChild(std::atoll(argv[2]), argv[3], argc == 5 ? std::atof(argv[4]) : 1.0);
   Settings s;
   s.data = std::filesystem::path(S2M_SOURCE_DIR) / ".." / "shared" / "data";
   for (int i = 1; i < argc; ++i) {
@@ -999,7 +1020,9 @@ int main(int argc, char** argv) {
     } else if (a == "--help" || a == "-h") {
       std::printf(
           "usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234]\n"
-          "       compare --registration-child POINTS sdm|tdm   (one run of section 1, for profiling)\n");
+          "       compare --registration-child POINTS sdm|tdm|sdm-field|tdm-field [CELL_MM]   (one run of "
+          "section 1, for profiling; -field: with the squared distance field, cells of CELL_MM, default "
+          "1)\n");
       return 0;
     } else {
       std::fprintf(stderr, "compare: unknown argument %s (see --help)\n", a.c_str());
