@@ -3,9 +3,9 @@
 #include <omp.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cmath>
 #include <stdexcept>
 
 #include "fitting/foot_point.h"
@@ -59,7 +59,12 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
                                 std::vector<FootPoint>& out, std::vector<LocalGeometry>& out_geometry,
                                 std::vector<char>& out_exact, RigidNormalEquations& eq) {
     out.resize(static_cast<std::size_t>(points.cols()));
-    out_geometry.resize(static_cast<std::size_t>(points.cols()));
+    // Newton's geometry is kept for the next pass only in the exact phase (not touching 100 bytes per point
+    // in the field's passes).
+    if (use_field)
+      out_geometry.clear();
+    else
+      out_geometry.resize(static_cast<std::size_t>(points.cols()));
     out_exact.resize(static_cast<std::size_t>(points.cols()));
     std::vector<RigidNormalEquations> partial;
 #pragma omp parallel
@@ -76,7 +81,19 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
         if (use_field && field->Query(points.col(j), answer)) {
           out[i] = FootPoint{answer.t, std::sqrt(answer.squared_distance), false, false};
           out_exact[i] = 0;
-          mine.Add({points.col(j), answer.foot, ErrorMatrix(term, answer.frame, 3), weight});
+          const PrincipalFrame& f = answer.frame;
+          const Eigen::Vector3d x3 = points.col(j), r = x3 - answer.foot;
+          if (term == ErrorTerm::kTdm || term == ErrorTerm::kSdm) {
+            // M = n n^T (+ sum_k SdmWeight(delta, kappa_k) T_k T_k^T for SDM) as rank-one terms.
+            mine.AddDirection(x3, f.normals[0], weight, f.normals[0].dot(r));
+            for (int k = 0; k < 2 && term == ErrorTerm::kSdm; ++k) {
+              const auto uk = static_cast<std::size_t>(k);
+              const double beta = SdmWeight(f.delta, f.curvatures[uk]);
+              if (beta > 0) mine.AddDirection(x3, f.tangents[uk], weight * beta, f.tangents[uk].dot(r));
+            }
+          } else {
+            mine.Add({x3, answer.foot, ErrorMatrix(term, f, 3), weight});
+          }
           continue;
         }
         // The model is fixed and the points moved by one small rigid step: the previous feet are trusted.
@@ -86,8 +103,8 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
         out[i] = FootPointOf(context, x, warm != nullptr ? &(*warm)[i].t : nullptr, WarmStart::kTrusted, geo,
                              reuse);
         if (context.closed_form) model.Evaluate(out[i].t, 2, geo);
-        out_geometry[i] = geo;
-        out_exact[i] = 1;
+        if (!use_field) out_geometry[i] = geo;
+        out_exact[i] = use_field ? 0 : 1;
         const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
         mine.Add({points.col(j), To3(geo.point), ErrorMatrix(term, frame, 3), weight});
       }

@@ -170,9 +170,10 @@ bool SquaredDistanceField::Query(const Eigen::Vector3d& y, Answer& out) const {
     z = 0.5 * (c.k1 * u * u + c.k2 * v * v);
   }
   out.foot = c.p + u * c.e1 + v * c.e2 + z * c.n;
-  // The paraboloid's normal and tangents at (u, v): (-k1 u, -k2 v, 1) and (1, 0, k1 u) in the cell's frame.
+  // The paraboloid's normal and first tangent at (u, v): (-k1 u, -k2 v, 1) and (1, 0, k1 u) in the cell's
+  // frame.
   Eigen::Vector3d normal = (c.n - c.k1 * u * c.e1 - c.k2 * v * c.e2).normalized();
-  const Eigen::Vector3d t1 = (c.e1 + c.k1 * u * c.n).normalized();
+  const Eigen::Vector3d t1 = c.e1 + c.k1 * u * c.n;
   const Eigen::Vector3d offset = y - out.foot;
   double delta = offset.dot(normal), k1 = c.k1, k2 = c.k2;
   if (delta < 0) {  // METHOD.md section 2: n towards the data point, delta >= 0, kappa signed w.r.t. n
