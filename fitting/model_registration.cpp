@@ -77,8 +77,7 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
 #pragma omp for schedule(static)
       for (Eigen::Index j = 0; j < points.cols(); ++j) {
         const auto i = static_cast<std::size_t>(j);
-        const VecS x = points.col(j);
-        if (use_field && field->Query(points.col(j), answer)) {
+        if (use_field && field->Query(points.col(j), answer, term != ErrorTerm::kTdm)) {
           out[i] = FootPoint{answer.t, std::sqrt(answer.squared_distance), false, false};
           out_exact[i] = 0;
           const PrincipalFrame& f = answer.frame;
@@ -96,6 +95,7 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
           }
           continue;
         }
+        const VecS x = points.col(j);
         // The model is fixed and the points moved by one small rigid step: the previous feet are trusted.
         // Newton's geometry at the previous foot is reused only when that foot was exact.
         const bool reuse = warm != nullptr && !context.closed_form && (*warm_exact)[i] != 0;

@@ -44,6 +44,7 @@ SquaredDistanceField::SquaredDistanceField(const ParametricModel& model, const O
   if (!lo.allFinite() || !hi.allFinite())
     throw std::invalid_argument("squared distance field: the box is not finite");
   origin_ = lo;
+  inverse_cell_ = 1.0 / h;
   double total = 1.0;
   for (int a = 0; a < 3; ++a) {
     dims_[static_cast<std::size_t>(a)] =
@@ -146,8 +147,8 @@ SquaredDistanceField::SquaredDistanceField(const ParametricModel& model, const O
   build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-bool SquaredDistanceField::Query(const Eigen::Vector3d& y, Answer& out) const {
-  const Eigen::Vector3d g = (y - origin_) / options_.cell_size;
+bool SquaredDistanceField::Query(const Eigen::Vector3d& y, Answer& out, bool tangents) const {
+  const Eigen::Vector3d g = (y - origin_) * inverse_cell_;
   if (!(g.minCoeff() >= 0.0)) return false;  // also rejects NaN
   const auto i = static_cast<std::int64_t>(g.x()), j = static_cast<std::int64_t>(g.y()),
              k = static_cast<std::int64_t>(g.z());
@@ -160,9 +161,10 @@ bool SquaredDistanceField::Query(const Eigen::Vector3d& y, Answer& out) const {
   const double a = r.dot(c.e1), b = r.dot(c.e2), w = r.dot(c.n);
   // Foot on the osculating paraboloid z = (k1 u^2 + k2 v^2) / 2: the orthogonality conditions
   // u (1 + k1 (z - w)) = a, v (1 + k2 (z - w)) = b, solved by fixed-point sweeps from z = 0 (each sweep gains
-  // a factor of about |k| |u| in u; three leave an error far below the paraboloid's own).
+  // a factor of about |k| |u| in u; the distance is stationary in the foot, so two leave an error far below
+  // the paraboloid's own: measured, the same maximum errors as with three).
   double u = 0.0, v = 0.0, z = 0.0;
-  for (int sweep = 0; sweep < 3; ++sweep) {
+  for (int sweep = 0; sweep < 2; ++sweep) {
     const double d1 = 1.0 + c.k1 * (z - w), d2 = 1.0 + c.k2 * (z - w);
     if (d1 < 0.25 || d2 < 0.25) return false;  // near a focal point of this cell's paraboloid
     u = a / d1;
@@ -186,8 +188,10 @@ bool SquaredDistanceField::Query(const Eigen::Vector3d& y, Answer& out) const {
   f.tangent_count = 2;
   f.normal_count = 1;
   f.normals[0] = normal;
-  f.tangents[0] = (t1 - t1.dot(normal) * normal).normalized();
-  f.tangents[1] = normal.cross(f.tangents[0]);
+  if (tangents) {
+    f.tangents[0] = (t1 - t1.dot(normal) * normal).normalized();
+    f.tangents[1] = normal.cross(f.tangents[0]);
+  }
   f.curvatures = {k1, k2};
   f.delta = delta;
   out.squared_distance = offset.squaredNorm();

@@ -57,7 +57,8 @@ class SquaredDistanceField {
   SquaredDistanceField(const ParametricModel& model, const Options& options);
 
   // False when y is outside the box, its cell is not stored or cannot be trusted: use an exact foot point.
-  bool Query(const Eigen::Vector3d& y, Answer& out) const;
+  // Without `tangents` only the normal of out.frame is set (enough for TDM).
+  bool Query(const Eigen::Vector3d& y, Answer& out, bool tangents = true) const;
 
   const Options& options() const { return options_; }
   std::size_t cell_count() const { return cells_.size(); }         // stored (trusted) cells
@@ -75,6 +76,7 @@ class SquaredDistanceField {
   Options options_;
   ParameterDomain domain_;
   Eigen::Vector3d origin_;
+  double inverse_cell_ = 1.0;
   std::array<std::int64_t, 3> dims_{0, 0, 0};
   std::vector<std::int32_t> index_;  // dense over the grid: -1 or the cell's index in cells_
   std::vector<Cell> cells_;
