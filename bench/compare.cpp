@@ -999,12 +999,19 @@ void PrintTargets(const RegistrationSummary& reg, double threshold, const Fittin
     }
     const double speedup = open3d_s / s;
     const bool met = speedup >= 5.0 && e < open3d_e;
+    // The field's rows reach the threshold in field iterations; their final exact iteration comes after.
+    std::string whole;
+    if (std::string(ours).find("d2 field") != std::string::npos) {
+      const double total = median_of(ours, [](const Trajectory& t) { return t.total_seconds; });
+      whole = "; whole registration with the final exact iteration " + Fmt("%.3f", total) + " s (ratio " +
+              Fmt("%.2fx", open3d_s / total) + ")";
+    }
     std::printf(
         "| registration at %lld points, %s: >= 5x less time than Open3D point-to-plane to pose error %.3g "
         "mm, "
-        "lower final error | time ratio %s (%.3f s vs %s s); final error %.2e vs %.2e mm | %s |\n",
-        n, ours, threshold, Fmt("%.2fx", speedup).c_str(), s, Fmt("%.3f", open3d_s).c_str(), e, open3d_e,
-        met ? "met" : "not met");
+        "lower final error | time ratio %s (%.3f s vs %s s)%s; final error %.2e vs %.2e mm | %s |\n",
+        n, ours, threshold, Fmt("%.2fx", speedup).c_str(), s, Fmt("%.3f", open3d_s).c_str(), whole.c_str(), e,
+        open3d_e, met ? "met" : "not met");
   }
   if (!std::isnan(scaling.eight_views_1m))
     std::printf(
