@@ -111,12 +111,6 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
     }
     eq = RigidNormalEquations();
     for (const RigidNormalEquations& p : partial) eq.Add(p);
-    if (std::getenv("S2M_DEBUG_FIELD")) {
-      long ex = 0;
-      for (char c : out_exact) ex += c;
-      std::fprintf(stderr, "pass field=%d exact=%ld %.4f s\n", int(use_field), ex,
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-    }
   };
   bool field_phase = field != nullptr;
   place(initial, current);

@@ -29,7 +29,9 @@ struct ModelRegistrationOptions {
   // Guibas, SGP 2004) for the points inside its band (exact feet for the others) until a step moves the scan
   // by less than field_step_tolerance (rotation in rad, translation relative to the scan's size) or no longer
   // decreases the approximate RMS; then up to exact_final_iterations iterations with exact feet, so the
-  // final pose and residuals are the model's exact ones. The field's accuracy is set by its cell size.
+  // final pose and residuals are the model's exact ones
+  // (0: no exact step, only the exact feet at the field's final pose for the residuals). The field's accuracy
+  // is set by its cell size.
   const SquaredDistanceField* squared_distance_field = nullptr;
   double field_step_tolerance = 1e-7;
   int exact_final_iterations = 1;
