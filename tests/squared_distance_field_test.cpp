@@ -130,7 +130,7 @@ TEST(SquaredDistanceField, MatchesExactDistancesOnACylinder) {
               a.max_distance_error, a.max_square_error);
   EXPECT_LT(a.max_distance_error, 1.5e-5);
   EXPECT_LT(a.max_square_error, 1e-4);
-  // Outside the band, outside the box and near the axis (a focal line): no answer, exact feet are needed.
+  // Outside the band (beyond it, and near the axis, a focal line) and outside the box: no answer, exact feet.
   SquaredDistanceField::Answer answer;
   EXPECT_FALSE(field.Query(c.axis_point + (c.radius + 6.0) * e1, answer));
   EXPECT_FALSE(field.Query(c.axis_point + Eigen::Vector3d(100, 0, 0), answer));
