@@ -9,8 +9,9 @@
 //   4. scaling of a joint iteration with points and views, with each configuration's peak memory;
 // then the targets, met or not, with the measured ratios. Prints markdown tables, writes one CSV.
 //
-// Usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234]
+// Usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234] [--points N]
 //   --quick     small sizes and few iterations: a smoke test (seconds), not numbers to quote
+//   --points    section 1 at this one size only (e.g. 100000, the size of the target)
 //   --csv       where the CSV goes (default compare.csv in the working directory)
 //   --data      the team's third-party data (default ../shared/data beside the repository); section 2 and the
 //               glyph cases of section 3 are skipped with a note when it is absent
@@ -31,6 +32,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <memory>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -46,6 +48,7 @@
 #include "fitting/joint_fit.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/model_registration.h"
+#include "fitting/squared_distance_field.h"
 #include "registration/scan_to_scan.h"
 
 using namespace s2m;
@@ -64,6 +67,7 @@ struct Settings {
   std::filesystem::path csv = "compare.csv";
   std::filesystem::path data;
   std::string sections = "1234";
+  long long points = 0;  // section 1 at this one size only (0: the default sizes)
 };
 
 // One CSV row: every section uses the same columns, empty where a column does not apply.
@@ -211,6 +215,8 @@ struct Trajectory {
   int iterations_to_threshold = -1;
   double seconds_to_threshold = NAN;
   double final_error = NAN;
+  double total_seconds =
+      NAN;  // ours: the whole registration (with the field, its final exact iterations too)
   std::string note;
 };
 
@@ -223,10 +229,11 @@ int FirstBelow(const std::vector<double>& errors, double threshold) {
 // Our registration to the model; time to the threshold from its own per-iteration clock (which includes the
 // first foot points).
 Trajectory OursToModel(const ParametricModel& model, const Eigen::Matrix3Xd& scan, const RigidMotion& start,
-                       ErrorTerm term, const PoseErrorMeasure& measure, double threshold,
-                       int max_iterations) {
+                       ErrorTerm term, const PoseErrorMeasure& measure, double threshold, int max_iterations,
+                       const SquaredDistanceField* field = nullptr) {
   ModelRegistrationOptions o;
   o.error_term = term;
+  o.squared_distance_field = field;
   o.max_iterations = max_iterations;
   o.rotation_tolerance = 1e-9;
   o.translation_tolerance = 1e-9;
@@ -237,7 +244,11 @@ Trajectory OursToModel(const ParametricModel& model, const Eigen::Matrix3Xd& sca
   if (t.iterations_to_threshold > 0)
     t.seconds_to_threshold = r.history[static_cast<std::size_t>(t.iterations_to_threshold - 1)].seconds;
   t.final_error = measure(r.model_T_scan);
+  t.total_seconds = r.history.empty() ? NAN : r.history.back().seconds;
   t.note = std::string("stop: ") + ToString(r.stop_reason);
+  if (field != nullptr)
+    t.note += ", " + std::to_string(r.field_iterations) + " field + " +
+              std::to_string(r.iterations - r.field_iterations) + " exact iterations";
   return t;
 }
 
@@ -291,8 +302,9 @@ double Median(std::vector<double> v) {
 void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary& summary,
                                 double& threshold_out) {
   const BSplineSurface model = KnownSurface();
-  const std::vector<long long> counts =
-      s.quick ? std::vector<long long>{2000} : std::vector<long long>{10000, 100000, 1000000};
+  const std::vector<long long> counts = s.points > 0 ? std::vector<long long>{s.points}
+                                        : s.quick    ? std::vector<long long>{2000}
+                                                     : std::vector<long long>{10000, 100000, 1000000};
   const double noise = 0.02;  // mm
   // Pose error threshold: the RMS displacement of the scan's points between the estimated and the true pose.
   const double threshold = 0.01;  // mm, half the noise
@@ -313,11 +325,28 @@ void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary
       "included). Stepping of the ICPs capped at %d iterations and %.0f s. Threads: %d (PCL's ICP is "
       "single-threaded).\n\n",
       noise, threshold, max_iterations, cap, omp_get_max_threads());
+  const RigidMotion truth(RotationAboutAxis(Eigen::Vector3d(1, 2, 3).normalized(), 25 * kDegree),
+                          Eigen::Vector3d(30, -10, 5));
+  // The squared distance field of the model (fitting/squared_distance_field.h): built once, used by every
+  // size and start (it depends on the model only, like Mitra et al.'s d2tree).
+  SquaredDistanceField::Options field_options;  // cells of 1 mm, band 6 mm over the patch's box
+  const SquaredDistanceField field(model, field_options);
+  const double build = field.build_seconds();
+  std::printf(
+      "The d2-field rows register with a squared distance field of the model (cells of %.3g mm, band %.3g "
+      "mm: "
+      "%zu cells, %zu more in the band left to exact feet near the patch's boundary), built once in %.3f s "
+      "(%d threads) and shared by all sizes and starts: rows 'build excluded' count from the start of the "
+      "registration, rows 'build included' add the whole build to each run. Both end with one exact "
+      "iteration (exact foot points) after the field's iterations; their time to threshold is at the first "
+      "iteration whose pose is below the threshold (usually a field iteration), the notes give the whole "
+      "registration's time with the exact iteration. The ICPs' times include their k-d tree but not the "
+      "dense sampling of the model.\n\n",
+      field_options.cell_size, field_options.band, field.cell_count(), field.untrusted_cell_count(), build,
+      omp_get_max_threads());
   std::printf(
       "| points | method | starts reaching threshold | iterations to threshold (median) | time to threshold "
       "(s, median) | final pose error (mm, median) | notes |\n|---|---|---|---|---|---|---|\n");
-  const RigidMotion truth(RotationAboutAxis(Eigen::Vector3d(1, 2, 3).normalized(), 25 * kDegree),
-                          Eigen::Vector3d(30, -10, 5));
   for (long long n : counts) {
     const SurfaceSampling scan_model = SampleSurface(model, n, noise, 7);
     const Eigen::Matrix3Xd scan = truth.inverse().apply(scan_model.points);
@@ -333,6 +362,8 @@ void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary
       std::string name;
       std::function<Trajectory(const RigidMotion&)> run;
       bool available;
+      std::string copy_of = {};  // the runs of that method with `add_seconds` added to their times
+      double add_seconds = 0.0;
     };
     std::vector<Method> methods = {
         {"ours SDM (to the model)",
@@ -345,6 +376,18 @@ void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary
            return OursToModel(model, scan, st, ErrorTerm::kTdm, measure, threshold, max_iterations);
          },
          true},
+        {"ours SDM (d2 field, build excluded)",
+         [&](const RigidMotion& st) {
+           return OursToModel(model, scan, st, ErrorTerm::kSdm, measure, threshold, max_iterations, &field);
+         },
+         true},
+        {"ours TDM (d2 field, build excluded)",
+         [&](const RigidMotion& st) {
+           return OursToModel(model, scan, st, ErrorTerm::kTdm, measure, threshold, max_iterations, &field);
+         },
+         true},
+        {"ours SDM (d2 field, build included)", nullptr, true, "ours SDM (d2 field, build excluded)", build},
+        {"ours TDM (d2 field, build included)", nullptr, true, "ours TDM (d2 field, build excluded)", build},
         {"PCL ICP (point-to-point)",
          [&](const RigidMotion& st) {
            return Baseline([&] { return bench::MakePclPointToPoint(problem); }, st, measure, threshold,
@@ -371,7 +414,14 @@ void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary
       }
       std::vector<Trajectory>& runs = summary.runs[{m.name, n}];
       for (int k = 0; k < starts; ++k) {
-        runs.push_back(m.run(start_poses[static_cast<std::size_t>(k)]));
+        if (m.copy_of.empty()) {
+          runs.push_back(m.run(start_poses[static_cast<std::size_t>(k)]));
+        } else {
+          Trajectory copy = summary.runs[{m.copy_of, n}][static_cast<std::size_t>(k)];
+          copy.seconds_to_threshold += m.add_seconds;
+          copy.total_seconds += m.add_seconds;
+          runs.push_back(copy);
+        }
         const Trajectory& t = runs.back();
         Row r;
         r.section = "1 registration to model";
@@ -387,7 +437,7 @@ void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary
         r.note = t.note;
         csv.Add(r);
       }
-      std::vector<double> its, secs, finals;
+      std::vector<double> its, secs, finals, totals;
       int reached = 0;
       std::string notes;
       for (const Trajectory& t : runs) {
@@ -398,7 +448,10 @@ void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary
         }
         finals.push_back(t.final_error);
         if (notes.find(t.note) == std::string::npos) notes += (notes.empty() ? "" : "; ") + t.note;
+        if (!std::isnan(t.total_seconds)) totals.push_back(t.total_seconds);
       }
+      if (m.name.find("d2 field") != std::string::npos)
+        notes += "; whole registration " + Fmt("%.3f", Median(totals)) + " s (median)";
       std::printf("| %lld | %s | %d / %d | %s | %s | %s | %s |\n", n, m.name.c_str(), reached, starts,
                   Fmt("%.0f", Median(its)).c_str(), Fmt("%.3f", Median(secs)).c_str(),
                   Fmt("%.2e", Median(finals)).c_str(), notes.c_str());
@@ -827,7 +880,8 @@ int ScalingChild(long long points, int views, int iterations) {
 
 // One of section 1's runs on its own (start 0 of the given size), for profiling (e.g. under valgrind
 // --tool=callgrind with OMP_NUM_THREADS=1): prints the pose error after each iteration and the stop reason.
-int RegistrationChild(long long n, const std::string& term_name) {
+// Terms "sdm-field" and "tdm-field" register with the squared distance field (cell size `cell`, mm).
+int RegistrationChild(long long n, const std::string& term_name, double cell) {
   try {
     const BSplineSurface model = KnownSurface();
     const RigidMotion truth(RotationAboutAxis(Eigen::Vector3d(1, 2, 3).normalized(), 25 * kDegree),
@@ -838,12 +892,23 @@ int RegistrationChild(long long n, const std::string& term_name) {
     const Eigen::Vector3d centre = scan_model.points.rowwise().mean();
     std::mt19937_64 rng(100 + static_cast<std::uint64_t>(n));
     const RigidMotion start = Perturbed(truth, centre, 3 * kDegree, 2.0, rng);
-    const Trajectory t = OursToModel(
-        model, scan, start, term_name == "tdm" ? ErrorTerm::kTdm : ErrorTerm::kSdm, measure, 0.01, 50);
+    std::unique_ptr<SquaredDistanceField> field;
+    if (term_name.size() > 6 && term_name.substr(term_name.size() - 6) == "-field") {
+      SquaredDistanceField::Options fo;
+      fo.cell_size = cell;
+      field = std::make_unique<SquaredDistanceField>(model, fo);
+      std::printf("field: cell %.3g mm, band %.3g mm, %zu cells (+%zu left to exact feet), built in %.4f s\n",
+                  fo.cell_size, fo.band, field->cell_count(), field->untrusted_cell_count(),
+                  field->build_seconds());
+    }
+    const Trajectory t =
+        OursToModel(model, scan, start, term_name.rfind("tdm", 0) == 0 ? ErrorTerm::kTdm : ErrorTerm::kSdm,
+                    measure, 0.01, 50, field.get());
     for (std::size_t i = 0; i < t.errors.size(); ++i)
       std::printf("iteration %zu: pose error %.6e mm\n", i + 1, t.errors[i]);
-    std::printf("to threshold: %d iterations, %.4f s; final %.6e mm; %s\n", t.iterations_to_threshold,
-                t.seconds_to_threshold, t.final_error, t.note.c_str());
+    std::printf("to threshold: %d iterations, %.4f s; whole registration %.4f s; final %.6e mm; %s\n",
+                t.iterations_to_threshold, t.seconds_to_threshold, t.total_seconds, t.final_error,
+                t.note.c_str());
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "registration case failed: %s\n", e.what());
@@ -924,7 +989,9 @@ void PrintTargets(const RegistrationSummary& reg, double threshold, const Fittin
   const auto final_error = [](const Trajectory& t) { return t.final_error; };
   const double open3d_s = median_of("Open3D point-to-plane ICP", seconds);
   const double open3d_e = median_of("Open3D point-to-plane ICP", final_error);
-  for (const char* ours : {"ours SDM (to the model)", "ours TDM (to the model)"}) {
+  for (const char* ours : {"ours SDM (to the model)", "ours TDM (to the model)",
+                           "ours SDM (d2 field, build excluded)", "ours TDM (d2 field, build excluded)",
+                           "ours SDM (d2 field, build included)", "ours TDM (d2 field, build included)"}) {
     const double s = median_of(ours, seconds), e = median_of(ours, final_error);
     if (std::isnan(open3d_e) || std::isnan(e)) {
       std::printf("| registration at %lld points (%s) vs Open3D | not measured | - |\n", n, ours);
@@ -932,12 +999,19 @@ void PrintTargets(const RegistrationSummary& reg, double threshold, const Fittin
     }
     const double speedup = open3d_s / s;
     const bool met = speedup >= 5.0 && e < open3d_e;
+    // The field's rows reach the threshold in field iterations; their final exact iteration comes after.
+    std::string whole;
+    if (std::string(ours).find("d2 field") != std::string::npos) {
+      const double total = median_of(ours, [](const Trajectory& t) { return t.total_seconds; });
+      whole = "; whole registration with the final exact iteration " + Fmt("%.3f", total) + " s (ratio " +
+              Fmt("%.2fx", open3d_s / total) + ")";
+    }
     std::printf(
         "| registration at %lld points, %s: >= 5x less time than Open3D point-to-plane to pose error %.3g "
         "mm, "
-        "lower final error | time ratio %s (%.3f s vs %s s); final error %.2e vs %.2e mm | %s |\n",
-        n, ours, threshold, Fmt("%.2fx", speedup).c_str(), s, Fmt("%.3f", open3d_s).c_str(), e, open3d_e,
-        met ? "met" : "not met");
+        "lower final error | time ratio %s (%.3f s vs %s s)%s; final error %.2e vs %.2e mm | %s |\n",
+        n, ours, threshold, Fmt("%.2fx", speedup).c_str(), s, Fmt("%.3f", open3d_s).c_str(), whole.c_str(), e,
+        open3d_e, met ? "met" : "not met");
   }
   if (!std::isnan(scaling.eight_views_1m))
     std::printf(
@@ -975,8 +1049,8 @@ void PrintTargets(const RegistrationSummary& reg, double threshold, const Fittin
 int main(int argc, char** argv) {
   if (argc == 5 && std::string(argv[1]) == "--scaling-child")
     return ScalingChild(std::atoll(argv[2]), std::atoi(argv[3]), std::atoi(argv[4]));
-  if (argc == 4 && std::string(argv[1]) == "--registration-child")
-    return RegistrationChild(std::atoll(argv[2]), argv[3]);
+  if ((argc == 4 || argc == 5) && std::string(argv[1]) == "--registration-child")
+    return RegistrationChild(std::atoll(argv[2]), argv[3], argc == 5 ? std::atof(argv[4]) : 1.0);
   Settings s;
   s.data = std::filesystem::path(S2M_SOURCE_DIR) / ".." / "shared" / "data";
   for (int i = 1; i < argc; ++i) {
@@ -996,10 +1070,15 @@ int main(int argc, char** argv) {
       s.data = value();
     } else if (a == "--sections") {
       s.sections = value();
+    } else if (a == "--points") {
+      s.points = std::atoll(value().c_str());
     } else if (a == "--help" || a == "-h") {
       std::printf(
-          "usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234]\n"
-          "       compare --registration-child POINTS sdm|tdm   (one run of section 1, for profiling)\n");
+          "usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234] [--points N]\n"
+          "       --points N: section 1 at N points only\n"
+          "       compare --registration-child POINTS sdm|tdm|sdm-field|tdm-field [CELL_MM]   (one run of "
+          "section 1, for profiling; -field: with the squared distance field, cells of CELL_MM, default "
+          "1)\n");
       return 0;
     } else {
       std::fprintf(stderr, "compare: unknown argument %s (see --help)\n", a.c_str());

@@ -10,7 +10,9 @@
 //     rigid motion (0.05 degree, 0.01 % of the size), as between two iterations of a converging fit;
 //   - Newton models warm, trusted: the same with WarmStart::kTrusted (no sample search; rigid registration);
 //   - Newton only ("refine"): RefineFootPoint from the previous parameter, i.e. the warm start without the
-//     seed-tree search that ComputeFootPoints still does per point.
+//     seed-tree search that ComputeFootPoints still does per point;
+//   - squared distance field queries (no foot point at all: the O(1) approximant of d^2 of a precomputed
+//   field).
 // Usage: micro_benchmarks [Google Benchmark flags, e.g. --benchmark_format=csv --benchmark_filter=Spline]
 
 #include <benchmark/benchmark.h>
@@ -27,6 +29,7 @@
 #include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
 #include "fitting/primitive_models.h"
+#include "fitting/squared_distance_field.h"
 #include "registration/rigid_step.h"
 
 using namespace s2m;
@@ -281,6 +284,32 @@ int Probe(const std::string& name, const std::string& mode, int repetitions) {
 
 }  // namespace
 
+// Queries of the squared distance field (fitting/squared_distance_field.h, cells of 1 mm, band 6 mm, over the
+// points' bounding box grown by the band): the approximate foot, its principal frame and d^2, per point. The
+// field is built once outside the timing (its build time is the counter build_s).
+void SquaredDistanceFieldQueries(benchmark::State& state, const std::string& name) {
+  const Family f = MakeFamily(name);
+  SquaredDistanceField::Options o;
+  o.cell_size = 1.0;
+  o.band = 6.0;
+  const Eigen::Matrix3Xd points = f.points;
+  o.box_min = points.rowwise().minCoeff().array() - o.band;
+  o.box_max = points.rowwise().maxCoeff().array() + o.band;
+  const SquaredDistanceField field(*f.model, o);
+  SquaredDistanceField::Answer answer;
+  double answered = 0.0;
+  for (auto _ : state) {
+    answered = 0.0;
+    for (Eigen::Index j = 0; j < points.cols(); ++j)
+      answered += field.Query(points.col(j), answer) ? 1.0 : 0.0;
+    benchmark::DoNotOptimize(answer.squared_distance);
+  }
+  state.SetItemsProcessed(state.iterations() * points.cols());
+  state.counters["answered"] = answered / static_cast<double>(points.cols());
+  state.counters["build_s"] = field.build_seconds();
+  state.counters["cells"] = static_cast<double>(field.cell_count());
+}
+
 BENCHMARK_CAPTURE(FootPointsCold, cylinder, std::string("cylinder"));
 BENCHMARK_CAPTURE(FootPointsCold, sphere, std::string("sphere"));
 BENCHMARK_CAPTURE(FootPointsCold, part_faces, std::string("part"));
@@ -302,6 +331,8 @@ BENCHMARK_CAPTURE(FootPointsCold, spiral, std::string("spiral"));
 BENCHMARK_CAPTURE(FootPointsWarm, spiral, std::string("spiral"));
 BENCHMARK(RigidAssembly);
 BENCHMARK(RegistrationAssemblyOnSurface);
+BENCHMARK_CAPTURE(SquaredDistanceFieldQueries, bspline_surface, std::string("bspline-surface"));
+BENCHMARK_CAPTURE(SquaredDistanceFieldQueries, cylinder, std::string("cylinder"));
 
 int main(int argc, char** argv) {
   omp_set_num_threads(1);  // per core

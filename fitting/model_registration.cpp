@@ -4,6 +4,8 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 
 #include "fitting/foot_point.h"
@@ -48,11 +50,22 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
   // foot in `geo`, so the assembly evaluates the model again only for closed-form feet. The normal equations
   // of a rejected trial are simply dropped. The model's geometry at each foot is kept for the next pass: the
   // model is fixed, so Newton's first evaluation at the previous foot would recompute exactly these numbers.
+  // With a squared distance field (options.squared_distance_field), points inside its band take the field's
+  // approximate foot and SDM approximant instead (exact[i] = 0): no Newton, no model evaluation.
+  const SquaredDistanceField* field = options.squared_distance_field;
   auto feet_and_equations = [&](const Eigen::MatrixXd& points, const std::vector<FootPoint>* warm,
-                                const std::vector<LocalGeometry>* warm_geometry, std::vector<FootPoint>& out,
-                                std::vector<LocalGeometry>& out_geometry, RigidNormalEquations& eq) {
+                                const std::vector<LocalGeometry>* warm_geometry,
+                                const std::vector<char>* warm_exact, bool use_field,
+                                std::vector<FootPoint>& out, std::vector<LocalGeometry>& out_geometry,
+                                std::vector<char>& out_exact, RigidNormalEquations& eq) {
     out.resize(static_cast<std::size_t>(points.cols()));
-    out_geometry.resize(static_cast<std::size_t>(points.cols()));
+    // Newton's geometry is kept for the next pass only in the exact phase (not touching 100 bytes per point
+    // in the field's passes).
+    if (use_field)
+      out_geometry.clear();
+    else
+      out_geometry.resize(static_cast<std::size_t>(points.cols()));
+    out_exact.resize(static_cast<std::size_t>(points.cols()));
     std::vector<RigidNormalEquations> partial;
 #pragma omp parallel
     {
@@ -60,17 +73,38 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
       partial.resize(static_cast<std::size_t>(omp_get_num_threads()));
       RigidNormalEquations& mine = partial[static_cast<std::size_t>(omp_get_thread_num())];
       LocalGeometry geo;
+      SquaredDistanceField::Answer answer;
 #pragma omp for schedule(static)
       for (Eigen::Index j = 0; j < points.cols(); ++j) {
         const auto i = static_cast<std::size_t>(j);
+        if (use_field && field->Query(points.col(j), answer, term != ErrorTerm::kTdm)) {
+          out[i] = FootPoint{answer.t, std::sqrt(answer.squared_distance), false, false};
+          out_exact[i] = 0;
+          const PrincipalFrame& f = answer.frame;
+          const Eigen::Vector3d x3 = points.col(j), r = x3 - answer.foot;
+          if (term == ErrorTerm::kTdm || term == ErrorTerm::kSdm) {
+            // M = n n^T (+ sum_k SdmWeight(delta, kappa_k) T_k T_k^T for SDM) as rank-one terms.
+            mine.AddDirection(x3, f.normals[0], weight, f.normals[0].dot(r));
+            for (int k = 0; k < 2 && term == ErrorTerm::kSdm; ++k) {
+              const auto uk = static_cast<std::size_t>(k);
+              const double beta = SdmWeight(f.delta, f.curvatures[uk]);
+              if (beta > 0) mine.AddDirection(x3, f.tangents[uk], weight * beta, f.tangents[uk].dot(r));
+            }
+          } else {
+            mine.Add({x3, answer.foot, ErrorMatrix(term, f, 3), weight});
+          }
+          continue;
+        }
         const VecS x = points.col(j);
         // The model is fixed and the points moved by one small rigid step: the previous feet are trusted.
-        const bool reuse = warm != nullptr && !context.closed_form;
+        // Newton's geometry at the previous foot is reused only when that foot was exact.
+        const bool reuse = warm != nullptr && !context.closed_form && (*warm_exact)[i] != 0;
         if (reuse) geo = (*warm_geometry)[i];
         out[i] = FootPointOf(context, x, warm != nullptr ? &(*warm)[i].t : nullptr, WarmStart::kTrusted, geo,
                              reuse);
         if (context.closed_form) model.Evaluate(out[i].t, 2, geo);
-        out_geometry[i] = geo;
+        if (!use_field) out_geometry[i] = geo;
+        out_exact[i] = use_field ? 0 : 1;
         const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
         mine.Add({points.col(j), To3(geo.point), ErrorMatrix(term, frame, 3), weight});
       }
@@ -78,18 +112,41 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
     eq = RigidNormalEquations();
     for (const RigidNormalEquations& p : partial) eq.Add(p);
   };
+  bool field_phase = field != nullptr;
   place(initial, current);
   std::vector<FootPoint> feet, trial_feet;
   std::vector<LocalGeometry> geometry, trial_geometry;
+  std::vector<char> exact, trial_exact;
   RigidNormalEquations eq, trial_eq;
-  feet_and_equations(current, nullptr, nullptr, feet, geometry, eq);
+  feet_and_equations(current, nullptr, nullptr, nullptr, field_phase, feet, geometry, exact, eq);
   double mean_square = MeanSquare(feet);
   double lambda = options.damping ? 1e-6 : 0.0;
+  int limit = options.max_iterations;
+  // Leaves the field: exact feet at the current pose (warm from the field's parameters), then at most
+  // exact_final_iterations exact iterations.
+  auto switch_to_exact = [&] {
+    field_phase = false;
+    feet_and_equations(current, &feet, &geometry, &exact, false, trial_feet, trial_geometry, trial_exact,
+                       trial_eq);
+    feet.swap(trial_feet);
+    geometry.swap(trial_geometry);
+    exact.swap(trial_exact);
+    std::swap(eq, trial_eq);
+    mean_square = MeanSquare(feet);
+    lambda = options.damping ? 1e-6 : 0.0;
+    limit = std::min(options.max_iterations, result.iterations + std::max(0, options.exact_final_iterations));
+    result.stop_reason = StopReason::kMaxIterations;
+    if (options.target_rms > 0 && std::sqrt(mean_square) <= options.target_rms)
+      result.stop_reason = StopReason::kTargetReached;
+  };
   result.stop_reason = StopReason::kMaxIterations;
   if (options.target_rms > 0 && std::sqrt(mean_square) <= options.target_rms)
     result.stop_reason = StopReason::kTargetReached;
 
-  while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
+  while (true) {
+    if (field_phase && (result.stop_reason != StopReason::kMaxIterations || result.iterations >= limit))
+      switch_to_exact();
+    if (result.stop_reason != StopReason::kMaxIterations || result.iterations >= limit) break;
     bool accepted = false;
     Eigen::Matrix<double, 6, 1> velocity;
     RigidMotion step;
@@ -98,27 +155,33 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
       step = RigidMotion::FromHelicalVelocity(velocity.head<3>(), velocity.tail<3>());
       const RigidMotion trial = step * result.model_T_scan;
       place(trial, moved);  // from the original scan: no drift
-      feet_and_equations(moved, &feet, &geometry, trial_feet, trial_geometry, trial_eq);
+      feet_and_equations(moved, &feet, &geometry, &exact, field_phase, trial_feet, trial_geometry,
+                         trial_exact, trial_eq);
       const double trial_mean_square = MeanSquare(trial_feet);
       if (!options.damping || trial_mean_square < mean_square) {
         result.model_T_scan = trial;
         current.swap(moved);
         feet.swap(trial_feet);
         geometry.swap(trial_geometry);
+        exact.swap(trial_exact);
         std::swap(eq, trial_eq);
         mean_square = trial_mean_square;
         lambda = options.damping ? std::max(lambda * 0.1, 1e-12) : 0.0;
         accepted = true;
         break;
       }
+      // The field's approximant no longer decreases: its fixed point is reached, the exact feet take over.
+      if (field_phase) break;
       lambda *= 10.0;
       if (lambda > 1e12) break;
     }
     if (!accepted) {
       result.stop_reason = StopReason::kNoFurtherDecrease;
+      if (field_phase) continue;
       break;
     }
     ++result.iterations;
+    if (field_phase) ++result.field_iterations;
     IterationRecord rec;
     rec.iteration = result.iterations;
     rec.rms = std::sqrt(mean_square);
@@ -129,10 +192,11 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
     rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     result.history.push_back(rec);
     result.pose_history.push_back(result.model_T_scan);
+    const double tolerance = field_phase ? options.field_step_tolerance : 0.0;
     if (options.target_rms > 0 && rec.rms <= options.target_rms) {
       result.stop_reason = StopReason::kTargetReached;
-    } else if (step.angle() <= options.rotation_tolerance &&
-               step.translation().norm() <= options.translation_tolerance * size) {
+    } else if (step.angle() <= std::max(tolerance, options.rotation_tolerance) &&
+               step.translation().norm() <= std::max(tolerance, options.translation_tolerance) * size) {
       result.stop_reason = StopReason::kStepTolerance;
     }
   }

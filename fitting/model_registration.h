@@ -10,6 +10,7 @@
 #include "fitting/fit_result.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/parametric_model.h"
+#include "fitting/squared_distance_field.h"
 #include "registration/rigid_motion.h"
 #include "registration/scan.h"
 
@@ -23,6 +24,17 @@ struct ModelRegistrationOptions {
   double translation_tolerance = 1e-12;  // ... and translation (relative to the scan's size) fall below these
   double target_rms = 0.0;               // stop as soon as RMS <= target (0: off)
   bool damping = true;                   // Levenberg-Marquardt on the 6x6 system, true RMS re-evaluated
+  // A precomputed squared distance field of the SAME model (null: off, every foot exact). When given, the
+  // iterations first use its O(1) approximants of d^2 (squared_distance_field.h; Mitra, Gelfand, Pottmann,
+  // Guibas, SGP 2004) for the points inside its band (exact feet for the others) until a step moves the scan
+  // by less than field_step_tolerance (rotation in rad, translation relative to the scan's size) or no longer
+  // decreases the approximate RMS; then up to exact_final_iterations iterations with exact feet, so the
+  // final pose and residuals are the model's exact ones
+  // (0: no exact step, only the exact feet at the field's final pose for the residuals). The field's accuracy
+  // is set by its cell size.
+  const SquaredDistanceField* squared_distance_field = nullptr;
+  double field_step_tolerance = 1e-7;
+  int exact_final_iterations = 1;
 };
 
 struct ModelRegistrationResult {
@@ -32,6 +44,7 @@ struct ModelRegistrationResult {
   StopReason stop_reason = StopReason::kMaxIterations;
   std::vector<IterationRecord> history;
   std::vector<RigidMotion> pose_history;  // model_T_scan after each iteration (history[i]'s pose)
+  int field_iterations = 0;               // of `iterations`, those with the squared distance field
 };
 
 // Registers `scan_points` (3 x n, scan coordinates) to `model` starting from `initial` (model_T_scan).

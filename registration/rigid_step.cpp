@@ -15,6 +15,15 @@ void RigidNormalEquations::Add(const PointConstraint& p) {
   g.noalias() += AtM * (p.x - p.target);
 }
 
+void RigidNormalEquations::AddDirection(const Eigen::Vector3d& x, const Eigen::Vector3d& v, double weight,
+                                        double v_dot_residual) {
+  // (-[x]x)^T v = x x v.
+  Eigen::Matrix<double, 6, 1> row;
+  row << x.cross(v), v;
+  H.noalias() += (weight * row) * row.transpose();
+  g.noalias() += (weight * v_dot_residual) * row;
+}
+
 void RigidNormalEquations::Add(const RigidNormalEquations& other) {
   H += other.H;
   g += other.g;

@@ -25,6 +25,9 @@ struct RigidNormalEquations {
   Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();  // sum w A^T M (x - s)
   void Add(const PointConstraint& p);
+  // One rank-one term weight * (v . (x' - s))^2 of an error matrix M = sum_k w_k v_k v_k^T: its row
+  // A^T v = [x x v; v], right-hand side v . (x - s). Cheaper than Add when M's eigen-decomposition is known.
+  void AddDirection(const Eigen::Vector3d& x, const Eigen::Vector3d& v, double weight, double v_dot_residual);
   void Add(const RigidNormalEquations& other);
 };
 
