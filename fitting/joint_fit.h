@@ -42,6 +42,10 @@ struct JointFitOptions {
   // model's own per-iteration choice (AmbiguousFootPoint), which can settle differently from different
   // starts.
   std::vector<std::vector<bool>> left_out;
+  // Assemble the next iteration's normal equations in the foot point pass that evaluates a trial, from the
+  // model's geometry Newton ends with at each foot (default). Off: a separate assembly pass evaluates the
+  // model at every foot again (the reference path; same results to rounding).
+  bool reuse_foot_geometry = true;
 };
 
 // Standard uncertainty of a scan's pose correction, for the motion (c, cbar) in the model frame at the
