@@ -205,6 +205,9 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   // Whether the evaluation of the next trial sums the normal equations: not when no iteration can follow it
   // (the last one allowed), where they would go unused.
   bool accumulate_next = true;
+  // How the next evaluation uses its warm start (the previous state's feet): verified unless the step from
+  // that state was small (options.trusted_warm_start_step).
+  WarmStart warm_mode = WarmStart::kVerified;
 
   // Foot points of every scan at the state's model and poses, the objective, and (with
   // options.reuse_foot_geometry) the normal equations at the new feet with the iteration's error term: the
@@ -223,7 +226,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
       s.current[k].noalias() = s.poses[k].rotation() * data[k];
       s.current[k].colwise() += s.poses[k].translation();
       if (!accumulate) {
-        ComputeFootPoints(*s.model, s.current[k], s.feet[k], warm ? &warm->feet[k] : nullptr);
+        ComputeFootPoints(*s.model, s.current[k], s.feet[k], warm ? &warm->feet[k] : nullptr, warm_mode);
         if (!options.left_out.empty()) {
           for (std::size_t j = 0; j < s.feet[k].size(); ++j) s.feet[k][j].excluded = options.left_out[k][j];
         }
@@ -409,12 +412,17 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
       trial.model = state.model->Clone();
       trial.model->ApplyStep(step_d);
       trial.poses = state.poses;
+      // The largest change of a shape parameter or a motion component (unit-box units, radians).
+      double largest = step_d.size() > 0 ? step_d.cwiseAbs().maxCoeff() : 0.0;
       for (std::size_t k = 0; k < K; ++k) {
         const std::size_t b = blocks == 1 ? 0 : k;
         const Motion6 v = sys.basis[b] * step_b[b];
+        largest = std::max(largest, v.cwiseAbs().maxCoeff());
         trial.poses[k] = RigidMotion::FromHelicalVelocity(v.head<3>(), v.tail<3>()) * state.poses[k];
       }
+      warm_mode = largest <= options.trusted_warm_start_step ? WarmStart::kTrusted : WarmStart::kVerified;
       evaluate(trial, &state);
+      warm_mode = WarmStart::kVerified;
       if (trial.objective < state.objective) {
         last_step_norm = step_d.norm();
         damping = std::max(damping * 0.1, 1e-12);

@@ -375,6 +375,38 @@ TEST(JointFit, AssemblyFromTheFootPointPassMatchesTheSeparatePass) {
   EXPECT_NEAR(cylinder[0][cylinder[0].size() - 1], 3.0, 1e-8);
 }
 
+TEST(JointFit, TrustedWarmStartsAfterSmallStepsGiveTheVerifiedResult) {
+  // Trusting the previous feet after small steps (the default) against verifying every warm start: the same
+  // fit to rounding, on the pot (an open profile: feet at its ends fall back to the nearest sample) from a
+  // start whose first steps are large (verified) and whose later ones are small (trusted).
+  const PotScans views = ScanPot(TruePot(), 0.002);
+  std::vector<Eigen::VectorXd> parameters;
+  std::vector<JointFitResult> results;
+  for (const double trust : {1e-2, 0.0}) {
+    KinematicSurface pot = StartingProfile();
+    JointFitOptions o;
+    o.max_iterations = 30;
+    o.trusted_warm_start_step = trust;
+    results.push_back(FitJointly(pot, views.scans, views.initial, o));
+    parameters.push_back(pot.parameters());
+  }
+  // Large and small shape steps both occurred (the history records the shape step's norm).
+  int small_steps = 0;
+  for (const IterationRecord& rec : results[0].history) small_steps += rec.step_norm < 1e-2;
+  EXPECT_GT(small_steps, 0);
+  EXPECT_GT(results[0].history.front().step_norm, 1e-2);
+  ASSERT_EQ(results[0].iterations, results[1].iterations);
+  EXPECT_EQ(results[0].stop_reason, results[1].stop_reason);
+  EXPECT_LT((parameters[0] - parameters[1]).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_NEAR(results[0].residuals.rms, results[1].residuals.rms, 1e-12);
+  EXPECT_NEAR(results[0].residuals.max_abs, results[1].residuals.max_abs, 1e-9);
+  for (std::size_t k = 0; k < views.scans.size(); ++k) {
+    EXPECT_LT((results[0].model_T_scan[k].rotation() - results[1].model_T_scan[k].rotation()).norm(), 1e-9);
+    EXPECT_LT((results[0].model_T_scan[k].translation() - results[1].model_T_scan[k].translation()).norm(),
+              1e-9);
+  }
+}
+
 TEST(JointFit, RejectsBadInput) {
   KinematicSurface pot = StartingProfile();
   EXPECT_THROW(FitJointly(pot, {}, {}), std::invalid_argument);
