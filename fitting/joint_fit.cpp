@@ -251,8 +251,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
           for (Eigen::Index j = 0; j < n; ++j) {
             const auto i = static_cast<std::size_t>(j);
             FootPoint& f = feet[i];
-            f = FootPointOf(context, points.col(j), previous ? &(*previous)[i].t : nullptr,
-                            WarmStart::kVerified, g);
+            f = FootPointOf(context, points.col(j), previous ? &(*previous)[i].t : nullptr, warm_mode, g);
             if (!options.left_out.empty()) f.excluded = options.left_out[k][i];
             if (f.excluded) continue;
             // Closed-form feet leave `g` unspecified.
