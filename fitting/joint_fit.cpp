@@ -50,7 +50,7 @@ struct State {
   double rms = 0.0;  // normalized units, over the points not excluded
   Eigen::Index used = 0;
   // The normal equations at these foot points, in full 6-component motions per scan, accumulated by the
-  // evaluation that found the feet (valid when `sums_valid`; see SumsAt below).
+  // evaluation that found the feet (valid when `sums_valid`).
   struct Sums {
     std::vector<Eigen::Matrix<double, 6, 6>> h_bb;
     std::vector<Eigen::MatrixXd> h_db;  // r x 6 per scan
@@ -245,7 +245,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
           partials.resize(static_cast<std::size_t>(omp_get_num_threads()));
           Partial& mine = partials[static_cast<std::size_t>(omp_get_thread_num())];
           mine.Reset(r);
-          LocalGeometry g, geo;
+          LocalGeometry g;
           std::vector<JacobianEntry> entries;
 #pragma omp for schedule(static)
           for (Eigen::Index j = 0; j < n; ++j) {
