@@ -49,7 +49,80 @@ struct State {
   double objective = 0.0;
   double rms = 0.0;  // normalized units, over the points not excluded
   Eigen::Index used = 0;
+  // The normal equations at these foot points, in full 6-component motions per scan, accumulated by the
+  // evaluation that found the feet (valid when `sums_valid`).
+  struct Sums {
+    std::vector<Eigen::Matrix<double, 6, 6>> h_bb;
+    std::vector<Eigen::MatrixXd> h_db;  // r x 6 per scan
+    std::vector<Motion6> g_b;
+    Eigen::MatrixXd h_dd;
+    Eigen::VectorXd g_d;
+  } sums;
+  bool sums_valid = false;
 };
+
+// Per-thread partial sums of the normal equations of one scan (full motions): fixed-size motion blocks, so
+// that a point's contribution allocates nothing and has no dynamic-size loops.
+struct Partial {
+  Eigen::Matrix<double, 6, 6> h_bb;
+  Eigen::Matrix<double, 6, Eigen::Dynamic> h_bd;  // 6 x r: the coupling, transposed (a parameter's 6 terms
+                                                  // contiguous)
+  Motion6 g_b;
+  Eigen::MatrixXd h_dd;
+  Eigen::VectorXd g_d;
+  void Reset(int r) {
+    h_bb.setZero();
+    h_bd.setZero(6, r);
+    g_b.setZero();
+    h_dd.setZero(r, r);
+    g_d.setZero(r);
+  }
+};
+
+// A point's non-zero shape Jacobian columns side by side (a B-spline model has a few: (p+1) or (p+1)^2
+// control points times their coordinates); more fall back to one column at a time.
+constexpr int kMaxEntries = 48;
+using EntryColumns = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxEntries>;
+
+// Adds one point's terms to `acc`: the data point x (model frame), its foot f with the model's geometry `geo`
+// (C and its first and second derivatives at f.t) and shape Jacobian `entries` there, weight w. The motion
+// part uses the linearized motion A = [-[x]x  I] (MotionJacobian); projecting the sums onto a gauge-reduced
+// basis B afterwards (B^T H B) is the same as projecting every point's A B. The shape part is J^T M J,
+// -J^T M e0 and J^T M A over the non-zero columns J only, as small fixed-capacity products.
+void AccumulatePoint(const Eigen::Vector3d& x, const FootPoint& f, const LocalGeometry& geo,
+                     const std::vector<JacobianEntry>& entries, ErrorTerm term, double w, Partial& acc) {
+  const Eigen::Vector3d e0 = x - To3(geo.point);
+  const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
+  const Eigen::Matrix3d M = f.on_boundary ? EndRuleMatrix(term, frame, e0, 3) : ErrorMatrix(term, frame, 3);
+  const Eigen::Matrix<double, 3, 6> a = MotionJacobian(x);
+  const Eigen::Matrix<double, 3, 6> wm_a = w * (M * a);
+  acc.h_bb.noalias() += a.transpose() * wm_a;
+  acc.g_b.noalias() += wm_a.transpose() * e0;
+  const auto n = static_cast<Eigen::Index>(entries.size());
+  if (n <= kMaxEntries) {
+    EntryColumns J(3, n);
+    for (Eigen::Index i = 0; i < n; ++i) J.col(i) = entries[static_cast<std::size_t>(i)].column;
+    const EntryColumns wMJ = w * (M * J);
+    const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxEntries, 1> g = wMJ.transpose() * e0;
+    const Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxEntries> h_bd = wm_a.transpose() * J;
+    const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxEntries, kMaxEntries> h_dd =
+        J.transpose() * wMJ;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const int c = entries[static_cast<std::size_t>(i)].index;
+      acc.g_d[c] -= g[i];
+      acc.h_bd.col(c) -= h_bd.col(i);
+      double* column = &acc.h_dd(0, c);
+      for (Eigen::Index j = 0; j < n; ++j) column[entries[static_cast<std::size_t>(j)].index] += h_dd(j, i);
+    }
+    return;
+  }
+  for (const JacobianEntry& c : entries) {
+    const Eigen::Vector3d wm_col = w * (M * c.column);
+    acc.g_d[c.index] -= wm_col.dot(e0);
+    acc.h_bd.col(c.index).noalias() -= wm_a.transpose() * c.column;
+    for (const JacobianEntry& d : entries) acc.h_dd(d.index, c.index) += d.column.dot(wm_col);
+  }
+}
 
 }  // namespace
 
@@ -106,18 +179,88 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   const Eigen::MatrixXd B_first =
       options.remove_gauge ? GaugeComplement(first_gauge) : Eigen::MatrixXd::Identity(6, 6);
 
+  const int r = state.model->num_parameters();
+  // Scan k's per-thread partial sums into `sums` (its motion blocks; the shape block is shared by all scans).
+  auto add_scan = [&](std::size_t k, State::Sums& sums, const std::vector<Partial>& partials) {
+    sums.h_bb[k].setZero();
+    sums.h_db[k].setZero(r, 6);
+    sums.g_b[k].setZero();
+    // Added in thread order: a run is reproducible for a given thread count.
+    for (const Partial& p : partials) {
+      sums.h_bb[k] += p.h_bb;
+      sums.h_db[k] += p.h_bd.transpose();
+      sums.g_b[k] += p.g_b;
+      sums.h_dd += p.h_dd;
+      sums.g_d += p.g_d;
+    }
+  };
+  auto reset_sums = [&](State::Sums& sums) {
+    sums.h_bb.resize(K);
+    sums.h_db.resize(K);
+    sums.g_b.resize(K);
+    sums.h_dd.setZero(r, r);
+    sums.g_d.setZero(r);
+  };
+  std::vector<Partial> partials;  // per thread, reused by every pass
+  // Whether the evaluation of the next trial sums the normal equations: not when no iteration can follow it
+  // (the last one allowed), where they would go unused.
+  bool accumulate_next = true;
+  // How the next evaluation uses its warm start (the previous state's feet): verified unless the step from
+  // that state was small (options.trusted_warm_start_step).
+  WarmStart warm_mode = WarmStart::kVerified;
+
+  // Foot points of every scan at the state's model and poses, the objective, and (with
+  // options.reuse_foot_geometry) the normal equations at the new feet with the iteration's error term: the
+  // foot point search ends with the model's geometry at the foot, which the assembly needs, so the next
+  // iteration's assembly is done here, in the same pass, should this state be accepted (a rejected trial
+  // wastes it; the linear solve and step control are unchanged).
   auto evaluate = [&](State& s, const State* warm) {
     s.current.resize(K);
     s.feet.resize(K);
+    const bool accumulate = options.reuse_foot_geometry && accumulate_next;
+    if (accumulate) reset_sums(s.sums);
     double sum = 0.0, sum_sq = 0.0;
     s.used = 0;
     for (std::size_t k = 0; k < K; ++k) {
       s.current[k].resize(3, data[k].cols());  // no-op when the buffer is reused
       s.current[k].noalias() = s.poses[k].rotation() * data[k];
       s.current[k].colwise() += s.poses[k].translation();
-      ComputeFootPoints(*s.model, s.current[k], s.feet[k], warm ? &warm->feet[k] : nullptr);
-      if (!options.left_out.empty()) {
-        for (std::size_t j = 0; j < s.feet[k].size(); ++j) s.feet[k][j].excluded = options.left_out[k][j];
+      if (!accumulate) {
+        ComputeFootPoints(*s.model, s.current[k], s.feet[k], warm ? &warm->feet[k] : nullptr, warm_mode);
+        if (!options.left_out.empty()) {
+          for (std::size_t j = 0; j < s.feet[k].size(); ++j) s.feet[k][j].excluded = options.left_out[k][j];
+        }
+      } else {
+        // ComputeFootPoints' loop (the same FootPointOf calls), fused with the assembly.
+        const Eigen::Index n = data[k].cols();
+        s.feet[k].resize(static_cast<std::size_t>(n));
+        const FootPointContext context(*s.model);
+        const std::vector<FootPoint>* previous = warm ? &warm->feet[k] : nullptr;
+        const ParametricModel& model_k = *s.model;
+        const Eigen::MatrixXd& points = s.current[k];
+        std::vector<FootPoint>& feet = s.feet[k];
+#pragma omp parallel
+        {
+#pragma omp single
+          partials.resize(static_cast<std::size_t>(omp_get_num_threads()));
+          Partial& mine = partials[static_cast<std::size_t>(omp_get_thread_num())];
+          mine.Reset(r);
+          LocalGeometry g;
+          std::vector<JacobianEntry> entries;
+#pragma omp for schedule(static)
+          for (Eigen::Index j = 0; j < n; ++j) {
+            const auto i = static_cast<std::size_t>(j);
+            FootPoint& f = feet[i];
+            f = FootPointOf(context, points.col(j), previous ? &(*previous)[i].t : nullptr, warm_mode, g);
+            if (!options.left_out.empty()) f.excluded = options.left_out[k][i];
+            if (f.excluded) continue;
+            // Closed-form feet leave `g` unspecified.
+            if (context.closed_form) model_k.Evaluate(f.t, 2, g);
+            model_k.ShapeJacobian(f.t, false, entries);
+            AccumulatePoint(points.col(j), f, g, entries, options.error_term, weights[k], mine);
+          }
+        }
+        add_scan(k, s.sums, partials);
       }
       double scan_sq = 0.0;
       for (const FootPoint& f : s.feet[k]) {
@@ -128,6 +271,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
       sum += 0.5 * weights[k] * scan_sq;
       sum_sq += scan_sq;
     }
+    s.sums_valid = accumulate;
     if (K_fair.size() > 0) {
       const Eigen::VectorXd p = s.model->parameters();
       sum += p.dot(K_fair * p);
@@ -140,7 +284,6 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   JointFitResult result;
   double lambda = 1e-6;
   bool shared = (options.shared_motion_iterations > 0 || !options.per_scan_motions) && K > 1;
-  const int r = state.model->num_parameters();
   result.stop_reason = StopReason::kMaxIterations;
   if (options.target_rms > 0 && state.rms * scale <= options.target_rms)
     result.stop_reason = StopReason::kTargetReached;
@@ -154,70 +297,56 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     Eigen::VectorXd g_d;
   };
   auto assemble = [&](const State& st, bool one_motion, ErrorTerm term, bool unit_weights = false) {
+    // The sums at the state's feet: those its evaluation accumulated, else a pass that evaluates the model at
+    // every foot again (the final GTDM matrix, or options.reuse_foot_geometry off).
+    State::Sums own;
+    const State::Sums* sums = &st.sums;
+    if (!(st.sums_valid && term == options.error_term && !unit_weights)) {
+      reset_sums(own);
+      for (std::size_t k = 0; k < K; ++k) {
+        const double w = unit_weights ? 1.0 : weights[k];
+#pragma omp parallel
+        {
+#pragma omp single
+          partials.resize(static_cast<std::size_t>(omp_get_num_threads()));
+          Partial& mine = partials[static_cast<std::size_t>(omp_get_thread_num())];
+          mine.Reset(r);
+          LocalGeometry geo;
+          std::vector<JacobianEntry> entries;
+#pragma omp for schedule(static)
+          for (Eigen::Index j = 0; j < st.current[k].cols(); ++j) {
+            const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
+            if (f.excluded) continue;
+            st.model->Evaluate(f.t, 2, geo);
+            st.model->ShapeJacobian(f.t, false, entries);
+            AccumulatePoint(st.current[k].col(j), f, geo, entries, term, w, mine);
+          }
+        }
+        add_scan(k, own, partials);
+      }
+      sums = &own;
+    }
+    // Project the full motions onto the gauge-reduced bases (shared motion: all scans onto the first's).
     System sys;
     const std::size_t blocks = one_motion ? 1 : K;
     for (std::size_t b = 0; b < blocks; ++b) {
       sys.basis.push_back(b == 0 ? B_first : B_scan);
-      const Eigen::Index q = sys.basis[b].cols();
-      sys.h_bb.push_back(Eigen::MatrixXd::Zero(q, q));
-      sys.h_db.push_back(Eigen::MatrixXd::Zero(r, q));
-      sys.g_b.push_back(Eigen::VectorXd::Zero(q));
-    }
-    sys.h_dd = Eigen::MatrixXd::Zero(r, r);
-    sys.g_d = Eigen::VectorXd::Zero(r);
-    // In parallel over points: each thread sums into its own partial matrices; the partials are added in
-    // thread order afterwards, so that a run is reproducible for a given thread count.
-    for (std::size_t k = 0; k < K; ++k) {
-      const std::size_t b = one_motion ? 0 : k;
-      const double w = unit_weights ? 1.0 : weights[k];
-      const Eigen::Index q = sys.basis[b].cols();
-      struct Partial {
-        Eigen::MatrixXd h_bb, h_db, h_dd;
-        Eigen::VectorXd g_b, g_d;
-      };
-      std::vector<Partial> partials;
-#pragma omp parallel
-      {
-#pragma omp single
-        partials.resize(static_cast<std::size_t>(omp_get_num_threads()));
-        Partial& mine = partials[static_cast<std::size_t>(omp_get_thread_num())];
-        mine = {Eigen::MatrixXd::Zero(q, q), Eigen::MatrixXd::Zero(r, q), Eigen::MatrixXd::Zero(r, r),
-                Eigen::VectorXd::Zero(q), Eigen::VectorXd::Zero(r)};
-        LocalGeometry geo;
-        std::vector<JacobianEntry> entries;
-#pragma omp for schedule(static)
-        for (Eigen::Index j = 0; j < st.current[k].cols(); ++j) {
-          const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
-          if (f.excluded) continue;
-          const Eigen::Vector3d x = st.current[k].col(j);
-          st.model->Evaluate(f.t, 2, geo);
-          st.model->ShapeJacobian(f.t, false, entries);
-          const Eigen::Vector3d e0 = x - To3(geo.point);
-          const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
-          const Eigen::Matrix3d M =
-              f.on_boundary ? EndRuleMatrix(term, frame, e0, 3) : ErrorMatrix(term, frame, 3);
-          // Fixed-capacity 3 x q (q <= 6): no heap allocation per point.
-          using Block = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 6>;
-          const Block ab = MotionJacobian(x) * sys.basis[b];
-          const Block m_ab = M * ab;
-          mine.h_bb.noalias() += w * ab.transpose() * m_ab;
-          mine.g_b.noalias() += w * m_ab.transpose() * e0;
-          for (const JacobianEntry& a : entries) {
-            const Eigen::Vector3d m_col = M * a.column;
-            mine.g_d[a.index] -= w * m_col.dot(e0);
-            mine.h_db.row(a.index).noalias() -= w * (a.column.transpose() * m_ab);
-            for (const JacobianEntry& c : entries) mine.h_dd(c.index, a.index) += w * c.column.dot(m_col);
-          }
-        }
+      Eigen::Matrix<double, 6, 6> h6 = Eigen::Matrix<double, 6, 6>::Zero();
+      Eigen::MatrixXd hdb6 = Eigen::MatrixXd::Zero(r, 6);
+      Motion6 g6 = Motion6::Zero();
+      for (std::size_t k = 0; k < K; ++k) {
+        if ((one_motion ? 0 : k) != b) continue;
+        h6 += sums->h_bb[k];
+        hdb6 += sums->h_db[k];
+        g6 += sums->g_b[k];
       }
-      for (const Partial& p : partials) {
-        sys.h_bb[b] += p.h_bb;
-        sys.h_db[b] += p.h_db;
-        sys.h_dd += p.h_dd;
-        sys.g_b[b] += p.g_b;
-        sys.g_d += p.g_d;
-      }
+      const Eigen::MatrixXd& B = sys.basis[b];
+      sys.h_bb.push_back(B.transpose() * h6 * B);
+      sys.h_db.push_back(hdb6 * B);
+      sys.g_b.push_back(B.transpose() * g6);
     }
+    sys.h_dd = sums->h_dd;
+    sys.g_d = sums->g_d;
     if (K_fair.size() > 0) {
       sys.h_dd += 2.0 * K_fair;
       sys.g_d += 2.0 * K_fair * st.model->parameters();
@@ -282,12 +411,17 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
       trial.model = state.model->Clone();
       trial.model->ApplyStep(step_d);
       trial.poses = state.poses;
+      // The largest change of a shape parameter or a motion component (unit-box units, radians).
+      double largest = step_d.size() > 0 ? step_d.cwiseAbs().maxCoeff() : 0.0;
       for (std::size_t k = 0; k < K; ++k) {
         const std::size_t b = blocks == 1 ? 0 : k;
         const Motion6 v = sys.basis[b] * step_b[b];
+        largest = std::max(largest, v.cwiseAbs().maxCoeff());
         trial.poses[k] = RigidMotion::FromHelicalVelocity(v.head<3>(), v.tail<3>()) * state.poses[k];
       }
+      warm_mode = largest <= options.trusted_warm_start_step ? WarmStart::kTrusted : WarmStart::kVerified;
       evaluate(trial, &state);
+      warm_mode = WarmStart::kVerified;
       if (trial.objective < state.objective) {
         last_step_norm = step_d.norm();
         damping = std::max(damping * 0.1, 1e-12);
@@ -305,6 +439,7 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     // buffers are overwritten by the next trial (no per-iteration allocation of points and foot points).
     bool accepted = false;
     const double objective_before = state.objective;
+    accumulate_next = options.alternating || result.iterations + 1 < options.max_iterations;
     if (!options.alternating) {
       accepted = step(assemble(state, shared, options.error_term), Unknowns::kAll, lambda, trial);
       if (accepted) std::swap(state, trial);

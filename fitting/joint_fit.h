@@ -42,6 +42,19 @@ struct JointFitOptions {
   // model's own per-iteration choice (AmbiguousFootPoint), which can settle differently from different
   // starts.
   std::vector<std::vector<bool>> left_out;
+  // Assemble the next iteration's normal equations in the foot point pass that evaluates a trial, from the
+  // model's geometry Newton ends with at each foot (default). Off: a separate assembly pass evaluates the
+  // model at every foot again (the reference path; same results to rounding).
+  bool reuse_foot_geometry = true;
+  // Warm starts of the foot points after a step (foot_point.h): trusted (Newton straight from the previous
+  // foot's parameter, no search for the nearest model sample; feet ending on an open boundary still compare
+  // with the nearest sample) when no shape parameter and no motion component changed by more than this in
+  // the step (data scaled into the unit box; radians), else verified (the better of the previous parameter
+  // and the nearest sample). A small step moves the model and the points by about that much, far less than
+  // the distance between two basins of the distance function on a smooth model, so the previous foot's basin
+  // holds the new foot; a large shape step can move where a foot near an open end belongs (the reason the
+  // fits verify). 0: always verified.
+  double trusted_warm_start_step = 1e-2;
 };
 
 // Standard uncertainty of a scan's pose correction, for the motion (c, cbar) in the model frame at the

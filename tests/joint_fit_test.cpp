@@ -312,6 +312,101 @@ TEST(JointFit, PrimitivesRemoveTheirSymmetriesFromEveryScan) {
   }
 }
 
+TEST(JointFit, AssemblyFromTheFootPointPassMatchesTheSeparatePass) {
+  // The fast path (normal equations summed in the foot point pass that evaluates a trial, from Newton's
+  // geometry at the feet) against the reference path (a separate assembly pass evaluating the model at every
+  // foot again): the same iterations, parameters and poses to rounding, on a Newton model (the pot, both
+  // stages, with noise) and on a closed-form one (a cylinder).
+  const PotScans views = ScanPot(TruePot(), 0.002);
+  std::vector<Eigen::VectorXd> parameters;
+  std::vector<JointFitResult> results;
+  for (const bool reuse : {true, false}) {
+    KinematicSurface pot = StartingProfile();
+    JointFitOptions o;
+    o.max_iterations = 25;
+    o.reuse_foot_geometry = reuse;
+    results.push_back(FitJointly(pot, views.scans, views.initial, o));
+    parameters.push_back(pot.parameters());
+  }
+  ASSERT_EQ(results[0].iterations, results[1].iterations);
+  EXPECT_EQ(results[0].shared_iterations, results[1].shared_iterations);
+  EXPECT_LT((parameters[0] - parameters[1]).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_NEAR(results[0].residuals.rms, results[1].residuals.rms, 1e-12);
+  for (std::size_t k = 0; k < views.scans.size(); ++k) {
+    EXPECT_LT((results[0].model_T_scan[k].rotation() - results[1].model_T_scan[k].rotation()).norm(), 1e-9);
+    EXPECT_LT((results[0].model_T_scan[k].translation() - results[1].model_T_scan[k].translation()).norm(),
+              1e-9);
+  }
+  ASSERT_EQ(results[0].shape_uncertainty.size(), results[1].shape_uncertainty.size());
+  for (Eigen::Index i = 0; i < results[0].shape_uncertainty.size(); ++i)
+    EXPECT_NEAR(results[0].shape_uncertainty[i], results[1].shape_uncertainty[i], 1e-9);
+
+  const CylinderModel truth(Cylinder{{1.0, -2.0, 0.5}, Eigen::Vector3d(0.2, 0.1, 1).normalized(), 3.0});
+  std::vector<Eigen::Matrix3Xd> scans;
+  std::vector<RigidMotion> initial;
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> a(0.0, 1.0);
+  LocalGeometry g;
+  for (int k = 0; k < 3; ++k) {
+    const RigidMotion pose =
+        RigidMotion::FromHelicalVelocity({0.1 * k, -0.2, 0.05 * k}, {2.0 * k, 1.0, -1.0});
+    Eigen::Matrix3Xd points(3, 300);
+    for (int j = 0; j < 300; ++j) {
+      truth.Evaluate({2 * M_PI * (k + 1.8 * a(rng)) / 3, 4 * a(rng) - 2, 0.0}, 0, g);
+      points.col(j) = g.point;
+    }
+    scans.push_back(pose.inverse().apply(points));
+    initial.push_back(RigidMotion::FromHelicalVelocity({0.01, -0.01 * k, 0.005}, {0.05, 0.02 * k, -0.03}) *
+                      pose);
+  }
+  std::vector<Eigen::VectorXd> cylinder;
+  std::vector<int> iterations;
+  for (const bool reuse : {true, false}) {
+    auto model = truth.Clone();
+    model->ApplyStep(Eigen::VectorXd::Constant(model->num_parameters(), 0.02));
+    JointFitOptions o;
+    o.max_iterations = 30;
+    o.reuse_foot_geometry = reuse;
+    iterations.push_back(FitJointly(*model, scans, initial, o).iterations);
+    cylinder.push_back(model->parameters());
+  }
+  EXPECT_EQ(iterations[0], iterations[1]);
+  EXPECT_LT((cylinder[0] - cylinder[1]).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_NEAR(cylinder[0][cylinder[0].size() - 1], 3.0, 1e-8);
+}
+
+TEST(JointFit, TrustedWarmStartsAfterSmallStepsGiveTheVerifiedResult) {
+  // Trusting the previous feet after small steps (the default) against verifying every warm start: the same
+  // fit to rounding, on the pot (an open profile: feet at its ends fall back to the nearest sample) from a
+  // start whose first steps are large (verified) and whose later ones are small (trusted).
+  const PotScans views = ScanPot(TruePot(), 0.002);
+  std::vector<Eigen::VectorXd> parameters;
+  std::vector<JointFitResult> results;
+  for (const double trust : {1e-2, 0.0}) {
+    KinematicSurface pot = StartingProfile();
+    JointFitOptions o;
+    o.max_iterations = 30;
+    o.trusted_warm_start_step = trust;
+    results.push_back(FitJointly(pot, views.scans, views.initial, o));
+    parameters.push_back(pot.parameters());
+  }
+  // Large and small shape steps both occurred (the history records the shape step's norm).
+  int small_steps = 0;
+  for (const IterationRecord& rec : results[0].history) small_steps += rec.step_norm < 1e-2;
+  EXPECT_GT(small_steps, 0);
+  EXPECT_GT(results[0].history.front().step_norm, 1e-2);
+  ASSERT_EQ(results[0].iterations, results[1].iterations);
+  EXPECT_EQ(results[0].stop_reason, results[1].stop_reason);
+  EXPECT_LT((parameters[0] - parameters[1]).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_NEAR(results[0].residuals.rms, results[1].residuals.rms, 1e-12);
+  EXPECT_NEAR(results[0].residuals.max_abs, results[1].residuals.max_abs, 1e-9);
+  for (std::size_t k = 0; k < views.scans.size(); ++k) {
+    EXPECT_LT((results[0].model_T_scan[k].rotation() - results[1].model_T_scan[k].rotation()).norm(), 1e-9);
+    EXPECT_LT((results[0].model_T_scan[k].translation() - results[1].model_T_scan[k].translation()).norm(),
+              1e-9);
+  }
+}
+
 TEST(JointFit, RejectsBadInput) {
   KinematicSurface pot = StartingProfile();
   EXPECT_THROW(FitJointly(pot, {}, {}), std::invalid_argument);
