@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "devices/device_options.h"
 #include "devices/laser_line.h"
 
 namespace s2m {
@@ -388,45 +389,14 @@ VirtualHorusOptions ParseVirtualHorus(const std::string& spec, std::string& scen
   std::string body = spec;
   const std::string prefix = "horus-virtual:";
   if (body.rfind(prefix, 0) == 0) body = body.substr(prefix.size());
-  std::vector<std::string> items;
-  std::stringstream in(body);
-  auto trim = [](std::string s) {
-    const auto b = s.find_first_not_of(" \t"), e = s.find_last_not_of(" \t");
-    return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
-  };
-  for (std::string item; std::getline(in, item, ',');) items.push_back(trim(item));
-  if (items.empty() || items.front().empty())
-    throw std::invalid_argument("device '" + spec +
-                                "': no scene given (horus-virtual:<scene>[,key=value...])");
-  scene = items.front();
+  const DeviceOptionList device = SplitDeviceOptions(
+      body, "device '" + spec + "': no scene given (horus-virtual:<scene>[,key=value...])");
+  scene = device.scene;
   mesh_units = "mm";
   VirtualHorusOptions o;
-  std::map<std::string, std::string> seen;
-  for (std::size_t i = 1; i < items.size(); ++i) {
-    const std::size_t eq = items[i].find('=');
-    if (eq == std::string::npos)
-      throw std::invalid_argument("device option '" + items[i] + "' is not key=value");
-    const std::string key = trim(items[i].substr(0, eq)), value = trim(items[i].substr(eq + 1));
-    if (!seen.emplace(key, value).second)
-      throw std::invalid_argument("device option '" + key + "' given twice");
-    auto number = [&]() {
-      std::size_t used = 0;
-      double x = 0;
-      try {
-        x = std::stod(value, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used != value.size() || value.empty() || !std::isfinite(x))
-        throw std::invalid_argument("device option '" + key + "': '" + value + "' is not a number");
-      return x;
-    };
-    auto integer = [&]() {
-      const double x = number();
-      if (x != std::floor(x) || x < 1 || x > 1e6)
-        throw std::invalid_argument("device option '" + key + "': '" + value + "' is not a positive integer");
-      return static_cast<int>(x);
-    };
+  for (const auto& [key, value] : device.options) {
+    auto number = [&]() { return DeviceOptionNumber(key, value); };
+    auto integer = [&]() { return DeviceOptionInteger(key, value, 1, 1000000); };
     const std::map<std::string, double*> numbers = {{"fx", &o.fx},
                                                     {"fy", &o.fy},
                                                     {"cx", &o.cx},

@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "acquisition/synthetic_cases.h"
+#include "devices/device_options.h"
 
 namespace s2m {
 
@@ -40,13 +41,6 @@ RigidMotion LookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& targe
   Eigen::Matrix3d r;
   r << x, y, z;
   return RigidMotion(r, position);
-}
-
-std::string Trim(std::string s) {
-  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
-  std::size_t b = 0;
-  while (b < s.size() && std::isspace(static_cast<unsigned char>(s[b]))) ++b;
-  return s.substr(b);
 }
 
 class VirtualScanner final : public FrameSource {
@@ -523,42 +517,15 @@ VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& s
   const std::string prefix = "virtual:";
   if (spec.rfind(prefix, 0) != 0)
     throw std::invalid_argument("device '" + spec + "': only virtual:<scene>[,key=value...] is supported");
-  std::vector<std::string> items;
-  std::stringstream in(spec.substr(prefix.size()));
-  for (std::string item; std::getline(in, item, ',');) items.push_back(Trim(item));
-  if (items.empty() || items.front().empty())
-    throw std::invalid_argument("device '" + spec + "': no scene given");
-  scene = items.front();
+  const DeviceOptionList device =
+      SplitDeviceOptions(spec.substr(prefix.size()), "device '" + spec + "': no scene given");
+  scene = device.scene;
   mesh_units = "mm";
   VirtualScannerOptions o;
   o.name = std::filesystem::path(scene).stem().string();
-  std::map<std::string, std::string> seen;
-  for (std::size_t i = 1; i < items.size(); ++i) {
-    const std::size_t eq = items[i].find('=');
-    if (eq == std::string::npos)
-      throw std::invalid_argument("device option '" + items[i] + "' is not key=value");
-    const std::string key = Trim(items[i].substr(0, eq)), value = Trim(items[i].substr(eq + 1));
-    if (!seen.emplace(key, value).second)
-      throw std::invalid_argument("device option '" + key + "' given twice");
-    auto number = [&]() {
-      std::size_t used = 0;
-      double x = 0;
-      try {
-        x = std::stod(value, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used != value.size() || value.empty() || !std::isfinite(x))
-        throw std::invalid_argument("device option '" + key + "': '" + value + "' is not a number");
-      return x;
-    };
-    auto integer = [&]() {
-      const double x = number();
-      if (x != std::floor(x) || x < 0 || x > 1e9)
-        throw std::invalid_argument("device option '" + key + "': '" + value +
-                                    "' is not a non-negative integer");
-      return static_cast<int>(x);
-    };
+  for (const auto& [key, value] : device.options) {
+    auto number = [&]() { return DeviceOptionNumber(key, value); };
+    auto integer = [&]() { return DeviceOptionInteger(key, value, 0, 1000000000); };
     if (key == "sensor") {
       if (value == "kinect") {
         o.sensor = VirtualScannerOptions::Sensor::kDepthCamera;
