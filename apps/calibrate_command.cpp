@@ -208,8 +208,8 @@ Runner AddCalibrateCommand(CLI::App& app) {
       return int{kOk};
     } catch (const std::invalid_argument& e) {
       return ReportError("calibrate", e.what(), kUsage, false);
-    } catch (const DeviceError& e) {
-      return ReportError("calibrate", e.what(), kInputError, false);
+    } catch (const DeviceError& e) {  // as `scan` reports it: the board or camera, not the input
+      return ReportError("calibrate", e.what(), kDeviceError, false);
     } catch (const std::runtime_error& e) {  // a pattern not found, unreadable images, a file not written
       return ReportError("calibrate", e.what(), kInputError, false);
     }

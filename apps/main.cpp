@@ -16,7 +16,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.footer(
       "Run 'scan2model <command> --help' for a command's options. Exit codes: 0 ok, 2 usage, "
-      "3 bad input, 4 fit failed, 5 device error (scan).");
+      "3 bad input, 4 fit failed, 5 device error.");
   const s2m::app::Runner info = s2m::app::AddInfoCommand(app);
   const s2m::app::Runner fit = s2m::app::AddFitCommand(app);
   const s2m::app::Runner record = s2m::app::AddRecordCommand(app);

@@ -410,7 +410,7 @@ TEST(CalibrateCommand, RealScannerNotConnectedIsAClearError) {
   const test::ShellResult result =
       test::Shell(std::string(S2M_CLI_PATH) + " calibrate --device horus,vid=0xffff,pid=0xfffe --out " +
                   (dir / "calib.json").string() + " < /dev/null");
-  EXPECT_EQ(result.exit_code, 3) << result.out;
+  EXPECT_EQ(result.exit_code, 5) << result.out;
   EXPECT_NE(result.out.find("no Horus board found with id ffff:fffe"), std::string::npos) << result.out;
   EXPECT_NE(result.out.find("scan2model devices"), std::string::npos) << result.out;
   EXPECT_FALSE(fs::exists(dir / "calib.json"));
