@@ -4,7 +4,6 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
-#include <type_traits>
 
 namespace s2m {
 namespace {
@@ -65,6 +64,7 @@ BSplineBasis::BSplineBasis(int order, int num_control, bool periodic, std::vecto
       ext_.push_back(knots_[static_cast<std::size_t>(wrapped)] + shift * period);
     }
   }
+  BuildTables();
 }
 
 BSplineBasis BSplineBasis::Clamped(int order, std::vector<double> knots) {
@@ -137,6 +137,7 @@ std::vector<double> BSplineBasis::Breakpoints() const {
 
 double BSplineBasis::Normalize(double t) const {
   if (periodic_) {
+    if (t >= lo_ && t < hi_) return t;  // the common case: no fmod
     double u = std::fmod(t - lo_, hi_ - lo_);
     if (u < 0) u += hi_ - lo_;
     const double w = lo_ + u;
@@ -145,7 +146,7 @@ double BSplineBasis::Normalize(double t) const {
   return std::clamp(t, lo_, hi_);
 }
 
-int BSplineBasis::FindSpan(double t) const {
+int BSplineBasis::FindSpanReference(double t) const {
   if (!periodic_) {
     if (t >= hi_) return num_control_ - 1;
     if (t <= lo_) return order_ - 1;
@@ -158,17 +159,34 @@ int BSplineBasis::FindSpan(double t) const {
   return std::min(static_cast<int>(it - ext_.begin()) - 1, ext_offset_ + num_control_ - 1);
 }
 
+int BSplineBasis::FindSpan(double t) const {
+  // Bucket b covers [lo + b w, lo + (b + 1) w): its spans run from bucket_[b] to bucket_[b + 1]. The steps
+  // below also absorb the rounding of x (one bucket either way); they compare with the knots themselves, so
+  // the span is exactly FindSpanReference's.
+  const int buckets = static_cast<int>(bucket_.size()) - 1;
+  const double x = (t - lo_) * bucket_scale_;
+  const int b = x > 0.0 ? (x < buckets ? static_cast<int>(x) : buckets - 1) : 0;  // NaN -> bucket 0
+  int span = bucket_[static_cast<std::size_t>(b)];
+  const int last = span_base_ + num_spans_ - 1;
+  const double* U = ext_.data();
+  const int end = bucket_[static_cast<std::size_t>(b) + 1];
+  if (end - span > 8) {  // clustered knots: binary search within the bucket (A2.1)
+    span = static_cast<int>(std::upper_bound(U + span, U + std::min(end, last) + 1, t) - U) - 1;
+    span = std::max(span, span_base_);
+  }
+  while (span > span_base_ && U[span] > t) --span;
+  while (span < last && U[span + 1] <= t) ++span;
+  return span;
+}
+
 namespace {
 
-// Piegl & Tiller A2.3 (basis functions and derivatives at t in knot span `span` of U). `Degree` is either
-// std::integral_constant<int, p> (the common cubic case: the compiler unrolls every loop) or int. The knot
-// differences are inverted once and multiplied thereafter (A2.3 divides by each of them again for every
-// derivative).
-template <class Degree>
-void BasisAndDerivatives(Degree degree, double t, int span, const std::vector<double>& U, int derivatives,
-                         BSplineBasis::Values& out) {
+// Piegl & Tiller A2.3: all non-zero basis functions of degree p at t in knot span `span` of U and their
+// derivatives up to `n_der` (<= p): ders[k][j] is derivative k of function span - p + j. The knot differences
+// are inverted once and multiplied thereafter (A2.3 divides by each of them again for every derivative).
+void BasisAndDerivatives(int p, double t, int span, const std::vector<double>& U, int n_der,
+                         double (&ders)[BSplineBasis::kMaxOrder][BSplineBasis::kMaxOrder]) {
   constexpr int kMaxOrder = BSplineBasis::kMaxOrder;
-  const int p = degree;
   // ndu holds basis functions (upper triangle); inv_diff[j][r] = 1 / (knot difference of the lower triangle).
   double ndu[kMaxOrder][kMaxOrder];
   double inv_diff[kMaxOrder][kMaxOrder];
@@ -186,10 +204,7 @@ void BasisAndDerivatives(Degree degree, double t, int span, const std::vector<do
     }
     ndu[j][j] = saved;
   }
-  for (int j = 0; j <= p; ++j) out.values[0][static_cast<std::size_t>(j)] = ndu[j][p];
-  const int n_der = std::min(derivatives, std::min(p, BSplineBasis::kMaxDerivative));
-  for (int k = n_der + 1; k <= derivatives && k <= BSplineBasis::kMaxDerivative; ++k)
-    out.values[static_cast<std::size_t>(k)].fill(0.0);
+  for (int j = 0; j <= p; ++j) ders[0][j] = ndu[j][p];
   double a[2][kMaxOrder];
   for (int r = 0; r <= p; ++r) {
     int s1 = 0, s2 = 1;
@@ -211,30 +226,123 @@ void BasisAndDerivatives(Degree degree, double t, int span, const std::vector<do
         a[s2][k] = -a[s1][k - 1] * inv_diff[pk + 1][r];
         d += a[s2][k] * ndu[r][pk];
       }
-      out.values[static_cast<std::size_t>(k)][static_cast<std::size_t>(r)] = d;
+      ders[k][r] = d;
       std::swap(s1, s2);
     }
   }
-  double factor = p;
+  double factor = p;  // A2.3's closing loop: multiply by p! / (p - k)!
   for (int k = 1; k <= n_der; ++k) {
-    for (int j = 0; j <= p; ++j)
-      out.values[static_cast<std::size_t>(k)][static_cast<std::size_t>(j)] *= factor;
+    for (int j = 0; j <= p; ++j) ders[k][j] *= factor;
     factor *= (p - k);
+  }
+}
+
+// The fast path for order K: derivative d of the K functions at y, by Horner's rule on the span's Taylor
+// coefficients (the rows j = 0 .. K - 1 - d; derivatives above the degree are 0).
+template <int K>
+void HornerAll(const double* coeffs, double y, int derivatives, BSplineBasis::Values& out) {
+  for (int d = 0; d <= derivatives; ++d) {
+    auto& row = out.values[static_cast<std::size_t>(d)];
+    const double* c = coeffs + d * K * K;
+    const int top = K - 1 - d;
+    if (top < 0) {
+      for (int i = 0; i < K; ++i) row[static_cast<std::size_t>(i)] = 0.0;
+      continue;
+    }
+    double v[K];
+    for (int i = 0; i < K; ++i) v[i] = c[top * K + i];
+    for (int j = top - 1; j >= 0; --j)
+      for (int i = 0; i < K; ++i) v[i] = v[i] * y + c[j * K + i];
+    for (int i = 0; i < K; ++i) row[static_cast<std::size_t>(i)] = v[i];
   }
 }
 
 }  // namespace
 
+void BSplineBasis::BuildTables() {
+  const int p = order_ - 1, k = order_;
+  span_base_ = periodic_ ? ext_offset_ : order_ - 1;
+  num_spans_ = periodic_ ? num_control_ : num_control_ - order_ + 1;
+  mid_.assign(static_cast<std::size_t>(num_spans_), 0.0);
+  inv_length_.assign(static_cast<std::size_t>(num_spans_), 0.0);
+  coeffs_.assign(static_cast<std::size_t>(num_spans_ * 3 * k * k), 0.0);
+  double ders[kMaxOrder][kMaxOrder];
+  for (int s = 0; s < num_spans_; ++s) {
+    const int span = span_base_ + s;
+    const double a = ext_[static_cast<std::size_t>(span)], b = ext_[static_cast<std::size_t>(span) + 1];
+    if (!(b > a)) continue;  // a repeated interior knot: FindSpan never returns it
+    const double length = b - a, mid = a + 0.5 * length;
+    mid_[static_cast<std::size_t>(s)] = mid;
+    inv_length_[static_cast<std::size_t>(s)] = 1.0 / length;
+    // Taylor's theorem about mid (exact for the degree-p pieces): with y = (t - mid) / length,
+    // N_i^(d)(t) = sum_j N_i^(d + j)(mid) length^j / j! y^j. A2.3 with all p derivatives supplies N^(k)(mid).
+    BasisAndDerivatives(p, mid, span, ext_, p, ders);
+    for (int d = 0; d <= kMaxDerivative; ++d) {
+      double scale = 1.0;  // length^j / j!
+      for (int j = 0; j + d <= p; ++j) {
+        for (int i = 0; i < k; ++i)
+          coeffs_[static_cast<std::size_t>(((s * 3 + d) * k + j) * k + i)] = ders[j + d][i] * scale;
+        scale *= length / (j + 1);
+      }
+    }
+  }
+  // About two buckets per span; their first spans by the reference search.
+  const int buckets = 2 * num_spans_;
+  bucket_scale_ = buckets / (hi_ - lo_);
+  bucket_.assign(static_cast<std::size_t>(buckets) + 1, 0);
+  for (int b = 0; b <= buckets; ++b) {
+    const double t = b == buckets ? hi_ : lo_ + (hi_ - lo_) * b / buckets;
+    bucket_[static_cast<std::size_t>(b)] =
+        FindSpanReference(periodic_ && b == buckets ? std::nextafter(hi_, lo_) : t);
+  }
+}
+
+void BSplineBasis::EvaluateReference(double t_in, int derivatives, Values& out) const {
+  const double t = Normalize(t_in);
+  const int p = order_ - 1;
+  const int span = FindSpanReference(t);
+  const int nd = std::clamp(derivatives, 0, kMaxDerivative);
+  double ders[kMaxOrder][kMaxOrder];
+  BasisAndDerivatives(p, t, span, ext_, std::min(nd, p), ders);
+  for (int d = 0; d <= nd; ++d)
+    for (int i = 0; i < order_; ++i)
+      out.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(i)] = d <= p ? ders[d][i] : 0.0;
+  out.first = periodic_ ? ((span - ext_offset_ - p) % num_control_ + num_control_) % num_control_ : span - p;
+}
+
 void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
   const double t = Normalize(t_in);
   const int p = order_ - 1;
-  const int span = FindSpan(t);
-  if (p == 3) {
-    BasisAndDerivatives(std::integral_constant<int, 3>(), t, span, ext_, derivatives, out);
-  } else {
-    BasisAndDerivatives(p, t, span, ext_, derivatives, out);
+  const int s = FindSpan(t) - span_base_;
+  // Clamped: first = span - p = s; periodic: (s - p) mod n with s in [0, n), p < n.
+  out.first = periodic_ && s < p ? s - p + num_control_ : s - (periodic_ ? p : 0);
+  const auto us = static_cast<std::size_t>(s);
+  const double y = (t - mid_[us]) * inv_length_[us];
+  const int nd = std::clamp(derivatives, 0, kMaxDerivative);
+  const double* c = coeffs_.data() + us * 3 * static_cast<std::size_t>(order_ * order_);
+  switch (order_) {
+    case 2:
+      HornerAll<2>(c, y, nd, out);
+      break;
+    case 3:
+      HornerAll<3>(c, y, nd, out);
+      break;
+    case 4:
+      HornerAll<4>(c, y, nd, out);
+      break;
+    case 5:
+      HornerAll<5>(c, y, nd, out);
+      break;
+    case 6:
+      HornerAll<6>(c, y, nd, out);
+      break;
+    case 7:
+      HornerAll<7>(c, y, nd, out);
+      break;
+    default:
+      HornerAll<8>(c, y, nd, out);
+      break;
   }
-  out.first = periodic_ ? ((span - ext_offset_ - p) % num_control_ + num_control_) % num_control_ : span - p;
 }
 
 std::vector<double> BSplineBasis::GramMatrix(int derivative) const {

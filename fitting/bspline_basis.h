@@ -1,6 +1,10 @@
 #pragma once
 // B-spline basis functions of one parameter: clamped (open) or periodic (closed) knot vectors of any order.
-// Evaluation follows Piegl & Tiller, The NURBS Book, algorithms A2.1 (span) and A2.3 (basis and derivatives).
+// Reference evaluation follows Piegl & Tiller, The NURBS Book (2nd ed.), algorithms A2.1 (span) and A2.3
+// (basis and derivatives). The fast path (Evaluate) uses tables built once from A2.3: per knot span, the
+// Taylor coefficients of the order() non-zero basis functions about the span's midpoint (each function is a
+// polynomial of degree order() - 1 there, de Boor, A Practical Guide to Splines, ch. IX), evaluated by
+// Horner's rule; and a bucket table that finds the span in O(1) (exactly so for uniform knots).
 
 #include <array>
 #include <vector>
@@ -36,12 +40,19 @@ class BSplineBasis {
   double Normalize(double t) const;
 
   // Non-zero basis functions at t: derivative d (0..derivatives) of function `first + i` is values[d][i],
-  // i < order(). For periodic bases the control index is (first + i) mod num_control().
+  // i < order(). For periodic bases the control index is (first + i) mod num_control(). Entries with i >=
+  // order() or d > derivatives are not written (no zero fill on the hot path); derivatives above the degree
+  // are written as 0.
   struct Values {
     int first = 0;
-    std::array<std::array<double, kMaxOrder>, kMaxDerivative + 1> values{};
+    std::array<std::array<double, kMaxOrder>, kMaxDerivative + 1> values;
   };
+  // Fast path: span by bucket table, values by the per-span Taylor tables. Agrees with EvaluateReference to
+  // rounding (a few ulp of each derivative's scale, tests/bspline_basis_fast_path_test.cpp).
   void Evaluate(double t, int derivatives, Values& out) const;
+  // The generic reference: binary-search span (A2.1) and A2.3 at t, any order. Slower; for tests and for
+  // building the tables.
+  void EvaluateReference(double t, int derivatives, Values& out) const;
   int ControlIndex(int first, int i) const { return periodic_ ? (first + i) % num_control_ : first + i; }
 
   // Gram matrix G_ij = integral of B_i^(d) B_j^(d) over the domain (exact, Gauss-Legendre per span).
@@ -49,7 +60,10 @@ class BSplineBasis {
 
  private:
   BSplineBasis(int order, int num_control, bool periodic, std::vector<double> knots);
-  int FindSpan(double t) const;  // index into ext_ with ext_[span] <= t < ext_[span + 1]
+  void BuildTables();
+  // Index into ext_ with ext_[span] <= t < ext_[span + 1] for a normalized t (the last span takes t == hi).
+  int FindSpanReference(double t) const;  // binary search (A2.1)
+  int FindSpan(double t) const;           // bucket table, then at most a few steps
 
   int order_ = 4, num_control_ = 0;
   bool periodic_ = false;
@@ -58,6 +72,15 @@ class BSplineBasis {
   std::vector<double>
       ext_;             // clamped: knots_; periodic: breakpoints extended by order-1 periods' worth each side
   int ext_offset_ = 0;  // periodic: ext_[ext_offset_] == lo
+  // Spans of the domain: ext_ indices span_base_ .. span_base_ + num_spans_ - 1 (clamped: order - 1 ..
+  // num_control - 1, zero-length spans included but never found; periodic: one per breakpoint interval).
+  int span_base_ = 0, num_spans_ = 0;
+  // Per span s: midpoint, 1 / length, and coeffs_[((s * 3 + d) * order + j) * order + i] = the coefficient of
+  // y^j in derivative d of function i, y = (t - mid) / length in [-1/2, 1/2].
+  std::vector<double> mid_, inv_length_, coeffs_;
+  // bucket_[b] = FindSpanReference(lo + b (hi - lo) / buckets), b = 0..buckets (the last one: hi).
+  std::vector<int> bucket_;
+  double bucket_scale_ = 0.0;  // buckets / (hi - lo)
 };
 
 }  // namespace s2m

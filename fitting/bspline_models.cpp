@@ -88,15 +88,29 @@ void BSplineCurve::ApplySimilarity(double scale, const VecS& offset) {
 void BSplineCurve::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
   BSplineBasis::Values v;
   basis_.Evaluate(t[0], derivatives, v);
-  const Eigen::Index s = control_.rows();
-  out.point.setZero(s);
-  out.d1.setZero(s, 1);
-  out.d2.setZero(s, 1);
-  for (int i = 0; i < basis_.order(); ++i) {
-    const auto p = control_.col(basis_.ControlIndex(v.first, i));
-    out.point += v.values[0][static_cast<std::size_t>(i)] * p;
-    if (derivatives >= 1) out.d1.col(0) += v.values[1][static_cast<std::size_t>(i)] * p;
-    if (derivatives >= 2) out.d2.col(0) += v.values[2][static_cast<std::size_t>(i)] * p;
+  const int s = static_cast<int>(control_.rows()), n = basis_.num_control();
+  // C^(d)(t) = sum_i N_{first+i}^(d)(t) P_{first+i} (Piegl & Tiller eq. 3.3): plain accumulators; the control
+  // points of a span are contiguous columns (periodic ones wrap once at most).
+  double acc[3][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};
+  const double* data = control_.data();
+  int k = v.first;
+  for (int i = 0; i < basis_.order(); ++i, ++k) {
+    if (k == n) k = 0;
+    const double* p = data + static_cast<std::ptrdiff_t>(k) * s;
+    const auto ui = static_cast<std::size_t>(i);
+    for (int c = 0; c < s; ++c) acc[0][c] += v.values[0][ui] * p[c];
+    if (derivatives >= 1)
+      for (int c = 0; c < s; ++c) acc[1][c] += v.values[1][ui] * p[c];
+    if (derivatives >= 2)
+      for (int c = 0; c < s; ++c) acc[2][c] += v.values[2][ui] * p[c];
+  }
+  out.point.resize(s);
+  out.d1.resize(s, 1);
+  out.d2.resize(s, 1);
+  for (int c = 0; c < s; ++c) {
+    out.point[c] = acc[0][c];
+    out.d1(c, 0) = acc[1][c];
+    out.d2(c, 0) = acc[2][c];
   }
 }
 
@@ -175,48 +189,110 @@ void BSplineSurface::ApplySimilarity(double scale, const VecS& offset) {
   control_ = (scale * control_).colwise() + Eigen::Vector3d(offset);
 }
 
+namespace {
+
+// The tensor product S^(a,b)(u, v) = sum_i sum_j N_i^(a)(u) M_j^(b)(v) P_ij (Piegl & Tiller eq. 3.17 and its
+// derivatives, eq. 3.24) in two passes. `rows[i]` points at P_i,first_v; a row's KV points are 3 KV
+// contiguous doubles (v is never periodic). First the u-sums q_a = sum_i N_i^(a) rows[i], whole rows at a
+// time (the compiler vectorizes these fixed-length loops), then the v-sums of q_a's points. KU, KV > 0 fix
+// the orders at compile time (the cubic case); 0 takes ku, kv. r: S, S_u, S_v, S_uu, S_uv, S_vv. sum_j w_j
+// q_j over the nv points q_j of a row (3 doubles each).
+template <int KV>
+inline void VSum(int nv_runtime, const double* q, const std::array<double, BSplineBasis::kMaxOrder>& w,
+                 double (&out)[3]) {
+  const int nv = KV > 0 ? KV : nv_runtime;
+  double x = 0.0, y = 0.0, z = 0.0;
+  for (int j = 0; j < nv; ++j) {
+    const double wj = w[static_cast<std::size_t>(j)];
+    x += wj * q[3 * j];
+    y += wj * q[3 * j + 1];
+    z += wj * q[3 * j + 2];
+  }
+  out[0] = x;
+  out[1] = y;
+  out[2] = z;
+}
+
+template <int KU, int KV, int D>
+void TensorProduct(const double* const* rows, int ku, int kv, const BSplineBasis::Values& bu,
+                   const BSplineBasis::Values& bv, double (&r)[6][3]) {
+  constexpr int kMax = BSplineBasis::kMaxOrder;
+  const int nu = KU > 0 ? KU : ku, nv = KV > 0 ? KV : kv;
+  constexpr int kLen = 3 * (KV > 0 ? KV : kMax);
+  const int len = 3 * nv;
+  double q[D + 1][kLen];
+  for (int a = 0; a <= D; ++a) {
+    const double w = bu.values[static_cast<std::size_t>(a)][0];
+    for (int k = 0; k < len; ++k) q[a][k] = w * rows[0][k];
+  }
+  for (int i = 1; i < nu; ++i) {
+    const double* p = rows[i];
+    for (int a = 0; a <= D; ++a) {
+      const double w = bu.values[static_cast<std::size_t>(a)][static_cast<std::size_t>(i)];
+      for (int k = 0; k < len; ++k) q[a][k] += w * p[k];
+    }
+  }
+  // r's rows (a, b): S (0, 0), S_u (1, 0), S_v (0, 1), S_uu (2, 0), S_uv (1, 1), S_vv (0, 2); written out (a
+  // loop over a table of (a, b) kept the compiler from unrolling).
+  VSum<KV>(nv, q[0], bv.values[0], r[0]);
+  if (D >= 1) {
+    VSum<KV>(nv, q[D >= 1 ? 1 : 0], bv.values[0], r[1]);
+    VSum<KV>(nv, q[0], bv.values[1], r[2]);
+  } else {
+    for (int m = 1; m < 3; ++m) r[m][0] = r[m][1] = r[m][2] = 0.0;
+  }
+  if (D >= 2) {
+    VSum<KV>(nv, q[D >= 2 ? 2 : 0], bv.values[0], r[3]);
+    VSum<KV>(nv, q[D >= 1 ? 1 : 0], bv.values[1], r[4]);
+    VSum<KV>(nv, q[0], bv.values[2], r[5]);
+  } else {
+    for (int m = 3; m < 6; ++m) r[m][0] = r[m][1] = r[m][2] = 0.0;
+  }
+}
+
+template <int KU, int KV>
+void TensorProduct(int derivatives, const double* const* rows, int ku, int kv, const BSplineBasis::Values& bu,
+                   const BSplineBasis::Values& bv, double (&r)[6][3]) {
+  if (derivatives >= 2) {
+    TensorProduct<KU, KV, 2>(rows, ku, kv, bu, bv, r);
+  } else if (derivatives == 1) {
+    TensorProduct<KU, KV, 1>(rows, ku, kv, bu, bv, r);
+  } else {
+    TensorProduct<KU, KV, 0>(rows, ku, kv, bu, bv, r);
+  }
+}
+
+}  // namespace
+
 void BSplineSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
   BSplineBasis::Values bu, bv;
   basis_u_.Evaluate(t[0], derivatives, bu);
   basis_v_.Evaluate(t[1], derivatives, bv);
-  // Tensor product in two passes (the foot-point hot path): per row i of the control net, the v-sums
-  // s_d = sum_j B_j^(d)(v) P_ij, then the u-sums of those; fixed-size accumulators, written out once.
-  Eigen::Vector3d point = Eigen::Vector3d::Zero(), su = Eigen::Vector3d::Zero(), sv = Eigen::Vector3d::Zero();
-  Eigen::Vector3d suu = Eigen::Vector3d::Zero(), suv = Eigen::Vector3d::Zero(), svv = Eigen::Vector3d::Zero();
-  const int nv = basis_v_.num_control();
-  const int order_v = basis_v_.order();
-  int columns[BSplineBasis::kMaxOrder];
-  for (int j = 0; j < order_v; ++j) columns[j] = basis_v_.ControlIndex(bv.first, j);
-  for (int i = 0; i < basis_u_.order(); ++i) {
-    const int row = basis_u_.ControlIndex(bu.first, i) * nv;
-    const auto ui = static_cast<std::size_t>(i);
-    Eigen::Vector3d s0 = Eigen::Vector3d::Zero(), s1 = Eigen::Vector3d::Zero(), s2 = Eigen::Vector3d::Zero();
-    for (int j = 0; j < order_v; ++j) {
-      const auto vj = static_cast<std::size_t>(j);
-      const Eigen::Vector3d p = control_.col(row + columns[j]);
-      s0 += bv.values[0][vj] * p;
-      if (derivatives >= 1) s1 += bv.values[1][vj] * p;
-      if (derivatives >= 2) s2 += bv.values[2][vj] * p;
-    }
-    point += bu.values[0][ui] * s0;
-    if (derivatives >= 1) {
-      su += bu.values[1][ui] * s0;
-      sv += bu.values[0][ui] * s1;
-    }
-    if (derivatives >= 2) {
-      suu += bu.values[2][ui] * s0;
-      suv += bu.values[1][ui] * s1;
-      svv += bu.values[0][ui] * s2;
-    }
+  const int nu = basis_u_.num_control(), nv = basis_v_.num_control();
+  const int ku = basis_u_.order(), kv = basis_v_.order();
+  const double* rows[BSplineBasis::kMaxOrder] = {};
+  int row = bu.first;  // periodic in u: wraps once at most
+  for (int i = 0; i < ku; ++i, ++row) {
+    if (row == nu) row = 0;
+    rows[i] = control_.data() + 3 * (static_cast<std::ptrdiff_t>(row) * nv + bv.first);
   }
-  out.point = point;
+  double r[6][3];
+  if (ku == 4 && kv == 4) {
+    TensorProduct<4, 4>(derivatives, rows, ku, kv, bu, bv, r);
+  } else {
+    TensorProduct<0, 0>(derivatives, rows, ku, kv, bu, bv, r);
+  }
+  out.point.resize(3);
   out.d1.resize(3, 2);
-  out.d1.col(0) = su;
-  out.d1.col(1) = sv;
   out.d2.resize(3, 3);
-  out.d2.col(0) = suu;
-  out.d2.col(1) = suv;
-  out.d2.col(2) = svv;
+  for (int c = 0; c < 3; ++c) {
+    out.point[c] = r[0][c];
+    out.d1(c, 0) = r[1][c];
+    out.d1(c, 1) = r[2][c];
+    out.d2(c, 0) = r[3][c];
+    out.d2(c, 1) = r[4][c];
+    out.d2(c, 2) = r[5][c];
+  }
 }
 
 void BSplineSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {
