@@ -220,17 +220,18 @@ void TensorProduct(const double* const* rows, int ku, int kv, const BSplineBasis
   const int nu = KU > 0 ? KU : ku, nv = KV > 0 ? KV : kv;
   constexpr int kLen = 3 * (KV > 0 ? KV : kMax);
   const int len = 3 * nv;
+  // One a at a time (its 3 nv accumulators stay in registers; all of them at once would spill).
   double q[D + 1][kLen];
   for (int a = 0; a <= D; ++a) {
-    const double w = bu.values[static_cast<std::size_t>(a)][0];
-    for (int k = 0; k < len; ++k) q[a][k] = w * rows[0][k];
-  }
-  for (int i = 1; i < nu; ++i) {
-    const double* p = rows[i];
-    for (int a = 0; a <= D; ++a) {
-      const double w = bu.values[static_cast<std::size_t>(a)][static_cast<std::size_t>(i)];
-      for (int k = 0; k < len; ++k) q[a][k] += w * p[k];
+    const auto& wa = bu.values[static_cast<std::size_t>(a)];
+    double acc[kLen];
+    for (int k = 0; k < len; ++k) acc[k] = wa[0] * rows[0][k];
+    for (int i = 1; i < nu; ++i) {
+      const double w = wa[static_cast<std::size_t>(i)];
+      const double* p = rows[i];
+      for (int k = 0; k < len; ++k) acc[k] += w * p[k];
     }
+    for (int k = 0; k < len; ++k) q[a][k] = acc[k];
   }
   // r's rows (a, b): S (0, 0), S_u (1, 0), S_v (0, 1), S_uu (2, 0), S_uv (1, 1), S_vv (0, 2); written out (a
   // loop over a table of (a, b) kept the compiler from unrolling).
