@@ -311,13 +311,10 @@ void BSplineBasis::EvaluateReference(double t_in, int derivatives, Values& out) 
 }
 
 void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
-  const double t = Normalize(t_in);
-  const int p = order_ - 1;
-  const int s = FindSpan(t) - span_base_;
-  // Clamped: first = span - p = s; periodic: (s - p) mod n with s in [0, n), p < n.
-  out.first = periodic_ && s < p ? s - p + num_control_ : s - (periodic_ ? p : 0);
+  double y = 0.0, inv_length = 0.0;
+  const int s = LocateSpan(t_in, y, inv_length);
+  out.first = FirstFunction(s);
   const auto us = static_cast<std::size_t>(s);
-  const double y = (t - mid_[us]) * inv_length_[us];
   const int nd = std::clamp(derivatives, 0, kMaxDerivative);
   const double* c = coeffs_.data() + us * 3 * static_cast<std::size_t>(order_ * order_);
   switch (order_) {

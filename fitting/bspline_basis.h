@@ -55,6 +55,30 @@ class BSplineBasis {
   void EvaluateReference(double t, int derivatives, Values& out) const;
   int ControlIndex(int first, int i) const { return periodic_ ? (first + i) % num_control_ : first + i; }
 
+  // The fast path's pieces, for models that tabulate their own per-span polynomials (BSplineSurface). Spans
+  // are numbered 0 .. num_spans() - 1 over the domain (clamped: zero-length spans of repeated knots included,
+  // never located).
+  int num_spans() const { return num_spans_; }
+  // The span s of t (wrapped/clamped like Evaluate) and t's local coordinate y = (t - mid_s) / length_s in
+  // [-1/2, 1/2]; inv_length = 1 / length_s.
+  int LocateSpan(double t, double& y, double& inv_length) const {
+    const double u = Normalize(t);
+    const int s = FindSpan(u) - span_base_;
+    const auto us = static_cast<std::size_t>(s);
+    inv_length = inv_length_[us];
+    y = (u - mid_[us]) * inv_length;
+    return s;
+  }
+  // Values::first of span s.
+  int FirstFunction(int s) const {
+    return periodic_ ? (s < order_ - 1 ? s - order_ + 1 + num_control_ : s - order_ + 1) : s;
+  }
+  // The coefficient of y^j (j < order) in derivative d (<= kMaxDerivative) of function first + i (i < order)
+  // on span s: derivative d of the function is sum_j coefficient y^j (Taylor about the span's midpoint).
+  double TaylorCoefficient(int s, int d, int j, int i) const {
+    return coeffs_[static_cast<std::size_t>(((s * 3 + d) * order_ + j) * order_ + i)];
+  }
+
   // Gram matrix G_ij = integral of B_i^(d) B_j^(d) over the domain (exact, Gauss-Legendre per span).
   std::vector<double> GramMatrix(int derivative) const;  // row-major num_control x num_control
 

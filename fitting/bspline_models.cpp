@@ -161,6 +161,38 @@ BSplineSurface::BSplineSurface(BSplineBasis basis_u, BSplineBasis basis_v, Eigen
         "a " + std::to_string(basis_u_.num_control()) + " x " + std::to_string(basis_v_.num_control()) +
         " surface needs that many control points, got " + std::to_string(control_.cols()));
   }
+  BuildPatches();
+}
+
+void BSplineSurface::BuildPatches() {
+  patches_.clear();
+  if (basis_u_.order() != 4 || basis_v_.order() != 4) return;
+  const int su_count = basis_u_.num_spans(), sv_count = basis_v_.num_spans();
+  const int nu = basis_u_.num_control(), nv = basis_v_.num_control();
+  patches_.assign(static_cast<std::size_t>(64 * su_count * sv_count), 0.0);
+  // A_jk = sum_i sum_l a_ji b_kl P_(first_u + i),(first_v + l), with a_ji, b_kl the Taylor coefficients of
+  // the basis functions on the two spans (the change from the B-spline to the local power basis, Piegl &
+  // Tiller section 6.6; here from the tables of BSplineBasis).
+  for (int su = 0; su < su_count; ++su) {
+    const int fu = basis_u_.FirstFunction(su);
+    for (int sv = 0; sv < sv_count; ++sv) {
+      const int fv = basis_v_.FirstFunction(sv);
+      double* a = patches_.data() + 64 * (static_cast<std::ptrdiff_t>(su) * sv_count + sv);
+      for (int i = 0; i < 4; ++i) {
+        const int row = (fu + i) % nu;
+        for (int l = 0; l < 4; ++l) {
+          const Eigen::Vector3d p = control_.col(static_cast<Eigen::Index>(row) * nv + fv + l);
+          for (int j = 0; j < 4; ++j) {
+            const double wu = basis_u_.TaylorCoefficient(su, 0, j, i);
+            for (int k = 0; k < 4; ++k) {
+              const double w = wu * basis_v_.TaylorCoefficient(sv, 0, k, l);
+              for (int c = 0; c < 3; ++c) a[16 * j + 4 * k + c] += w * p[c];
+            }
+          }
+        }
+      }
+    }
+  }
 }
 
 ParameterDomain BSplineSurface::domain() const {
@@ -183,20 +215,17 @@ Eigen::VectorXd BSplineSurface::parameters() const {
 
 void BSplineSurface::set_parameters(const Eigen::VectorXd& p) {
   control_ = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, control_.cols());
+  BuildPatches();
 }
 
 void BSplineSurface::ApplySimilarity(double scale, const VecS& offset) {
   control_ = (scale * control_).colwise() + Eigen::Vector3d(offset);
+  BuildPatches();
 }
 
 namespace {
 
-// The tensor product S^(a,b)(u, v) = sum_i sum_j N_i^(a)(u) M_j^(b)(v) P_ij (Piegl & Tiller eq. 3.17 and its
-// derivatives, eq. 3.24) in two passes. `rows[i]` points at P_i,first_v; a row's KV points are 3 KV
-// contiguous doubles (v is never periodic). First the u-sums q_a = sum_i N_i^(a) rows[i], whole rows at a
-// time (the compiler vectorizes these fixed-length loops), then the v-sums of q_a's points. KU, KV > 0 fix
-// the orders at compile time (the cubic case); 0 takes ku, kv. r: S, S_u, S_v, S_uu, S_uv, S_vv. sum_j w_j
-// q_j over the nv points q_j of a row (3 doubles each).
+// sum_j w_j q_j over the nv points q_j of a row (3 doubles each).
 template <int KV>
 inline void VSum(int nv_runtime, const double* q, const std::array<double, BSplineBasis::kMaxOrder>& w,
                  double (&out)[3]) {
@@ -213,6 +242,11 @@ inline void VSum(int nv_runtime, const double* q, const std::array<double, BSpli
   out[2] = z;
 }
 
+// The tensor product S^(a,b)(u, v) = sum_i sum_j N_i^(a)(u) M_j^(b)(v) P_ij (Piegl & Tiller eq. 3.17 and its
+// derivatives, eq. 3.24) in two passes. `rows[i]` points at P_i,first_v; a row's KV points are 3 KV
+// contiguous doubles (v is never periodic). First the u-sums q_a = sum_i N_i^(a) rows[i], whole rows at a
+// time, then the v-sums of q_a's points. KU, KV > 0 fix the orders at compile time; 0 takes ku, kv. r: S,
+// S_u, S_v, S_uu, S_uv, S_vv.
 template <int KU, int KV, int D>
 void TensorProduct(const double* const* rows, int ku, int kv, const BSplineBasis::Values& bu,
                    const BSplineBasis::Values& bv, double (&r)[6][3]) {
@@ -263,9 +297,64 @@ void TensorProduct(int derivatives, const double* const* rows, int ku, int kv, c
   }
 }
 
+// A bicubic patch S(y, z) = sum_jk A_jk y^j z^k and its y, z derivatives (up to D in total) by Horner's rule:
+// first in z per j (value, d/dz, d2/dz2), then in y. Four lanes per point (the fourth is padding), so the
+// compiler vectorizes every step. r: S, S_y, S_z, S_yy, S_yz, S_zz (local coordinates).
+template <int D>
+void BicubicPatch(const double* a, double y, double z, double (&r)[6][4]) {
+  double v[4][4], dz[4][4], dzz[4][4];
+  for (int j = 0; j < 4; ++j) {
+    const double* aj = a + 16 * j;  // aj[4 k + c]
+    for (int c = 0; c < 4; ++c) {
+      v[j][c] = ((aj[12 + c] * z + aj[8 + c]) * z + aj[4 + c]) * z + aj[c];
+      if (D >= 1) dz[j][c] = (3.0 * aj[12 + c] * z + 2.0 * aj[8 + c]) * z + aj[4 + c];
+      if (D >= 2) dzz[j][c] = 6.0 * aj[12 + c] * z + 2.0 * aj[8 + c];
+    }
+  }
+  for (int c = 0; c < 4; ++c) {
+    r[0][c] = ((v[3][c] * y + v[2][c]) * y + v[1][c]) * y + v[0][c];
+    if (D >= 1) {
+      r[1][c] = (3.0 * v[3][c] * y + 2.0 * v[2][c]) * y + v[1][c];
+      r[2][c] = ((dz[3][c] * y + dz[2][c]) * y + dz[1][c]) * y + dz[0][c];
+    }
+    if (D >= 2) {
+      r[3][c] = 6.0 * v[3][c] * y + 2.0 * v[2][c];
+      r[4][c] = (3.0 * dz[3][c] * y + 2.0 * dz[2][c]) * y + dz[1][c];
+      r[5][c] = ((dzz[3][c] * y + dzz[2][c]) * y + dzz[1][c]) * y + dzz[0][c];
+    }
+  }
+}
+
 }  // namespace
 
 void BSplineSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+  out.point.resize(3);
+  out.d1.resize(3, 2);
+  out.d2.resize(3, 3);
+  if (!patches_.empty()) {
+    double yu = 0.0, iu = 0.0, yv = 0.0, iv = 0.0;
+    const int su = basis_u_.LocateSpan(t[0], yu, iu), sv = basis_v_.LocateSpan(t[1], yv, iv);
+    const double* a = patches_.data() + 64 * (static_cast<std::ptrdiff_t>(su) * basis_v_.num_spans() + sv);
+    double r[6][4] = {};
+    if (derivatives >= 2) {
+      BicubicPatch<2>(a, yu, yv, r);
+    } else if (derivatives == 1) {
+      BicubicPatch<1>(a, yu, yv, r);
+    } else {
+      BicubicPatch<0>(a, yu, yv, r);
+    }
+    // Chain rule: d/du = (1 / length_u) d/dy, d/dv = (1 / length_v) d/dz.
+    const double iuu = iu * iu, iuv = iu * iv, ivv = iv * iv;
+    for (int c = 0; c < 3; ++c) {
+      out.point[c] = r[0][c];
+      out.d1(c, 0) = iu * r[1][c];
+      out.d1(c, 1) = iv * r[2][c];
+      out.d2(c, 0) = iuu * r[3][c];
+      out.d2(c, 1) = iuv * r[4][c];
+      out.d2(c, 2) = ivv * r[5][c];
+    }
+    return;
+  }
   BSplineBasis::Values bu, bv;
   basis_u_.Evaluate(t[0], derivatives, bu);
   basis_v_.Evaluate(t[1], derivatives, bv);
@@ -278,14 +367,9 @@ void BSplineSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& o
     rows[i] = control_.data() + 3 * (static_cast<std::ptrdiff_t>(row) * nv + bv.first);
   }
   double r[6][3];
-  if (ku == 4 && kv == 4) {
-    TensorProduct<4, 4>(derivatives, rows, ku, kv, bu, bv, r);
-  } else {
-    TensorProduct<0, 0>(derivatives, rows, ku, kv, bu, bv, r);
-  }
-  out.point.resize(3);
-  out.d1.resize(3, 2);
-  out.d2.resize(3, 3);
+  // Bicubic surfaces took the patch tables above; other orders (rare) at run time. A compile-time order pair
+  // would go here as TensorProduct<KU, KV>.
+  TensorProduct<0, 0>(derivatives, rows, ku, kv, bu, bv, r);
   for (int c = 0; c < 3; ++c) {
     out.point[c] = r[0][c];
     out.d1(c, 0) = r[1][c];

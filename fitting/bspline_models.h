@@ -62,8 +62,15 @@ class BSplineSurface final : public ParametricModel {
   std::vector<ParamT> SampleParameters() const override;
 
  private:
+  void BuildPatches();
+
   BSplineBasis basis_u_, basis_v_;
   Eigen::Matrix3Xd control_;
+  // Bicubic surfaces (order 4 x 4, the common case): per patch (span su of u, span sv of v) the power-form
+  // coefficients of S in the spans' local coordinates, A_jk with S = sum_jk A_jk y^j z^k: 16 points padded
+  // to 4 doubles, at patches_[64 (su num_spans_v + sv) + 16 j + 4 k + c]. Rebuilt whenever control_ changes;
+  // empty for other orders (Evaluate then sums the basis functions).
+  std::vector<double> patches_;
 };
 
 // A 3D ellipse (or circle) C(t) = c + R (a cos t, b sin t, 0), t in [0, 2 pi). Parameters: centre (3), a
