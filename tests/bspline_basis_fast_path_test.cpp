@@ -249,5 +249,35 @@ TEST(BSplineBasisFastPath, SurfaceAndCurveMatchPlainSumsOfReferenceBasis) {
   }
 }
 
+// The bicubic patch tables follow the control points: after set_parameters and ApplySimilarity the surface
+// evaluates like a freshly built one.
+TEST(BSplineBasisFastPath, SurfacePatchTablesFollowParameterChanges) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> gauss(0.0, 5.0);
+  const BSplineBasis u = BSplineBasis::PeriodicUniform(4, 7, 0.0, 2 * M_PI),
+                     v = RandomClamped(4, 8, 0, 3, rng);
+  Eigen::Matrix3Xd control(3, u.num_control() * v.num_control());
+  for (Eigen::Index k = 0; k < control.size(); ++k) control.data()[k] = gauss(rng);
+  BSplineSurface surface(u, v, control);
+  Eigen::VectorXd p = surface.parameters();
+  for (Eigen::Index k = 0; k < p.size(); ++k) p[k] += gauss(rng);
+  surface.set_parameters(p);
+  surface.ApplySimilarity(1.7, Eigen::Vector3d(0.3, -2.0, 5.0));
+  Eigen::Matrix3Xd moved = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, control.cols());
+  moved = (1.7 * moved).colwise() + Eigen::Vector3d(0.3, -2.0, 5.0);
+  const BSplineSurface fresh(u, v, moved);
+  std::uniform_real_distribution<double> uu(u.lo(), u.hi()), vv(v.lo(), v.hi());
+  for (int k = 0; k < 200; ++k) {
+    const ParamT t{uu(rng), vv(rng), 0.0};
+    LocalGeometry a, b;
+    surface.Evaluate(t, 2, a);
+    fresh.Evaluate(t, 2, b);
+    const double scale = std::max(1.0, b.point.norm());
+    EXPECT_LE((a.point - b.point).norm(), 1e-13 * scale);
+    EXPECT_LE((a.d1 - b.d1).norm(), 1e-13 * std::max(1.0, b.d1.norm()));
+    EXPECT_LE((a.d2 - b.d2).norm(), 1e-13 * std::max(1.0, b.d2.norm()));
+  }
+}
+
 }  // namespace
 }  // namespace s2m
