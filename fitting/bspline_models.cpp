@@ -62,6 +62,25 @@ BSplineCurve::BSplineCurve(BSplineBasis basis, Eigen::MatrixXd control_points)
     throw std::invalid_argument("the basis has " + std::to_string(basis_.num_control()) + " functions but " +
                                 std::to_string(control_.cols()) + " control points were given");
   }
+  BuildSpans();
+}
+
+void BSplineCurve::BuildSpans() {
+  const int k = basis_.order(), n = basis_.num_control(), s = static_cast<int>(control_.rows());
+  spans_.assign(static_cast<std::size_t>(3 * k * basis_.num_spans()), 0.0);
+  // a_j = sum_i c_ji P_(first + i), c_ji the Taylor coefficients of the basis functions on the span (the
+  // change to the local power basis, Piegl & Tiller section 6.6).
+  for (int span = 0; span < basis_.num_spans(); ++span) {
+    const int first = basis_.FirstFunction(span);
+    double* a = spans_.data() + 3 * static_cast<std::ptrdiff_t>(span) * k;
+    for (int i = 0; i < k; ++i) {
+      const int index = (first + i) % n;
+      for (int j = 0; j < k; ++j) {
+        const double w = basis_.TaylorCoefficient(span, 0, j, i);
+        for (int c = 0; c < s; ++c) a[3 * j + c] += w * control_(c, index);
+      }
+    }
+  }
 }
 
 ParameterDomain BSplineCurve::domain() const {
@@ -79,38 +98,73 @@ Eigen::VectorXd BSplineCurve::parameters() const {
 
 void BSplineCurve::set_parameters(const Eigen::VectorXd& p) {
   control_ = Eigen::Map<const Eigen::MatrixXd>(p.data(), control_.rows(), control_.cols());
+  BuildSpans();
 }
 
 void BSplineCurve::ApplySimilarity(double scale, const VecS& offset) {
   control_ = (scale * control_).colwise() + Eigen::VectorXd(offset);
+  BuildSpans();
 }
 
-void BSplineCurve::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
-  BSplineBasis::Values v;
-  basis_.Evaluate(t[0], derivatives, v);
-  const int s = static_cast<int>(control_.rows()), n = basis_.num_control();
-  // C^(d)(t) = sum_i N_{first+i}^(d)(t) P_{first+i} (Piegl & Tiller eq. 3.3): plain accumulators; the control
-  // points of a span are contiguous columns (periodic ones wrap once at most).
-  double acc[3][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};
-  const double* data = control_.data();
-  int k = v.first;
-  for (int i = 0; i < basis_.order(); ++i, ++k) {
-    if (k == n) k = 0;
-    const double* p = data + static_cast<std::ptrdiff_t>(k) * s;
-    const auto ui = static_cast<std::size_t>(i);
-    for (int c = 0; c < s; ++c) acc[0][c] += v.values[0][ui] * p[c];
-    if (derivatives >= 1)
-      for (int c = 0; c < s; ++c) acc[1][c] += v.values[1][ui] * p[c];
-    if (derivatives >= 2)
-      for (int c = 0; c < s; ++c) acc[2][c] += v.values[2][ui] * p[c];
+namespace {
+
+// C, dC/dy, d2C/dy2 of the span polynomial C(y) = sum_j a_j y^j (degree K - 1) by Horner's rule, 3 lanes.
+template <int K>
+void SpanPolynomial(const double* a, double y, double (&r)[3][3]) {
+  for (int c = 0; c < 3; ++c) {
+    double v = a[3 * (K - 1) + c], d1 = 0.0, d2 = 0.0;
+    for (int j = K - 2; j >= 0; --j) {  // derivatives by the same recurrence (Horner, differentiated)
+      d2 = d2 * y + 2.0 * d1;
+      d1 = d1 * y + v;
+      v = v * y + a[3 * j + c];
+    }
+    r[0][c] = v;
+    r[1][c] = d1;
+    r[2][c] = d2;
   }
+}
+
+}  // namespace
+
+void BSplineCurve::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+  double y = 0.0, inv_length = 0.0;
+  const int span = basis_.LocateSpan(t[0], y, inv_length);
+  const double* a = spans_.data() + 3 * static_cast<std::ptrdiff_t>(span) * basis_.order();
+  double r[3][3];
+  switch (basis_.order()) {
+    case 2:
+      SpanPolynomial<2>(a, y, r);
+      break;
+    case 3:
+      SpanPolynomial<3>(a, y, r);
+      break;
+    case 4:
+      SpanPolynomial<4>(a, y, r);
+      break;
+    case 5:
+      SpanPolynomial<5>(a, y, r);
+      break;
+    case 6:
+      SpanPolynomial<6>(a, y, r);
+      break;
+    case 7:
+      SpanPolynomial<7>(a, y, r);
+      break;
+    default:
+      SpanPolynomial<8>(a, y, r);
+      break;
+  }
+  // Chain rule: d/dt = (1 / length) d/dy.
+  const double f1 = derivatives >= 1 ? inv_length : 0.0,
+               f2 = derivatives >= 2 ? inv_length * inv_length : 0.0;
+  const int s = static_cast<int>(control_.rows());
   out.point.resize(s);
   out.d1.resize(s, 1);
   out.d2.resize(s, 1);
   for (int c = 0; c < s; ++c) {
-    out.point[c] = acc[0][c];
-    out.d1(c, 0) = acc[1][c];
-    out.d2(c, 0) = acc[2][c];
+    out.point[c] = r[0][c];
+    out.d1(c, 0) = f1 * r[1][c];
+    out.d2(c, 0) = f2 * r[2][c];
   }
 }
 

@@ -33,8 +33,13 @@ class BSplineCurve final : public ParametricModel {
   std::vector<ParamT> SampleParameters() const override;
 
  private:
+  void BuildSpans();
+
   BSplineBasis basis_;
   Eigen::MatrixXd control_;  // s x n
+  // Per span of the basis, the power-form coefficients of C in the span's local coordinate y: C = sum_j a_j
+  // y^j, a_j padded to 3 doubles, at spans_[3 (span order + j) + c]. Rebuilt whenever control_ changes.
+  std::vector<double> spans_;
 };
 
 class BSplineSurface final : public ParametricModel {

@@ -279,5 +279,34 @@ TEST(BSplineBasisFastPath, SurfacePatchTablesFollowParameterChanges) {
   }
 }
 
+// Likewise the curve's span tables.
+TEST(BSplineBasisFastPath, CurveSpanTablesFollowParameterChanges) {
+  std::mt19937_64 rng(8);
+  std::normal_distribution<double> gauss(0.0, 5.0);
+  const BSplineBasis b = RandomPeriodic(4, 9, 0.0, 1.0, rng);
+  Eigen::MatrixXd control(2, b.num_control());
+  for (Eigen::Index k = 0; k < control.size(); ++k) control.data()[k] = gauss(rng);
+  BSplineCurve curve(b, control);
+  Eigen::VectorXd p = curve.parameters();
+  for (Eigen::Index k = 0; k < p.size(); ++k) p[k] += gauss(rng);
+  curve.set_parameters(p);
+  VecS offset(2);
+  offset << 0.5, -1.5;
+  curve.ApplySimilarity(0.8, offset);
+  Eigen::MatrixXd moved = Eigen::Map<const Eigen::MatrixXd>(p.data(), 2, control.cols());
+  moved = (0.8 * moved).colwise() + Eigen::Vector2d(0.5, -1.5);
+  const BSplineCurve fresh(b, moved);
+  std::uniform_real_distribution<double> tt(-1.0, 2.0);
+  for (int k = 0; k < 200; ++k) {
+    const ParamT t{tt(rng), 0.0, 0.0};
+    LocalGeometry g1, g2;
+    curve.Evaluate(t, 2, g1);
+    fresh.Evaluate(t, 2, g2);
+    EXPECT_LE((g1.point - g2.point).norm(), 1e-13 * std::max(1.0, g2.point.norm()));
+    EXPECT_LE((g1.d1 - g2.d1).norm(), 1e-13 * std::max(1.0, g2.d1.norm()));
+    EXPECT_LE((g1.d2 - g2.d2).norm(), 1e-13 * std::max(1.0, g2.d2.norm()));
+  }
+}
+
 }  // namespace
 }  // namespace s2m
