@@ -159,26 +159,6 @@ int BSplineBasis::FindSpanReference(double t) const {
   return std::min(static_cast<int>(it - ext_.begin()) - 1, ext_offset_ + num_control_ - 1);
 }
 
-int BSplineBasis::FindSpan(double t) const {
-  // Bucket b covers [lo + b w, lo + (b + 1) w): its spans run from bucket_[b] to bucket_[b + 1]. The steps
-  // below also absorb the rounding of x (one bucket either way); they compare with the knots themselves, so
-  // the span is exactly FindSpanReference's.
-  const int buckets = static_cast<int>(bucket_.size()) - 1;
-  const double x = (t - lo_) * bucket_scale_;
-  const int b = x > 0.0 ? (x < buckets ? static_cast<int>(x) : buckets - 1) : 0;  // NaN -> bucket 0
-  int span = bucket_[static_cast<std::size_t>(b)];
-  const int last = span_base_ + num_spans_ - 1;
-  const double* U = ext_.data();
-  const int end = bucket_[static_cast<std::size_t>(b) + 1];
-  if (end - span > 8) {  // clustered knots: binary search within the bucket (A2.1)
-    span = static_cast<int>(std::upper_bound(U + span, U + std::min(end, last) + 1, t) - U) - 1;
-    span = std::max(span, span_base_);
-  }
-  while (span > span_base_ && U[span] > t) --span;
-  while (span < last && U[span + 1] <= t) ++span;
-  return span;
-}
-
 namespace {
 
 // Piegl & Tiller A2.3: all non-zero basis functions of degree p at t in knot span `span` of U and their

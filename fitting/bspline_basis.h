@@ -6,6 +6,7 @@
 // polynomial of degree order() - 1 there, de Boor, A Practical Guide to Splines, ch. IX), evaluated by
 // Horner's rule; and a bucket table that finds the span in O(1) (exactly so for uniform knots).
 
+#include <algorithm>
 #include <array>
 #include <vector>
 
@@ -48,7 +49,9 @@ class BSplineBasis {
     std::array<std::array<double, kMaxOrder>, kMaxDerivative + 1> values;
   };
   // Fast path: span by bucket table, values by the per-span Taylor tables. Agrees with EvaluateReference to
-  // rounding (a few ulp of each derivative's scale, tests/bspline_basis_fast_path_test.cpp).
+  // rounding: within a few ulp of each derivative's size on the span (its largest Taylor coefficient, ~ 1 /
+  // length^d; measured < 1e-15 relative to it, tests/bspline_basis_fast_path_test.cpp). Near a zero of a
+  // steep piece (at a knot next to a much shorter span) that is more than a few ulp of the value itself.
   void Evaluate(double t, int derivatives, Values& out) const;
   // The generic reference: binary-search span (A2.1) and A2.3 at t, any order. Slower; for tests and for
   // building the tables.
@@ -106,5 +109,25 @@ class BSplineBasis {
   std::vector<int> bucket_;
   double bucket_scale_ = 0.0;  // buckets / (hi - lo)
 };
+
+inline int BSplineBasis::FindSpan(double t) const {
+  // Bucket b covers [lo + b w, lo + (b + 1) w): its spans run from bucket_[b] to bucket_[b + 1]. The steps
+  // below also absorb the rounding of x (one bucket either way); they compare with the knots themselves, so
+  // the span is exactly FindSpanReference's.
+  const int buckets = static_cast<int>(bucket_.size()) - 1;
+  const double x = (t - lo_) * bucket_scale_;
+  const int b = x > 0.0 ? (x < buckets ? static_cast<int>(x) : buckets - 1) : 0;  // NaN -> bucket 0
+  int span = bucket_[static_cast<std::size_t>(b)];
+  const int last = span_base_ + num_spans_ - 1;
+  const double* U = ext_.data();
+  const int end = bucket_[static_cast<std::size_t>(b) + 1];
+  if (end - span > 8) {  // clustered knots: binary search within the bucket (A2.1)
+    span = static_cast<int>(std::upper_bound(U + span, U + std::min(end, last) + 1, t) - U) - 1;
+    span = std::max(span, span_base_);
+  }
+  while (span > span_base_ && U[span] > t) --span;
+  while (span < last && U[span + 1] <= t) ++span;
+  return span;
+}
 
 }  // namespace s2m
