@@ -152,18 +152,19 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
         // The model is fixed and the points moved by one small rigid step: the previous feet are trusted.
         // Newton's geometry at the previous foot is reused only when that foot was exact.
         const bool reuse = warm != nullptr && !context.closed_form && (*warm_exact)[i] != 0;
-        if (reuse) geo = (*warm_geometry)[i];
-        out[i] = FootPointOf(context, x, warm != nullptr ? &(*warm)[i].t : nullptr, WarmStart::kTrusted, geo,
-                             reuse);
+        // Newton works in place in the kept geometry (no copy afterwards).
+        LocalGeometry& g = use_field || !equations ? geo : out_geometry[i];
+        if (reuse) g = (*warm_geometry)[i];
+        out[i] =
+            FootPointOf(context, x, warm != nullptr ? &(*warm)[i].t : nullptr, WarmStart::kTrusted, g, reuse);
         out_exact[i] = use_field ? 0 : 1;
         if (!equations) continue;
-        if (context.closed_form) model.Evaluate(out[i].t, 2, geo);
-        if (!use_field) out_geometry[i] = geo;
+        if (context.closed_form) model.Evaluate(out[i].t, 2, g);
         if (surface && (term == ErrorTerm::kTdm || term == ErrorTerm::kSdm) &&
-            AddSurfaceDirections(term, geo, points.col(j), weight, mine))
+            AddSurfaceDirections(term, g, points.col(j), weight, mine))
           continue;
-        const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
-        mine.Add({points.col(j), To3(geo.point), ErrorMatrix(term, frame, 3), weight});
+        const PrincipalFrame frame = ComputePrincipalFrame(g, x);
+        mine.Add({points.col(j), To3(g.point), ErrorMatrix(term, frame, 3), weight});
       }
     }
     eq = RigidNormalEquations();
