@@ -259,6 +259,13 @@ TEST(SquaredDistanceField, WarmStartedExactIterationEqualsTheColdOne) {
     ASSERT_EQ(cold.iterations, 1) << ToString(term);
     EXPECT_LT(MaxDisplacement(s.scan, warm.model_T_scan, cold.model_T_scan), 1e-9) << ToString(term);
     EXPECT_NEAR(warm.residuals.rms, cold.residuals.rms, 1e-12) << ToString(term);
+    // The residuals are the exact feet's at the final pose (its pass computes feet only, no equations).
+    std::vector<FootPoint> feet;
+    ComputeFootPoints(patch, warm.model_T_scan.apply(s.scan), feet);
+    double sum = 0.0;
+    for (const FootPoint& f : feet) sum += f.distance * f.distance;
+    EXPECT_NEAR(warm.residuals.rms, std::sqrt(sum / static_cast<double>(feet.size())), 1e-12)
+        << ToString(term);
     // Noise of 0.02 mm: the pose is recovered to a small fraction of it.
     EXPECT_LT(MaxDisplacement(s.scan, warm.model_T_scan, s.truth), 1e-2) << ToString(term);
     EXPECT_NEAR(warm.residuals.rms, 0.02, 2e-3) << ToString(term);
