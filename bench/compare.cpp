@@ -160,18 +160,10 @@ struct PoseErrorMeasure {
 // ---------------------------------------------------------------------------------------------------------
 // Section 1: registration of a scan to a known surface.
 
-// A bumpy 100 mm x 100 mm freeform patch (bicubic, 10 x 10 control points) whose shape fixes all six degrees
-// of freedom of a scan on it.
+// The bumpy 100 mm x 100 mm freeform patch (acquisition/synthetic_cases.h, BumpyPatch) whose shape fixes all
+// six degrees of freedom of a scan on it.
 BSplineSurface KnownSurface() {
-  const int n = 10;
-  Eigen::Matrix3Xd control(3, n * n);
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j) {
-      const double x = -50 + 100.0 * i / (n - 1), y = -50 + 100.0 * j / (n - 1);
-      control.col(i * n + j) << x, y,
-          10 * std::sin(0.07 * x + 0.4) * std::cos(0.05 * y - 0.3) + 0.002 * x * y + 0.03 * x;
-    }
-  return BSplineSurface(UnitSpacedClamped(4, n), UnitSpacedClamped(4, n), control);
+  return BumpyPatch(0.03);
 }
 
 struct SurfaceSampling {
