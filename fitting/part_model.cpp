@@ -299,12 +299,15 @@ int PartModel::NearestFace(const Eigen::Vector3d& x, ParamT& t, double& distance
   int winner = -1;
   ParamT patch_t{0.0, 0.0, 0.0}, best_patch_t{0.0, 0.0, 0.0};
   for (const std::size_t k : search_order_) {
-    const double d = FaceDistance(k, x, best, patch_t);
+    // Analytic faces inline (most parts have only these), patches through FaceDistance.
+    const PartFace& f = definition_.faces[k];
+    const double d = f.type != FaceType::kSplinePatch ? AnalyticFoot<false>(f, constants_[k], x, nullptr)
+                                                      : FaceDistance(k, x, best, patch_t);
     if (face_distance != nullptr && k < kKept) (*face_distance)[k] = d;
     if (d < best) {
       best = d;
       winner = static_cast<int>(k);
-      if (definition_.faces[k].type == FaceType::kSplinePatch) best_patch_t = patch_t;
+      if (f.type == FaceType::kSplinePatch) best_patch_t = patch_t;
     }
   }
   if (winner >= 0) {
