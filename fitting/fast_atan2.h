@@ -64,10 +64,13 @@ inline const Table& GetTable() {
 // The general reduction, for a = |x|, b = |y| not NaN with max(a, b) in [2^-901, 2^1000]: no overflow or
 // division by zero, and no intermediate that matters is subnormal (which would cost relative precision).
 inline double Reduced(double y, double x, double a, double b) {
+  // Branch-free (minsd, maxsd, a mask): which octant a foot point lies in is random, a branch on it would be
+  // mispredicted half the time.
   const bool swap = b > a;
-  const double z = (a < b ? a : b) / (a < b ? b : a);
+  const double lo = b < a ? b : a, hi = a < b ? b : a;
+  const double z = lo / hi;
   int k = static_cast<int>(z * kCentres + 0.5);
-  if (k < 4) k = 0;  // near 0 the series on z itself: |r| stays small relative to the result below
+  k &= -static_cast<int>(k >= 4);  // k < 4: k = 0, the series on z itself (|r| small relative to the result)
   const double c = static_cast<double>(k) * (1.0 / kCentres);
   const double r = (z - c) / (1.0 + z * c);
   const double w = r * r, w2 = w * w;
