@@ -34,6 +34,13 @@
 #include <cstdint>
 #include <cstring>
 
+// Rare paths out of line: inlined at every call they multiplied the callers' code several times over.
+#if defined(__GNUC__)
+#define S2M_FAST_ATAN2_COLD __attribute__((noinline, cold))
+#else
+#define S2M_FAST_ATAN2_COLD
+#endif
+
 namespace s2m {
 namespace fast_atan2_detail {
 
@@ -49,7 +56,7 @@ struct Table {
   Offset offset[4 * (kCentres + 1)];
   // Taylor coefficients a_n(c_k), n = 1..kDegree, of atan(c_k + d) - atan(c_k) (a_n at [k][n - 1]).
   double coefficient[kCentres + 1][kDegree];
-  Table() {
+  S2M_FAST_ATAN2_COLD Table() {
     const long double pi = 3.14159265358979323846264338327950288L;
     for (int k = 0; k <= kCentres; ++k) {
       const long double c = static_cast<long double>(k) / kCentres;
@@ -119,7 +126,7 @@ inline double Reduced(double y, double x, double a, double b) {
 
 // The rare cases: NaN, infinities, zeros, and arguments outside [2^-900, 2^1000] (rescaled by a power of two,
 // exact, or exact enough: a lost bit of min(a, b) only matters when the result underflows anyway).
-inline double Special(double y, double x, double a, double b) {
+S2M_FAST_ATAN2_COLD inline double Special(double y, double x, double a, double b) {
   constexpr double kPi = 3.141592653589793238462643383279502884;
   if (std::isnan(x) || std::isnan(y)) return x + y;
   const bool x_negative = std::signbit(x);

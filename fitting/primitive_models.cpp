@@ -101,7 +101,7 @@ std::vector<ParamT> CylinderModel::SampleParameters() const {
 bool CylinderModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - point_);
   t = {FastAtan2(q.y(), q.x()), q.z()};
-  if (t[0] < 0) t[0] += 2 * M_PI;
+  t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi) without a branch on the data
   return true;
 }
 
@@ -112,7 +112,7 @@ bool CylinderModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, b
                                    bool& ambiguous) const {
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - point_);
   t = {FastAtan2(q.y(), q.x()), q.z(), 0.0};
-  if (t[0] < 0) t[0] += 2 * M_PI;
+  t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi) without a branch on the data
   // sqrt rather than hypot: no overflow is possible at model coordinates, and hypot costs as much as atan2.
   // FastAtan2 (fitting/fast_atan2.h): std::atan2 within 2 ulp at a fraction of glibc's cost.
   distance = std::abs(radius_ - std::sqrt(q.x() * q.x() + q.y() * q.y()));
@@ -194,7 +194,7 @@ std::vector<ParamT> SphereModel::SampleParameters() const {
 bool SphereModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - center_);
   t = {FastAtan2(q.y(), q.x()), FastAtan2(q.z(), std::sqrt(q.x() * q.x() + q.y() * q.y()))};
-  if (t[0] < 0) t[0] += 2 * M_PI;
+  t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi) without a branch on the data
   return true;
 }
 
@@ -204,7 +204,7 @@ bool SphereModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, boo
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - center_);
   const double rho = std::sqrt(q.x() * q.x() + q.y() * q.y());  // as ClosedFormFootPoint
   t = {FastAtan2(q.y(), q.x()), FastAtan2(q.z(), rho), 0.0};
-  if (t[0] < 0) t[0] += 2 * M_PI;
+  t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi) without a branch on the data
   distance = std::abs(radius_ - q.norm());
   on_boundary = false;  // the poles are not boundaries of the surface
   ambiguous = false;
