@@ -50,7 +50,7 @@ double AnalyticFoot(const PartFace& f, const FaceConstants& c, const Eigen::Vect
   // coordinates, and glibc's hypot costs a call and about 55 instructions; the result differs by an ulp at
   // most.
   const double rho = std::sqrt(lx * lx + ly * ly);
-  // FastAtan2 (fitting/fast_atan2.h): std::atan2 within 2 ulp at a fraction of glibc's cost.
+  // FastAtan2 (fitting/fast_atan2.h): std::atan2 within 2 ulp, cheaper than glibc's.
   const auto angle = [&] { return rho > 0 ? FastAtan2(ly, lx) : 0.0; };
   const double r = c.radius;
   switch (f.type) {

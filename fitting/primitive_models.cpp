@@ -114,7 +114,7 @@ bool CylinderModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, b
   t = {FastAtan2(q.y(), q.x()), q.z(), 0.0};
   t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi) without a branch on the data
   // sqrt rather than hypot: no overflow is possible at model coordinates, and hypot costs as much as atan2.
-  // FastAtan2 (fitting/fast_atan2.h): std::atan2 within 2 ulp at a fraction of glibc's cost.
+  // FastAtan2 (fitting/fast_atan2.h): std::atan2 within 2 ulp, cheaper than glibc's.
   distance = std::abs(radius_ - std::sqrt(q.x() * q.x() + q.y() * q.y()));
   on_boundary = false;  // the domain is periodic in theta and unbounded along the axis
   ambiguous = false;
