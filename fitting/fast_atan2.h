@@ -2,8 +2,8 @@
 // FastAtan2(y, x): std::atan2 to double precision (measured within 1 ulp of glibc's result over 9M random
 // pairs; the test asserts 2: tests/fast_atan2_test.cpp), for the closed-form foot points of the primitives
 // and part faces, where glibc's atan2 (about 22 ns a call on a quiet machine) was most of the per-point cost.
-// About 60 instructions against glibc's 150, no branch on the data (the octant of a foot point is random) and
-// no division after z's, so its dependency chain is no longer than glibc's.
+// About two thirds of glibc's instructions (callgrind), no branch on the data (the octant of a foot point is
+// random) and no division after z's, so its dependency chain is no longer than glibc's.
 //
 // Method (table-driven, e.g. Tang, "Table-lookup algorithms for elementary functions", ACM TOMS 15(2), 1989;
 // Muller, "Elementary Functions", 3rd ed., chapter 6):
