@@ -571,4 +571,16 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
   return c;
 }
 
+BSplineSurface BumpyPatch(double x_tilt) {
+  const int n = 10;
+  Eigen::Matrix3Xd control(3, n * n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const double x = -50 + 100.0 * i / (n - 1), y = -50 + 100.0 * j / (n - 1);
+      control.col(i * n + j) << x, y,
+          10 * std::sin(0.07 * x + 0.4) * std::cos(0.05 * y - 0.3) + 0.002 * x * y + x_tilt * x;
+    }
+  return BSplineSurface(UnitSpacedClamped(4, n), UnitSpacedClamped(4, n), control);
+}
+
 }  // namespace s2m

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "fitting/bspline_models.h"
 #include "fitting/joint_fit.h"
 #include "fitting/parametric_model.h"
 #include "registration/rigid_motion.h"
@@ -95,5 +96,13 @@ ScanSet RecordedViews(const SyntheticCase& c);
 std::vector<Motion6> ObservablePoseErrors(const ParametricModel& model,
                                           const std::vector<RigidMotion>& fitted,
                                           const std::vector<RigidMotion>& truth);
+
+// The bumpy 100 x 100 mm free-form patch of the registration benchmark (bench/compare.cpp, section 1) and of
+// the foot point and squared distance field tests: a bicubic B-spline (clamped, unit-spaced knots) with
+// 10 x 10 control points over [-50, 50]^2 at heights
+//   z = 10 sin(0.07 x + 0.4) cos(0.05 y - 0.3) + 0.002 x y + x_tilt x
+// (bumps of 10 mm, curvature radii >= about 20 mm), whose shape fixes all six degrees of freedom of a scan on
+// it. x_tilt = 0.03 is the benchmark's; the foot point tests use 0.
+BSplineSurface BumpyPatch(double x_tilt = 0.03);
 
 }  // namespace s2m

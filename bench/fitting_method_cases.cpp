@@ -75,24 +75,39 @@ std::vector<FittingCase> FittingCases(const std::filesystem::path& glyphs, bool 
   return cases;
 }
 
+namespace {
+
+// One error term on one case for the whole budget; empty when the fit fails (said on stderr).
+std::vector<IterationRecord> History(const FittingCase& c, ErrorTerm term, int budget) {
+  std::unique_ptr<ParametricModel> model = c.start();
+  GeometricFitOptions o;
+  o.error_term = term;
+  o.fairness.bending = c.bending;
+  o.max_iterations = budget;
+  o.objective_tolerance = 0.0;  // run the full budget: we read the history
+  try {
+    return FitModel(*model, c.points, o).history;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s / %s: %s\n", c.name.c_str(), ToString(term), e.what());
+    return {};
+  }
+}
+
+}  // namespace
+
+int IterationsToRms(const FittingCase& c, ErrorTerm term, int budget, double target_rms) {
+  for (const IterationRecord& r : History(c, term, budget))
+    if (r.rms <= target_rms) return r.iteration;
+  return -1;
+}
+
 std::vector<MethodRow> RunFittingMethods(const FittingCase& c, int budget) {
   const ErrorTerm terms[] = {ErrorTerm::kPdm, ErrorTerm::kTdm,  ErrorTerm::kSdm,
                              ErrorTerm::kCdm, ErrorTerm::kGtdm, ErrorTerm::kGn};
   std::vector<std::vector<IterationRecord>> histories;
   double best = INFINITY;
   for (ErrorTerm t : terms) {
-    std::unique_ptr<ParametricModel> model = c.start();
-    GeometricFitOptions o;
-    o.error_term = t;
-    o.fairness.bending = c.bending;
-    o.max_iterations = budget;
-    o.objective_tolerance = 0.0;  // run the full budget: we read the history
-    try {
-      histories.push_back(FitModel(*model, c.points, o).history);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "%s / %s: %s\n", c.name.c_str(), ToString(t), e.what());
-      histories.emplace_back();
-    }
+    histories.push_back(History(c, t, budget));
     for (const IterationRecord& r : histories.back()) best = std::min(best, r.rms);
   }
   std::vector<MethodRow> rows;
@@ -105,6 +120,7 @@ std::vector<MethodRow> RunFittingMethods(const FittingCase& c, int budget) {
     row.lowest_rms = INFINITY;
     row.iterations_run = static_cast<int>(h.size());
     for (const IterationRecord& r : h) {
+      row.rms.push_back(r.rms);
       row.lowest_rms = std::min(row.lowest_rms, r.rms);
       if (row.iterations_to_target < 0 && r.rms <= row.target_rms) {
         row.iterations_to_target = r.iteration;
@@ -115,6 +131,12 @@ std::vector<MethodRow> RunFittingMethods(const FittingCase& c, int budget) {
     rows.push_back(row);
   }
   return rows;
+}
+
+int IterationsTo(const MethodRow& row, double target_rms) {
+  for (std::size_t i = 0; i < row.rms.size(); ++i)
+    if (row.rms[i] <= target_rms) return static_cast<int>(i) + 1;
+  return -1;
 }
 
 }  // namespace s2m::bench

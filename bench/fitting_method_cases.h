@@ -35,7 +35,14 @@ struct MethodRow {
   double seconds_per_iteration = 0.0;
   double lowest_rms = 0.0;
   int iterations_run = 0;
+  std::vector<double> rms;  // after each iteration (rms[i] after iteration i + 1), for other targets
 };
+
+// Iterations `row` needed to reach RMS <= target (-1: not within its budget).
+int IterationsTo(const MethodRow& row, double target_rms);
+
+// Iterations one error term needs on case `c` to reach RMS <= target, within `budget` (-1: not reached).
+int IterationsToRms(const FittingCase& c, ErrorTerm term, int budget, double target_rms);
 
 // All six error terms on one case, `budget` iterations each.
 std::vector<MethodRow> RunFittingMethods(const FittingCase& c, int budget);

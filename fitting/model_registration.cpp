@@ -2,6 +2,7 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -20,6 +21,52 @@ double MeanSquare(const std::vector<FootPoint>& feet) {
   return sum / static_cast<double>(feet.size());
 }
 
+// TDM's and SDM's error matrices at an exact foot on a surface in 3D, added as rank-one directions
+// (RigidNormalEquations::AddDirection) straight from the model's derivatives `g` at the foot: TDM needs only
+// the unit normal n = C_u x C_v / |C_u x C_v|; SDM adds the principal directions T_k with the weights
+// SdmWeight(delta, kappa_k) (METHOD.md section 2), the principal curvatures and directions being the
+// eigenpairs of the shape operator S = I^-1 II (first and second fundamental forms; do Carmo, section 3-3),
+// solved in closed form. The same M as ComputePrincipalFrame + ErrorMatrix (up to rounding) without their
+// general eigen-solver and 3 x 3 matrices. False (nothing added) for a degenerate metric: the caller falls
+// back to the general path.
+bool AddSurfaceDirections(ErrorTerm term, const LocalGeometry& g, const Eigen::Vector3d& x, double weight,
+                          RigidNormalEquations& eq) {
+  const Eigen::Vector3d su = To3(g.d1.col(0)), sv = To3(g.d1.col(1));
+  const double e = su.squaredNorm(), f = su.dot(sv), gg = sv.squaredNorm();
+  const double det = e * gg - f * f;
+  if (!(det > 1e-12 * (e + gg) * (e + gg))) return false;
+  Eigen::Vector3d n = su.cross(sv) / std::sqrt(det);  // |C_u x C_v|^2 = det I
+  const Eigen::Vector3d r = x - To3(g.point);
+  double delta = n.dot(r);
+  if (delta < 0) {  // n towards the data point, delta >= 0, curvatures signed w.r.t. n
+    n = -n;
+    delta = -delta;
+  }
+  eq.AddDirection(x, n, weight, delta);
+  if (term == ErrorTerm::kTdm) return true;
+  const double l = n.dot(To3(g.d2.col(0))), m = n.dot(To3(g.d2.col(1))), nn = n.dot(To3(g.d2.col(2)));
+  // S = I^-1 II with I^-1 = [gg -f; -f e] / det.
+  const double s00 = (gg * l - f * m) / det, s01 = (gg * m - f * nn) / det, s10 = (e * m - f * l) / det,
+               s11 = (e * nn - f * m) / det;
+  const double half_trace = 0.5 * (s00 + s11), half_gap = 0.5 * (s00 - s11);
+  const double root = std::sqrt(std::max(0.0, half_gap * half_gap + s01 * s10));
+  const double k1 = half_trace - root, k2 = half_trace + root;
+  const double b1 = SdmWeight(delta, k1), b2 = SdmWeight(delta, k2);
+  if (!(b1 > 0) && !(b2 > 0)) return true;
+  // Eigenvector of S for k1 from the better-conditioned row of S - k1 I; at an umbilic any tangent will do
+  // (then b1 == b2 and M's tangential part is b1 (I - n n^T) whatever the directions).
+  const Eigen::Vector2d va(s01, k1 - s00), vb(k1 - s11, s10);
+  const Eigen::Vector2d v = va.squaredNorm() >= vb.squaredNorm() ? va : vb;
+  Eigen::Vector3d t1 = v.x() * su + v.y() * sv;
+  const double t1_norm = t1.norm();
+  t1 = t1_norm > 1e-12 * std::sqrt(e + gg) * v.norm() && t1_norm > 0 ? Eigen::Vector3d(t1 / t1_norm)
+                                                                     : Eigen::Vector3d(su / std::sqrt(e));
+  const Eigen::Vector3d t2 = n.cross(t1);  // principal directions are orthogonal
+  if (b1 > 0) eq.AddDirection(x, t1, weight * b1, t1.dot(r));
+  if (b2 > 0) eq.AddDirection(x, t2, weight * b2, t2.dot(r));
+  return true;
+}
+
 }  // namespace
 
 ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eigen::Matrix3Xd& scan_points,
@@ -34,9 +81,10 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
   ModelRegistrationResult result;
   result.model_T_scan = initial;
   // Both point buffers are allocated once; every trial overwrites `moved` in place.
-  Eigen::MatrixXd current(3, scan_points.cols()), moved(3, scan_points.cols());
-  auto place = [&scan_points](const RigidMotion& pose, Eigen::MatrixXd& out) {
-    out.noalias() = pose.rotation() * scan_points;
+  Eigen::Matrix3Xd current(3, scan_points.cols()), moved(3, scan_points.cols());
+  auto place = [&scan_points](const RigidMotion& pose, Eigen::Matrix3Xd& out) {
+    // A coefficient-wise product: a 3 x 3 rotation gains nothing from GEMM's packing.
+    out.noalias() = pose.rotation().lazyProduct(scan_points);
     out.colwise() += pose.translation();
   };
   // GN's implicit-function Jacobian is for shape parameters; for a rigid motion of the data SDM is its
@@ -53,15 +101,19 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
   // With a squared distance field (options.squared_distance_field), points inside its band take the field's
   // approximate foot and SDM approximant instead (exact[i] = 0): no Newton, no model evaluation.
   const SquaredDistanceField* field = options.squared_distance_field;
-  auto feet_and_equations = [&](const Eigen::MatrixXd& points, const std::vector<FootPoint>* warm,
+  // `equations` false: the pass is the last one whatever its outcome (its step ends the iterations or the
+  // field phase if accepted, and a rejected trial re-solves the previous equations), so only the feet are
+  // computed: neither the frames, the normal equations nor the geometry for a next pass.
+  const bool surface = model.domain().dimension == 2;
+  auto feet_and_equations = [&](const Eigen::Matrix3Xd& points, const std::vector<FootPoint>* warm,
                                 const std::vector<LocalGeometry>* warm_geometry,
-                                const std::vector<char>* warm_exact, bool use_field,
+                                const std::vector<char>* warm_exact, bool use_field, bool equations,
                                 std::vector<FootPoint>& out, std::vector<LocalGeometry>& out_geometry,
                                 std::vector<char>& out_exact, RigidNormalEquations& eq) {
     out.resize(static_cast<std::size_t>(points.cols()));
     // Newton's geometry is kept for the next pass only in the exact phase (not touching 100 bytes per point
     // in the field's passes).
-    if (use_field)
+    if (use_field || !equations)
       out_geometry.clear();
     else
       out_geometry.resize(static_cast<std::size_t>(points.cols()));
@@ -77,9 +129,10 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
 #pragma omp for schedule(static)
       for (Eigen::Index j = 0; j < points.cols(); ++j) {
         const auto i = static_cast<std::size_t>(j);
-        if (use_field && field->Query(points.col(j), answer, term != ErrorTerm::kTdm)) {
+        if (use_field && field->Query(points.col(j), answer, equations && term != ErrorTerm::kTdm)) {
           out[i] = FootPoint{answer.t, std::sqrt(answer.squared_distance), false, false};
           out_exact[i] = 0;
+          if (!equations) continue;
           const PrincipalFrame& f = answer.frame;
           const Eigen::Vector3d x3 = points.col(j), r = x3 - answer.foot;
           if (term == ErrorTerm::kTdm || term == ErrorTerm::kSdm) {
@@ -99,14 +152,19 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
         // The model is fixed and the points moved by one small rigid step: the previous feet are trusted.
         // Newton's geometry at the previous foot is reused only when that foot was exact.
         const bool reuse = warm != nullptr && !context.closed_form && (*warm_exact)[i] != 0;
-        if (reuse) geo = (*warm_geometry)[i];
-        out[i] = FootPointOf(context, x, warm != nullptr ? &(*warm)[i].t : nullptr, WarmStart::kTrusted, geo,
-                             reuse);
-        if (context.closed_form) model.Evaluate(out[i].t, 2, geo);
-        if (!use_field) out_geometry[i] = geo;
+        // Newton works in place in the kept geometry (no copy afterwards).
+        LocalGeometry& g = use_field || !equations ? geo : out_geometry[i];
+        if (reuse) g = (*warm_geometry)[i];
+        out[i] =
+            FootPointOf(context, x, warm != nullptr ? &(*warm)[i].t : nullptr, WarmStart::kTrusted, g, reuse);
         out_exact[i] = use_field ? 0 : 1;
-        const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
-        mine.Add({points.col(j), To3(geo.point), ErrorMatrix(term, frame, 3), weight});
+        if (!equations) continue;
+        if (context.closed_form) model.Evaluate(out[i].t, 2, g);
+        if (surface && (term == ErrorTerm::kTdm || term == ErrorTerm::kSdm) &&
+            AddSurfaceDirections(term, g, points.col(j), weight, mine))
+          continue;
+        const PrincipalFrame frame = ComputePrincipalFrame(g, x);
+        mine.Add({points.col(j), To3(g.point), ErrorMatrix(term, frame, 3), weight});
       }
     }
     eq = RigidNormalEquations();
@@ -118,7 +176,7 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
   std::vector<LocalGeometry> geometry, trial_geometry;
   std::vector<char> exact, trial_exact;
   RigidNormalEquations eq, trial_eq;
-  feet_and_equations(current, nullptr, nullptr, nullptr, field_phase, feet, geometry, exact, eq);
+  feet_and_equations(current, nullptr, nullptr, nullptr, field_phase, true, feet, geometry, exact, eq);
   double mean_square = MeanSquare(feet);
   double lambda = options.damping ? 1e-6 : 0.0;
   int limit = options.max_iterations;
@@ -126,8 +184,8 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
   // exact_final_iterations exact iterations.
   auto switch_to_exact = [&] {
     field_phase = false;
-    feet_and_equations(current, &feet, &geometry, &exact, false, trial_feet, trial_geometry, trial_exact,
-                       trial_eq);
+    feet_and_equations(current, &feet, &geometry, &exact, false, true, trial_feet, trial_geometry,
+                       trial_exact, trial_eq);
     feet.swap(trial_feet);
     geometry.swap(trial_geometry);
     exact.swap(trial_exact);
@@ -155,7 +213,14 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
       step = RigidMotion::FromHelicalVelocity(velocity.head<3>(), velocity.tail<3>());
       const RigidMotion trial = step * result.model_T_scan;
       place(trial, moved);  // from the original scan: no drift
-      feet_and_equations(moved, &feet, &geometry, &exact, field_phase, trial_feet, trial_geometry,
+      // Whether this trial, if accepted, is the last of its phase (the iteration limit, or a step below the
+      // tolerance, as tested after the iteration below): then its normal equations are never solved.
+      const double tolerance = field_phase ? options.field_step_tolerance : 0.0;
+      const bool last =
+          result.iterations + 1 >= limit ||
+          (step.angle() <= std::max(tolerance, options.rotation_tolerance) &&
+           step.translation().norm() <= std::max(tolerance, options.translation_tolerance) * size);
+      feet_and_equations(moved, &feet, &geometry, &exact, field_phase, !last, trial_feet, trial_geometry,
                          trial_exact, trial_eq);
       const double trial_mean_square = MeanSquare(trial_feet);
       if (!options.damping || trial_mean_square < mean_square) {

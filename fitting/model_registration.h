@@ -28,7 +28,8 @@ struct ModelRegistrationOptions {
   // iterations first use its O(1) approximants of d^2 (squared_distance_field.h; Mitra, Gelfand, Pottmann,
   // Guibas, SGP 2004) for the points inside its band (exact feet for the others) until a step moves the scan
   // by less than field_step_tolerance (rotation in rad, translation relative to the scan's size) or no longer
-  // decreases the approximate RMS; then up to exact_final_iterations iterations with exact feet, so the
+  // decreases the approximate RMS; then up to exact_final_iterations iterations with exact feet (Newton
+  // from the field's foot parameters, then from the previous exact feet with their geometry), so the
   // final pose and residuals are the model's exact ones
   // (0: no exact step, only the exact feet at the field's final pose for the residuals). The field's accuracy
   // is set by its cell size.

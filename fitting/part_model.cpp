@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "fitting/bspline_models.h"
+#include "fitting/fast_atan2.h"
 #include "fitting/foot_point.h"
 
 namespace s2m {
@@ -13,6 +14,12 @@ namespace {
 
 // Unbounded faces: the parameter box only has to contain every foot point.
 constexpr double kUnbounded = 1e12;
+
+// To3 for the part's points, which are always 3D: three loads, where To3's run-time sized copy calls memcpy
+// (twice per foot point, about 20 instructions).
+Eigen::Vector3d Point3(const VecS& x) {
+  return x.size() == 3 ? Eigen::Vector3d(x[0], x[1], x[2]) : To3(x);
+}
 
 Eigen::Vector3d OriginOf(const PartFace& f, const Eigen::VectorXd& p) {
   return {f.origin[0].Evaluate(p), f.origin[1].Evaluate(p), f.origin[2].Evaluate(p)};
@@ -26,40 +33,54 @@ Eigen::Vector3d RadialDu(const PartFace& f, double u) {
   return -std::sin(u) * f.frame.col(0) + std::cos(u) * f.frame.col(1);
 }
 
-// One face's foot point in closed form (METHOD.md section 10): t and the unsigned distance.
-std::pair<ParamT, double> FaceFootPoint(const PartFace& f, const Eigen::VectorXd& p,
-                                        const Eigen::Vector3d& x) {
+// One analytic face's foot point in closed form (METHOD.md section 10): the unsigned distance and, with
+// kParameter, the foot's t (u, v; t[2] is left to the caller). The angle u needs an atan2, the distance does
+// not: the nearest-face search asks for t only on the face that wins. `c`: the face's
+// PartModel::FaceConstants.
+template <bool kParameter, typename FaceConstants>
+double AnalyticFoot(const PartFace& f, const FaceConstants& c, const Eigen::Vector3d& x, ParamT* t) {
   const Eigen::Vector3d e1 = f.frame.col(0), e2 = f.frame.col(1), a = f.frame.col(2);
   if (f.type == FaceType::kPlane) {
-    return {{e1.dot(x), e2.dot(x), 0.0}, std::abs(a.dot(x) - f.offset.Evaluate(p))};
+    if constexpr (kParameter) *t = {e1.dot(x), e2.dot(x), 0.0};
+    return std::abs(a.dot(x) - c.offset);
   }
-  const Eigen::Vector3d q = x - OriginOf(f, p);
+  const Eigen::Vector3d q = x - c.origin;
   const double lx = e1.dot(q), ly = e2.dot(q), lz = a.dot(q);
-  const double rho = std::hypot(lx, ly);
-  const double u = rho > 0 ? std::atan2(ly, lx) : 0.0;
-  const double r = f.radius.Evaluate(p);
+  // sqrt rather than hypot (as CylinderModel): no overflow or underflow that matters is possible at model
+  // coordinates, and glibc's hypot costs a call and about 55 instructions; the result differs by an ulp at
+  // most.
+  const double rho = std::sqrt(lx * lx + ly * ly);
+  // FastAtan2 (fitting/fast_atan2.h): std::atan2 within 2 ulp, cheaper than glibc's.
+  const auto angle = [&] { return rho > 0 ? FastAtan2(ly, lx) : 0.0; };
+  const double r = c.radius;
   switch (f.type) {
     case FaceType::kCylinder:
-      return {{u, lz, 0.0}, std::abs(rho - r)};
+      if constexpr (kParameter) *t = {angle(), lz, 0.0};
+      return std::abs(rho - r);
     case FaceType::kCone: {
       // Generator in the half-plane of x: (r + v tan(alpha), v), unit direction (sin, cos) alpha. The other
       // nappe (radius < 0 in that half-plane) is the generator of the opposite half-plane: take the nearer.
-      const double alpha = f.half_angle.Evaluate(p), s = std::sin(alpha), c = std::cos(alpha);
-      const double d_near = std::abs((rho - r) * c - lz * s), d_far = std::abs((-rho - r) * c - lz * s);
-      if (d_near <= d_far) return {{u, ((rho - r) * s + lz * c) * c, 0.0}, d_near};
-      return {{u + M_PI, ((-rho - r) * s + lz * c) * c, 0.0}, d_far};
+      const double s = c.sin_alpha, co = c.cos_alpha;
+      const double d_near = std::abs((rho - r) * co - lz * s), d_far = std::abs((-rho - r) * co - lz * s);
+      if (d_near <= d_far) {
+        if constexpr (kParameter) *t = {angle(), ((rho - r) * s + lz * co) * co, 0.0};
+        return d_near;
+      }
+      if constexpr (kParameter) *t = {angle() + M_PI, ((-rho - r) * s + lz * co) * co, 0.0};
+      return d_far;
     }
     case FaceType::kSphere:
-      return {{u, std::atan2(lz, rho), 0.0}, std::abs(q.norm() - r)};
-    case FaceType::kTorus: {
-      const double tube = f.minor_radius.Evaluate(p);
-      return {{u, std::atan2(lz, rho - r), 0.0}, std::abs(std::hypot(rho - r, lz) - tube)};
-    }
+      if constexpr (kParameter) *t = {angle(), FastAtan2(lz, rho), 0.0};
+      return std::abs(q.norm() - r);
+    case FaceType::kTorus:
+      if constexpr (kParameter) *t = {angle(), FastAtan2(lz, rho - r), 0.0};
+      return std::abs(std::sqrt((rho - r) * (rho - r) + lz * lz) - c.minor_radius);
     case FaceType::kPlane:
-    case FaceType::kSplinePatch:  // no closed form: PartModel::FootPointOnFace
+    case FaceType::kSplinePatch:  // no closed form: PartModel::FaceDistance
       break;
   }
-  return {{0.0, 0.0, 0.0}, std::numeric_limits<double>::infinity()};
+  if constexpr (kParameter) *t = {0.0, 0.0, 0.0};
+  return std::numeric_limits<double>::infinity();
 }
 
 ParameterDomain PatchDomain(const SplinePatch& patch) {
@@ -134,7 +155,27 @@ PartModel::PartModel(PartDefinition definition) : definition_(std::move(definiti
   for (std::size_t i = 0; i < definition_.parameters.size(); ++i)
     values_[static_cast<Eigen::Index>(i)] = definition_.parameters[i].value;
   Validate();
+  for (const bool patches : {false, true})
+    for (std::size_t k = 0; k < definition_.faces.size(); ++k)
+      if ((definition_.faces[k].type == FaceType::kSplinePatch) == patches) search_order_.push_back(k);
   UpdatePatches();
+  UpdateFaceConstants();
+}
+
+void PartModel::UpdateFaceConstants() {
+  constants_.assign(definition_.faces.size(), FaceConstants{});
+  for (std::size_t k = 0; k < definition_.faces.size(); ++k) {
+    const PartFace& f = definition_.faces[k];
+    FaceConstants& c = constants_[k];
+    if (f.type == FaceType::kSplinePatch) continue;
+    c.origin = OriginOf(f, values_);
+    c.offset = f.offset.Evaluate(values_);
+    c.radius = f.radius.Evaluate(values_);
+    c.minor_radius = f.minor_radius.Evaluate(values_);
+    const double alpha = f.half_angle.Evaluate(values_);
+    c.sin_alpha = std::sin(alpha);
+    c.cos_alpha = std::cos(alpha);
+  }
 }
 
 void PartModel::Validate() const {
@@ -236,22 +277,54 @@ void PartModel::UpdatePatches() {
   }
 }
 
-std::pair<ParamT, double> PartModel::FootPointOnFace(std::size_t k, const Eigen::Vector3d& x,
-                                                     double needed_within) const {
+double PartModel::FaceDistance(std::size_t k, const Eigen::Vector3d& x, double needed_within,
+                               ParamT& patch_t) const {
   const PartFace& f = definition_.faces[k];
   if (f.type != FaceType::kSplinePatch) {
-    auto [t, d] = FaceFootPoint(f, values_, x);
-    t[2] = static_cast<double>(k);
-    return {t, d};
+    return AnalyticFoot<false>(f, constants_[k], x, nullptr);
   }
   const PatchState& state = patches_[k];
   const Eigen::Index nearest = state.samples.Nearest(x);
   if ((state.samples.points().col(nearest) - x).norm() - state.covering_radius > needed_within)
-    return {{0.0, 0.0, static_cast<double>(k)}, std::numeric_limits<double>::infinity()};
+    return std::numeric_limits<double>::infinity();
   const ParamT seed = state.sample_parameters[static_cast<std::size_t>(nearest)];
   LocalGeometry g;
   const FootPoint foot = RefineFootPoint(*this, PatchDomain(*f.patch), x, seed, g);
-  return {foot.t, foot.distance};
+  patch_t = foot.t;
+  return foot.distance;
+}
+
+ParamT PartModel::FaceParameter(std::size_t k, const Eigen::Vector3d& x) const {
+  const PartFace& f = definition_.faces[k];
+  ParamT t{0.0, 0.0, 0.0};
+  AnalyticFoot<true>(f, constants_[k], x, &t);
+  t[2] = static_cast<double>(k);
+  return t;
+}
+
+int PartModel::NearestFace(const Eigen::Vector3d& x, ParamT& t, double& distance,
+                           std::array<double, kKept>* face_distance) const {
+  double best = std::numeric_limits<double>::infinity();
+  int winner = -1;
+  ParamT patch_t{0.0, 0.0, 0.0}, best_patch_t{0.0, 0.0, 0.0};
+  for (const std::size_t k : search_order_) {
+    // Analytic faces inline (most parts have only these), patches through FaceDistance.
+    const PartFace& f = definition_.faces[k];
+    const double d = f.type != FaceType::kSplinePatch ? AnalyticFoot<false>(f, constants_[k], x, nullptr)
+                                                      : FaceDistance(k, x, best, patch_t);
+    if (face_distance != nullptr && k < kKept) (*face_distance)[k] = d;
+    if (d < best) {
+      best = d;
+      winner = static_cast<int>(k);
+      if (f.type == FaceType::kSplinePatch) best_patch_t = patch_t;
+    }
+  }
+  if (winner >= 0) {
+    const auto k = static_cast<std::size_t>(winner);
+    t = definition_.faces[k].type == FaceType::kSplinePatch ? best_patch_t : FaceParameter(k, x);
+  }
+  distance = best;
+  return winner;
 }
 
 ParameterDomain PartModel::domain() const {
@@ -270,6 +343,7 @@ void PartModel::set_parameters(const Eigen::VectorXd& p) {
   if (p.size() != values_.size()) throw std::invalid_argument("wrong number of part parameters");
   values_ = p;
   UpdatePatches();
+  UpdateFaceConstants();
 }
 
 void PartModel::ApplySimilarity(double scale, const VecS& offset) {
@@ -295,6 +369,7 @@ void PartModel::ApplySimilarity(double scale, const VecS& offset) {
   }
   edge_margin_ *= scale;
   UpdatePatches();
+  UpdateFaceConstants();
 }
 
 void PartModel::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
@@ -474,19 +549,8 @@ std::vector<ParamT> PartModel::SampleParameters() const {
 }
 
 bool PartModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
-  const Eigen::Vector3d x3 = To3(x);
-  double best = std::numeric_limits<double>::infinity();
-  // Analytic faces first: their distances let most spline patches be skipped.
-  for (const bool patches : {false, true}) {
-    for (std::size_t k = 0; k < definition_.faces.size(); ++k) {
-      if ((definition_.faces[k].type == FaceType::kSplinePatch) != patches) continue;
-      auto [tk, d] = FootPointOnFace(k, x3, best);
-      if (d < best) {
-        best = d;
-        t = tk;
-      }
-    }
-  }
+  double distance = 0.0;
+  NearestFace(Point3(x), t, distance, nullptr);
   return true;
 }
 
@@ -500,48 +564,36 @@ bool PartModel::FootPointOnBoundary(const VecS& x, const ParamT& t) const {
 
 bool PartModel::AmbiguousFootPoint(const VecS& x, const ParamT& t) const {
   if (edge_margin_ <= 0.0) return false;
-  const Eigen::Vector3d x3 = To3(x);
+  const Eigen::Vector3d x3 = Point3(x);
   const auto own = static_cast<std::size_t>(FaceOf(t));
+  ParamT patch_t{0.0, 0.0, 0.0};
   for (std::size_t k = 0; k < definition_.faces.size(); ++k) {
-    if (k != own && FootPointOnFace(k, x3, edge_margin_).second < edge_margin_) return true;
+    if (k != own && FaceDistance(k, x3, edge_margin_, patch_t) < edge_margin_) return true;
   }
   return false;
 }
 
 bool PartModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
                                bool& ambiguous) const {
-  const Eigen::Vector3d x3 = To3(x);
+  const Eigen::Vector3d x3 = Point3(x);
   // The distance to every face searched, for the ambiguity test (fixed capacity: no allocation per point;
   // faces beyond it are searched again there). Infinity: a patch skipped as farther than the best so far.
-  constexpr std::size_t kKept = 32;
   std::array<double, kKept> face_distance;
   const std::size_t faces = definition_.faces.size();
-  double best = std::numeric_limits<double>::infinity();
   t = {0.0, 0.0, 0.0};
-  // As ClosedFormFootPoint: analytic faces first, their distances let most spline patches be skipped.
-  for (const bool patches : {false, true}) {
-    for (std::size_t k = 0; k < faces; ++k) {
-      if ((definition_.faces[k].type == FaceType::kSplinePatch) != patches) continue;
-      auto [tk, d] = FootPointOnFace(k, x3, best);
-      if (k < kKept) face_distance[k] = d;
-      if (d < best) {
-        best = d;
-        t = tk;
-      }
-    }
-  }
-  distance = best;
+  NearestFace(x3, t, distance, &face_distance);
   const auto own = static_cast<std::size_t>(FaceOf(t));
   on_boundary = definition_.faces[own].type == FaceType::kSplinePatch && FootPointOnBoundary(x, t);
   ambiguous = false;
   if (edge_margin_ > 0.0) {
+    ParamT patch_t{0.0, 0.0, 0.0};
     for (std::size_t k = 0; k < faces && !ambiguous; ++k) {
       if (k == own) continue;
-      // A foot found above is the one FootPointOnFace would find again (same seed, same Newton); a skipped
+      // A distance found above is the one FaceDistance would find again (same seed, same Newton); a skipped
       // patch is searched now within the margin.
       const double d = k < kKept && std::isfinite(face_distance[k])
                            ? face_distance[k]
-                           : FootPointOnFace(k, x3, edge_margin_).second;
+                           : FaceDistance(k, x3, edge_margin_, patch_t);
       ambiguous = d < edge_margin_;
     }
   }

@@ -136,18 +136,35 @@ class PartModel final : public ParametricModel {
     // neighbours, diagonals included): dist(x, nearest sample) - covering_radius bounds dist(x, patch) below.
     double covering_radius = 0.0;
   };
+  // The closed-form faces' quantities at the current parameter values (each expression evaluated once per
+  // change of the values, not once per point and face). Unused fields are 0.
+  struct FaceConstants {
+    Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+    double offset = 0.0, radius = 0.0, minor_radius = 0.0;
+    double sin_alpha = 0.0, cos_alpha = 0.0;  // cone
+  };
   void Validate() const;
   void UpdatePatches();
-  // Foot point on face k (t[2] = k) and its distance. A spline patch that cannot come closer than
-  // `needed_within` is not searched (distance infinity): most points are far from most patches.
-  std::pair<ParamT, double> FootPointOnFace(
-      std::size_t k, const Eigen::Vector3d& x,
-      double needed_within = std::numeric_limits<double>::infinity()) const;
+  void UpdateFaceConstants();
+  // Distance from x to face k. A spline patch that cannot come closer than `needed_within` is not searched
+  // (distance infinity): most points are far from most patches; a patch searched also gives its foot's
+  // parameter in `patch_t` (Newton finds both). An analytic face's parameter is computed only for the face
+  // that wins (FaceParameter): the angle costs an atan2, the distance does not need it.
+  double FaceDistance(std::size_t k, const Eigen::Vector3d& x, double needed_within, ParamT& patch_t) const;
+  ParamT FaceParameter(std::size_t k, const Eigen::Vector3d& x) const;  // analytic faces only
+  // The face nearest to x (analytic faces first: their distances let most spline patches be skipped), its
+  // foot's parameter and distance; -1 when no face has a distance below infinity (t untouched). With
+  // `face_distance`, the distance to each of the first kKept faces searched (infinity: a patch skipped).
+  static constexpr std::size_t kKept = 32;
+  int NearestFace(const Eigen::Vector3d& x, ParamT& t, double& distance,
+                  std::array<double, kKept>* face_distance) const;
 
   PartDefinition definition_;
   Eigen::VectorXd values_;
   double edge_margin_ = 0.0;
-  std::vector<PatchState> patches_;  // parallel to the faces; empty for analytic faces
+  std::vector<PatchState> patches_;        // parallel to the faces; empty for analytic faces
+  std::vector<FaceConstants> constants_;   // parallel to the faces
+  std::vector<std::size_t> search_order_;  // analytic faces, then spline patches
 };
 
 // Distances of the points (part frame) to their nearest faces, grouped by face: per face the count, RMS and

@@ -3,6 +3,8 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
+#include "fitting/fast_atan2.h"
+
 namespace s2m {
 namespace {
 // The cylinder's axial parameter range: the engine works in the unit box, so this is effectively unbounded.
@@ -98,8 +100,8 @@ std::vector<ParamT> CylinderModel::SampleParameters() const {
 
 bool CylinderModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - point_);
-  t = {std::atan2(q.y(), q.x()), q.z()};
-  if (t[0] < 0) t[0] += 2 * M_PI;
+  t = {FastAtan2(q.y(), q.x()), q.z()};
+  t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi) without a branch on the data
   return true;
 }
 
@@ -109,9 +111,10 @@ bool CylinderModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
 bool CylinderModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
                                    bool& ambiguous) const {
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - point_);
-  t = {std::atan2(q.y(), q.x()), q.z(), 0.0};
-  if (t[0] < 0) t[0] += 2 * M_PI;
+  t = {FastAtan2(q.y(), q.x()), q.z(), 0.0};
+  t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi) without a branch on the data
   // sqrt rather than hypot: no overflow is possible at model coordinates, and hypot costs as much as atan2.
+  // FastAtan2 (fitting/fast_atan2.h): std::atan2 within 2 ulp, cheaper than glibc's.
   distance = std::abs(radius_ - std::sqrt(q.x() * q.x() + q.y() * q.y()));
   on_boundary = false;  // the domain is periodic in theta and unbounded along the axis
   ambiguous = false;
@@ -190,8 +193,8 @@ std::vector<ParamT> SphereModel::SampleParameters() const {
 
 bool SphereModel::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - center_);
-  t = {std::atan2(q.y(), q.x()), std::atan2(q.z(), std::sqrt(q.x() * q.x() + q.y() * q.y()))};
-  if (t[0] < 0) t[0] += 2 * M_PI;
+  t = {FastAtan2(q.y(), q.x()), FastAtan2(q.z(), std::sqrt(q.x() * q.x() + q.y() * q.y()))};
+  t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi) without a branch on the data
   return true;
 }
 
@@ -200,8 +203,8 @@ bool SphereModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, boo
                                  bool& ambiguous) const {
   const Eigen::Vector3d q = frame_.transpose() * (Eigen::Vector3d(x) - center_);
   const double rho = std::sqrt(q.x() * q.x() + q.y() * q.y());  // as ClosedFormFootPoint
-  t = {std::atan2(q.y(), q.x()), std::atan2(q.z(), rho), 0.0};
-  if (t[0] < 0) t[0] += 2 * M_PI;
+  t = {FastAtan2(q.y(), q.x()), FastAtan2(q.z(), rho), 0.0};
+  t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi) without a branch on the data
   distance = std::abs(radius_ - q.norm());
   on_boundary = false;  // the poles are not boundaries of the surface
   ambiguous = false;

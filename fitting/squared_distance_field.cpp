@@ -128,6 +128,7 @@ SquaredDistanceField::SquaredDistanceField(const ParametricModel& model, const O
             cell.k1 = frame.curvatures[0];
             cell.k2 = frame.curvatures[1];
             cell.t_of_x = jtj.inverse() * J.transpose();
+            for (int c2 = 0; c2 < 3; ++c2) cell.t_second.col(c2) = cell.t_of_x * To3(g.d2.col(c2));
             cell.t = f.t;
             block_cells[ub].push_back(cell);
             block_index[ub].push_back((k * dims_[1] + j) * dims_[0] + i);
@@ -195,7 +196,12 @@ bool SquaredDistanceField::Query(const Eigen::Vector3d& y, Answer& out, bool tan
   f.curvatures = {k1, k2};
   f.delta = delta;
   out.squared_distance = offset.squaredNorm();
-  const Eigen::Vector2d dt = c.t_of_x * (out.foot - c.p);
+  // The parameter of the approximate foot: s = A (q - p), then the parametrization's second-order term
+  // C(t + s) = p + C_t s + C_tt[s, s] / 2 removed (one fixed-point step; the residual is third order in |s|,
+  // so exact Newton from out.t typically needs one step fewer).
+  Eigen::Vector2d dt = c.t_of_x * (out.foot - c.p);
+  dt -= 0.5 * (c.t_second.col(0) * (dt[0] * dt[0]) + c.t_second.col(1) * (2.0 * dt[0] * dt[1]) +
+               c.t_second.col(2) * (dt[1] * dt[1]));
   out.t = c.t;
   for (int a2 = 0; a2 < 2; ++a2) {
     const auto ua = static_cast<std::size_t>(a2);

@@ -19,19 +19,7 @@
 namespace s2m {
 namespace {
 
-// A bumpy bicubic patch (10 x 10 control points over 100 x 100) and noisy points over its inner part.
-BSplineSurface BumpyPatch() {
-  const int n = 10;
-  Eigen::Matrix3Xd control(3, n * n);
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j) {
-      const double x = -50 + 100.0 * i / (n - 1), y = -50 + 100.0 * j / (n - 1);
-      control.col(i * n + j) << x, y,
-          10 * std::sin(0.07 * x + 0.4) * std::cos(0.05 * y - 0.3) + 0.002 * x * y;
-    }
-  return BSplineSurface(UnitSpacedClamped(4, n), UnitSpacedClamped(4, n), control);
-}
-
+// Noisy points over the inner part of a model's domain.
 Eigen::Matrix3Xd PointsNear(const ParametricModel& model, int count, double noise, std::uint64_t seed) {
   const ParameterDomain d = model.domain();
   std::mt19937_64 rng(seed);
@@ -75,7 +63,7 @@ void ExpectWarmEqualsCold(const ParametricModel& model, const Eigen::Matrix3Xd& 
 }
 
 TEST(FootPointFastPaths, WarmStartedFeetEqualColdFeetOnABSplineSurface) {
-  const BSplineSurface patch = BumpyPatch();
+  const BSplineSurface patch = BumpyPatch(0.0);
   for (const WarmStart mode : {WarmStart::kTrusted, WarmStart::kVerified})
     ExpectWarmEqualsCold(patch, PointsNear(patch, 2000, 0.05, 1), mode);
 }
@@ -91,7 +79,7 @@ TEST(FootPointFastPaths, WarmStartedFeetEqualColdFeetOnASurfaceOfRevolution) {
 // Newton handed the model's geometry at its start (RefineFootPoint's g_at_t0, as the model registration does
 // from the previous pass) skips one evaluation and must return exactly the same foot.
 TEST(FootPointFastPaths, NewtonFromAKnownGeometryReturnsTheSameFoot) {
-  const BSplineSurface patch = BumpyPatch();
+  const BSplineSurface patch = BumpyPatch(0.0);
   const Eigen::Matrix3Xd points = PointsNear(patch, 500, 0.05, 11);
   std::vector<FootPoint> previous;
   ComputeFootPoints(patch, points, previous);
@@ -206,7 +194,7 @@ TEST(FootPointFastPaths, ClosedFormFootOfAPartAgreesWithTheSeparateCalls) {
 // The fused pass (feet and normal equations together, warm feet): from a 3-degree, 2-unit start on the
 // bumpy patch, the noise-free scan's pose is recovered to rounding level.
 TEST(FootPointFastPaths, ModelRegistrationWithFusedPassRecoversThePose) {
-  const BSplineSurface patch = BumpyPatch();
+  const BSplineSurface patch = BumpyPatch(0.0);
   const Eigen::Matrix3Xd on_model = PointsNear(patch, 3000, 0.0, 9);
   const RigidMotion truth(RotationAboutAxis(Eigen::Vector3d(1, 2, 3).normalized(), 0.4),
                           Eigen::Vector3d(30, -10, 5));
