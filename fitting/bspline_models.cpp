@@ -51,59 +51,27 @@ std::vector<double> SpanSamples(const BSplineBasis& b, int per_span) {
 
 }  // namespace
 
-// ---- BSplineCurve
-// -------------------------------------------------------------------------------------------------
+// ---- SpanPowerForm
+// ------------------------------------------------------------------------------------------------
 
-BSplineCurve::BSplineCurve(BSplineBasis basis, Eigen::MatrixXd control_points)
-    : basis_(std::move(basis)), control_(std::move(control_points)) {
-  if (control_.rows() != 2 && control_.rows() != 3)
-    throw std::invalid_argument("a B-spline curve lives in 2D or 3D");
-  if (control_.cols() != basis_.num_control()) {
-    throw std::invalid_argument("the basis has " + std::to_string(basis_.num_control()) + " functions but " +
-                                std::to_string(control_.cols()) + " control points were given");
-  }
-  BuildSpans();
-}
-
-void BSplineCurve::BuildSpans() {
-  const int k = basis_.order(), n = basis_.num_control(), s = static_cast<int>(control_.rows());
-  spans_.assign(static_cast<std::size_t>(3 * k * basis_.num_spans()), 0.0);
+void SpanPowerForm::Build(const BSplineBasis& basis, const Eigen::Ref<const Eigen::MatrixXd>& control) {
+  const int k = basis.order(), n = basis.num_control(), s = static_cast<int>(control.rows());
+  if (s > 3 || control.cols() != n)
+    throw std::invalid_argument("power-form tables take up to 3 x num_control control points");
+  coefficients_.assign(static_cast<std::size_t>(3 * k * basis.num_spans()), 0.0);
   // a_j = sum_i c_ji P_(first + i), c_ji the Taylor coefficients of the basis functions on the span (the
   // change to the local power basis, Piegl & Tiller section 6.6).
-  for (int span = 0; span < basis_.num_spans(); ++span) {
-    const int first = basis_.FirstFunction(span);
-    double* a = spans_.data() + 3 * static_cast<std::ptrdiff_t>(span) * k;
+  for (int span = 0; span < basis.num_spans(); ++span) {
+    const int first = basis.FirstFunction(span);
+    double* a = coefficients_.data() + 3 * static_cast<std::ptrdiff_t>(span) * k;
     for (int i = 0; i < k; ++i) {
       const int index = (first + i) % n;
       for (int j = 0; j < k; ++j) {
-        const double w = basis_.TaylorCoefficient(span, 0, j, i);
-        for (int c = 0; c < s; ++c) a[3 * j + c] += w * control_(c, index);
+        const double w = basis.TaylorCoefficient(span, 0, j, i);
+        for (int c = 0; c < s; ++c) a[3 * j + c] += w * control(c, index);
       }
     }
   }
-}
-
-ParameterDomain BSplineCurve::domain() const {
-  return DomainOf(basis_, 1);
-}
-
-std::string BSplineCurve::parameter_name(int index) const {
-  const int s = ambient_dimension();
-  return "control point " + std::to_string(index / s) + " " + kAxis[index % s];
-}
-
-Eigen::VectorXd BSplineCurve::parameters() const {
-  return Eigen::Map<const Eigen::VectorXd>(control_.data(), control_.size());
-}
-
-void BSplineCurve::set_parameters(const Eigen::VectorXd& p) {
-  control_ = Eigen::Map<const Eigen::MatrixXd>(p.data(), control_.rows(), control_.cols());
-  BuildSpans();
-}
-
-void BSplineCurve::ApplySimilarity(double scale, const VecS& offset) {
-  control_ = (scale * control_).colwise() + Eigen::VectorXd(offset);
-  BuildSpans();
 }
 
 namespace {
@@ -126,12 +94,11 @@ void SpanPolynomial(const double* a, double y, double (&r)[3][3]) {
 
 }  // namespace
 
-void BSplineCurve::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+void SpanPowerForm::Evaluate(const BSplineBasis& basis, double t, int derivatives, double (&r)[3][3]) const {
   double y = 0.0, inv_length = 0.0;
-  const int span = basis_.LocateSpan(t[0], y, inv_length);
-  const double* a = spans_.data() + 3 * static_cast<std::ptrdiff_t>(span) * basis_.order();
-  double r[3][3];
-  switch (basis_.order()) {
+  const int span = basis.LocateSpan(t, y, inv_length);
+  const double* a = coefficients_.data() + 3 * static_cast<std::ptrdiff_t>(span) * basis.order();
+  switch (basis.order()) {
     case 2:
       SpanPolynomial<2>(a, y, r);
       break;
@@ -157,14 +124,60 @@ void BSplineCurve::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out
   // Chain rule: d/dt = (1 / length) d/dy.
   const double f1 = derivatives >= 1 ? inv_length : 0.0,
                f2 = derivatives >= 2 ? inv_length * inv_length : 0.0;
+  for (int c = 0; c < 3; ++c) {
+    r[1][c] *= f1;
+    r[2][c] *= f2;
+  }
+}
+
+// ---- BSplineCurve
+// -------------------------------------------------------------------------------------------------
+
+BSplineCurve::BSplineCurve(BSplineBasis basis, Eigen::MatrixXd control_points)
+    : basis_(std::move(basis)), control_(std::move(control_points)) {
+  if (control_.rows() != 2 && control_.rows() != 3)
+    throw std::invalid_argument("a B-spline curve lives in 2D or 3D");
+  if (control_.cols() != basis_.num_control()) {
+    throw std::invalid_argument("the basis has " + std::to_string(basis_.num_control()) + " functions but " +
+                                std::to_string(control_.cols()) + " control points were given");
+  }
+  spans_.Build(basis_, control_);
+}
+
+ParameterDomain BSplineCurve::domain() const {
+  return DomainOf(basis_, 1);
+}
+
+std::string BSplineCurve::parameter_name(int index) const {
+  const int s = ambient_dimension();
+  return "control point " + std::to_string(index / s) + " " + kAxis[index % s];
+}
+
+Eigen::VectorXd BSplineCurve::parameters() const {
+  return Eigen::Map<const Eigen::VectorXd>(control_.data(), control_.size());
+}
+
+void BSplineCurve::set_parameters(const Eigen::VectorXd& p) {
+  control_ = Eigen::Map<const Eigen::MatrixXd>(p.data(), control_.rows(), control_.cols());
+  spans_.Build(basis_, control_);
+}
+
+void BSplineCurve::ApplySimilarity(double scale, const VecS& offset) {
+  control_ = (scale * control_).colwise() + Eigen::VectorXd(offset);
+  spans_.Build(basis_, control_);
+}
+
+void BSplineCurve::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
+  double r[3][3];
+  spans_.Evaluate(basis_, t[0], derivatives, r);
   const int s = static_cast<int>(control_.rows());
   out.point.resize(s);
   out.d1.resize(s, 1);
   out.d2.resize(s, 1);
   for (int c = 0; c < s; ++c) {
     out.point[c] = r[0][c];
-    out.d1(c, 0) = f1 * r[1][c];
-    out.d2(c, 0) = f2 * r[2][c];
+    out.d1(c, 0) = r[1][c];
+    out.d2(c, 0) = r[2][c];
   }
 }
 

@@ -7,6 +7,24 @@
 
 namespace s2m {
 
+// Per-span power-form (local polynomial) coefficients of a B-spline curve with up to 3 coordinates, for fast
+// evaluation: on span s the curve is sum_j a_j y^j in the span's local coordinate y
+// (BSplineBasis::LocateSpan), a_j = sum_i c_ji P_(first + i) with c_ji the basis' Taylor coefficients (the
+// change to the local power basis, Piegl & Tiller section 6.6), evaluated by Horner's rule. Shared by
+// BSplineCurve and KinematicSurface's generatrix; rebuild it whenever the control points change.
+class SpanPowerForm {
+ public:
+  // control: s x basis.num_control(), s <= 3.
+  void Build(const BSplineBasis& basis, const Eigen::Ref<const Eigen::MatrixXd>& control);
+  // r[d][c] = derivative d (d <= derivatives, else 0) with respect to t of coordinate c (c >= s: 0) at t.
+  void Evaluate(const BSplineBasis& basis, double t, int derivatives, double (&r)[3][3]) const;
+  bool empty() const { return coefficients_.empty(); }
+
+ private:
+  // a_j of span s, padded to 3 doubles, at coefficients_[3 (s order + j) + c].
+  std::vector<double> coefficients_;
+};
+
 class BSplineCurve final : public ParametricModel {
  public:
   // control_points: s x n (s = 2 or 3), n == basis.num_control().
@@ -33,13 +51,9 @@ class BSplineCurve final : public ParametricModel {
   std::vector<ParamT> SampleParameters() const override;
 
  private:
-  void BuildSpans();
-
   BSplineBasis basis_;
   Eigen::MatrixXd control_;  // s x n
-  // Per span of the basis, the power-form coefficients of C in the span's local coordinate y: C = sum_j a_j
-  // y^j, a_j padded to 3 doubles, at spans_[3 (span order + j) + c]. Rebuilt whenever control_ changes.
-  std::vector<double> spans_;
+  SpanPowerForm spans_;      // rebuilt whenever control_ changes
 };
 
 class BSplineSurface final : public ParametricModel {

@@ -45,6 +45,15 @@ KinematicSurface::KinematicSurface(BSplineBasis basis, Eigen::Matrix2Xd profile,
   }
   if (helical_ && !(turns_ > 0))
     throw std::invalid_argument("a helical surface needs a positive number of turns");
+  generatrix_.Build(basis_, profile_);
+}
+
+Eigen::Matrix<double, 2, 3> KinematicSurface::ProfileAt(double u, int derivatives) const {
+  double r[3][3];  // r[d][c]: derivative d of coordinate c (r, z)
+  generatrix_.Evaluate(basis_, u, derivatives, r);
+  Eigen::Matrix<double, 2, 3> rz;
+  rz << r[0][0], r[1][0], r[2][0], r[0][1], r[1][1], r[2][1];
+  return rz;
 }
 
 KinematicSurface KinematicSurface::Revolution(BSplineBasis basis, Eigen::Matrix2Xd profile) {
@@ -57,7 +66,7 @@ KinematicSurface KinematicSurface::Helical(BSplineBasis basis, Eigen::Matrix2Xd 
 }
 
 Eigen::Vector2d KinematicSurface::ProfilePoint(double u) const {
-  return Generatrix(basis_, profile_, u, 0).col(0);
+  return ProfileAt(u, 0).col(0);
 }
 
 double KinematicSurface::RadiusAtHeight(double height, Eigen::VectorXd* gradient) const {
@@ -75,21 +84,20 @@ double KinematicSurface::RadiusAtHeight(double height, Eigen::VectorXd* gradient
     }
   }
   if (!found) throw std::domain_error("the profile does not reach height " + std::to_string(height));
-  BSplineBasis::Values v;
   Eigen::Vector2d point, tangent;
+  double u_point = u;  // where point and tangent were evaluated
   for (int it = 0; it < 50; ++it) {
-    basis_.Evaluate(u, 1, v);
-    point.setZero();
-    tangent.setZero();
-    for (int i = 0; i < basis_.order(); ++i) {
-      point += v.values[0][static_cast<std::size_t>(i)] * profile_.col(basis_.ControlIndex(v.first, i));
-      tangent += v.values[1][static_cast<std::size_t>(i)] * profile_.col(basis_.ControlIndex(v.first, i));
-    }
+    const Eigen::Matrix<double, 2, 3> rz = ProfileAt(u, 1);
+    point = rz.col(0);
+    tangent = rz.col(1);
+    u_point = u;
     const double du = (point.y() - height) / tangent.y();
     u = basis_.Normalize(u - du);
     if (std::abs(du) < 1e-15 * (basis_.hi() - basis_.lo())) break;
   }
   if (gradient) {
+    BSplineBasis::Values v;
+    basis_.Evaluate(u_point, 0, v);
     gradient->setZero(num_parameters());
     const double slope = tangent.x() / tangent.y();  // dr/dz along the profile
     for (int i = 0; i < basis_.order(); ++i) {
@@ -124,6 +132,7 @@ Eigen::VectorXd KinematicSurface::parameters() const {
 void KinematicSurface::set_parameters(const Eigen::VectorXd& p) {
   profile_ = Eigen::Map<const Eigen::Matrix2Xd>(p.data(), 2, profile_.cols());
   if (helical_) pitch_ = p[profile_.size()];
+  generatrix_.Build(basis_, profile_);
 }
 
 void KinematicSurface::ApplySimilarity(double scale, const VecS& offset) {
@@ -134,25 +143,36 @@ void KinematicSurface::ApplySimilarity(double scale, const VecS& offset) {
   profile_ *= scale;
   if (offset.size() == 3) profile_.row(1).array() += offset[2];
   pitch_ *= scale;
+  generatrix_.Build(basis_, profile_);
 }
 
 void KinematicSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
-  const Eigen::Matrix<double, 2, 3> rz =
-      Generatrix(basis_, profile_, t[0], derivatives);  // value, d/du, d2/du2
+  const Eigen::Matrix<double, 2, 3> rz = ProfileAt(t[0], derivatives);  // value, d/du, d2/du2
   const double v = t[1], c = std::cos(v), s = std::sin(v);
   const double r = rz(0, 0), z = rz(1, 0), r1 = rz(0, 1), z1 = rz(1, 1), r2 = rz(0, 2), z2 = rz(1, 2);
-  out.point = Eigen::Vector3d(r * c, r * s, z + pitch_ * v);
-  out.d1.setZero(3, 2);
-  out.d2.setZero(3, 3);
-  if (derivatives >= 1) {
-    out.d1.col(0) = Eigen::Vector3d(r1 * c, r1 * s, z1);
-    out.d1.col(1) = Eigen::Vector3d(-r * s, r * c, pitch_);
-  }
-  if (derivatives >= 2) {
-    out.d2.col(0) = Eigen::Vector3d(r2 * c, r2 * s, z2);
-    out.d2.col(1) = Eigen::Vector3d(-r1 * s, r1 * c, 0.0);
-    out.d2.col(2) = Eigen::Vector3d(-r * c, -r * s, 0.0);
-  }
+  // Element writes into the (fixed-capacity) outputs: no zero fill then column copies on this hot path.
+  out.point.resize(3);
+  out.d1.resize(3, 2);
+  out.d2.resize(3, 3);
+  out.point[0] = r * c;
+  out.point[1] = r * s;
+  out.point[2] = z + pitch_ * v;
+  const bool first = derivatives >= 1, second = derivatives >= 2;
+  out.d1(0, 0) = first ? r1 * c : 0.0;
+  out.d1(1, 0) = first ? r1 * s : 0.0;
+  out.d1(2, 0) = first ? z1 : 0.0;
+  out.d1(0, 1) = first ? -r * s : 0.0;
+  out.d1(1, 1) = first ? r * c : 0.0;
+  out.d1(2, 1) = first ? pitch_ : 0.0;
+  out.d2(0, 0) = second ? r2 * c : 0.0;
+  out.d2(1, 0) = second ? r2 * s : 0.0;
+  out.d2(2, 0) = second ? z2 : 0.0;
+  out.d2(0, 1) = second ? -r1 * s : 0.0;
+  out.d2(1, 1) = second ? r1 * c : 0.0;
+  out.d2(2, 1) = 0.0;
+  out.d2(0, 2) = second ? -r * c : 0.0;
+  out.d2(1, 2) = second ? -r * s : 0.0;
+  out.d2(2, 2) = 0.0;
 }
 
 void KinematicSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const {

@@ -4,6 +4,7 @@
 // axis is the axis:  x(u, v) = sum_k (r_k cos v, r_k sin v, z_k) B_k(u) + (0, 0, p v),  p = 0 for revolution.
 
 #include "fitting/bspline_basis.h"
+#include "fitting/bspline_models.h"
 #include "fitting/parametric_model.h"
 
 namespace s2m {
@@ -59,6 +60,12 @@ class KinematicSurface final : public ParametricModel {
   bool helical_ = false;
   double pitch_ = 0.0;
   double turns_ = 1.0;
+
+  // The generatrix (r(u), z(u)) and its u-derivatives up to `derivatives` (value, d/du, d2/du2 as columns;
+  // higher ones 0), from the per-span power form: the same values as summing the basis functions, to
+  // rounding.
+  Eigen::Matrix<double, 2, 3> ProfileAt(double u, int derivatives) const;
+  SpanPowerForm generatrix_;  // of profile_; rebuilt in the constructor, set_parameters and ApplySimilarity
 };
 
 // Spiral surface (shells; METHOD.md section 7): x(u, v) = e^{p v} sum_k (r_k cos v, r_k sin v, z_k) B_k(u)

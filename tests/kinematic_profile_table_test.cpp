@@ -1,0 +1,220 @@
+// KinematicSurface's per-span power-form table of its generatrix (fitting/kinematic_surfaces.h, SpanPowerForm
+// in fitting/bspline_models.h) against plain sums over the reference basis (BSplineBasis::EvaluateReference):
+// ProfilePoint and Evaluate (which expose the private ProfileAt: at v = 0, d1.col(0) = (r', 0, z') and
+// d2.col(0) = (r'', 0, z'')), for surfaces of revolution and helical surfaces, orders 3-5, uniform and
+// non-uniform clamped knots, at random parameters, at the knots and at the ends; and that the table follows
+// set_parameters, ApplySimilarity, Clone and CopyFrom.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "fitting/kinematic_surfaces.h"
+
+namespace s2m {
+namespace {
+
+constexpr double kRelative = 1e-13;
+
+// Clamped knots on [0, 2] with spans of very different lengths (ratio about 10) and, for order >= 3, a double
+// interior knot.
+BSplineBasis NonUniform(int order, int num_control, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> gap(0.2, 2.0);
+  std::vector<double> steps;
+  const int interior = num_control - order;
+  for (int i = 0; i <= interior; ++i) steps.push_back(gap(rng));
+  double total = 0.0;
+  for (double s : steps) total += s;
+  std::vector<double> knots(static_cast<std::size_t>(order), 0.0);
+  double at = 0.0;
+  for (int i = 0; i < interior; ++i) {
+    at += 2.0 * steps[static_cast<std::size_t>(i)] / total;
+    knots.push_back(at);
+  }
+  if (order >= 3 && interior >= 2)
+    knots[static_cast<std::size_t>(order) + 1] = knots[static_cast<std::size_t>(order)];
+  knots.insert(knots.end(), static_cast<std::size_t>(order), 2.0);
+  return BSplineBasis::Clamped(order, std::move(knots));
+}
+
+Eigen::Matrix2Xd RandomProfile(int n, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> r(0.5, 3.0), dz(0.1, 1.0);
+  Eigen::Matrix2Xd p(2, n);
+  double z = -1.0;
+  for (int k = 0; k < n; ++k) {
+    p(0, k) = r(rng);
+    p(1, k) = z;
+    z += dz(rng);
+  }
+  return p;
+}
+
+// The generatrix and its first two u-derivatives (columns) by the reference basis.
+Eigen::Matrix<double, 2, 3> ReferenceProfile(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile,
+                                             double u) {
+  BSplineBasis::Values v;
+  basis.EvaluateReference(u, 2, v);
+  Eigen::Matrix<double, 2, 3> rz = Eigen::Matrix<double, 2, 3>::Zero();
+  for (int i = 0; i < basis.order(); ++i)
+    for (int d = 0; d <= 2; ++d)
+      rz.col(d) += v.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(i)] *
+                   profile.col(basis.ControlIndex(v.first, i));
+  return rz;
+}
+
+// The rounding scale of derivative d: max |P| times the largest sum_i |B_i^(d)(u)| over the domain.
+std::array<double, 3> DerivativeScales(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile) {
+  std::array<double, 3> scale{0.0, 0.0, 0.0};
+  BSplineBasis::Values v;
+  for (int s = 0; s <= 4000; ++s) {
+    basis.EvaluateReference(basis.lo() + (basis.hi() - basis.lo()) * s / 4000, 2, v);
+    for (std::size_t d = 0; d < 3; ++d) {
+      double sum = 0.0;
+      for (int i = 0; i < basis.order(); ++i) sum += std::abs(v.values[d][static_cast<std::size_t>(i)]);
+      scale[d] = std::max(scale[d], sum);
+    }
+  }
+  for (double& s : scale) s *= profile.cwiseAbs().maxCoeff();
+  return scale;
+}
+
+// Parameters to check: random ones, every knot, each knot's neighbours one ulp away, and the ends.
+std::vector<double> TestParameters(const BSplineBasis& basis, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(basis.lo(), basis.hi());
+  std::vector<double> out;
+  for (int i = 0; i < 300; ++i) out.push_back(u(rng));
+  for (double k : basis.knots()) {
+    out.push_back(k);
+    out.push_back(std::nextafter(k, -1e300));
+    out.push_back(std::nextafter(k, 1e300));
+  }
+  out.push_back(basis.lo());
+  out.push_back(basis.hi());
+  return out;
+}
+
+// Checks ProfilePoint and Evaluate (derivatives 0, 1, 2; v = 0 and a random v) of `surface` against the
+// reference sums over surface.profile(); returns how many parameters were checked.
+int ExpectMatchesReference(const KinematicSurface& surface, std::mt19937_64& rng, const std::string& label) {
+  const BSplineBasis& basis = surface.basis();
+  const std::array<double, 3> scale = DerivativeScales(basis, surface.profile());
+  const ParameterDomain domain = surface.domain();
+  std::uniform_real_distribution<double> angle(domain.lo[1], domain.hi[1]);
+  int checked = 0;
+  for (double u : TestParameters(basis, rng)) {
+    SCOPED_TRACE(label + " u = " + std::to_string(u));
+    const Eigen::Matrix<double, 2, 3> ref = ReferenceProfile(basis, surface.profile(), u);
+    const Eigen::Vector2d point = surface.ProfilePoint(u);
+    EXPECT_NEAR(point.x(), ref(0, 0), kRelative * scale[0]);
+    EXPECT_NEAR(point.y(), ref(1, 0), kRelative * scale[0]);
+
+    // At v = 0 the u-columns are (r', 0, z') and (r'', 0, z''): the table's derivatives directly.
+    LocalGeometry g;
+    surface.Evaluate({u, 0.0}, 2, g);
+    EXPECT_EQ(g.point.size(), 3);
+    EXPECT_EQ(g.d1.rows(), 3);
+    EXPECT_EQ(g.d1.cols(), 2);
+    EXPECT_EQ(g.d2.rows(), 3);
+    EXPECT_EQ(g.d2.cols(), 3);
+    EXPECT_NEAR(g.point[0], ref(0, 0), kRelative * scale[0]);
+    EXPECT_NEAR(g.point[2], ref(1, 0), kRelative * scale[0]);
+    EXPECT_NEAR(g.d1(0, 0), ref(0, 1), kRelative * scale[1]);
+    EXPECT_NEAR(g.d1(2, 0), ref(1, 1), kRelative * scale[1]);
+    EXPECT_NEAR(g.d2(0, 0), ref(0, 2), kRelative * scale[2]);
+    EXPECT_NEAR(g.d2(2, 0), ref(1, 2), kRelative * scale[2]);
+
+    // A general angle: the full local geometry x(u, v) = (r cos v, r sin v, z + p v) and its derivatives.
+    const double v = angle(rng), c = std::cos(v), s = std::sin(v), p = surface.pitch();
+    const double r = ref(0, 0), z = ref(1, 0), r1 = ref(0, 1), z1 = ref(1, 1), r2 = ref(0, 2), z2 = ref(1, 2);
+    const Eigen::Vector3d point_ref(r * c, r * s, z + p * v);
+    Eigen::Matrix<double, 3, 2> d1_ref;
+    d1_ref << r1 * c, -r * s, r1 * s, r * c, z1, p;
+    Eigen::Matrix3d d2_ref;
+    d2_ref << r2 * c, -r1 * s, -r * c, r2 * s, r1 * c, -r * s, z2, 0.0, 0.0;
+    for (int derivatives = 0; derivatives <= 2; ++derivatives) {
+      surface.Evaluate({u, v}, derivatives, g);
+      const double tol0 = kRelative * (scale[0] + std::abs(p * v));
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(g.point[k], point_ref[k], tol0);
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_NEAR(g.d1(k, 0), derivatives >= 1 ? d1_ref(k, 0) : 0.0, kRelative * scale[1]);
+        EXPECT_NEAR(g.d1(k, 1), derivatives >= 1 ? d1_ref(k, 1) : 0.0, kRelative * (scale[0] + std::abs(p)));
+        EXPECT_NEAR(g.d2(k, 0), derivatives >= 2 ? d2_ref(k, 0) : 0.0, kRelative * scale[2]);
+        EXPECT_NEAR(g.d2(k, 1), derivatives >= 2 ? d2_ref(k, 1) : 0.0, kRelative * scale[1]);
+        EXPECT_NEAR(g.d2(k, 2), derivatives >= 2 ? d2_ref(k, 2) : 0.0, kRelative * scale[0]);
+      }
+    }
+    ++checked;
+  }
+  return checked;
+}
+
+KinematicSurface MakeSurface(bool helical, BSplineBasis basis, Eigen::Matrix2Xd profile) {
+  return helical ? KinematicSurface::Helical(std::move(basis), std::move(profile), 0.3, 2.0)
+                 : KinematicSurface::Revolution(std::move(basis), std::move(profile));
+}
+
+TEST(KinematicProfileTable, MatchesReferenceSumsForOrdersKnotsAndKinds) {
+  std::mt19937_64 rng(20261201);
+  int cases = 0;
+  for (bool helical : {false, true})
+    for (int order = 3; order <= 5; ++order)
+      for (bool uniform : {true, false}) {
+        const int n = order + 6;
+        BSplineBasis basis =
+            uniform ? BSplineBasis::ClampedUniform(order, n, -0.5, 1.5) : NonUniform(order, n, rng);
+        const KinematicSurface surface = MakeSurface(helical, basis, RandomProfile(n, rng));
+        const std::string label = std::string(helical ? "helical" : "revolution") + " order " +
+                                  std::to_string(order) + (uniform ? " uniform" : " non-uniform");
+        // 300 random parameters plus 3 per knot plus both ends.
+        EXPECT_EQ(ExpectMatchesReference(surface, rng, label), 300 + 3 * (n + order) + 2);
+        ++cases;
+      }
+  EXPECT_EQ(cases, 12);
+}
+
+TEST(KinematicProfileTable, FollowsSetParametersApplySimilarityCloneAndCopy) {
+  std::mt19937_64 rng(7);
+  for (bool helical : {false, true}) {
+    const int order = 4, n = 9;
+    KinematicSurface surface = MakeSurface(helical, NonUniform(order, n, rng), RandomProfile(n, rng));
+
+    // set_parameters: a new profile (and pitch), the table must be the new one.
+    const Eigen::Matrix2Xd fresh = RandomProfile(n, rng);
+    Eigen::VectorXd p = surface.parameters();
+    p.head(fresh.size()) = Eigen::Map<const Eigen::VectorXd>(fresh.data(), fresh.size());
+    if (helical) p[fresh.size()] = -0.7;
+    surface.set_parameters(p);
+    ASSERT_TRUE(surface.profile().isApprox(fresh, 0.0));
+    const double u = 0.37;
+    EXPECT_NEAR(surface.ProfilePoint(u).x(), ReferenceProfile(surface.basis(), fresh, u)(0, 0), 1e-13 * 3.0);
+    ExpectMatchesReference(surface, rng, "after set_parameters");
+
+    // Clone keeps the table of the state it was cloned from.
+    const std::unique_ptr<ParametricModel> clone = surface.Clone();
+    const Eigen::Vector2d before = surface.ProfilePoint(u);
+
+    // ApplySimilarity: scaled radii and heights, heights shifted along the axis.
+    surface.ApplySimilarity(1.7, VecS(Eigen::Vector3d(0.0, 0.0, 0.4)));
+    const Eigen::Vector2d after = surface.ProfilePoint(u);
+    EXPECT_NEAR(after.x(), 1.7 * before.x(), 1e-12);
+    EXPECT_NEAR(after.y(), 1.7 * before.y() + 0.4, 1e-12);
+    ExpectMatchesReference(surface, rng, "after ApplySimilarity");
+
+    const auto& cloned = dynamic_cast<const KinematicSurface&>(*clone);
+    EXPECT_EQ(cloned.ProfilePoint(u), before);
+    ExpectMatchesReference(cloned, rng, "clone");
+
+    // CopyFrom into a surface with another basis and profile takes the source's table too.
+    KinematicSurface target = MakeSurface(helical, BSplineBasis::ClampedUniform(3, 5), RandomProfile(5, rng));
+    target.CopyFrom(surface);
+    EXPECT_EQ(target.ProfilePoint(u), surface.ProfilePoint(u));
+    ExpectMatchesReference(target, rng, "CopyFrom");
+  }
+}
+
+}  // namespace
+}  // namespace s2m
