@@ -58,6 +58,7 @@ void SpanPowerForm::Build(const BSplineBasis& basis, const Eigen::Ref<const Eige
   const int k = basis.order(), n = basis.num_control(), s = static_cast<int>(control.rows());
   if (s > 3 || control.cols() != n)
     throw std::invalid_argument("power-form tables take up to 3 x num_control control points");
+  dimension_ = s;
   coefficients_.assign(static_cast<std::size_t>(3 * k * basis.num_spans()), 0.0);
   // a_j = sum_i c_ji P_(first + i), c_ji the Taylor coefficients of the basis functions on the span (the
   // change to the local power basis, Piegl & Tiller section 6.6).
@@ -76,10 +77,11 @@ void SpanPowerForm::Build(const BSplineBasis& basis, const Eigen::Ref<const Eige
 
 namespace {
 
-// C, dC/dy, d2C/dy2 of the span polynomial C(y) = sum_j a_j y^j (degree K - 1) by Horner's rule, 3 lanes.
-template <int K>
+// C, dC/dy, d2C/dy2 of the span polynomial C(y) = sum_j a_j y^j (degree K - 1) by Horner's rule, in the
+// first L of the 3 lanes (the others are the padding's zeros).
+template <int K, int L>
 void SpanPolynomial(const double* a, double y, double (&r)[3][3]) {
-  for (int c = 0; c < 3; ++c) {
+  for (int c = 0; c < L; ++c) {
     double v = a[3 * (K - 1) + c], d1 = 0.0, d2 = 0.0;
     for (int j = K - 2; j >= 0; --j) {  // derivatives by the same recurrence (Horner, differentiated)
       d2 = d2 * y + 2.0 * d1;
@@ -90,6 +92,34 @@ void SpanPolynomial(const double* a, double y, double (&r)[3][3]) {
     r[1][c] = d1;
     r[2][c] = d2;
   }
+  for (int c = L; c < 3; ++c) r[0][c] = r[1][c] = r[2][c] = 0.0;
+}
+
+template <int L>
+void SpanPolynomialOfOrder(int order, const double* a, double y, double (&r)[3][3]) {
+  switch (order) {
+    case 2:
+      SpanPolynomial<2, L>(a, y, r);
+      break;
+    case 3:
+      SpanPolynomial<3, L>(a, y, r);
+      break;
+    case 4:
+      SpanPolynomial<4, L>(a, y, r);
+      break;
+    case 5:
+      SpanPolynomial<5, L>(a, y, r);
+      break;
+    case 6:
+      SpanPolynomial<6, L>(a, y, r);
+      break;
+    case 7:
+      SpanPolynomial<7, L>(a, y, r);
+      break;
+    default:
+      SpanPolynomial<8, L>(a, y, r);
+      break;
+  }
 }
 
 }  // namespace
@@ -98,29 +128,11 @@ void SpanPowerForm::Evaluate(const BSplineBasis& basis, double t, int derivative
   double y = 0.0, inv_length = 0.0;
   const int span = basis.LocateSpan(t, y, inv_length);
   const double* a = coefficients_.data() + 3 * static_cast<std::ptrdiff_t>(span) * basis.order();
-  switch (basis.order()) {
-    case 2:
-      SpanPolynomial<2>(a, y, r);
-      break;
-    case 3:
-      SpanPolynomial<3>(a, y, r);
-      break;
-    case 4:
-      SpanPolynomial<4>(a, y, r);
-      break;
-    case 5:
-      SpanPolynomial<5>(a, y, r);
-      break;
-    case 6:
-      SpanPolynomial<6>(a, y, r);
-      break;
-    case 7:
-      SpanPolynomial<7>(a, y, r);
-      break;
-    default:
-      SpanPolynomial<8>(a, y, r);
-      break;
-  }
+  // Plane curves (the kinematic generatrices) skip the third lane's Horner steps.
+  if (dimension_ == 2)
+    SpanPolynomialOfOrder<2>(basis.order(), a, y, r);
+  else
+    SpanPolynomialOfOrder<3>(basis.order(), a, y, r);
   // Chain rule: d/dt = (1 / length) d/dy.
   const double f1 = derivatives >= 1 ? inv_length : 0.0,
                f2 = derivatives >= 2 ? inv_length * inv_length : 0.0;

@@ -23,6 +23,7 @@ class SpanPowerForm {
  private:
   // a_j of span s, padded to 3 doubles, at coefficients_[3 (s order + j) + c].
   std::vector<double> coefficients_;
+  int dimension_ = 3;  // s: the lanes Evaluate computes
 };
 
 class BSplineCurve final : public ParametricModel {
