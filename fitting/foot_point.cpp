@@ -144,10 +144,41 @@ const FootPointSeeds& LazyFootPointSeeds::get() const {
   return *seeds_;
 }
 
-FootPointContext::FootPointContext(const ParametricModel& m) : model(m), domain(m.domain()), seeds(m) {
+FootPointContext::FootPointContext(const ParametricModel& m)
+    : model(m), domain(m.domain()), seeds(m), reduction(m.MakeFootPointReduction()) {
   ParamT probe{0.0, 0.0, 0.0};
   closed_form = m.ClosedFormFootPoint(VecS::Zero(m.ambient_dimension()), probe);
+  if (reduction != nullptr) {
+    reduced_domain = reduction->reduced_model().domain();
+    reduced_seeds.emplace(reduction->reduced_model());
+  }
 }
+
+namespace {
+
+// Newton's foot on `model` (no closed form) from the warm start as `mode` says (FootPointOf).
+FootPoint NewtonFoot(const ParametricModel& model, const ParameterDomain& domain,
+                     const LazyFootPointSeeds& seeds, const VecS& x, const ParamT* previous, WarmStart mode,
+                     LocalGeometry& g, bool g_at_previous) {
+  if (previous != nullptr && mode == WarmStart::kTrusted) {
+    const FootPoint warm = RefineFootPoint(model, domain, x, *previous, g, g_at_previous);
+    if (!warm.on_boundary) return warm;
+    const FootPoint cold = RefineFootPoint(model, domain, x, seeds.get().Nearest(x), g);
+    if (cold.distance < warm.distance) return cold;
+    model.Evaluate(warm.t, 2, g);  // g at the returned foot
+    return warm;
+  }
+  ParamT start = seeds.get().Nearest(x);
+  if (previous != nullptr) {
+    model.Evaluate(start, 0, g);
+    const double d_seed = (g.point - x).squaredNorm();
+    model.Evaluate(*previous, 0, g);
+    if ((g.point - x).squaredNorm() <= d_seed) start = *previous;
+  }
+  return RefineFootPoint(model, domain, x, start, g);
+}
+
+}  // namespace
 
 FootPoint FootPointOf(const FootPointContext& c, const VecS& x, const ParamT* previous, WarmStart mode,
                       LocalGeometry& g, bool g_at_previous) {
@@ -156,22 +187,25 @@ FootPoint FootPointOf(const FootPointContext& c, const VecS& x, const ParamT* pr
     c.model.ClosedFormFoot(x, foot.t, foot.distance, foot.on_boundary, foot.excluded);
     return foot;
   }
-  if (previous != nullptr && mode == WarmStart::kTrusted) {
-    const FootPoint warm = RefineFootPoint(c.model, c.domain, x, *previous, g, g_at_previous);
-    if (!warm.on_boundary) return warm;
-    const FootPoint cold = RefineFootPoint(c.model, c.domain, x, c.seeds.get().Nearest(x), g);
-    if (cold.distance < warm.distance) return cold;
-    c.model.Evaluate(warm.t, 2, g);  // g at the returned foot
-    return warm;
+  VecS reduced_x;
+  if (c.reduction != nullptr && c.reduction->Reduce(x, reduced_x)) {
+    // The reduced model's t is the leading entries of the full t (FootPointReduction): the previous foot's
+    // warm-starts it. Its geometry is lifted, so the full model is not evaluated at all.
+    ParamT reduced_previous{0.0, 0.0, 0.0};
+    if (previous != nullptr) {
+      for (int k = 0; k < c.reduced_domain.dimension; ++k)
+        reduced_previous[static_cast<std::size_t>(k)] = (*previous)[static_cast<std::size_t>(k)];
+    }
+    LocalGeometry reduced_g;
+    FootPoint foot = NewtonFoot(c.reduction->reduced_model(), c.reduced_domain, *c.reduced_seeds, reduced_x,
+                                previous != nullptr ? &reduced_previous : nullptr, mode, reduced_g, false);
+    ParamT t{0.0, 0.0, 0.0};
+    if (c.reduction->Lift(x, foot.t, reduced_g, t, g)) {
+      foot.t = t;
+      return foot;
+    }
   }
-  ParamT start = c.seeds.get().Nearest(x);
-  if (previous != nullptr) {
-    c.model.Evaluate(start, 0, g);
-    const double d_seed = (g.point - x).squaredNorm();
-    c.model.Evaluate(*previous, 0, g);
-    if ((g.point - x).squaredNorm() <= d_seed) start = *previous;
-  }
-  return RefineFootPoint(c.model, c.domain, x, start, g);
+  return NewtonFoot(c.model, c.domain, c.seeds, x, previous, mode, g, g_at_previous);
 }
 
 void ComputeFootPoints(const ParametricModel& model, const Eigen::Ref<const Eigen::MatrixXd>& points,

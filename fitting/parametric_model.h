@@ -58,6 +58,29 @@ struct FairnessWeights {
       0.0;  // curves: beta * integral |C''|^2; surfaces: thin plate |S_uu|^2 + 2|S_uv|^2 + |S_vv|^2
 };
 
+class ParametricModel;
+
+// A foot-point problem that reduces to one on a simpler model (METHOD.md section 10). A surface of
+// revolution: the distance from x to its point (u, v) is d^2 = rho^2 + r^2 - 2 rho r cos(v - phi) + (z - h)^2
+// (x in cylinder coordinates (rho, phi, h), (r(u), z(u)) the generatrix), which for r >= 0 is smallest at v =
+// phi. So the foot of x lies in x's meridian half-plane and is the foot of (rho, h) on the planar generatrix:
+// a 1-D Newton on the profile, without the trigonometry and the second parameter of the 2-D one.
+class FootPointReduction {
+ public:
+  virtual ~FootPointReduction() = default;
+  // The simpler model. Its t is the leading entries of the full model's t (e.g. u of (u, v)), so a previous
+  // full foot warm-starts it. Its foot distance and boundary flag are those of the full foot.
+  virtual const ParametricModel& reduced_model() const = 0;
+  // x in the reduced model's space; false when x cannot be reduced (e.g. not finite).
+  virtual bool Reduce(const VecS& x, VecS& reduced_x) const = 0;
+  // The full model's foot t of x and its geometry g there (C and its first and second derivatives), from the
+  // reduced model's foot `reduced_t` with the reduced model's geometry `reduced_g` there (up to second
+  // derivatives). False when the reduction does not hold at that foot (e.g. the generatrix touches the
+  // axis there): the engine then searches the full model's feet itself.
+  virtual bool Lift(const VecS& x, const ParamT& reduced_t, const LocalGeometry& reduced_g, ParamT& t,
+                    LocalGeometry& g) const = 0;
+};
+
 class ParametricModel {
  public:
   virtual ~ParametricModel() = default;
@@ -111,6 +134,10 @@ class ParametricModel {
   // between the foot and the ambiguity test (parts). Returns false for models without closed-form feet.
   virtual bool ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
                               bool& ambiguous) const;
+  // Models whose Newton feet reduce to those of a simpler model (FootPointReduction) return the reduction
+  // for their current shape; null (the default) when there is none. The engine then runs its warm starts,
+  // sample search and safeguarded Newton on the reduced model and lifts the result.
+  virtual std::unique_ptr<FootPointReduction> MakeFootPointReduction() const { return nullptr; }
   // Models with their own feet: true when the foot point t of x lies on an open boundary, where the
   // orthogonality condition need not hold (the end rule applies, METHOD.md section 4).
   virtual bool FootPointOnBoundary(const VecS& x, const ParamT& t) const {
