@@ -6,19 +6,33 @@
 namespace s2m {
 namespace {
 
-// The generatrix (r(u), z(u)) and its first `derivatives` u-derivatives, as the columns of a 2 x 3 matrix.
-Eigen::Matrix<double, 2, 3> Generatrix(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile, double u,
-                                       int derivatives) {
+// The generatrix (r(u), z(u)) and its first `derivatives` u-derivatives (at most 2): rz[2 d] = r^(d),
+// rz[2 d + 1] = z^(d); higher entries are zero. Plain sums over the order's control points (the foot points'
+// innermost loop).
+void GeneratrixValues(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile, double u, int derivatives,
+                      double (&rz)[6]) {
   BSplineBasis::Values b;
   basis.Evaluate(u, derivatives, b);
-  Eigen::Matrix<double, 2, 3> rz = Eigen::Matrix<double, 2, 3>::Zero();
+  const int top = std::min(derivatives, 2);
+  for (double& value : rz) value = 0.0;
+  const double* p = profile.data();
   for (int i = 0; i < basis.order(); ++i) {
-    const Eigen::Vector2d q = profile.col(basis.ControlIndex(b.first, i));
-    for (int d = 0; d <= std::min(derivatives, 2); ++d) {
-      rz.col(d) += b.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(i)] * q;
+    const double* q = p + 2 * basis.ControlIndex(b.first, i);
+    const auto j = static_cast<std::size_t>(i);
+    for (int d = 0; d <= top; ++d) {
+      const double w = b.values[static_cast<std::size_t>(d)][j];
+      rz[2 * d] += w * q[0];
+      rz[2 * d + 1] += w * q[1];
     }
   }
-  return rz;
+}
+
+// The same as the columns of a 2 x 3 matrix (value, d/du, d2/du2).
+Eigen::Matrix<double, 2, 3> Generatrix(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile, double u,
+                                       int derivatives) {
+  double rz[6];
+  GeneratrixValues(basis, profile, u, derivatives, rz);
+  return Eigen::Map<const Eigen::Matrix<double, 2, 3>>(rz);
 }
 
 // Names of the parameters of a generatrix with one extra parameter (pitch, growth) after the profile points.
@@ -71,10 +85,17 @@ class GeneratrixCurve final : public ParametricModel {
     profile_.colwise() += Eigen::Vector2d(offset);
   }
   void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override {
-    const Eigen::Matrix<double, 2, 3> rz = Generatrix(basis_, profile_, t[0], derivatives);
-    out.point = rz.col(0);
-    out.d1 = rz.col(1);
-    out.d2 = rz.col(2);
+    double rz[6];
+    GeneratrixValues(basis_, profile_, t[0], derivatives, rz);
+    out.point.resize(2);
+    out.d1.resize(2, 1);
+    out.d2.resize(2, 1);
+    out.point[0] = rz[0];
+    out.point[1] = rz[1];
+    out.d1(0, 0) = rz[2];
+    out.d1(1, 0) = rz[3];
+    out.d2(0, 0) = rz[4];
+    out.d2(1, 0) = rz[5];
   }
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override {
     out.clear();
@@ -309,6 +330,23 @@ void KinematicSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<
                         with_dt ? Eigen::Vector3d(Eigen::Vector3d::UnitZ()) : Eigen::Vector3d::Zero()};
     out.push_back(pitch);
   }
+}
+
+bool KinematicSurface::FactoredShapeJacobian(const ParamT& t, FactoredJacobian& out) const {
+  if (helical_ || basis_.order() > FactoredJacobian::kMaxWeights) return false;
+  BSplineBasis::Values b;
+  basis_.Evaluate(t[0], 0, b);
+  out.weight_count = basis_.order();
+  for (int i = 0; i < basis_.order(); ++i) {
+    const auto j = static_cast<std::size_t>(i);
+    out.first_index[j] = 2 * basis_.ControlIndex(b.first, i);
+    out.weights[j] = b.values[0][j];
+  }
+  out.direction_count = 2;
+  out.directions << std::cos(t[1]), 0.0, 0.0,  //
+      std::sin(t[1]), 0.0, 0.0,                //
+      0.0, 1.0, 0.0;
+  return true;
 }
 
 Eigen::MatrixXd KinematicSurface::FairnessMatrix(const FairnessWeights& w) const {

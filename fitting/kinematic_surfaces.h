@@ -47,6 +47,9 @@ class KinematicSurface final : public ParametricModel {
   bool SupportsTranslation() const override { return false; }
   void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  // Surfaces of revolution: weights B_k(u), directions (cos v, sin v, 0) and (0, 0, 1) for (r_k, z_k).
+  // Helical surfaces (the pitch column does not factor): false.
+  bool FactoredShapeJacobian(const ParamT& t, FactoredJacobian& out) const override;
   Eigen::MatrixXd FairnessMatrix(const FairnessWeights& weights) const override;
   std::vector<ParamT> SampleParameters() const override;
   std::vector<Motion6> InvariantMotions() const override;

@@ -52,6 +52,20 @@ struct JacobianEntry {
   std::array<Eigen::Vector3d, 2> dcolumn_dt;  // d/dt_k of the column
 };
 
+// A shape Jacobian dC/dP at fixed t that factors as weights times directions, as in B-spline models where
+// control point k moves C by B_k(t) times a direction per coordinate: the non-zero columns are
+// weights[i] * directions.col(c), at parameter index first_index[i] + c (i < weight_count, c <
+// direction_count). The assembly of normal equations then forms D^T M D once per point instead of J^T M J
+// over all (weight_count x direction_count) columns.
+struct FactoredJacobian {
+  static constexpr int kMaxWeights = 8;  // B-spline orders up to 8 (BSplineBasis::kMaxOrder)
+  int weight_count = 0;
+  std::array<int, kMaxWeights> first_index{};
+  std::array<double, kMaxWeights> weights{};
+  int direction_count = 0;                               // <= 3
+  Eigen::Matrix3d directions = Eigen::Matrix3d::Zero();  // columns beyond direction_count are zero
+};
+
 struct FairnessWeights {
   double stretch = 0.0;  // curves: alpha * integral |C'|^2; surfaces: membrane integral |S_u|^2 + |S_v|^2
   double bending =
@@ -114,6 +128,13 @@ class ParametricModel {
   virtual void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const = 0;
   // Non-zero columns of dC/dP at t; with `with_dt`, also their t-derivatives. `out` is cleared first.
   virtual void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const = 0;
+  // ShapeJacobian(t, false, .) in factored form (FactoredJacobian), for models whose Jacobian factors so at
+  // every t; returns false (the default) otherwise, and the caller uses ShapeJacobian.
+  virtual bool FactoredShapeJacobian(const ParamT& t, FactoredJacobian& out) const {
+    (void)t;
+    (void)out;
+    return false;
+  }
   // Fairness energy E(P) = P^T K P; returns K (r x r), or an empty matrix when the model has none.
   virtual Eigen::MatrixXd FairnessMatrix(const FairnessWeights& weights) const {
     (void)weights;
