@@ -21,11 +21,74 @@ void Confine(const ParameterDomain& d, ParamT& t) {
   }
 }
 
+// s-vector dot product on raw storage (s = 2 or 3).
+double Dot(const double* a, const double* b, int s) {
+  double sum = a[0] * b[0] + a[1] * b[1];
+  return s > 2 ? sum + a[2] * b[2] : sum;
+}
+
+// RefineFootPoint for curves (m = 1; e.g. the generatrix of a surface of revolution's reduced feet): the same
+// safeguarded Newton and decisions as the general loop below, in scalars (the general loop's 2 x 2 algebra
+// on run-time sized vectors was most of a curve foot's cost outside the model's evaluations).
+FootPoint RefineCurveFootPoint(const ParametricModel& model, const ParameterDomain& d, const VecS& x,
+                               ParamT t, LocalGeometry& g, bool g_at_t0) {
+  Confine(d, t);
+  if (!g_at_t0) model.Evaluate(t, 2, g);
+  const int s = static_cast<int>(x.size());
+  const double lo = d.lo[0], hi = d.hi[0], span = hi - lo;
+  const double x_norm = x.norm();
+  auto residual_norm2 = [&]() {
+    double sum = 0.0;
+    for (int i = 0; i < s; ++i) sum += (g.point[i] - x[i]) * (g.point[i] - x[i]);
+    return sum;
+  };
+  double f = 0.5 * residual_norm2();
+  for (int iter = 0; iter < 50; ++iter) {
+    double r[3] = {0.0, 0.0, 0.0};
+    for (int i = 0; i < s; ++i) r[i] = g.point[i] - x[i];
+    const double* c1 = g.d1.data();
+    const double grad = Dot(c1, r, s), speed2 = Dot(c1, c1, s);
+    const double hess = speed2 + Dot(r, g.d2.data(), s);
+    // Pinned at an open end with the gradient pushing outwards: the foot (active set).
+    if (!d.periodic[0] && ((t[0] <= lo && grad > 0) || (t[0] >= hi && grad < 0))) break;
+    const double h00 = hess > 0 ? hess : speed2;  // Newton where convex along t, else Gauss-Newton
+    const double step = h00 > 0 ? -grad / h00 : 0.0;
+    if (!std::isfinite(step) || step == 0.0) break;
+    if (std::abs(step) <= 1e-15 * span) break;
+    const double predicted = -0.5 * grad * step;
+    const bool below_rounding = predicted <= 1e-15 * std::sqrt(2.0 * f) * (g.point.norm() + x_norm);
+    double alpha = 1.0;
+    ParamT trial = t;
+    bool improved = false;
+    for (int ls = 0; ls < 30; ++ls, alpha *= 0.5) {
+      trial = t;
+      trial[0] += alpha * step;
+      Confine(d, trial);
+      model.Evaluate(trial, 2, g);
+      const double ft = 0.5 * residual_norm2();
+      if (below_rounding || ft <= f * (1.0 + 1e-13) + 1e-300) {
+        improved = true;
+        f = ft;
+        break;
+      }
+    }
+    if (!improved) {
+      model.Evaluate(t, 2, g);
+      break;
+    }
+    const double moved = std::abs(trial[0] - t[0]);
+    t = trial;
+    if (moved <= 1e-15 * span) break;
+  }
+  return {t, std::sqrt(2.0 * f), IsBoundaryFootPoint(d, t, g, x)};
+}
+
 }  // namespace
 
 FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d, const VecS& x, ParamT t,
                           LocalGeometry& g, bool g_at_t0) {
   const int m = d.dimension;
+  if (m == 1) return RefineCurveFootPoint(model, d, x, t, g, g_at_t0);
   Confine(d, t);
   if (!g_at_t0) model.Evaluate(t, 2, g);
   VecS r = g.point - x;
