@@ -21,11 +21,74 @@ void Confine(const ParameterDomain& d, ParamT& t) {
   }
 }
 
+// s-vector dot product on raw storage (s = 2 or 3).
+double Dot(const double* a, const double* b, int s) {
+  double sum = a[0] * b[0] + a[1] * b[1];
+  return s > 2 ? sum + a[2] * b[2] : sum;
+}
+
+// RefineFootPoint for curves (m = 1; e.g. the generatrix of a surface of revolution's reduced feet): the same
+// safeguarded Newton and decisions as the general loop below, in scalars (the general loop's 2 x 2 algebra
+// on run-time sized vectors was most of a curve foot's cost outside the model's evaluations).
+FootPoint RefineCurveFootPoint(const ParametricModel& model, const ParameterDomain& d, const VecS& x,
+                               ParamT t, LocalGeometry& g, bool g_at_t0) {
+  Confine(d, t);
+  if (!g_at_t0) model.Evaluate(t, 2, g);
+  const int s = static_cast<int>(x.size());
+  const double lo = d.lo[0], hi = d.hi[0], span = hi - lo;
+  const double x_norm = x.norm();
+  auto residual_norm2 = [&]() {
+    double sum = 0.0;
+    for (int i = 0; i < s; ++i) sum += (g.point[i] - x[i]) * (g.point[i] - x[i]);
+    return sum;
+  };
+  double f = 0.5 * residual_norm2();
+  for (int iter = 0; iter < 50; ++iter) {
+    double r[3] = {0.0, 0.0, 0.0};
+    for (int i = 0; i < s; ++i) r[i] = g.point[i] - x[i];
+    const double* c1 = g.d1.data();
+    const double grad = Dot(c1, r, s), speed2 = Dot(c1, c1, s);
+    const double hess = speed2 + Dot(r, g.d2.data(), s);
+    // Pinned at an open end with the gradient pushing outwards: the foot (active set).
+    if (!d.periodic[0] && ((t[0] <= lo && grad > 0) || (t[0] >= hi && grad < 0))) break;
+    const double h00 = hess > 0 ? hess : speed2;  // Newton where convex along t, else Gauss-Newton
+    const double step = h00 > 0 ? -grad / h00 : 0.0;
+    if (!std::isfinite(step) || step == 0.0) break;
+    if (std::abs(step) <= 1e-15 * span) break;
+    const double predicted = -0.5 * grad * step;
+    const bool below_rounding = predicted <= 1e-15 * std::sqrt(2.0 * f) * (g.point.norm() + x_norm);
+    double alpha = 1.0;
+    ParamT trial = t;
+    bool improved = false;
+    for (int ls = 0; ls < 30; ++ls, alpha *= 0.5) {
+      trial = t;
+      trial[0] += alpha * step;
+      Confine(d, trial);
+      model.Evaluate(trial, 2, g);
+      const double ft = 0.5 * residual_norm2();
+      if (below_rounding || ft <= f * (1.0 + 1e-13) + 1e-300) {
+        improved = true;
+        f = ft;
+        break;
+      }
+    }
+    if (!improved) {
+      model.Evaluate(t, 2, g);
+      break;
+    }
+    const double moved = std::abs(trial[0] - t[0]);
+    t = trial;
+    if (moved <= 1e-15 * span) break;
+  }
+  return {t, std::sqrt(2.0 * f), IsBoundaryFootPoint(d, t, g, x)};
+}
+
 }  // namespace
 
 FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d, const VecS& x, ParamT t,
                           LocalGeometry& g, bool g_at_t0) {
   const int m = d.dimension;
+  if (m == 1) return RefineCurveFootPoint(model, d, x, t, g, g_at_t0);
   Confine(d, t);
   if (!g_at_t0) model.Evaluate(t, 2, g);
   VecS r = g.point - x;
@@ -80,6 +143,12 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
     // then end the loop; stop here instead, without the model evaluation that step would cost. `g` and `f`
     // stay those of t, the foot returned.
     if (std::abs(step[0]) + (m > 1 ? std::abs(step[1]) : 0.0) <= 1e-15 * span) break;
+    // The decrease of f the quadratic model predicts for the full step (a descent direction), against the
+    // rounding of f (|C - X| times the rounding of C - X, ~1e-15 of the coordinates): below it no trial's f
+    // can show a decrease, and halving on rounding noise took up to 30 evaluations (a third of the feet of a
+    // surface fitted to 1e-4 of its size). The gradient is accurate there: the full step is taken.
+    const double predicted = -0.5 * grad.dot(step);
+    const bool below_rounding = predicted <= 1e-15 * std::sqrt(2.0 * f) * (g.point.norm() + x.norm());
     // Backtracking: halve until |C - X| decreases (the orthogonality residual may be far from zero).
     double alpha = 1.0;
     ParamT trial = t;
@@ -93,7 +162,7 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
       const double ft = 0.5 * (g.point - x).squaredNorm();
       // Accept increases at rounding level: near the foot point f stalls before the orthogonality residual
       // does.
-      if (ft <= f * (1.0 + 1e-13) + 1e-300) {
+      if (below_rounding || ft <= f * (1.0 + 1e-13) + 1e-300) {
         improved = true;
         f = ft;
         break;
@@ -144,10 +213,41 @@ const FootPointSeeds& LazyFootPointSeeds::get() const {
   return *seeds_;
 }
 
-FootPointContext::FootPointContext(const ParametricModel& m) : model(m), domain(m.domain()), seeds(m) {
+FootPointContext::FootPointContext(const ParametricModel& m)
+    : model(m), domain(m.domain()), seeds(m), reduction(m.MakeFootPointReduction()) {
   ParamT probe{0.0, 0.0, 0.0};
   closed_form = m.ClosedFormFootPoint(VecS::Zero(m.ambient_dimension()), probe);
+  if (reduction != nullptr) {
+    reduced_domain = reduction->reduced_model().domain();
+    reduced_seeds.emplace(reduction->reduced_model());
+  }
 }
+
+namespace {
+
+// Newton's foot on `model` (no closed form) from the warm start as `mode` says (FootPointOf).
+FootPoint NewtonFoot(const ParametricModel& model, const ParameterDomain& domain,
+                     const LazyFootPointSeeds& seeds, const VecS& x, const ParamT* previous, WarmStart mode,
+                     LocalGeometry& g, bool g_at_previous) {
+  if (previous != nullptr && mode == WarmStart::kTrusted) {
+    const FootPoint warm = RefineFootPoint(model, domain, x, *previous, g, g_at_previous);
+    if (!warm.on_boundary) return warm;
+    const FootPoint cold = RefineFootPoint(model, domain, x, seeds.get().Nearest(x), g);
+    if (cold.distance < warm.distance) return cold;
+    model.Evaluate(warm.t, 2, g);  // g at the returned foot
+    return warm;
+  }
+  ParamT start = seeds.get().Nearest(x);
+  if (previous != nullptr) {
+    model.Evaluate(start, 0, g);
+    const double d_seed = (g.point - x).squaredNorm();
+    model.Evaluate(*previous, 0, g);
+    if ((g.point - x).squaredNorm() <= d_seed) start = *previous;
+  }
+  return RefineFootPoint(model, domain, x, start, g);
+}
+
+}  // namespace
 
 FootPoint FootPointOf(const FootPointContext& c, const VecS& x, const ParamT* previous, WarmStart mode,
                       LocalGeometry& g, bool g_at_previous) {
@@ -156,22 +256,25 @@ FootPoint FootPointOf(const FootPointContext& c, const VecS& x, const ParamT* pr
     c.model.ClosedFormFoot(x, foot.t, foot.distance, foot.on_boundary, foot.excluded);
     return foot;
   }
-  if (previous != nullptr && mode == WarmStart::kTrusted) {
-    const FootPoint warm = RefineFootPoint(c.model, c.domain, x, *previous, g, g_at_previous);
-    if (!warm.on_boundary) return warm;
-    const FootPoint cold = RefineFootPoint(c.model, c.domain, x, c.seeds.get().Nearest(x), g);
-    if (cold.distance < warm.distance) return cold;
-    c.model.Evaluate(warm.t, 2, g);  // g at the returned foot
-    return warm;
+  VecS reduced_x;
+  if (c.reduction != nullptr && c.reduction->Reduce(x, reduced_x)) {
+    // The reduced model's t is the leading entries of the full t (FootPointReduction): the previous foot's
+    // warm-starts it. Its geometry is lifted, so the full model is not evaluated at all.
+    ParamT reduced_previous{0.0, 0.0, 0.0};
+    if (previous != nullptr) {
+      for (int k = 0; k < c.reduced_domain.dimension; ++k)
+        reduced_previous[static_cast<std::size_t>(k)] = (*previous)[static_cast<std::size_t>(k)];
+    }
+    LocalGeometry reduced_g;
+    FootPoint foot = NewtonFoot(c.reduction->reduced_model(), c.reduced_domain, *c.reduced_seeds, reduced_x,
+                                previous != nullptr ? &reduced_previous : nullptr, mode, reduced_g, false);
+    ParamT t{0.0, 0.0, 0.0};
+    if (c.reduction->Lift(x, foot.t, reduced_g, t, g)) {
+      foot.t = t;
+      return foot;
+    }
   }
-  ParamT start = c.seeds.get().Nearest(x);
-  if (previous != nullptr) {
-    c.model.Evaluate(start, 0, g);
-    const double d_seed = (g.point - x).squaredNorm();
-    c.model.Evaluate(*previous, 0, g);
-    if ((g.point - x).squaredNorm() <= d_seed) start = *previous;
-  }
-  return RefineFootPoint(c.model, c.domain, x, start, g);
+  return NewtonFoot(c.model, c.domain, c.seeds, x, previous, mode, g, g_at_previous);
 }
 
 void ComputeFootPoints(const ParametricModel& model, const Eigen::Ref<const Eigen::MatrixXd>& points,

@@ -55,13 +55,17 @@ class LazyFootPointSeeds {
 };
 
 // What every foot point of one model needs: its domain, whether it has closed-form feet (everywhere or
-// nowhere), and its seeds.
+// nowhere), its seeds, and the reduction of its feet to a simpler model's when it has one
+// (ParametricModel::MakeFootPointReduction), with that model's domain and seeds.
 struct FootPointContext {
   explicit FootPointContext(const ParametricModel& model);
   const ParametricModel& model;
   ParameterDomain domain;
   bool closed_form = false;
   LazyFootPointSeeds seeds;
+  std::unique_ptr<FootPointReduction> reduction;  // null: none
+  ParameterDomain reduced_domain;
+  std::optional<LazyFootPointSeeds> reduced_seeds;  // set with `reduction`
 };
 
 // How a warm start (the previous foot's parameter) is used.
@@ -77,7 +81,9 @@ enum class WarmStart {
 };
 
 // The foot point of one data point x. Closed-form models answer directly (ParametricModel::ClosedFormFoot).
-// Others run Newton: cold (`previous` null) from the nearest model sample, warm as `mode` says. On return
+// Others run Newton: cold (`previous` null) from the nearest model sample, warm as `mode` says; models with a
+// FootPointReduction run it on the reduced model (its samples, the leading entries of `previous`) and lift
+// the foot, or, where the reduction does not hold, on the full model. On return
 // `g` holds C and its first and second derivatives at the foot's t for Newton models; for closed-form models
 // it is unspecified.
 // With `g_at_previous` (trusted warm starts only), `g` holds the model's geometry at `previous` on entry

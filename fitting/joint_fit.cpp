@@ -84,13 +84,24 @@ struct Partial {
 constexpr int kMaxEntries = 48;
 using EntryColumns = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxEntries>;
 
-// Adds one point's terms to `acc`: the data point x (model frame), its foot f with the model's geometry `geo`
-// (C and its first and second derivatives at f.t) and shape Jacobian `entries` there, weight w. The motion
-// part uses the linearized motion A = [-[x]x  I] (MotionJacobian); projecting the sums onto a gauge-reduced
-// basis B afterwards (B^T H B) is the same as projecting every point's A B. The shape part is J^T M J,
-// -J^T M e0 and J^T M A over the non-zero columns J only, as small fixed-capacity products.
-void AccumulatePoint(const Eigen::Vector3d& x, const FootPoint& f, const LocalGeometry& geo,
-                     const std::vector<JacobianEntry>& entries, ErrorTerm term, double w, Partial& acc) {
+// Per-thread scratch of the point loops: the model's geometry at a foot and its shape Jacobian there.
+struct PointScratch {
+  LocalGeometry geo;
+  FactoredJacobian factored;
+  std::vector<JacobianEntry> entries;
+};
+
+// Adds one point's terms to `acc`: the data point x (model frame), its foot f with the model's geometry
+// `s.geo` (C and its first and second derivatives at f.t), weight w. The motion part uses the linearized
+// motion A = [-[x]x  I] (MotionJacobian); projecting the sums onto a gauge-reduced basis B afterwards
+// (B^T H B) is the same as projecting every point's A B. The shape part is J^T M J, -J^T M e0 and J^T M A
+// over the non-zero columns J only: when J factors as weights w_i times directions D
+// (ParametricModel::FactoredShapeJacobian), from the small products D^T M D, D^T M e0 and D^T M A scaled by
+// w_i w_j and w_i (the same sums, grouped differently: equal to rounding); else as small fixed-capacity
+// products over the columns.
+void AccumulatePoint(const ParametricModel& model, const Eigen::Vector3d& x, const FootPoint& f,
+                     ErrorTerm term, double w, PointScratch& s, Partial& acc) {
+  const LocalGeometry& geo = s.geo;
   const Eigen::Vector3d e0 = x - To3(geo.point);
   const PrincipalFrame frame = ComputePrincipalFrame(geo, x);
   const Eigen::Matrix3d M = f.on_boundary ? EndRuleMatrix(term, frame, e0, 3) : ErrorMatrix(term, frame, 3);
@@ -98,6 +109,32 @@ void AccumulatePoint(const Eigen::Vector3d& x, const FootPoint& f, const LocalGe
   const Eigen::Matrix<double, 3, 6> wm_a = w * (M * a);
   acc.h_bb.noalias() += a.transpose() * wm_a;
   acc.g_b.noalias() += wm_a.transpose() * e0;
+  if (model.FactoredShapeJacobian(f.t, s.factored)) {
+    const FactoredJacobian& J = s.factored;
+    const Eigen::Matrix3d& D = J.directions;
+    const Eigen::Matrix3d wMD = w * (M * D);
+    const Eigen::Matrix3d G = D.transpose() * wMD;                  // D^T wM D
+    const Eigen::Vector3d g = wMD.transpose() * e0;                 // D^T wM e0
+    const Eigen::Matrix<double, 6, 3> h_bd = wm_a.transpose() * D;  // A^T wM D
+    const int q = J.direction_count;
+    for (int i = 0; i < J.weight_count; ++i) {
+      const double wi = J.weights[static_cast<std::size_t>(i)];
+      const int ci = J.first_index[static_cast<std::size_t>(i)];
+      for (int c = 0; c < q; ++c) {
+        acc.g_d[ci + c] -= wi * g[c];
+        acc.h_bd.col(ci + c).noalias() -= wi * h_bd.col(c);
+        double* column = &acc.h_dd(0, ci + c);
+        for (int j = 0; j < J.weight_count; ++j) {
+          const double wij = wi * J.weights[static_cast<std::size_t>(j)];
+          const int cj = J.first_index[static_cast<std::size_t>(j)];
+          for (int d = 0; d < q; ++d) column[cj + d] += wij * G(d, c);
+        }
+      }
+    }
+    return;
+  }
+  model.ShapeJacobian(f.t, false, s.entries);
+  const std::vector<JacobianEntry>& entries = s.entries;
   const auto n = static_cast<Eigen::Index>(entries.size());
   if (n <= kMaxEntries) {
     EntryColumns J(3, n);
@@ -121,6 +158,24 @@ void AccumulatePoint(const Eigen::Vector3d& x, const FootPoint& f, const LocalGe
     acc.g_d[c.index] -= wm_col.dot(e0);
     acc.h_bd.col(c.index).noalias() -= wm_a.transpose() * c.column;
     for (const JacobianEntry& d : entries) acc.h_dd(d.index, c.index) += d.column.dot(wm_col);
+  }
+}
+
+// The per-thread reduction skeleton of both assembly passes (the foot-point pass that assembles as it goes,
+// and the reference pass at known feet): every thread sums its share of points 0..n-1 into its own Partial
+// (reset to r parameters), `point(j, scratch, partial)` adding point j's terms; the caller then adds the
+// partials in thread order.
+template <typename PointTerms>
+void AccumulateInParallel(Eigen::Index n, int r, std::vector<Partial>& partials, const PointTerms& point) {
+#pragma omp parallel
+  {
+#pragma omp single
+    partials.resize(static_cast<std::size_t>(omp_get_num_threads()));
+    Partial& mine = partials[static_cast<std::size_t>(omp_get_thread_num())];
+    mine.Reset(r);
+    PointScratch scratch;
+#pragma omp for schedule(static)
+    for (Eigen::Index j = 0; j < n; ++j) point(j, scratch, mine);
   }
 }
 
@@ -239,27 +294,17 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
         const ParametricModel& model_k = *s.model;
         const Eigen::MatrixXd& points = s.current[k];
         std::vector<FootPoint>& feet = s.feet[k];
-#pragma omp parallel
-        {
-#pragma omp single
-          partials.resize(static_cast<std::size_t>(omp_get_num_threads()));
-          Partial& mine = partials[static_cast<std::size_t>(omp_get_thread_num())];
-          mine.Reset(r);
-          LocalGeometry g;
-          std::vector<JacobianEntry> entries;
-#pragma omp for schedule(static)
-          for (Eigen::Index j = 0; j < n; ++j) {
-            const auto i = static_cast<std::size_t>(j);
-            FootPoint& f = feet[i];
-            f = FootPointOf(context, points.col(j), previous ? &(*previous)[i].t : nullptr, warm_mode, g);
-            if (!options.left_out.empty()) f.excluded = options.left_out[k][i];
-            if (f.excluded) continue;
-            // Closed-form feet leave `g` unspecified.
-            if (context.closed_form) model_k.Evaluate(f.t, 2, g);
-            model_k.ShapeJacobian(f.t, false, entries);
-            AccumulatePoint(points.col(j), f, g, entries, options.error_term, weights[k], mine);
-          }
-        }
+        AccumulateInParallel(n, r, partials, [&](Eigen::Index j, PointScratch& scratch, Partial& mine) {
+          const auto i = static_cast<std::size_t>(j);
+          FootPoint& f = feet[i];
+          f = FootPointOf(context, points.col(j), previous ? &(*previous)[i].t : nullptr, warm_mode,
+                          scratch.geo);
+          if (!options.left_out.empty()) f.excluded = options.left_out[k][i];
+          if (f.excluded) return;
+          // Closed-form feet leave the geometry unspecified.
+          if (context.closed_form) model_k.Evaluate(f.t, 2, scratch.geo);
+          AccumulatePoint(model_k, points.col(j), f, options.error_term, weights[k], scratch, mine);
+        });
         add_scan(k, s.sums, partials);
       }
       double scan_sq = 0.0;
@@ -305,23 +350,14 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
       reset_sums(own);
       for (std::size_t k = 0; k < K; ++k) {
         const double w = unit_weights ? 1.0 : weights[k];
-#pragma omp parallel
-        {
-#pragma omp single
-          partials.resize(static_cast<std::size_t>(omp_get_num_threads()));
-          Partial& mine = partials[static_cast<std::size_t>(omp_get_thread_num())];
-          mine.Reset(r);
-          LocalGeometry geo;
-          std::vector<JacobianEntry> entries;
-#pragma omp for schedule(static)
-          for (Eigen::Index j = 0; j < st.current[k].cols(); ++j) {
-            const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
-            if (f.excluded) continue;
-            st.model->Evaluate(f.t, 2, geo);
-            st.model->ShapeJacobian(f.t, false, entries);
-            AccumulatePoint(st.current[k].col(j), f, geo, entries, term, w, mine);
-          }
-        }
+        const Eigen::MatrixXd& points = st.current[k];
+        AccumulateInParallel(points.cols(), r, partials,
+                             [&](Eigen::Index j, PointScratch& scratch, Partial& mine) {
+                               const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
+                               if (f.excluded) return;
+                               st.model->Evaluate(f.t, 2, scratch.geo);
+                               AccumulatePoint(*st.model, points.col(j), f, term, w, scratch, mine);
+                             });
         add_scan(k, own, partials);
       }
       sums = &own;

@@ -3,22 +3,38 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "fitting/fast_atan2.h"
+
 namespace s2m {
 namespace {
 
-// The generatrix (r(u), z(u)) and its first `derivatives` u-derivatives, as the columns of a 2 x 3 matrix.
-Eigen::Matrix<double, 2, 3> Generatrix(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile, double u,
-                                       int derivatives) {
+// The generatrix (r(u), z(u)) and its first `derivatives` u-derivatives (at most 2): rz[2 d] = r^(d),
+// rz[2 d + 1] = z^(d); higher entries are zero. Plain sums over the order's control points (the foot points'
+// innermost loop).
+void GeneratrixValues(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile, double u, int derivatives,
+                      double (&rz)[6]) {
   BSplineBasis::Values b;
   basis.Evaluate(u, derivatives, b);
-  Eigen::Matrix<double, 2, 3> rz = Eigen::Matrix<double, 2, 3>::Zero();
+  const int top = std::min(derivatives, 2);
+  for (double& value : rz) value = 0.0;
+  const double* p = profile.data();
   for (int i = 0; i < basis.order(); ++i) {
-    const Eigen::Vector2d q = profile.col(basis.ControlIndex(b.first, i));
-    for (int d = 0; d <= std::min(derivatives, 2); ++d) {
-      rz.col(d) += b.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(i)] * q;
+    const double* q = p + 2 * basis.ControlIndex(b.first, i);
+    const auto j = static_cast<std::size_t>(i);
+    for (int d = 0; d <= top; ++d) {
+      const double w = b.values[static_cast<std::size_t>(d)][j];
+      rz[2 * d] += w * q[0];
+      rz[2 * d + 1] += w * q[1];
     }
   }
-  return rz;
+}
+
+// The same as the columns of a 2 x 3 matrix (value, d/du, d2/du2).
+Eigen::Matrix<double, 2, 3> Generatrix(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile, double u,
+                                       int derivatives) {
+  double rz[6];
+  GeneratrixValues(basis, profile, u, derivatives, rz);
+  return Eigen::Map<const Eigen::Matrix<double, 2, 3>>(rz);
 }
 
 // Names of the parameters of a generatrix with one extra parameter (pitch, growth) after the profile points.
@@ -26,6 +42,138 @@ std::string GeneratrixParameterName(int index, Eigen::Index profile_size, const 
   if (index == static_cast<int>(profile_size)) return extra;
   return std::string(index % 2 == 0 ? "radius" : "height") + " of profile point " + std::to_string(index / 2);
 }
+
+// Parameters u sampled along a generatrix: 8 steps per knot span (the u values of the surfaces' samples).
+std::vector<double> GeneratrixSampleParameters(const BSplineBasis& basis) {
+  std::vector<double> out;
+  const std::vector<double> breaks = basis.Breakpoints();
+  for (std::size_t s = 0; s + 1 < breaks.size(); ++s)
+    for (int i = 0; i <= 8; ++i) out.push_back(breaks[s] + (breaks[s + 1] - breaks[s]) * i / 8);
+  return out;
+}
+
+// The generatrix (r(u), z(u)) as a planar open curve, the model that a surface of revolution's feet reduce
+// to. Evaluated by the surfaces' own Generatrix, so the profile values are the surface's to the bit.
+class GeneratrixCurve final : public ParametricModel {
+ public:
+  GeneratrixCurve(BSplineBasis basis, Eigen::Matrix2Xd profile)
+      : basis_(std::move(basis)), profile_(std::move(profile)) {}
+  std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<GeneratrixCurve>(*this); }
+  void CopyFrom(const ParametricModel& other) override {
+    *this = dynamic_cast<const GeneratrixCurve&>(other);
+  }
+  std::string name() const override { return "generatrix"; }
+  int ambient_dimension() const override { return 2; }
+  ParameterDomain domain() const override {
+    ParameterDomain d;
+    d.dimension = 1;
+    d.lo = {basis_.lo(), 0.0};
+    d.hi = {basis_.hi(), 0.0};
+    d.periodic = {false, false};
+    return d;
+  }
+  int num_parameters() const override { return static_cast<int>(profile_.size()); }
+  std::string parameter_name(int index) const override {
+    return GeneratrixParameterName(index, profile_.size(), "");
+  }
+  Eigen::VectorXd parameters() const override {
+    return Eigen::Map<const Eigen::VectorXd>(profile_.data(), profile_.size());
+  }
+  void set_parameters(const Eigen::VectorXd& p) override {
+    profile_ = Eigen::Map<const Eigen::Matrix2Xd>(p.data(), 2, profile_.cols());
+  }
+  void ApplySimilarity(double scale, const VecS& offset) override {
+    profile_ *= scale;
+    profile_.colwise() += Eigen::Vector2d(offset);
+  }
+  void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override {
+    double rz[6];
+    GeneratrixValues(basis_, profile_, t[0], derivatives, rz);
+    out.point.resize(2);
+    out.d1.resize(2, 1);
+    out.d2.resize(2, 1);
+    out.point[0] = rz[0];
+    out.point[1] = rz[1];
+    out.d1(0, 0) = rz[2];
+    out.d1(1, 0) = rz[3];
+    out.d2(0, 0) = rz[4];
+    out.d2(1, 0) = rz[5];
+  }
+  void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override {
+    out.clear();
+    BSplineBasis::Values b;
+    basis_.Evaluate(t[0], with_dt ? 1 : 0, b);
+    for (int i = 0; i < basis_.order(); ++i) {
+      const int k = basis_.ControlIndex(b.first, i);
+      const double w = b.values[0][static_cast<std::size_t>(i)];
+      const double dw = with_dt ? b.values[1][static_cast<std::size_t>(i)] : 0.0;
+      for (int c = 0; c < 2; ++c) {
+        JacobianEntry e;
+        e.index = 2 * k + c;
+        e.column = w * Eigen::Vector3d::Unit(c);
+        e.dcolumn_dt = {Eigen::Vector3d(dw * Eigen::Vector3d::Unit(c)), Eigen::Vector3d::Zero()};
+        out.push_back(e);
+      }
+    }
+  }
+  std::vector<ParamT> SampleParameters() const override {
+    std::vector<ParamT> out;
+    for (const double u : GeneratrixSampleParameters(basis_)) out.push_back({u, 0.0, 0.0});
+    return out;
+  }
+
+ private:
+  BSplineBasis basis_;
+  Eigen::Matrix2Xd profile_;
+};
+
+// The feet of a surface of revolution (pitch 0) with r(u) >= 0 everywhere, in x's meridian half-plane
+// (FootPointReduction; METHOD.md section 10). With x = (rho cos phi, rho sin phi, h),
+// d^2(u, v) = (rho - r)^2 + (z - h)^2 + 2 rho r (1 - cos(v - phi)): for r >= 0 the last term is >= 0 and zero
+// at v = phi, so the foot is (u*, phi) with u* the foot of (rho, h) on the generatrix, at the same distance;
+// and at v = phi the orthogonality residual along u is the generatrix's, so the boundary flag is too.
+class RevolutionFootPoints final : public FootPointReduction {
+ public:
+  explicit RevolutionFootPoints(GeneratrixCurve generatrix) : generatrix_(std::move(generatrix)) {}
+  const ParametricModel& reduced_model() const override { return generatrix_; }
+  bool Reduce(const VecS& x, VecS& reduced_x) const override {
+    reduced_x.resize(2);
+    reduced_x << std::sqrt(x[0] * x[0] + x[1] * x[1]), x[2];
+    return reduced_x.allFinite();
+  }
+  bool Lift(const VecS& x, const ParamT& reduced_t, const LocalGeometry& reduced_g, ParamT& t,
+            LocalGeometry& g) const override {
+    const double r = reduced_g.point[0], z = reduced_g.point[1];
+    // On the axis (r = 0) every v is a foot and the surface is singular: left to the 2-D Newton.
+    if (!(r > 0)) return false;
+    const double r1 = reduced_g.d1(0, 0), z1 = reduced_g.d1(1, 0), r2 = reduced_g.d2(0, 0),
+                 z2 = reduced_g.d2(1, 0);
+    // cos v and sin v from x itself (no trigonometry); x on the axis: v = 0, every v being a foot there.
+    const double rho = std::sqrt(x[0] * x[0] + x[1] * x[1]);
+    double c = 1.0, s = 0.0, v = 0.0;
+    if (rho > 0) {
+      c = x[0] / rho;
+      s = x[1] / rho;
+      v = FastAtan2(x[1], x[0]);   // fitting/fast_atan2.h: std::atan2 within 2 ulp, cheaper
+      if (v < 0) v += 2 * M_PI;    // the domain is [0, 2 pi)
+      if (v >= 2 * M_PI) v = 0.0;  // -tiny + 2 pi rounding up to 2 pi
+    }
+    t = {reduced_t[0], v, 0.0};
+    // KinematicSurface::Evaluate at (u*, v) with pitch 0.
+    g.point = Eigen::Vector3d(r * c, r * s, z);
+    g.d1.resize(3, 2);
+    g.d1.col(0) = Eigen::Vector3d(r1 * c, r1 * s, z1);
+    g.d1.col(1) = Eigen::Vector3d(-r * s, r * c, 0.0);
+    g.d2.resize(3, 3);
+    g.d2.col(0) = Eigen::Vector3d(r2 * c, r2 * s, z2);
+    g.d2.col(1) = Eigen::Vector3d(-r1 * s, r1 * c, 0.0);
+    g.d2.col(2) = Eigen::Vector3d(-r * c, -r * s, 0.0);
+    return true;
+  }
+
+ private:
+  GeneratrixCurve generatrix_;
+};
 
 }  // namespace
 
@@ -206,6 +354,23 @@ void KinematicSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<
   }
 }
 
+bool KinematicSurface::FactoredShapeJacobian(const ParamT& t, FactoredJacobian& out) const {
+  if (helical_ || basis_.order() > FactoredJacobian::kMaxWeights) return false;
+  BSplineBasis::Values b;
+  basis_.Evaluate(t[0], 0, b);
+  out.weight_count = basis_.order();
+  for (int i = 0; i < basis_.order(); ++i) {
+    const auto j = static_cast<std::size_t>(i);
+    out.first_index[j] = 2 * basis_.ControlIndex(b.first, i);
+    out.weights[j] = b.values[0][j];
+  }
+  out.direction_count = 2;
+  out.directions << std::cos(t[1]), 0.0, 0.0,  //
+      std::sin(t[1]), 0.0, 0.0,                //
+      0.0, 1.0, 0.0;
+  return true;
+}
+
 Eigen::MatrixXd KinematicSurface::FairnessMatrix(const FairnessWeights& w) const {
   if (w.stretch == 0.0 && w.bending == 0.0) return {};
   const int n = basis_.num_control();
@@ -229,14 +394,15 @@ Eigen::MatrixXd KinematicSurface::FairnessMatrix(const FairnessWeights& w) const
 std::vector<ParamT> KinematicSurface::SampleParameters() const {
   std::vector<ParamT> out;
   const ParameterDomain d = domain();
-  const std::vector<double> breaks = basis_.Breakpoints();
   const int angles = helical_ ? static_cast<int>(48 * turns_) : 48;
-  for (std::size_t s = 0; s + 1 < breaks.size(); ++s)
-    for (int i = 0; i <= 8; ++i) {
-      const double u = breaks[s] + (breaks[s + 1] - breaks[s]) * i / 8;
-      for (int a = 0; a < angles; ++a) out.push_back({u, d.lo[1] + (d.hi[1] - d.lo[1]) * (a + 0.5) / angles});
-    }
+  for (const double u : GeneratrixSampleParameters(basis_))
+    for (int a = 0; a < angles; ++a) out.push_back({u, d.lo[1] + (d.hi[1] - d.lo[1]) * (a + 0.5) / angles});
   return out;
+}
+
+std::unique_ptr<FootPointReduction> KinematicSurface::MakeFootPointReduction() const {
+  if (helical_ || !(profile_.row(0).minCoeff() >= 0.0)) return nullptr;
+  return std::make_unique<RevolutionFootPoints>(GeneratrixCurve(basis_, profile_));
 }
 
 std::vector<Motion6> KinematicSurface::InvariantMotions() const {

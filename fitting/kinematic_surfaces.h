@@ -48,10 +48,19 @@ class KinematicSurface final : public ParametricModel {
   bool SupportsTranslation() const override { return false; }
   void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  // Surfaces of revolution: weights B_k(u), directions (cos v, sin v, 0) and (0, 0, 1) for (r_k, z_k).
+  // Helical surfaces (the pitch column does not factor): false.
+  bool FactoredShapeJacobian(const ParamT& t, FactoredJacobian& out) const override;
   Eigen::MatrixXd FairnessMatrix(const FairnessWeights& weights) const override;
   std::vector<ParamT> SampleParameters() const override;
   std::vector<Motion6> InvariantMotions() const override;
   std::vector<Motion6> CommonMotionsAbsorbedByShape() const override;
+  // Surfaces of revolution whose profile radii r_k are all >= 0 (so r(u) >= 0 everywhere, a B-spline being a
+  // convex combination of its control points): the foot of x lies in x's meridian half-plane, v = atan2(y,
+  // x), and u is the foot of (rho, h) on the planar generatrix (FootPointReduction). Null for helical
+  // surfaces and profiles that may cross the axis; feet where r(u) = 0 (on the axis) are left to the 2-D
+  // Newton.
+  std::unique_ptr<FootPointReduction> MakeFootPointReduction() const override;
 
  private:
   KinematicSurface(BSplineBasis basis, Eigen::Matrix2Xd profile, bool helical, double pitch, double turns);

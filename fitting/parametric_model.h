@@ -52,10 +52,47 @@ struct JacobianEntry {
   std::array<Eigen::Vector3d, 2> dcolumn_dt;  // d/dt_k of the column
 };
 
+// A shape Jacobian dC/dP at fixed t that factors as weights times directions, as in B-spline models where
+// control point k moves C by B_k(t) times a direction per coordinate: the non-zero columns are
+// weights[i] * directions.col(c), at parameter index first_index[i] + c (i < weight_count, c <
+// direction_count). The assembly of normal equations then forms D^T M D once per point instead of J^T M J
+// over all (weight_count x direction_count) columns.
+struct FactoredJacobian {
+  static constexpr int kMaxWeights = 8;  // B-spline orders up to 8 (BSplineBasis::kMaxOrder)
+  int weight_count = 0;
+  std::array<int, kMaxWeights> first_index{};
+  std::array<double, kMaxWeights> weights{};
+  int direction_count = 0;                               // <= 3
+  Eigen::Matrix3d directions = Eigen::Matrix3d::Zero();  // columns beyond direction_count are zero
+};
+
 struct FairnessWeights {
   double stretch = 0.0;  // curves: alpha * integral |C'|^2; surfaces: membrane integral |S_u|^2 + |S_v|^2
   double bending =
       0.0;  // curves: beta * integral |C''|^2; surfaces: thin plate |S_uu|^2 + 2|S_uv|^2 + |S_vv|^2
+};
+
+class ParametricModel;
+
+// A foot-point problem that reduces to one on a simpler model (METHOD.md section 10). A surface of
+// revolution: the distance from x to its point (u, v) is d^2 = rho^2 + r^2 - 2 rho r cos(v - phi) + (z - h)^2
+// (x in cylinder coordinates (rho, phi, h), (r(u), z(u)) the generatrix), which for r >= 0 is smallest at v =
+// phi. So the foot of x lies in x's meridian half-plane and is the foot of (rho, h) on the planar generatrix:
+// a 1-D Newton on the profile, without the trigonometry and the second parameter of the 2-D one.
+class FootPointReduction {
+ public:
+  virtual ~FootPointReduction() = default;
+  // The simpler model. Its t is the leading entries of the full model's t (e.g. u of (u, v)), so a previous
+  // full foot warm-starts it. Its foot distance and boundary flag are those of the full foot.
+  virtual const ParametricModel& reduced_model() const = 0;
+  // x in the reduced model's space; false when x cannot be reduced (e.g. not finite).
+  virtual bool Reduce(const VecS& x, VecS& reduced_x) const = 0;
+  // The full model's foot t of x and its geometry g there (C and its first and second derivatives), from the
+  // reduced model's foot `reduced_t` with the reduced model's geometry `reduced_g` there (up to second
+  // derivatives). False when the reduction does not hold at that foot (e.g. the generatrix touches the
+  // axis there): the engine then searches the full model's feet itself.
+  virtual bool Lift(const VecS& x, const ParamT& reduced_t, const LocalGeometry& reduced_g, ParamT& t,
+                    LocalGeometry& g) const = 0;
 };
 
 class ParametricModel {
@@ -91,6 +128,13 @@ class ParametricModel {
   virtual void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const = 0;
   // Non-zero columns of dC/dP at t; with `with_dt`, also their t-derivatives. `out` is cleared first.
   virtual void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const = 0;
+  // ShapeJacobian(t, false, .) in factored form (FactoredJacobian), for models whose Jacobian factors so at
+  // every t; returns false (the default) otherwise, and the caller uses ShapeJacobian.
+  virtual bool FactoredShapeJacobian(const ParamT& t, FactoredJacobian& out) const {
+    (void)t;
+    (void)out;
+    return false;
+  }
   // Fairness energy E(P) = P^T K P; returns K (r x r), or an empty matrix when the model has none.
   virtual Eigen::MatrixXd FairnessMatrix(const FairnessWeights& weights) const {
     (void)weights;
@@ -111,6 +155,10 @@ class ParametricModel {
   // between the foot and the ambiguity test (parts). Returns false for models without closed-form feet.
   virtual bool ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
                               bool& ambiguous) const;
+  // Models whose Newton feet reduce to those of a simpler model (FootPointReduction) return the reduction
+  // for their current shape; null (the default) when there is none. The engine then runs its warm starts,
+  // sample search and safeguarded Newton on the reduced model and lifts the result.
+  virtual std::unique_ptr<FootPointReduction> MakeFootPointReduction() const { return nullptr; }
   // Models with their own feet: true when the foot point t of x lies on an open boundary, where the
   // orthogonality condition need not hold (the end rule applies, METHOD.md section 4).
   virtual bool FootPointOnBoundary(const VecS& x, const ParamT& t) const {
