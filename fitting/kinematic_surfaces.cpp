@@ -53,11 +53,14 @@ std::vector<double> GeneratrixSampleParameters(const BSplineBasis& basis) {
 }
 
 // The generatrix (r(u), z(u)) as a planar open curve, the model that a surface of revolution's feet reduce
-// to. Evaluated by the surfaces' own Generatrix, so the profile values are the surface's to the bit.
+// to. Evaluated by the same per-span power form as KinematicSurface::ProfileAt (built the same way from the
+// same basis and profile), so the profile values are the surface's to the bit.
 class GeneratrixCurve final : public ParametricModel {
  public:
   GeneratrixCurve(BSplineBasis basis, Eigen::Matrix2Xd profile)
-      : basis_(std::move(basis)), profile_(std::move(profile)) {}
+      : basis_(std::move(basis)), profile_(std::move(profile)) {
+    table_.Build(basis_, profile_);
+  }
   std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<GeneratrixCurve>(*this); }
   void CopyFrom(const ParametricModel& other) override {
     *this = dynamic_cast<const GeneratrixCurve&>(other);
@@ -81,23 +84,25 @@ class GeneratrixCurve final : public ParametricModel {
   }
   void set_parameters(const Eigen::VectorXd& p) override {
     profile_ = Eigen::Map<const Eigen::Matrix2Xd>(p.data(), 2, profile_.cols());
+    table_.Build(basis_, profile_);
   }
   void ApplySimilarity(double scale, const VecS& offset) override {
     profile_ *= scale;
     profile_.colwise() += Eigen::Vector2d(offset);
+    table_.Build(basis_, profile_);
   }
   void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override {
-    double rz[6];
-    GeneratrixValues(basis_, profile_, t[0], derivatives, rz);
+    double r[3][3];  // r[d][c]: derivative d of coordinate c (r, z)
+    table_.Evaluate(basis_, t[0], derivatives, r);
     out.point.resize(2);
     out.d1.resize(2, 1);
     out.d2.resize(2, 1);
-    out.point[0] = rz[0];
-    out.point[1] = rz[1];
-    out.d1(0, 0) = rz[2];
-    out.d1(1, 0) = rz[3];
-    out.d2(0, 0) = rz[4];
-    out.d2(1, 0) = rz[5];
+    out.point[0] = r[0][0];
+    out.point[1] = r[0][1];
+    out.d1(0, 0) = r[1][0];
+    out.d1(1, 0) = r[1][1];
+    out.d2(0, 0) = r[2][0];
+    out.d2(1, 0) = r[2][1];
   }
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override {
     out.clear();
@@ -125,6 +130,7 @@ class GeneratrixCurve final : public ParametricModel {
  private:
   BSplineBasis basis_;
   Eigen::Matrix2Xd profile_;
+  SpanPowerForm table_;  // of profile_, rebuilt whenever it changes
 };
 
 // The feet of a surface of revolution (pitch 0) with r(u) >= 0 everywhere, in x's meridian half-plane
