@@ -9,8 +9,9 @@ namespace s2m {
 namespace {
 
 // The generatrix (r(u), z(u)) and its first `derivatives` u-derivatives (at most 2): rz[2 d] = r^(d),
-// rz[2 d + 1] = z^(d); higher entries are zero. Plain sums over the order's control points (the foot points'
-// innermost loop).
+// rz[2 d + 1] = z^(d); higher entries are zero. Plain sums over the order's control points: the reference
+// that KinematicSurface::ProfileAt's per-span power form agrees with to rounding, and SpiralSurface's
+// generatrix.
 void GeneratrixValues(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile, double u, int derivatives,
                       double (&rz)[6]) {
   BSplineBasis::Values b;
