@@ -21,6 +21,32 @@ void Confine(const ParameterDomain& d, ParamT& t) {
   }
 }
 
+// Backtracking from t along step (step1 only for surfaces, m = 2): halves until f = |C - X|^2 / 2 (from
+// `half_residual2`, which reads `g`) does not increase beyond rounding, or takes the full step when
+// `below_rounding`. On success `trial`, `f` and `g` are the accepted point's; otherwise `g` is at t again.
+template <typename HalfResidual2>
+bool BacktrackingStep(const ParametricModel& model, const ParameterDomain& d, const ParamT& t, double step0,
+                      double step1, bool below_rounding, const HalfResidual2& half_residual2, double& f,
+                      LocalGeometry& g, ParamT& trial) {
+  double alpha = 1.0;
+  for (int ls = 0; ls < 30; ++ls, alpha *= 0.5) {
+    trial = t;  // keeps t[2] (a part's face index)
+    trial[0] += alpha * step0;
+    if (d.dimension > 1) trial[1] += alpha * step1;
+    Confine(d, trial);
+    model.Evaluate(trial, 2, g);
+    const double ft = half_residual2();
+    // Accept increases at rounding level: near the foot point f stalls before the orthogonality residual
+    // does.
+    if (below_rounding || ft <= f * (1.0 + 1e-13) + 1e-300) {
+      f = ft;
+      return true;
+    }
+  }
+  model.Evaluate(t, 2, g);
+  return false;
+}
+
 // s-vector dot product on raw storage (s = 2 or 3).
 double Dot(const double* a, const double* b, int s) {
   double sum = a[0] * b[0] + a[1] * b[1];
@@ -57,25 +83,10 @@ FootPoint RefineCurveFootPoint(const ParametricModel& model, const ParameterDoma
     if (std::abs(step) <= 1e-15 * span) break;
     const double predicted = -0.5 * grad * step;
     const bool below_rounding = predicted <= 1e-15 * std::sqrt(2.0 * f) * (g.point.norm() + x_norm);
-    double alpha = 1.0;
     ParamT trial = t;
-    bool improved = false;
-    for (int ls = 0; ls < 30; ++ls, alpha *= 0.5) {
-      trial = t;
-      trial[0] += alpha * step;
-      Confine(d, trial);
-      model.Evaluate(trial, 2, g);
-      const double ft = 0.5 * residual_norm2();
-      if (below_rounding || ft <= f * (1.0 + 1e-13) + 1e-300) {
-        improved = true;
-        f = ft;
-        break;
-      }
-    }
-    if (!improved) {
-      model.Evaluate(t, 2, g);
+    if (!BacktrackingStep(
+            model, d, t, step, 0.0, below_rounding, [&] { return 0.5 * residual_norm2(); }, f, g, trial))
       break;
-    }
     const double moved = std::abs(trial[0] - t[0]);
     t = trial;
     if (moved <= 1e-15 * span) break;
@@ -150,28 +161,11 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
     const double predicted = -0.5 * grad.dot(step);
     const bool below_rounding = predicted <= 1e-15 * std::sqrt(2.0 * f) * (g.point.norm() + x.norm());
     // Backtracking: halve until |C - X| decreases (the orthogonality residual may be far from zero).
-    double alpha = 1.0;
     ParamT trial = t;
-    bool improved = false;
-    for (int ls = 0; ls < 30; ++ls, alpha *= 0.5) {
-      trial = t;  // keeps t[2] (a part's face index)
-      trial[0] += alpha * step[0];
-      if (m > 1) trial[1] += alpha * step[1];
-      Confine(d, trial);
-      model.Evaluate(trial, 2, g);
-      const double ft = 0.5 * (g.point - x).squaredNorm();
-      // Accept increases at rounding level: near the foot point f stalls before the orthogonality residual
-      // does.
-      if (below_rounding || ft <= f * (1.0 + 1e-13) + 1e-300) {
-        improved = true;
-        f = ft;
-        break;
-      }
-    }
-    if (!improved) {
-      model.Evaluate(t, 2, g);
+    if (!BacktrackingStep(
+            model, d, t, step[0], step[1], below_rounding, [&] { return 0.5 * (g.point - x).squaredNorm(); },
+            f, g, trial))
       break;
-    }
     const double moved = std::abs(trial[0] - t[0]) + (m > 1 ? std::abs(trial[1] - t[1]) : 0.0);
     t = trial;
     r = g.point - x;
