@@ -43,10 +43,10 @@ std::pair<int, int> ParseControlPoints(const std::string& text, bool surface) {
   }
 }
 
-StepControl ParseStepControl(const std::string& s) {
-  if (s == "none") return StepControl::kNone;
-  if (s == "armijo") return StepControl::kArmijo;
-  return StepControl::kLevenbergMarquardt;
+StepStrategy ParseStepControl(const std::string& s) {
+  if (s == "none") return StepStrategy::kFullStep;
+  if (s == "armijo") return StepStrategy::kArmijo;
+  return StepStrategy::kTrustRegion;
 }
 
 // Points of the input: a point cloud, or one contour of a .glif glyph (2D).
@@ -188,9 +188,9 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     }
     GeometricFitOptions options;
     options.error_term = ErrorTermFromString(o.method.empty() ? "sdm" : o.method);
-    options.step_control = ParseStepControl(o.step_control);
+    options.optimizer.step_strategy = ParseStepControl(o.step_control);
     options.fairness = {o.stretch, o.bending};
-    options.max_iterations = o.max_iterations;
+    options.optimizer.max_iterations = o.max_iterations;
     const bool progress = o.interactive && !o.json && isatty(STDERR_FILENO);
     if (progress) {
       options.on_iteration = [](const IterationRecord& r) {
@@ -208,7 +208,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     j["input"] = {{"file", o.file}, {"format", format}, {"points", points.cols()}, {"units", units_out}};
     j["model"] = o.model;
     j["method"] = ToString(options.error_term);
-    j["step_control"] = ToString(options.step_control);
+    j["step_control"] = ToString(options.optimizer.step_strategy);
     j["fairness"] = {{"stretch", o.stretch}, {"bending", o.bending}};
     if (surface) {
       const auto& s = dynamic_cast<const BSplineSurface&>(*model);
@@ -248,7 +248,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     std::ostringstream text;
     text << "scan2model fit: " << model->name() << " (" << model->num_parameters() << " parameters) to "
          << points.cols() << " points of " << o.file << " (" << format << ", units " << units_out << ")\n\n"
-         << "  method            " << ToString(options.error_term) << " + " << ToString(options.step_control)
+         << "  method            " << ToString(options.error_term) << " + " << ToString(options.optimizer.step_strategy)
          << ", fairness stretch " << o.stretch << " bending " << o.bending << "\n"
          << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
          << Format(r.residuals.max_abs, 6) << "\n"

@@ -83,8 +83,8 @@ std::vector<IterationRecord> History(const FittingCase& c, ErrorTerm term, int b
   GeometricFitOptions o;
   o.error_term = term;
   o.fairness.bending = c.bending;
-  o.max_iterations = budget;
-  o.objective_tolerance = 0.0;  // run the full budget: we read the history
+  o.optimizer.max_iterations = budget;
+  o.optimizer.objective_tolerance = 0.0;  // run the full budget: we read the history
   try {
     return FitModel(*model, c.points, o).history;
   } catch (const std::exception& e) {

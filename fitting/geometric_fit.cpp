@@ -4,8 +4,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <sstream>
+
+#include "fitting/minimizer.h"
+#include "fitting/robust_loss.h"
 
 namespace s2m {
 namespace {
@@ -28,8 +32,10 @@ struct Normalization {
 };
 
 // Assembles H = sum J^T M J and g = sum C_P^T M r over all points (in parallel), METHOD.md sections 1-2.
+// `weights` (empty: all 1) are the robust loss's IRLS weights rho'(d_j^2) (docs/method.md eq. 15.6).
 void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std::vector<FootPoint>& feet,
-              const GeometricFitOptions& options, Eigen::MatrixXd& H, Eigen::VectorXd& g) {
+              const GeometricFitOptions& options, const Eigen::VectorXd& weights, Eigen::MatrixXd& H,
+              Eigen::VectorXd& g) {
   const int r = model.num_parameters();
   const int s = model.ambient_dimension();
   const Eigen::Index n = y.cols();
@@ -85,12 +91,14 @@ void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std:
       } else {
         M = ErrorMatrix(options.error_term, ComputePrincipalFrame(geo, x), s);
       }
+      if (weights.size() > 0) M *= weights[j];
+      const double w_gn = weights.size() > 0 ? weights[j] : 1.0;
       const Eigen::Vector3d m_residual = M * residual;
       for (std::size_t a = 0; a < entries.size(); ++a) {
         const Eigen::Vector3d m_col = M * columns[a];
         // The right-hand side is always C_P^T (M r) with the plain C_P (METHOD.md section 2).
-        g_local[entries[a].index] +=
-            gn && !foot.on_boundary ? entries[a].column.dot(residual) : entries[a].column.dot(m_residual);
+        g_local[entries[a].index] += gn && !foot.on_boundary ? w_gn * entries[a].column.dot(residual)
+                                                             : entries[a].column.dot(m_residual);
         for (std::size_t b = 0; b < entries.size(); ++b)
           h_local(entries[b].index, entries[a].index) += columns[b].dot(m_col);
       }
@@ -101,12 +109,6 @@ void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std:
       g += g_local;
     }
   }
-}
-
-double DataObjective(const std::vector<FootPoint>& feet) {
-  double f = 0.0;
-  for (const FootPoint& p : feet) f += 0.5 * p.distance * p.distance;
-  return f;
 }
 
 // LDLT with diagonal pivoting reveals the rank of a positive semidefinite matrix: tiny trailing pivots.
@@ -132,7 +134,7 @@ std::optional<std::string> UnobservableShape(const ParametricModel& model, const
   normal_space.error_term = ErrorTerm::kGtdm;
   Eigen::MatrixXd Hn;
   Eigen::VectorXd unused;
-  Assemble(model, y, feet, normal_space, Hn, unused);
+  Assemble(model, y, feet, normal_space, Eigen::VectorXd(), Hn, unused);
   if (K.size() > 0) Hn += 2.0 * K;
   const double top_n = std::max(Hn.diagonal().cwiseAbs().maxCoeff(), 1e-300);
   Eigen::VectorXd weight = Eigen::VectorXd::Zero(H.rows());
@@ -237,17 +239,140 @@ ErrorTerm ErrorTermFromString(const std::string& name) {
   throw std::invalid_argument("unknown error term '" + name + "' (pdm, tdm, sdm, cdm, gtdm, gn)");
 }
 
-const char* ToString(StepControl control) {
-  switch (control) {
-    case StepControl::kNone:
-      return "none";
-    case StepControl::kLevenbergMarquardt:
-      return "levenberg-marquardt";
-    case StepControl::kArmijo:
-      return "armijo";
+namespace {
+
+// A geometric fit as the minimizer's problem (docs/method.md sections 1-4 and 14): the state is the model (in
+// the unit box) and its exact foot points; a linearization is the normal equations of the chosen error term
+// at those feet (Assemble), weighted by the robust loss; a trial moves the shape parameters and recomputes
+// the feet, warm-started from the current ones.
+class GeometricFitProblem : public NonlinearProblem {
+ public:
+  GeometricFitProblem(std::unique_ptr<ParametricModel> model, const Eigen::MatrixXd& y, double unit,
+                      const GeometricFitOptions& options)
+      : model_(std::move(model)),
+        y_(y),
+        unit_(unit),
+        options_(options),
+        weighting_(options.optimizer.loss),
+        normal_(options.optimizer.damping.diagonal_floor) {
+    weighting_.set_units(unit_);
+    fairness_ = model_->FairnessMatrix(options.fairness);
+    ComputeFootPoints(*model_, y_, feet_);
+    UpdateWeights();
+    cost_ = Objective(*model_, feet_);
   }
-  return "unknown";
-}
+
+  double Cost() const override { return cost_; }
+
+  LinearSystem& Linearize() override {
+    if (weighting_.is_robust()) {  // the scale follows the current residuals (eq. 15.5)
+      UpdateWeights();
+      cost_ = Objective(*model_, feet_);
+    }
+    Assemble(*model_, y_, feet_, options_, weights_, normal_.H(), normal_.g());
+    if (fairness_.size() > 0) {
+      normal_.H() += 2.0 * fairness_;
+      normal_.g() += 2.0 * fairness_ * model_->parameters();
+    }
+    // A singular normal matrix means the error term leaves directions unconstrained. Without damping no step
+    // can be taken: say which directions, don't guess. With LM a transient singularity (a far start) is
+    // damped, but one that persists to the end is reported (FitModel) instead of being hidden.
+    last_singular_ = IsSingular(Eigen::LDLT<Eigen::MatrixXd>(normal_.H()));
+    if (last_singular_ && options_.optimizer.step_strategy != StepStrategy::kTrustRegion &&
+        !checked_singular_) {
+      checked_singular_ = true;  // classify once: the eigen-decomposition is not for every iteration
+      ThrowIfUnobservable();
+    }
+    return normal_;
+  }
+
+  double EvaluateTrial(const Eigen::VectorXd& step, bool /*final_if_accepted*/) override {
+    trial_ = model_->Clone();
+    trial_->ApplyStep(step);
+    ComputeFootPoints(*trial_, y_, trial_feet_, &feet_);
+    trial_cost_ = Objective(*trial_, trial_feet_);
+    return std::isfinite(trial_cost_) ? trial_cost_ : std::numeric_limits<double>::infinity();
+  }
+
+  void AcceptTrial() override {
+    model_ = std::move(trial_);
+    feet_.swap(trial_feet_);
+    cost_ = trial_cost_;
+  }
+
+  double ParameterNorm() const override { return model_->parameters().norm(); }
+
+  void DescribeState(IterationRecord& record) const override {
+    double sum = 0.0;
+    record.max_distance = 0.0;
+    for (const FootPoint& p : feet_) {
+      sum += p.distance * p.distance;
+      record.max_distance = std::max(record.max_distance, p.distance * unit_);
+    }
+    record.rms = std::sqrt(sum / static_cast<double>(y_.cols())) * unit_;
+  }
+
+  std::optional<StopReason> AfterIteration(const IterationSummary& summary,
+                                           std::optional<StopReason> proposed) override {
+    if (options_.on_iteration) options_.on_iteration(summary.record);
+    if (!std::isfinite(summary.record.rms)) {
+      throw std::runtime_error("the fit diverged (RMS is not finite after iteration " +
+                               std::to_string(summary.record.iteration) + ")");
+    }
+    return proposed;
+  }
+
+  void ThrowIfUnobservable() const {
+    if (auto message = UnobservableShape(*model_, y_, feet_, options_, normal_.H(), fairness_))
+      throw SingularSystemError(*message);
+  }
+
+  bool last_singular() const { return last_singular_; }
+  ParametricModel& model() { return *model_; }
+  std::vector<FootPoint>& feet() { return feet_; }
+  const RobustWeighting& weighting() const { return weighting_; }
+  Eigen::VectorXd FinalWeights() const {
+    Eigen::VectorXd w(static_cast<Eigen::Index>(feet_.size()));
+    for (std::size_t j = 0; j < feet_.size(); ++j)
+      w[static_cast<Eigen::Index>(j)] = weighting_.Weight(feet_[j].distance);
+    return w;
+  }
+
+ private:
+  // 1/2 sum rho(d_j^2) + P^T K P (docs/method.md eqs. 1.1, 3.1 and 15.6).
+  double Objective(const ParametricModel& m, const std::vector<FootPoint>& feet) const {
+    double f = 0.0;
+    for (const FootPoint& p : feet) f += 0.5 * weighting_.Rho(p.distance);
+    if (fairness_.size() > 0) {
+      const Eigen::VectorXd p = m.parameters();
+      f += p.dot(fairness_ * p);
+    }
+    return f;
+  }
+
+  void UpdateWeights() {
+    if (!weighting_.is_robust()) return;
+    Eigen::VectorXd d(static_cast<Eigen::Index>(feet_.size()));
+    for (std::size_t j = 0; j < feet_.size(); ++j) d[static_cast<Eigen::Index>(j)] = feet_[j].distance;
+    weighting_.Update(d);
+    weights_.resize(d.size());
+    for (Eigen::Index j = 0; j < d.size(); ++j) weights_[j] = weighting_.Weight(d[j]);
+  }
+
+  std::unique_ptr<ParametricModel> model_, trial_;
+  const Eigen::MatrixXd& y_;
+  double unit_;
+  const GeometricFitOptions& options_;
+  RobustWeighting weighting_;
+  Eigen::VectorXd weights_;  // empty for plain least squares
+  Eigen::MatrixXd fairness_;
+  DenseNormalEquations normal_;
+  std::vector<FootPoint> feet_, trial_feet_;
+  double cost_ = 0.0, trial_cost_ = 0.0;
+  bool last_singular_ = false, checked_singular_ = false;
+};
+
+}  // namespace
 
 GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& points,
                             const GeometricFitOptions& options) {
@@ -261,7 +386,6 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
   if (!model.parameters().allFinite())
     throw std::invalid_argument("the initial " + model.name() + " has NaN or inf parameters");
   const auto start = Clock::now();
-  const double n = static_cast<double>(points.cols());
 
   // Normalize data and model into the unit box (METHOD.md section 3).
   Normalization norm;
@@ -275,139 +399,20 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
   std::unique_ptr<ParametricModel> current = model.Clone();
   current->ApplySimilarity(1.0 / norm.scale, VecS(-norm.offset / norm.scale));
 
-  const Eigen::MatrixXd K = current->FairnessMatrix(options.fairness);
-  auto fairness_energy = [&](const ParametricModel& m) {
-    if (K.size() == 0) return 0.0;
-    const Eigen::VectorXd p = m.parameters();
-    return p.dot(K * p);
-  };
+  GeometricFitProblem problem(std::move(current), y, norm.scale, options);
+  const MinimizerSummary summary = TrustRegionMinimizer(options.optimizer).Minimize(problem, 0, start);
+  if (problem.last_singular()) problem.ThrowIfUnobservable();
 
   GeometricFitResult result;
-  std::vector<FootPoint> feet, trial_feet;
-  ComputeFootPoints(*current, y, feet);
-  double f = DataObjective(feet) + fairness_energy(*current);
-  double lambda = options.initial_damping;
-  Eigen::MatrixXd H;
-  Eigen::VectorXd g;
-  auto rms_of = [&](const std::vector<FootPoint>& ft) {
-    return std::sqrt(2.0 * DataObjective(ft) / n) * norm.scale;
-  };
-  double rms = rms_of(feet);
-
-  bool last_singular = false, checked_singular = false;
-  result.stop_reason = StopReason::kMaxIterations;
-  if (options.target_rms > 0 && rms <= options.target_rms) result.stop_reason = StopReason::kTargetReached;
-  while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
-    Assemble(*current, y, feet, options, H, g);
-    if (K.size() > 0) {
-      H += 2.0 * K;
-      g += 2.0 * K * current->parameters();
-    }
-    const double g_scale =
-        1.0 + std::sqrt(2.0 * DataObjective(feet)) * std::sqrt(H.diagonal().cwiseAbs().maxCoeff());
-    if (g.norm() <= options.gradient_tolerance * g_scale) {
-      result.stop_reason = StopReason::kGradientTolerance;
-      break;
-    }
-    // A singular normal matrix means the error term leaves directions unconstrained. Without damping no step
-    // can be taken: say which directions, don't guess. With LM a transient singularity (a far start) is
-    // damped, but one that persists to the end is reported (below) instead of being hidden.
-    Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
-    last_singular = IsSingular(ldlt);
-    if (last_singular && options.step_control != StepControl::kLevenbergMarquardt && !checked_singular) {
-      checked_singular = true;  // classify once: the eigen-decomposition is not for every iteration
-      if (auto message = UnobservableShape(*current, y, feet, options, H, K))
-        throw SingularSystemError(*message);
-    }
-    Eigen::VectorXd step;
-    const double previous_objective = f;
-    double used_damping = 0.0;
-    bool accepted = false;
-    const double p_norm = current->parameters().norm();
-    if (options.step_control == StepControl::kLevenbergMarquardt) {
-      // The floor keeps damping effective in (near-)null directions, where diag(H) alone would vanish.
-      const double floor = 1e-6 * H.diagonal().cwiseAbs().maxCoeff();
-      while (true) {
-        Eigen::MatrixXd A = H;
-        A.diagonal() += lambda * H.diagonal().cwiseAbs().cwiseMax(floor);
-        step = A.ldlt().solve(-g);
-        if (step.norm() <= options.step_tolerance * (1.0 + p_norm)) break;
-        std::unique_ptr<ParametricModel> trial = current->Clone();
-        trial->ApplyStep(step);
-        ComputeFootPoints(*trial, y, trial_feet, &feet);
-        const double ft = DataObjective(trial_feet) + fairness_energy(*trial);
-        if (ft < f) {
-          used_damping = lambda;
-          lambda = std::max(lambda * 0.1, 1e-12);
-          current = std::move(trial);
-          feet.swap(trial_feet);
-          f = ft;
-          accepted = true;
-          break;
-        }
-        lambda *= 10.0;
-        if (lambda > 1e16) break;
-      }
-    } else {
-      step = ldlt.solve(-g);
-      double alpha = 1.0;
-      for (int ls = 0; ls < (options.step_control == StepControl::kArmijo ? 40 : 1); ++ls, alpha *= 0.5) {
-        if (alpha * step.norm() <= options.step_tolerance * (1.0 + p_norm)) break;
-        std::unique_ptr<ParametricModel> trial = current->Clone();
-        trial->ApplyStep(alpha * step);
-        ComputeFootPoints(*trial, y, trial_feet, &feet);
-        const double ft = DataObjective(trial_feet) + fairness_energy(*trial);
-        // Armijo: sufficient decrease along the step (g is the gradient of the objective).
-        if (options.step_control == StepControl::kNone || ft <= f + options.armijo_c * alpha * g.dot(step)) {
-          current = std::move(trial);
-          feet.swap(trial_feet);
-          f = ft;
-          accepted = true;
-          step *= alpha;
-          break;
-        }
-      }
-    }
-    if (!accepted) {
-      result.stop_reason = step.norm() <= options.step_tolerance * (1.0 + p_norm)
-                               ? StopReason::kStepTolerance
-                               : StopReason::kNoFurtherDecrease;
-      break;
-    }
-    ++result.iterations;
-    const double new_rms = rms_of(feet);
-    IterationRecord rec;
-    rec.iteration = result.iterations;
-    rec.rms = new_rms;
-    for (const FootPoint& p : feet) rec.max_distance = std::max(rec.max_distance, p.distance * norm.scale);
-    rec.objective = f;
-    rec.damping = used_damping;
-    rec.step_norm = step.norm();
-    rec.seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    result.history.push_back(rec);
-    if (options.on_iteration) options.on_iteration(rec);
-    if (!std::isfinite(new_rms)) {
-      throw std::runtime_error("the fit diverged (RMS is not finite after iteration " +
-                               std::to_string(result.iterations) + ")");
-    }
-    const double relative_decrease =
-        previous_objective > 0 ? (previous_objective - f) / previous_objective : 0.0;
-    rms = new_rms;
-    if (options.target_rms > 0 && rms <= options.target_rms) {
-      result.stop_reason = StopReason::kTargetReached;
-    } else if (step.norm() <= options.step_tolerance * (1.0 + p_norm)) {
-      result.stop_reason = StopReason::kStepTolerance;
-    } else if (std::abs(relative_decrease) <= options.objective_tolerance) {
-      result.stop_reason = StopReason::kObjectiveTolerance;
-    }
-  }
-
-  if (last_singular) {
-    if (auto message = UnobservableShape(*current, y, feet, options, H, K))
-      throw SingularSystemError(*message);
-  }
-  current->ApplySimilarity(norm.scale, norm.offset);
-  model.CopyFrom(*current);
+  result.iterations = summary.iterations;
+  result.stop_reason = summary.stop_reason;
+  result.history = summary.history;
+  result.loss_scale = problem.weighting().scale();
+  result.weights = problem.FinalWeights();
+  ParametricModel& fitted = problem.model();
+  fitted.ApplySimilarity(norm.scale, norm.offset);
+  model.CopyFrom(fitted);
+  std::vector<FootPoint>& feet = problem.feet();
   Eigen::VectorXd d(static_cast<Eigen::Index>(feet.size()));
   for (std::size_t j = 0; j < feet.size(); ++j) {
     feet[j].distance *= norm.scale;

@@ -11,6 +11,7 @@
 
 #include "fitting/fit_result.h"
 #include "fitting/foot_point.h"
+#include "fitting/optimizer_options.h"
 #include "fitting/parametric_model.h"
 
 namespace s2m {
@@ -33,39 +34,33 @@ Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s);
 Eigen::Matrix3d EndRuleMatrix(ErrorTerm term, const PrincipalFrame& f, const Eigen::Vector3d& offset, int s);
 ErrorTerm ErrorTermFromString(const std::string& name);  // "pdm", "tdm", ...; throws std::invalid_argument
 
-enum class StepControl {
-  kNone,                // take the full step (how TDM and PDM are usually run)
-  kLevenbergMarquardt,  // damping lambda * diag(H), true objective re-evaluated at new foot points (default)
-  kArmijo,              // backtracking on the full step until sufficient decrease
-};
-const char* ToString(StepControl control);
-
 struct GeometricFitOptions {
   ErrorTerm error_term = ErrorTerm::kSdm;
-  StepControl step_control = StepControl::kLevenbergMarquardt;
   // Fairness weights, applied to data normalized into the unit box (METHOD.md section 3): curves alpha
   // (stretch) and beta (bending); surfaces membrane and thin plate. Paper default for curves: bending 0.001.
   FairnessWeights fairness;
   bool normalize = true;      // scale data and model into the unit box while fitting
   bool open_end_rule = true;  // METHOD.md section 4 for points whose foot point lies on an open boundary
-  int max_iterations = 100;
-  double target_rms = 0.0;  // stop as soon as RMS (input units) <= target (0: off)
-  double objective_tolerance =
-      1e-10;                      // stop when the objective's relative decrease in an iteration falls below
-  double step_tolerance = 1e-12;  // on |D| / (1 + |P|), normalized units
-  double gradient_tolerance = 1e-13;  // on |g| / (1 + sum |C_P^T r|), normalized units
-  double initial_damping = 1e-4;      // LM lambda relative to diag(H)
-  double armijo_c = 1e-4;
+  // Termination, damping, step strategy (trust region by default; full step and Armijo backtracking are the
+  // baselines) and the robust loss: the one minimizer's options (optimizer_options.h). Tolerances are in the
+  // normalized units of the unit box, the target RMS in input units. The defaults are the minimizer's: at
+  // most 100 iterations, relative decrease 1e-10, step 1e-12, first-order optimality 1e-13, damping from 1e-4
+  // relative to diag(H).
+  OptimizerOptions optimizer;
   // Called after every iteration (progress on long fits).
   std::function<void(const IterationRecord&)> on_iteration;
 };
 
 struct GeometricFitResult {
-  ResidualStatistics residuals;  // at exact foot points, input units
+  ResidualStatistics residuals;  // at exact foot points, input units (all points, robust or not)
   int iterations = 0;
   StopReason stop_reason = StopReason::kMaxIterations;
   std::vector<IterationRecord> history;
   std::vector<FootPoint> foot_points;  // of the final model, distances in input units
+  // Robust fits: the loss scale at the end (input units; estimated or given) and each point's final IRLS
+  // weight rho'(d^2) (1 for plain least squares; Tukey's 0 marks a rejected point).
+  double loss_scale = 0.0;
+  Eigen::VectorXd weights;
 };
 
 // Thrown when the normal matrix of the chosen error term is singular (e.g. plain TDM for a curve in 3D fitted

@@ -39,7 +39,7 @@ enum class DampingScaling {
 const char* ToString(DampingScaling scaling);
 
 struct LeastSquaresOptions {
-  int max_iterations = 1000;          // accepted and rejected steps together
+  int max_iterations = 1000;          // accepted steps (minimizer.h)
   double function_tolerance = 1e-16;  // on the relative reduction of the cost, actual and predicted
   double step_tolerance = 1e-16;      // on |D dx| relative to |D x|
   double gradient_tolerance = 1e-16;  // on max |J^T r| relative to |J|_max |r|

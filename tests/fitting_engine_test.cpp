@@ -412,7 +412,7 @@ std::vector<double> RmsHistory(ErrorTerm term, const ZeroResidualCase& c, int it
   BSplineCurve curve(UnitSpacedPeriodic(4, 8), c.start);
   GeometricFitOptions o;
   o.error_term = term;
-  o.max_iterations = iterations;
+  o.optimizer.max_iterations = iterations;
   std::vector<double> rms;
   for (const IterationRecord& r : FitModel(curve, c.points, o).history) rms.push_back(r.rms);
   return rms;
@@ -471,8 +471,8 @@ int IterationsToRms(ErrorTerm term, double target) {
   BSplineCurve curve(UnitSpacedPeriodic(4, 8), CircleStart());
   GeometricFitOptions o;
   o.error_term = term;
-  o.target_rms = target;
-  o.max_iterations = 1000;
+  o.optimizer.target_rms = target;
+  o.optimizer.max_iterations = 1000;
   const GeometricFitResult r = FitModel(curve, SparseCirclePoints(), o);
   return r.stop_reason == StopReason::kTargetReached ? r.iterations : 1000000;
 }
@@ -501,16 +501,16 @@ Eigen::MatrixXd SquarePoints() {
   return x;
 }
 
-double SquareFit(ErrorTerm term, StepControl control) {
+double SquareFit(ErrorTerm term, StepStrategy control) {
   Eigen::MatrixXd p(2, 12);
   for (int i = 0; i < 12; ++i)
     p.col(i) << 0.4 + 0.3 * std::cos(i * M_PI / 6), 0.3 + 0.3 * std::sin(i * M_PI / 6);
   BSplineCurve curve(UnitSpacedPeriodic(4, 12), p);
   GeometricFitOptions o;
   o.error_term = term;
-  o.step_control = control;
+  o.optimizer.step_strategy = control;
   o.fairness.bending = 0.001;  // the paper's default in the unit box
-  o.max_iterations = 200;
+  o.optimizer.max_iterations = 200;
   try {
     return FitModel(curve, SquarePoints(), o).residuals.rms;
   } catch (const std::exception&) {  // divergence to non-finite values or a singular system: no fit
@@ -518,12 +518,12 @@ double SquareFit(ErrorTerm term, StepControl control) {
   }
 }
 
-TEST(ErrorTerms, OnASquareSdmFitsWhileTdmNeedsStepControl) {
-  const double sdm = SquareFit(ErrorTerm::kSdm, StepControl::kNone);
-  const double tdm = SquareFit(ErrorTerm::kTdm, StepControl::kNone);
-  const double tdm_armijo = SquareFit(ErrorTerm::kTdm, StepControl::kArmijo);
+TEST(ErrorTerms, OnASquareSdmFitsWhileTdmNeedsStepStrategy) {
+  const double sdm = SquareFit(ErrorTerm::kSdm, StepStrategy::kFullStep);
+  const double tdm = SquareFit(ErrorTerm::kTdm, StepStrategy::kFullStep);
+  const double tdm_armijo = SquareFit(ErrorTerm::kTdm, StepStrategy::kArmijo);
   EXPECT_LT(sdm, 0.005) << "SDM without step control";
-  EXPECT_LT(SquareFit(ErrorTerm::kSdm, StepControl::kLevenbergMarquardt), 0.005);
+  EXPECT_LT(SquareFit(ErrorTerm::kSdm, StepStrategy::kTrustRegion), 0.005);
   EXPECT_GT(tdm, 10 * sdm) << "plain TDM was expected to fail from this start";
   EXPECT_LT(tdm_armijo, 0.005) << "TDM with Armijo backtracking";
 }
@@ -551,11 +551,11 @@ TEST(ErrorTerms, GtdmFitsA3DEllipseFromAFarStart) {
 }
 
 TEST(ErrorTerms, PlainTdmOnA3DCurveIsReportedSingular) {
-  for (StepControl control : {StepControl::kNone, StepControl::kLevenbergMarquardt}) {
+  for (StepStrategy control : {StepStrategy::kFullStep, StepStrategy::kTrustRegion}) {
     Ellipse3D e({0.5, -0.4, 0.0}, Eigen::Matrix3d::Identity(), 2.5, 0.6);
     GeometricFitOptions o;
     o.error_term = ErrorTerm::kTdm;
-    o.step_control = control;
+    o.optimizer.step_strategy = control;
     try {
       FitModel(e, EllipsePoints(), o);
       ADD_FAILURE() << "no error for plain TDM with " << ToString(control);
@@ -610,7 +610,7 @@ TEST(GeometricFit, ResultsAreReportedInInputUnitsWhateverTheScale) {
                        (CircleStart() * scale).colwise() + Eigen::Vector2d(3e6, -2e6));
     GeometricFitOptions o;
     o.fairness.bending = 1e-3;
-    o.max_iterations = 30;
+    o.optimizer.max_iterations = 30;
     rms[k] = FitModel(curve, (x * scale).colwise() + Eigen::Vector2d(3e6, -2e6), o).residuals.rms / scale;
   }
   EXPECT_NEAR(rms[0], rms[1], 1e-6 * rms[0]);
@@ -626,7 +626,7 @@ TEST(GeometricFit, SurfaceFromAPlaneProjectionFitsAWavySheet) {
   }
   BSplineSurface surface = InitialSurfaceByProjection(x, 7, 7, 4, SurfaceProjection::kPlane);
   GeometricFitOptions o;
-  o.max_iterations = 15;
+  o.optimizer.max_iterations = 15;
   const GeometricFitResult r = FitModel(surface, x, o);
   EXPECT_LT(r.residuals.rms, 1e-3);
   EXPECT_LT(r.residuals.rms, r.history.front().rms);
@@ -644,7 +644,7 @@ TEST(GeometricFit, SurfaceFromACylinderProjectionFitsABulgedTube) {
   BSplineSurface surface = InitialSurfaceByProjection(x, 8, 6, 4, SurfaceProjection::kCylinder);
   EXPECT_TRUE(surface.basis_u().periodic());
   GeometricFitOptions o;
-  o.max_iterations = 15;
+  o.optimizer.max_iterations = 15;
   EXPECT_LT(FitModel(surface, x, o).residuals.rms, 2e-3);
 }
 
@@ -659,7 +659,7 @@ TEST(GeometricFit, GlyphOutlinesFitByClosedCubicSplines) {
           InitialCurveFromQuadtree(contour, std::max(8, static_cast<int>(contour.cols() / 8)), 4, true);
       GeometricFitOptions o;
       o.fairness.bending = 1e-4;
-      o.max_iterations = 100;
+      o.optimizer.max_iterations = 100;
       const GeometricFitResult r = FitModel(curve, contour, o);
       const double diagonal = (contour.rowwise().maxCoeff() - contour.rowwise().minCoeff()).norm();
       EXPECT_LT(r.residuals.rms, 2.5e-4 * diagonal)
@@ -680,8 +680,8 @@ TEST(GeometricFit, PrimitivesPlugIntoTheEngineAndReachTheNistReference) {
   for (ErrorTerm term : {ErrorTerm::kTdm, ErrorTerm::kSdm, ErrorTerm::kGn}) {
     GeometricFitOptions o;
     o.error_term = term;
-    o.max_iterations = 200;
-    o.objective_tolerance = 0.0;  // certified accuracy: stop on the step or gradient only
+    o.optimizer.max_iterations = 200;
+    o.optimizer.objective_tolerance = 0.0;  // certified accuracy: stop on the step or gradient only
     Cylinder start = cyl_ref;
     start.axis_point += Eigen::Vector3d(0.5, -0.3, 0.2);
     start.axis_direction = (start.axis_direction + Eigen::Vector3d(0.02, 0.03, -0.01)).normalized();

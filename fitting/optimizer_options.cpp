@@ -1,0 +1,69 @@
+#include "fitting/optimizer_options.h"
+
+#include <cmath>
+
+namespace s2m {
+namespace {
+
+bool Fail(std::string* why, const std::string& message) {
+  if (why) *why = message;
+  return false;
+}
+
+bool Positive(double v) {
+  return std::isfinite(v) && v > 0.0;
+}
+bool NonNegative(double v) {
+  return std::isfinite(v) && v >= 0.0;
+}
+
+}  // namespace
+
+const char* ToString(DampingUpdate update) {
+  switch (update) {
+    case DampingUpdate::kMultiplicative:
+      return "multiplicative";
+    case DampingUpdate::kNielsen:
+      return "nielsen";
+  }
+  return "unknown";
+}
+
+const char* ToString(StepStrategy strategy) {
+  switch (strategy) {
+    case StepStrategy::kTrustRegion:
+      return "levenberg-marquardt";
+    case StepStrategy::kFullStep:
+      return "none";
+    case StepStrategy::kArmijo:
+      return "armijo";
+  }
+  return "unknown";
+}
+
+bool DampingOptions::IsValid(std::string* why) const {
+  if (!NonNegative(initial)) return Fail(why, "damping.initial must be finite and >= 0");
+  if (!NonNegative(min)) return Fail(why, "damping.min must be finite and >= 0");
+  if (!(max > 0.0) || std::isnan(max)) return Fail(why, "damping.max must be > 0");
+  if (min > max) return Fail(why, "damping.min must not exceed damping.max");
+  if (update == DampingUpdate::kMultiplicative) {
+    if (!(increase > 1.0) || !std::isfinite(increase)) return Fail(why, "damping.increase must be > 1");
+    if (!(decrease > 0.0 && decrease < 1.0)) return Fail(why, "damping.decrease must be in (0, 1)");
+  }
+  if (!NonNegative(diagonal_floor)) return Fail(why, "damping.diagonal_floor must be finite and >= 0");
+  return true;
+}
+
+bool OptimizerOptions::IsValid(std::string* why) const {
+  if (max_iterations < 0) return Fail(why, "max_iterations must be >= 0");
+  if (!NonNegative(objective_tolerance)) return Fail(why, "objective_tolerance must be finite and >= 0");
+  if (!NonNegative(step_tolerance)) return Fail(why, "step_tolerance must be finite and >= 0");
+  if (!NonNegative(gradient_tolerance)) return Fail(why, "gradient_tolerance must be finite and >= 0");
+  if (!NonNegative(target_rms)) return Fail(why, "target_rms must be finite and >= 0");
+  if (!Positive(armijo_c) || armijo_c >= 1.0) return Fail(why, "armijo_c must be in (0, 1)");
+  if (loss.is_robust() && (std::isnan(loss.scale) || loss.scale < 0.0 || std::isinf(loss.scale)))
+    return Fail(why, "the loss scale must be finite and >= 0 (0: from the data)");
+  return damping.IsValid(why);
+}
+
+}  // namespace s2m
