@@ -11,7 +11,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "fitting/covariance.h"
 #include "fitting/foot_point.h"
+#include "registration/rigid_step.h"
 
 namespace s2m {
 namespace {
@@ -28,15 +30,6 @@ Eigen::MatrixXd GaugeComplement(const std::vector<Motion6>& gauge) {
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(g);
   const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(6, 6);
   return q.rightCols(6 - qr.rank());
-}
-
-// The linearized motion of a point x: x' = x + cbar + c x x = x + A [c; cbar], A = [-[x]x  I].
-Eigen::Matrix<double, 3, 6> MotionJacobian(const Eigen::Vector3d& x) {
-  Eigen::Matrix<double, 3, 6> a;
-  a << 0.0, x.z(), -x.y(), 1.0, 0.0, 0.0,  //
-      -x.z(), 0.0, x.x(), 0.0, 1.0, 0.0,   //
-      x.y(), -x.x(), 0.0, 0.0, 0.0, 1.0;
-  return a;
 }
 
 struct State {
@@ -557,13 +550,14 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     block_offset.push_back({offset_b, b});
     offset_b += sys.basis[b].cols();
   }
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(full);
-  const double top = std::max(eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-300);
+  // Its eigen-decomposition, once, gives the null directions and the covariance (EstimateCovariance, unit
+  // weights: sum d^2 in the normalized units over the points used).
+  const double sum_of_squares = std::pow(result.residuals.rms / scale, 2) * static_cast<double>(state.used);
+  const CovarianceEstimate estimate =
+      EstimateCovariance(full, sum_of_squares, static_cast<double>(state.used));
   static const char* kMotionNames[6] = {"rotation x",    "rotation y",    "rotation z",
                                         "translation x", "translation y", "translation z"};
-  for (Eigen::Index i = 0; i < dim; ++i) {
-    if (eig.eigenvalues()[i] > 1e-10 * top) continue;
-    const Eigen::VectorXd v = eig.eigenvectors().col(i);
+  for (const Eigen::VectorXd& v : estimate.null_directions) {
     // Name it by its largest components (shape parameters, or scans' motions mapped back to (c, cbar)):
     // those within half of the largest, the three largest spelled out, e.g. "top[1,1] + top[1,2] +
     // scan 3 translation z + 20 more" for a common shift that displacements absorb.
@@ -599,34 +593,21 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
   // along the profile, a re-parametrization) keep valid uncertainties through shape_covariance; a single
   // parameter or pose component that moves along them gets NaN.
   if (state.used > dim) {
-    const double variance = std::pow(result.residuals.rms / scale, 2) * static_cast<double>(state.used) /
-                            static_cast<double>(state.used - dim);
-    Eigen::VectorXd inverse = Eigen::VectorXd::Zero(dim);
-    Eigen::VectorXd null_weight = Eigen::VectorXd::Zero(dim);  // per unknown: its share of null directions
-    for (Eigen::Index i = 0; i < dim; ++i) {
-      if (eig.eigenvalues()[i] > 1e-10 * top) {
-        inverse[i] = 1.0 / eig.eigenvalues()[i];
-      } else {
-        null_weight += eig.eigenvectors().col(i).cwiseAbs2();
-      }
-    }
-    const Eigen::MatrixXd cov =
-        variance * eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
-    constexpr double kTouches = 1e-6;  // a squared component this large along a null direction
+    const Eigen::MatrixXd& cov = estimate.covariance;
+    const Eigen::VectorXd& null_weight = estimate.null_share;  // per unknown: its share of null directions
+    // A pose component is touched by the null directions by the same rule as a parameter.
+    const double touch_threshold = CovarianceOptions{}.touch_threshold;
     const double nan = std::numeric_limits<double>::quiet_NaN();
     result.shape_covariance = cov.topLeftCorner(r, r) * (scale * scale);
-    result.shape_uncertainty.resize(r);
-    for (int i = 0; i < r; ++i) {
-      result.shape_uncertainty[i] =
-          null_weight[i] > kTouches ? nan : std::sqrt(std::max(cov(i, i), 0.0)) * scale;
-    }
+    result.shape_uncertainty = estimate.standard_uncertainty.head(r) * scale;
     for (const auto& [offset_k, k] : block_offset) {
       const Eigen::MatrixXd& B = sys.basis[k];
       const Eigen::Index q = B.cols();
       const Eigen::Matrix<double, 6, 6> c6 = B * cov.block(offset_k, offset_k, q, q) * B.transpose();
       const Motion6 touched = B.cwiseAbs2() * null_weight.segment(offset_k, q);
       Motion6 sigma;
-      for (int c = 0; c < 6; ++c) sigma[c] = touched[c] > kTouches ? nan : std::sqrt(std::max(c6(c, c), 0.0));
+      for (int c = 0; c < 6; ++c)
+        sigma[c] = touched[c] > touch_threshold ? nan : std::sqrt(std::max(c6(c, c), 0.0));
       ScanPoseUncertainty u;
       u.rotation = sigma.head<3>();
       u.translation = sigma.tail<3>() * scale;

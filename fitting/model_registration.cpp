@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "fitting/foot_point.h"
+#include "registration/principal_curvatures.h"
 #include "registration/rigid_step.h"
 
 namespace s2m {
@@ -26,8 +27,8 @@ double MeanSquare(const std::vector<FootPoint>& feet) {
 // the unit normal n = C_u x C_v / |C_u x C_v|; SDM adds the principal directions T_k with the weights
 // SdmWeight(delta, kappa_k) (METHOD.md section 2), the principal curvatures and directions being the
 // eigenpairs of the shape operator S = I^-1 II (first and second fundamental forms; do Carmo, section 3-3),
-// solved in closed form. The same M as ComputePrincipalFrame + ErrorMatrix (up to rounding) without their
-// general eigen-solver and 3 x 3 matrices. False (nothing added) for a degenerate metric: the caller falls
+// solved in closed form (SolvePrincipalCurvatures). The same M as ComputePrincipalFrame + ErrorMatrix (up to
+// rounding) without their 3 x 3 matrices. False (nothing added) for a degenerate metric: the caller falls
 // back to the general path.
 bool AddSurfaceDirections(ErrorTerm term, const LocalGeometry& g, const Eigen::Vector3d& x, double weight,
                           RigidNormalEquations& eq) {
@@ -42,25 +43,23 @@ bool AddSurfaceDirections(ErrorTerm term, const LocalGeometry& g, const Eigen::V
     n = -n;
     delta = -delta;
   }
-  eq.AddDirection(x, n, weight, delta);
-  if (term == ErrorTerm::kTdm) return true;
+  if (term == ErrorTerm::kTdm) {
+    eq.AddDirection(x, n, weight, delta);
+    return true;
+  }
+  Eigen::Matrix2d first, second;
+  first << e, f, f, gg;
   const double l = n.dot(To3(g.d2.col(0))), m = n.dot(To3(g.d2.col(1))), nn = n.dot(To3(g.d2.col(2)));
-  // S = I^-1 II with I^-1 = [gg -f; -f e] / det.
-  const double s00 = (gg * l - f * m) / det, s01 = (gg * m - f * nn) / det, s10 = (e * m - f * l) / det,
-               s11 = (e * nn - f * m) / det;
-  const double half_trace = 0.5 * (s00 + s11), half_gap = 0.5 * (s00 - s11);
-  const double root = std::sqrt(std::max(0.0, half_gap * half_gap + s01 * s10));
-  const double k1 = half_trace - root, k2 = half_trace + root;
-  const double b1 = SdmWeight(delta, k1), b2 = SdmWeight(delta, k2);
+  second << l, m, m, nn;
+  Eigen::Matrix2d directions;
+  Eigen::Vector2d curvatures;
+  if (!SolvePrincipalCurvatures(second, first, directions, curvatures)) return false;
+  eq.AddDirection(x, n, weight, delta);
+  const double b1 = SdmWeight(delta, curvatures[0]), b2 = SdmWeight(delta, curvatures[1]);
   if (!(b1 > 0) && !(b2 > 0)) return true;
-  // Eigenvector of S for k1 from the better-conditioned row of S - k1 I; at an umbilic any tangent will do
-  // (then b1 == b2 and M's tangential part is b1 (I - n n^T) whatever the directions).
-  const Eigen::Vector2d va(s01, k1 - s00), vb(k1 - s11, s10);
-  const Eigen::Vector2d v = va.squaredNorm() >= vb.squaredNorm() ? va : vb;
-  Eigen::Vector3d t1 = v.x() * su + v.y() * sv;
-  const double t1_norm = t1.norm();
-  t1 = t1_norm > 1e-12 * std::sqrt(e + gg) * v.norm() && t1_norm > 0 ? Eigen::Vector3d(t1 / t1_norm)
-                                                                     : Eigen::Vector3d(su / std::sqrt(e));
+  // The I-orthonormal eigenvector of k1 maps to a unit tangent C_t v (at an umbilic any tangent will do: then
+  // b1 == b2 and M's tangential part is b1 (I - n n^T) whatever the directions).
+  const Eigen::Vector3d t1 = (directions(0, 0) * su + directions(1, 0) * sv).normalized();
   const Eigen::Vector3d t2 = n.cross(t1);  // principal directions are orthogonal
   if (b1 > 0) eq.AddDirection(x, t1, weight * b1, t1.dot(r));
   if (b2 > 0) eq.AddDirection(x, t2, weight * b2, t2.dot(r));

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "registration/local_quadric.h"
+#include "registration/principal_curvatures.h"
 
 namespace s2m {
 
@@ -187,12 +188,5 @@ struct PrincipalFrame {
   double delta = 0.0;
 };
 PrincipalFrame ComputePrincipalFrame(const LocalGeometry& g, const VecS& data_point);
-
-// Principal curvatures of a surface: the generalized symmetric eigenproblem II v = kappa I v of the second
-// (`second`) and first (`first`) fundamental forms, in closed form (the joint solver and the fits call it for
-// every point of every iteration). `curvatures` ascending, `directions` their I-orthonormal eigenvectors in
-// parameter space (columns). False when the metric is not positive definite.
-bool SolvePrincipalCurvatures(const Eigen::Matrix2d& second, const Eigen::Matrix2d& first,
-                              Eigen::Matrix2d& directions, Eigen::Vector2d& curvatures);
 
 }  // namespace s2m

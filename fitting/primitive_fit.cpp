@@ -3,7 +3,6 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
-#include <Eigen/LU>
 #include <Eigen/QR>
 #include <algorithm>
 #include <chrono>
@@ -13,6 +12,7 @@
 #include <optional>
 #include <string>
 
+#include "fitting/covariance.h"
 #include "fitting/parametric_model.h"
 
 namespace s2m {
@@ -311,15 +311,15 @@ PrimitiveFit<typename Model::Shape> Solve(const Eigen::Matrix3Xd& y, typename Mo
     }
   }
   fit.shape = shape;
-  // Covariance of the local parameters at the solution (Gauss-Newton, normalized units).
+  // Covariance of the local parameters at the solution (Gauss-Newton, normalized units); none when J^T J is
+  // singular (a degenerate fit: its local parameters are not all determined).
   if (y.cols() > P) {
     Model::Linearize(shape, y, /*sdm=*/false, d, J, T);
     const Mat JtJ = J.transpose() * J;
-    Eigen::FullPivLU<Mat> lu(JtJ);
-    if (lu.isInvertible()) {
-      const double variance = d.squaredNorm() / static_cast<double>(y.cols() - P);
-      fit.uncertainties = Model::Uncertainties(variance * lu.inverse(), scale);
-    }
+    const CovarianceEstimate estimate =
+        EstimateCovariance(JtJ, d.squaredNorm(), static_cast<double>(y.cols()));
+    if (estimate.null_directions.empty())
+      fit.uncertainties = Model::Uncertainties(Mat(estimate.covariance), scale);
   }
   return fit;
 }
@@ -507,8 +507,9 @@ PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitO
     J.col(0).setConstant(-1.0);
     J.col(1) = -(eig.eigenvectors().col(2).transpose() * data.points).transpose();
     J.col(2) = -(eig.eigenvectors().col(1).transpose() * data.points).transpose();
-    const double variance = values[0] / static_cast<double>(n - 3);
-    const Eigen::Matrix3d cov = variance * (J.transpose() * J).inverse();
+    // values[0] = sum of the squared distances to the plane.
+    const Eigen::Matrix3d cov =
+        EstimateCovariance(J.transpose() * J, values[0], static_cast<double>(n)).covariance;
     fit.uncertainties = {{"offset", std::sqrt(cov(0, 0)) * data.scale, false},
                          {"normal_direction", std::sqrt(cov(1, 1) + cov(2, 2)), true}};
   }

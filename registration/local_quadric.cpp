@@ -4,9 +4,11 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "registration/nearest_index.h"
+#include "registration/principal_curvatures.h"
 
 namespace s2m {
 
@@ -99,16 +101,20 @@ SurfacePoint LocalQuadric::At(double x, double y) const {
   second << 2.0 * q[0], q[1], q[1], 2.0 * q[2];
   second /= w;
   // II w = kappa I w: symmetric-definite, so the eigenvectors come I-orthonormal, i.e. X_x w_1 + X_y w_2 are
-  // orthonormal 3D tangents (the principal directions are orthogonal).
-  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix2d> ges(second, first);
+  // orthonormal 3D tangents (the principal directions are orthogonal). A graph's metric I = Id + grad h grad
+  // h^T is positive definite, so the solver fails only on non-finite coefficients: then NaN, as before.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  Eigen::Matrix2d directions = Eigen::Matrix2d::Constant(nan);
+  Eigen::Vector2d curvatures = Eigen::Vector2d::Constant(nan);
+  SolvePrincipalCurvatures(second, first, directions, curvatures);
   const Eigen::Vector3d xx(1.0, 0.0, hx), xy(0.0, 1.0, hy);
   SurfacePoint out;
   out.point = origin_ + frame_ * Eigen::Vector3d(x, y, Height(x, y));
   out.normal = frame_ * Eigen::Vector3d(-hx, -hy, 1.0) / w;
-  out.kappa1 = ges.eigenvalues()[0];
-  out.kappa2 = ges.eigenvalues()[1];
-  out.direction1 = (frame_ * (xx * ges.eigenvectors()(0, 0) + xy * ges.eigenvectors()(1, 0))).normalized();
-  out.direction2 = (frame_ * (xx * ges.eigenvectors()(0, 1) + xy * ges.eigenvectors()(1, 1))).normalized();
+  out.kappa1 = curvatures[0];
+  out.kappa2 = curvatures[1];
+  out.direction1 = (frame_ * (xx * directions(0, 0) + xy * directions(1, 0))).normalized();
+  out.direction2 = (frame_ * (xx * directions(0, 1) + xy * directions(1, 1))).normalized();
   if (out.direction1.cross(out.direction2).dot(out.normal) < 0.0) out.direction2 = -out.direction2;
   return out;
 }

@@ -5,11 +5,7 @@
 namespace s2m {
 
 void RigidNormalEquations::Add(const PointConstraint& p) {
-  // A = [-[x]x  I]: d/dc (c x x) = -[x]x.
-  Eigen::Matrix<double, 3, 6> A;
-  A << 0.0, p.x.z(), -p.x.y(), 1.0, 0.0, 0.0,  //
-      -p.x.z(), 0.0, p.x.x(), 0.0, 1.0, 0.0,   //
-      p.x.y(), -p.x.x(), 0.0, 0.0, 0.0, 1.0;
+  const Eigen::Matrix<double, 3, 6> A = MotionJacobian(p.x);
   const Eigen::Matrix<double, 6, 3> AtM = p.weight * A.transpose() * p.M;
   H.noalias() += AtM * A;
   g.noalias() += AtM * (p.x - p.target);
@@ -17,7 +13,7 @@ void RigidNormalEquations::Add(const PointConstraint& p) {
 
 void RigidNormalEquations::AddDirection(const Eigen::Vector3d& x, const Eigen::Vector3d& v, double weight,
                                         double v_dot_residual) {
-  // (-[x]x)^T v = x x v.
+  // A^T v = [(-[x]x)^T v; v] = [x x v; v] (MotionJacobian), without forming A.
   Eigen::Matrix<double, 6, 1> row;
   row << x.cross(v), v;
   H.noalias() += (weight * row) * row.transpose();

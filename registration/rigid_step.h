@@ -19,6 +19,17 @@ struct PointConstraint {
   double weight = 1.0;
 };
 
+// The linearized motion of a point x (Liu, Pottmann, Wang 2006, section 3): x' = x + cbar + c x x = x + A(x)
+// [c; cbar] with A(x) = [-[x]x  I], since d/dc (c x x) = -[x]x. Fixed size and inline: it is built for every
+// point of every iteration.
+inline Eigen::Matrix<double, 3, 6> MotionJacobian(const Eigen::Vector3d& x) {
+  Eigen::Matrix<double, 3, 6> a;
+  a << 0.0, x.z(), -x.y(), 1.0, 0.0, 0.0,  //
+      -x.z(), 0.0, x.x(), 0.0, 1.0, 0.0,   //
+      x.y(), -x.x(), 0.0, 0.0, 0.0, 1.0;
+  return a;
+}
+
 // The normal equations sum w A^T M A [c; cbar] = -sum w A^T M (x - s), A = [-[x]x  I], accumulated point by
 // point.
 struct RigidNormalEquations {

@@ -8,19 +8,9 @@
 
 #include "registration/local_quadric.h"
 #include "registration/nearest_index.h"
+#include "registration/rigid_step.h"
 
 namespace s2m {
-
-namespace {
-
-// [y]x: the matrix of y x (.).
-Eigen::Matrix3d CrossMatrix(const Eigen::Vector3d& y) {
-  Eigen::Matrix3d m;
-  m << 0.0, -y.z(), y.y(), y.z(), 0.0, -y.x(), -y.y(), y.x(), 0.0;
-  return m;
-}
-
-}  // namespace
 
 Eigen::Matrix3Xd EstimateNormals(const Eigen::Matrix3Xd& points, int neighbours) {
   const NearestIndex index(points);
@@ -152,9 +142,8 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
       // the curvature terms). At a foot point (r parallel to n) the two agree for the normal term.
       for (const Pair& p : pairs) {
         if (!(p.distance <= threshold)) continue;
-        Eigen::Matrix<double, 3, 6> jk, jl;
-        jk << -CrossMatrix(p.x), Eigen::Matrix3d::Identity();
-        jl << CrossMatrix(quadric ? p.x : p.target), -Eigen::Matrix3d::Identity();
+        const Eigen::Matrix<double, 3, 6> jk = MotionJacobian(p.x);
+        const Eigen::Matrix<double, 3, 6> jl = -MotionJacobian(quadric ? p.x : p.target);
         const Eigen::Matrix<double, 6, 3> mk = jk.transpose() * p.M, ml = jl.transpose() * p.M;
         const Eigen::Vector3d residual = p.x - p.target;
         const Eigen::Index bk = 6 * static_cast<Eigen::Index>(p.k), bl = 6 * static_cast<Eigen::Index>(p.l);

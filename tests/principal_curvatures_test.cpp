@@ -1,13 +1,13 @@
-// SolvePrincipalCurvatures (fitting/parametric_model.h): the closed-form generalized 2 x 2 eigenproblem
-// II v = kappa I v against Eigen's iterative solver and against surfaces with known curvatures.
+// SolvePrincipalCurvatures (registration/principal_curvatures.h): the closed-form generalized 2 x 2
+// eigenproblem II v = kappa I v against Eigen's iterative solver and against surfaces with known curvatures.
+
+#include "registration/principal_curvatures.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <random>
-
-#include "fitting/parametric_model.h"
 
 namespace s2m {
 namespace {
