@@ -159,6 +159,7 @@ class Checker {
   void CheckFactored(const ParametricModel& m, const std::vector<Sample>& samples, const std::string& label);
   void CheckPrincipalFrame(const ParametricModel& m, const std::vector<Sample>& samples,
                            const std::string& label);
+  double PrincipalFrameError(const ParametricModel& m, const Sample& s, const LocalGeometry& g);
   void CheckInvariantMotions(const ParametricModel& m, const std::vector<Sample>& samples,
                              const std::string& label);
   void CheckCommonMotions(const ParametricModel& m, const std::string& label);
@@ -174,11 +175,23 @@ class Checker {
   Eigen::Vector3d SecondDifference(const ParametricModel& m, const Sample& s, int a, int b, double h) const;
   Eigen::Vector3d FirstDifference(const ParametricModel& m, const Sample& s, int k) const;
   Eigen::Vector3d SecondDerivativeNumeric(const ParametricModel& m, const Sample& s, int a, int b) const {
-    return (4.0 * SecondDifference(m, s, a, b, 0.5 * o_.second_derivative_step) -
-            SecondDifference(m, s, a, b, o_.second_derivative_step)) /
-           3.0;
+    const double h = step_factor_ * o_.second_derivative_step;
+    return (4.0 * SecondDifference(m, s, a, b, 0.5 * h) - SecondDifference(m, s, a, b, h)) / 3.0;
   }
   double ParameterStepScale(double p) const { return std::max(1.0, std::abs(p)); }
+  // The smaller of `error()` with the difference steps in t as given and a quarter of them: truncation and
+  // a stencil that straddles a knot (where a B-spline's higher derivatives jump) shrink with the step, a
+  // wrong derivative does not (the idea of Ridders' extrapolation, Numerical Recipes section 5.7, reduced
+  // to two steps).
+  template <class Error>
+  double MinOverSteps(Error error) {
+    step_factor_ = 1.0;
+    const double coarse = error();
+    step_factor_ = 0.25;
+    const double fine = error();
+    step_factor_ = 1.0;
+    return std::isnan(coarse) ? fine : (std::isnan(fine) ? coarse : std::min(coarse, fine));
+  }
 
   ModelCheck& Get(const char* name);
 
@@ -186,6 +199,7 @@ class Checker {
   ModelCheckOptions o_;
   std::mt19937 rng_;
   double size_ = 1.0;
+  double step_factor_ = 1.0;  // scales the difference steps in t (MinOverSteps)
   int m_ = 1, s_ = 3;
   std::vector<ModelCheck> checks_;
 };
@@ -198,7 +212,7 @@ ModelCheck& Checker::Get(const char* name) {
 
 Eigen::Vector3d Checker::FirstDifference(const ParametricModel& m, const Sample& s, int k) const {
   const auto ku = static_cast<std::size_t>(k);
-  const double h = o_.derivative_step * s.scale[ku];
+  const double h = step_factor_ * o_.derivative_step * s.scale[ku];
   ParamT tp = s.t, tm = s.t;
   tp[ku] += h;
   tm[ku] -= h;
@@ -235,19 +249,24 @@ void Checker::CheckDerivatives(const ParametricModel& m, const std::vector<Sampl
     Record(first, (point - PointAt(m, s.t)).norm() / size_,
            [&] { return label + ", " + FormatT(s.t, m_) + ": Evaluate(t, 2) and Evaluate(t, 0) differ"; });
     for (int k = 0; k < m_; ++k) {
-      const Eigen::Vector3d analytic = To3(g.d1.col(k)), numeric = FirstDifference(m, s, k);
+      const Eigen::Vector3d analytic = To3(g.d1.col(k));
       const double floor = kFloorFraction * size_ / s.scale[static_cast<std::size_t>(k)];
-      Record(first, (analytic - numeric).norm() / (analytic.norm() + floor),
+      Record(first, MinOverSteps([&] {
+               return (analytic - FirstDifference(m, s, k)).norm() / (analytic.norm() + floor);
+             }),
              [&] { return label + ", " + FormatT(s.t, m_) + ", d/dt" + std::to_string(k); });
     }
     // Columns of d2: curves C''; surfaces C_uu, C_uv, C_vv.
     const int columns = m_ == 1 ? 1 : 3;
     for (int c = 0; c < columns; ++c) {
       const int a = m_ == 1 ? 0 : (c == 2 ? 1 : 0), b = m_ == 1 ? 0 : (c == 0 ? 0 : 1);
-      const Eigen::Vector3d analytic = To3(g.d2.col(c)), numeric = SecondDerivativeNumeric(m, s, a, b);
+      const Eigen::Vector3d analytic = To3(g.d2.col(c));
       const double floor = kFloorFraction * size_ /
                            (s.scale[static_cast<std::size_t>(a)] * s.scale[static_cast<std::size_t>(b)]);
-      Record(second, (analytic - numeric).norm() / (analytic.norm() + floor), [&] {
+      const double error = MinOverSteps([&] {
+        return (analytic - SecondDerivativeNumeric(m, s, a, b)).norm() / (analytic.norm() + floor);
+      });
+      Record(second, error, [&] {
         return label + ", " + FormatT(s.t, m_) + ", d2/dt" + std::to_string(a) + "dt" + std::to_string(b);
       });
     }
@@ -262,14 +281,17 @@ void Checker::CheckJacobian(const ParametricModel& m, const std::vector<Sample>&
   const Eigen::VectorXd p0 = m.parameters();
   // Central differences in each parameter, at every sample: 2 r shapes.
   std::vector<Eigen::Matrix3Xd> numeric(samples.size(), Eigen::Matrix3Xd::Zero(3, r));
-  std::unique_ptr<ParametricModel> trial = m.Clone();
   for (int i = 0; i < r; ++i) {
+    // A fresh clone per difference: rotation parameters are increments set_parameters applies to the frame
+    // (they do not accumulate only on a model as given).
     const double h = o_.parameter_step * ParameterStepScale(p0[i]);
     Eigen::VectorXd p = p0;
     p[i] = p0[i] + h;
+    std::unique_ptr<ParametricModel> trial = m.Clone();
     trial->set_parameters(p);
     for (std::size_t j = 0; j < samples.size(); ++j) numeric[j].col(i) = PointAt(*trial, samples[j].t);
     p[i] = p0[i] - h;
+    trial = m.Clone();
     trial->set_parameters(p);
     for (std::size_t j = 0; j < samples.size(); ++j)
       numeric[j].col(i) = (numeric[j].col(i) - PointAt(*trial, samples[j].t)) / (2.0 * h);
@@ -299,17 +321,22 @@ void Checker::CheckJacobian(const ParametricModel& m, const std::vector<Sample>&
     }
     for (int k = 0; k < m_; ++k) {
       const auto ku = static_cast<std::size_t>(k);
-      const double h = o_.derivative_step * s.scale[ku];
-      ParamT tp = s.t, tm = s.t;
-      tp[ku] += h;
-      tm[ku] -= h;
-      DenseJacobian(m, tp, false, plus);
-      DenseJacobian(m, tm, false, minus);
+      // Central differences of the columns with the step as given and a quarter of it (MinOverSteps).
+      std::array<Eigen::Matrix3Xd, 2> numeric_dt;
+      for (int ladder = 0; ladder < 2; ++ladder) {
+        const double h = (ladder == 0 ? 1.0 : 0.25) * o_.derivative_step * s.scale[ku];
+        ParamT tp = s.t, tm = s.t;
+        tp[ku] += h;
+        tm[ku] -= h;
+        DenseJacobian(m, tp, false, plus);
+        DenseJacobian(m, tm, false, minus);
+        numeric_dt[static_cast<std::size_t>(ladder)] = (plus - minus) / (2.0 * h);
+      }
       for (int i = 0; i < r; ++i) {
-        const Eigen::Vector3d numeric_dt = (plus.col(i) - minus.col(i)) / (2.0 * h);
         const double floor = kFloorFraction * size_ / (ParameterStepScale(p0[i]) * s.scale[ku]);
         const Eigen::Vector3d a = dt[ku].col(i);
-        Record(jac_dt, (a - numeric_dt).norm() / (a.norm() + floor), [&] {
+        const double error = std::min((a - numeric_dt[0].col(i)).norm(), (a - numeric_dt[1].col(i)).norm());
+        Record(jac_dt, error / (a.norm() + floor), [&] {
           return label + ", " + FormatT(s.t, m_) + ", column " + std::to_string(i) + " (" +
                  m.parameter_name(i) + "), d/dt" + std::to_string(k);
         });
@@ -365,83 +392,85 @@ void Checker::CheckFactored(const ParametricModel& m, const std::vector<Sample>&
   }
 }
 
+// The largest error of the principal frame at one sample against the finite-difference curve or surface;
+// -1 where the parametrization is singular (no frame to compare).
+double Checker::PrincipalFrameError(const ParametricModel& m, const Sample& s, const LocalGeometry& g) {
+  const double curvature_floor = 1.0 / size_;
+  const double offset = 1e-2 * size_;
+  if (m_ == 1) {
+    // The finite-difference curve's Frenet quantities (do Carmo, Differential Geometry of Curves and
+    // Surfaces, section 1-5): T = C'/|C'|, curvature vector k = (C'' - (C''.T) T) / |C'|^2.
+    const Eigen::Vector3d c1 = FirstDifference(m, s, 0), c2 = SecondDerivativeNumeric(m, s, 0, 0);
+    const double speed = c1.norm();
+    if (!(speed > kFloorFraction * size_ / s.scale[0])) return -1.0;  // a singular point: no frame
+    const Eigen::Vector3d tangent = c1 / speed;
+    const Eigen::Vector3d k = (c2 - c2.dot(tangent) * tangent) / (speed * speed);
+    Eigen::Vector3d normal;
+    if (s_ == 2) {
+      normal = Eigen::Vector3d(-tangent.y(), tangent.x(), 0.0);
+    } else if (k.norm() > 1e-6 * curvature_floor) {
+      normal = k.normalized();
+    } else {
+      normal = tangent.unitOrthogonal();
+    }
+    VecS data = g.point;
+    data += (offset * normal).head(s_);
+    const PrincipalFrame f = ComputePrincipalFrame(g, data);
+    double error = std::min((f.tangents[0] - tangent).norm(), (f.tangents[0] + tangent).norm());
+    error = std::max(error, (f.normals[0] - normal).norm());
+    error = std::max(error,
+                     std::abs(f.curvatures[0] - k.dot(normal)) / (std::abs(k.dot(normal)) + curvature_floor));
+    error = std::max(error, std::abs(f.delta - offset) / size_);
+    if (s_ == 3) error = std::max(error, (f.normals[1] - f.tangents[0].cross(f.normals[0])).norm());
+    return error;
+  }
+  // Surfaces: the first and second fundamental forms I = [E F; F G], II = n . [S_uu S_uv; S_uv S_vv] of the
+  // finite-difference surface (do Carmo, sections 2-5 and 3-3); principal curvatures the eigenvalues of
+  // I^-1 II, here by Eigen's generalized symmetric solver (independent of SolvePrincipalCurvatures).
+  const Eigen::Vector3d su = FirstDifference(m, s, 0), sv = FirstDifference(m, s, 1);
+  const Eigen::Vector3d suu = SecondDerivativeNumeric(m, s, 0, 0), suv = SecondDerivativeNumeric(m, s, 0, 1),
+                        svv = SecondDerivativeNumeric(m, s, 1, 1);
+  const Eigen::Vector3d cross = su.cross(sv);
+  if (!(cross.norm() > 1e-6 * su.norm() * sv.norm())) return -1.0;  // a singular point: no frame
+  const Eigen::Vector3d normal = cross.normalized();
+  Eigen::Matrix2d first, second;
+  first << su.dot(su), su.dot(sv), su.dot(sv), sv.dot(sv);
+  second << normal.dot(suu), normal.dot(suv), normal.dot(suv), normal.dot(svv);
+  Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix2d> solver(second, first);
+  if (solver.info() != Eigen::Success) return -1.0;
+  const Eigen::Vector2d kappa = solver.eigenvalues();  // ascending
+  const VecS data = g.point + (offset * normal).head(s_);
+  const PrincipalFrame f = ComputePrincipalFrame(g, data);
+  double error = (f.normals[0] - normal).norm();
+  error = std::max(error, std::abs(f.delta - offset) / size_);
+  Eigen::Matrix<double, 3, 2> basis;
+  basis << su, sv;
+  for (int c = 0; c < 2; ++c) {
+    const auto cu = static_cast<std::size_t>(c);
+    error = std::max(error, std::abs(f.curvatures[cu] - kappa[c]) / (std::abs(kappa[c]) + curvature_floor));
+    // Each tangent is a unit vector of the tangent plane along which the normal curvature II(a, a) / I(a,
+    // a) is its curvature (Euler's theorem; well defined also at umbilics).
+    const Eigen::Vector3d tangent = f.tangents[cu];
+    error = std::max(error, std::abs(tangent.norm() - 1.0));
+    error = std::max(error, std::abs(tangent.dot(normal)));
+    const Eigen::Vector2d a = basis.colPivHouseholderQr().solve(tangent);
+    const double normal_curvature = a.dot(second * a) / a.dot(first * a);
+    error = std::max(error, std::abs(f.curvatures[cu] - normal_curvature) /
+                                (std::abs(normal_curvature) + curvature_floor));
+  }
+  error = std::max(error, std::abs(f.tangents[0].dot(f.tangents[1])));
+  return error;
+}
+
 void Checker::CheckPrincipalFrame(const ParametricModel& m, const std::vector<Sample>& samples,
                                   const std::string& label) {
   ModelCheck& check = Get(kCheckPrincipalFrame);
   check.applicable = true;
-  const double curvature_floor = 1.0 / size_;
-  const double offset = 1e-2 * size_;
   LocalGeometry g;
   for (const Sample& s : samples) {
     m.Evaluate(s.t, 2, g);
-    const Eigen::Vector3d point = To3(g.point);
-    const std::string where = label + ", " + FormatT(s.t, m_);
-    if (m_ == 1) {
-      // The finite-difference curve's Frenet quantities (do Carmo, Differential Geometry of Curves and
-      // Surfaces, section 1-5): T = C'/|C'|, curvature vector k = (C'' - (C''.T) T) / |C'|^2.
-      const Eigen::Vector3d c1 = FirstDifference(m, s, 0), c2 = SecondDerivativeNumeric(m, s, 0, 0);
-      const double speed = c1.norm();
-      if (!(speed > kFloorFraction * size_ / s.scale[0])) continue;  // a singular point: no frame
-      const Eigen::Vector3d tangent = c1 / speed;
-      const Eigen::Vector3d k = (c2 - c2.dot(tangent) * tangent) / (speed * speed);
-      Eigen::Vector3d normal;
-      if (s_ == 2) {
-        normal = Eigen::Vector3d(-tangent.y(), tangent.x(), 0.0);
-      } else if (k.norm() > 1e-6 * curvature_floor) {
-        normal = k.normalized();
-      } else {
-        normal = tangent.unitOrthogonal();
-      }
-      VecS data = g.point;
-      data += (offset * normal).head(s_);
-      const PrincipalFrame f = ComputePrincipalFrame(g, data);
-      double error = std::min((f.tangents[0] - tangent).norm(), (f.tangents[0] + tangent).norm());
-      error = std::max(error, (f.normals[0] - normal).norm());
-      error = std::max(
-          error, std::abs(f.curvatures[0] - k.dot(normal)) / (std::abs(k.dot(normal)) + curvature_floor));
-      error = std::max(error, std::abs(f.delta - offset) / size_);
-      if (s_ == 3) error = std::max(error, (f.normals[1] - f.tangents[0].cross(f.normals[0])).norm());
-      Record(check, error, [&] { return where; });
-      continue;
-    }
-    // Surfaces: the first and second fundamental forms I = [E F; F G], II = n . [S_uu S_uv; S_uv S_vv] of the
-    // finite-difference surface (do Carmo, sections 2-5 and 3-3); principal curvatures the eigenvalues of
-    // I^-1 II, here by Eigen's generalized symmetric solver (independent of SolvePrincipalCurvatures).
-    const Eigen::Vector3d su = FirstDifference(m, s, 0), sv = FirstDifference(m, s, 1);
-    const Eigen::Vector3d suu = SecondDerivativeNumeric(m, s, 0, 0),
-                          suv = SecondDerivativeNumeric(m, s, 0, 1),
-                          svv = SecondDerivativeNumeric(m, s, 1, 1);
-    const Eigen::Vector3d cross = su.cross(sv);
-    if (!(cross.norm() > 1e-6 * su.norm() * sv.norm())) continue;  // a singular point: no frame
-    const Eigen::Vector3d normal = cross.normalized();
-    Eigen::Matrix2d first, second;
-    first << su.dot(su), su.dot(sv), su.dot(sv), sv.dot(sv);
-    second << normal.dot(suu), normal.dot(suv), normal.dot(suv), normal.dot(svv);
-    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix2d> solver(second, first);
-    if (solver.info() != Eigen::Success) continue;
-    const Eigen::Vector2d kappa = solver.eigenvalues();  // ascending
-    const VecS data = g.point + (offset * normal).head(s_);
-    const PrincipalFrame f = ComputePrincipalFrame(g, data);
-    double error = (f.normals[0] - normal).norm();
-    error = std::max(error, std::abs(f.delta - offset) / size_);
-    Eigen::Matrix<double, 3, 2> basis;
-    basis << su, sv;
-    for (int c = 0; c < 2; ++c) {
-      const auto cu = static_cast<std::size_t>(c);
-      error = std::max(error, std::abs(f.curvatures[cu] - kappa[c]) / (std::abs(kappa[c]) + curvature_floor));
-      // Each tangent is a unit vector of the tangent plane along which the normal curvature II(a, a) / I(a,
-      // a) is its curvature (Euler's theorem; well defined also at umbilics).
-      const Eigen::Vector3d tangent = f.tangents[cu];
-      error = std::max(error, std::abs(tangent.norm() - 1.0));
-      error = std::max(error, std::abs(tangent.dot(normal)));
-      const Eigen::Vector2d a = basis.colPivHouseholderQr().solve(tangent);
-      const double normal_curvature = a.dot(second * a) / a.dot(first * a);
-      error = std::max(error, std::abs(f.curvatures[cu] - normal_curvature) /
-                                  (std::abs(normal_curvature) + curvature_floor));
-    }
-    error = std::max(error, std::abs(f.tangents[0].dot(f.tangents[1])));
-    Record(check, error, [&] { return where; });
-    (void)point;
+    const double error = MinOverSteps([&] { return PrincipalFrameError(m, s, g); });
+    if (error >= 0) Record(check, error, [&] { return label + ", " + FormatT(s.t, m_); });
   }
 }
 
