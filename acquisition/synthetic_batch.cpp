@@ -8,7 +8,7 @@
 
 #include "acquisition/format_error.h"
 #include "acquisition/scan_set_io.h"
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
 

@@ -18,7 +18,7 @@
 #include <string>
 
 #include "acquisition/scan_set_io.h"
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
 

@@ -40,7 +40,7 @@
 #include <vector>
 
 #include "acquisition/scan_set_io.h"
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "bench/fitting_method_cases.h"
 #include "bench/icp_baselines.h"
 #include "fitting/bspline_models.h"

@@ -23,7 +23,7 @@
 #include <random>
 #include <string>
 
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "fitting/bspline_models.h"
 #include "fitting/foot_point.h"
 #include "fitting/geometric_fit.h"

@@ -9,7 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "devices/device_options.h"
 
 namespace s2m {

@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "acquisition/scan_set_io.h"
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "test_paths.h"
 #include "test_support.h"
 

@@ -10,7 +10,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/part_model.h"

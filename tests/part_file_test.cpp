@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "acquisition/format_error.h"
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "fitting/part_model.h"
 
 namespace s2m {

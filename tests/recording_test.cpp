@@ -15,7 +15,7 @@
 
 #include "acquisition/format_error.h"
 #include "acquisition/scan_set_io.h"
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "raw_sql.h"
 #include "test_support.h"
 

@@ -15,7 +15,7 @@
 #include "acquisition/frame_source.h"
 #include "acquisition/recording.h"
 #include "acquisition/scan_set_io.h"
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "test_support.h"
 
 namespace s2m {

@@ -1,4 +1,4 @@
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 
 #include <Eigen/Geometry>
 #include <cmath>
