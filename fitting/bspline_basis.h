@@ -50,7 +50,7 @@ class BSplineBasis {
   };
   // Fast path: span by bucket table, values by the per-span Taylor tables. Agrees with EvaluateReference to
   // rounding: within a few ulp of each derivative's size on the span (its largest Taylor coefficient, ~ 1 /
-  // length^d; measured < 1e-15 relative to it, tests/bspline_basis_fast_path_test.cpp). Near a zero of a
+  // length^d; measured < 1e-15 relative to it, tests/bspline_basis_test.cpp). Near a zero of a
   // steep piece (at a knot next to a much shorter span) that is more than a few ulp of the value itself.
   void Evaluate(double t, int derivatives, Values& out) const;
   // The generic reference: binary-search span (A2.1) and A2.3 at t, any order. Slower; for tests and for

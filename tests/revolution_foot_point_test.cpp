@@ -124,7 +124,7 @@ Differences ExpectSameFeet(const KinematicSurface& surface, const Eigen::Matrix3
     EXPECT_LT(a.feet[j].t[1], 2 * M_PI);
   }
   // Both Newtons stop when a step no longer decreases |C - X| beyond its rounding, so the foot's position is
-  // settled to about the square root of that rounding (foot_point_fast_paths_test): measured differences on
+  // settled to about the square root of that rounding (foot_point_test): measured differences on
   // the vase are <= 4e-14 in distance and <= 2e-8 mm (1e-10 of the size) in position and derivatives, 4e-13
   // beyond a profile's ends; the lifted geometry is the model's own at the reduced t to 5e-14.
   EXPECT_LE(d.distance, 1e-12 * size);
@@ -362,7 +362,7 @@ TEST(RevolutionFootPoint, JointFitWithReducedFeetAndFactoredAssemblyMatchesTheGe
   const JointFitResult b = FitJointly(generic, scans, c.views.model_T_scan_recorded, o);
   ASSERT_EQ(a.iterations, b.iterations);
   const double p_difference = (fast.parameters() - generic.parameters()).cwiseAbs().maxCoeff();
-  // Measured: 5e-10 mm and 3e-16 mm (the feet agree to ~1e-8 mm, foot_point_fast_paths_test).
+  // Measured: 5e-10 mm and 3e-16 mm (the feet agree to ~1e-8 mm, foot_point_test).
   EXPECT_LE(p_difference, 1e-8);  // mm, on a 150 mm vase
   EXPECT_LE(std::abs(a.residuals.rms - b.residuals.rms), 1e-12);
   for (std::size_t k = 0; k < scans.size(); ++k) {

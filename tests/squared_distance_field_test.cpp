@@ -146,7 +146,7 @@ TEST(SquaredDistanceField, RefusesBoundaryCellsAndBadOptions) {
 }
 
 // Registration with the field recovers the pose of a noise-free scan to the same tolerance as without it
-// (tests/foot_point_fast_paths_test.cpp): the final exact iteration removes the field's approximation.
+// (tests/foot_point_test.cpp): the final exact iteration removes the field's approximation.
 TEST(SquaredDistanceField, RegistrationWithTheFieldRecoversThePose) {
   const BSplineSurface patch = BumpyPatch(0.03);
   SquaredDistanceField::Options fo;
