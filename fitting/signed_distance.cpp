@@ -1,5 +1,6 @@
 #include "fitting/signed_distance.h"
 
+#include <Eigen/Geometry>  // cross products
 #include <vector>
 
 #include "fitting/foot_point.h"

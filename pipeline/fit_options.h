@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "pipeline/exit_code.h"
 #include "registration/scan.h"
 
 namespace s2m::pipeline {

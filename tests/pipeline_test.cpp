@@ -146,11 +146,12 @@ TEST(DomainMeasures, AdequacyJsonAndVerdict) {
 }
 
 TEST(DomainMeasures, VesselFromAnAxisPointingDown) {
-  // A cone-like pot, its axis pointing down in the world: the base must come out at the lower end.
+  // A pot widening upwards, its fitted axis pointing down in the world: heights -i along -z are i above the
+  // axis point, so the narrow end (radius 2, at the axis point) is the base and the wide one the rim.
   std::vector<Eigen::Vector2d> height_radius;
   std::vector<double> uncertainty;
   for (int i = 0; i <= 10; ++i) {
-    height_radius.emplace_back(-i, 2.0 + 0.1 * i);  // heights along -z: i below the axis point
+    height_radius.emplace_back(-i, 2.0 + 0.1 * i);
     uncertainty.push_back(0.01);
   }
   const VesselMeasures v =
@@ -159,11 +160,11 @@ TEST(DomainMeasures, VesselFromAnAxisPointingDown) {
   EXPECT_TRUE(v.up.isApprox(Eigen::Vector3d::UnitZ()));
   EXPECT_DOUBLE_EQ(v.height.value, 10.0);
   EXPECT_EQ(v.height.unit, "mm");
-  EXPECT_DOUBLE_EQ(v.base_diameter.value, 6.0);  // the wide end is the lower one
-  EXPECT_DOUBLE_EQ(v.rim_diameter.value, 4.0);
+  EXPECT_DOUBLE_EQ(v.base_diameter.value, 4.0);
+  EXPECT_DOUBLE_EQ(v.rim_diameter.value, 6.0);
   EXPECT_DOUBLE_EQ(v.rim_diameter.uncertainty, 0.02);  // u(2r) = 2 u(r)
   EXPECT_DOUBLE_EQ(v.max_diameter.value, 6.0);
-  EXPECT_TRUE(v.base_centre.isApprox(Eigen::Vector3d(1, 2, -7)));
+  EXPECT_TRUE(v.base_centre.isApprox(Eigen::Vector3d(1, 2, 3)));
   const nlohmann::json j = v.ToJson();
   EXPECT_EQ(j["units"], "mm");
   EXPECT_EQ(j["profile"].size(), 11u);
@@ -172,7 +173,7 @@ TEST(DomainMeasures, VesselFromAnAxisPointingDown) {
   // The JSON reads back to the same measures (batch records, reports).
   EXPECT_EQ(VesselMeasures::FromJson(j).ToJson(), j);
   EXPECT_NE(ProfileCsv(v).find("height_above_base,radius,radius_uncertainty\n0,"), std::string::npos);
-  EXPECT_NE(ProfileSvg(v).find("rim &#216; 4 mm"), std::string::npos) << ProfileSvg(v);
+  EXPECT_NE(ProfileSvg(v).find("rim &#216; 6 mm"), std::string::npos) << ProfileSvg(v);
   EXPECT_THROW(MeasureVessel(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), {{0, 1}}, {}, "mm"),
                std::invalid_argument);
 }
@@ -214,7 +215,9 @@ TEST(DomainMeasures, PrimitiveParameterUnitsComeFromATable) {
     const nlohmann::json flat = FlatParameters(d);
     ASSERT_FALSE(flat.empty()) << model;
     for (const nlohmann::json& p : flat) {
-      if (p["name"] == "radius") EXPECT_EQ(p["unit"], "mm");
+      if (p["name"] == "radius") {
+        EXPECT_EQ(p["unit"], "mm");
+      }
     }
   }
 }
