@@ -15,7 +15,7 @@
 #include "acquisition/recording.h"
 #include "acquisition/scan_set_io.h"
 #include "apps/commands.h"
-#include "apps/output.h"
+#include "pipeline/output.h"
 #ifdef S2M_HAVE_VIRTUAL_SCANNER
 #include "devices/virtual_scanner.h"
 #endif
@@ -90,7 +90,9 @@ Runner AddRecordCommand(CLI::App& app) {
                   "Kinect depth frames (frame_<time>_depth.tiff beside frame_<time>.xml)");
   cmd->add_option("--device", options->device,
                   "virtual:<vase|helical|spiral|part|mesh.ply>[,key=value...] (docs/acquisition.md)");
-  cmd->add_option("--out", options->out, "The new recording (never overwritten)")->required();
+  cmd->add_option("-o,--output,--out", options->out,
+                  "The new recording (never overwritten) (--out: the old spelling, an alias for one release)")
+      ->required();
   cmd->add_flag("--original-timing", options->original_timing,
                 "Replaying a recording: deliver its frames with their original timing");
   cmd->add_flag("--compress", options->compress,
@@ -142,7 +144,9 @@ Runner AddExportCommand(CLI::App& app) {
          "A recording (.s2mrec), views manifest (.json), Stanford .conf, point cloud, or Kinect depth "
          "frames")
       ->required();
-  cmd->add_option("--out", options->out, "Output folder (created; views.json and view_NNN.ply inside)")
+  cmd->add_option("-o,--output,--out", options->out,
+                  "Output folder (created; views.json and view_NNN.ply inside) (--out: the old spelling, an "
+                  "alias for one release)")
       ->required();
   cmd->add_option("--view", options->views, "Only these views (the recording's view numbers); repeatable");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");

@@ -8,10 +8,10 @@
 #include <thread>
 
 #include "acquisition/format_error.h"
-#include "apps/batch.h"
-#include "apps/batch_mpi.h"
 #include "apps/commands.h"
-#include "apps/output.h"
+#include "pipeline/batch.h"
+#include "pipeline/batch_mpi.h"
+#include "pipeline/output.h"
 
 namespace s2m::app {
 namespace fs = std::filesystem;
@@ -156,9 +156,9 @@ Runner AddBatchCommand(CLI::App& app) {
                   "The manifest: .json (scan2model.batch/1) or CSV (id,input,model,...)")
       ->required();
   cmd->add_option(
-      "--output-dir,-o", o->run.output_dir,
+      "-o,--output,--output-dir", o->run.output_dir,
       "Where results go (default: MANIFEST_STEM_results beside the manifest): objects/ID.json per "
-      "object, summary.csv, summary.json");
+      "object, summary.csv, summary.json (--output-dir: the old spelling, an alias for one release)");
   cmd->add_option("--jobs,-j", o->run.jobs, "Objects fitted in parallel (default: one per core)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--threads-per-job", o->run.threads_per_job,

@@ -13,9 +13,9 @@
 #include <string>
 
 #include "apps/commands.h"
-#include "apps/output.h"
 #include "devices/horus_calibration.h"
 #include "devices/horus_rig.h"
+#include "pipeline/output.h"
 #ifdef S2M_HAVE_VIRTUAL_HORUS
 #include "devices/virtual_horus.h"
 #endif
@@ -145,7 +145,9 @@ Runner AddCalibrateCommand(CLI::App& app) {
       "horus-virtual:<vase|helical|spiral|part|mesh.ply>[,key=value...] (docs/laser-scanning.md)");
   cmd->add_option("--images", options->images,
                   "Instead of --device: a captured image set (calibration_images.json and its PNGs)");
-  cmd->add_option("--out", options->out, "The calibration JSON to write")->required();
+  cmd->add_option("-o,--output,--out", options->out,
+                  "The calibration JSON to write (--out: the old spelling, an alias for one release)")
+      ->required();
   cmd->add_option("--save-images", options->save_images,
                   "Also write the captured images as an image set to this folder (for --images later)");
   cmd->add_option("--poses", options->poses, "Pattern poses for the camera intrinsics (12)")

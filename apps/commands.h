@@ -4,29 +4,28 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 
+#include "pipeline/exit_code.h"
+#include "pipeline/fit_options.h"
+
 namespace s2m::app {
 
-// Exit codes, stable across releases (docs/cli.md).
-enum ExitCode : int {
-  kOk = 0,
-  kUsage = 2,       // bad command line
-  kInputError = 3,  // unreadable, corrupt, empty or degenerate input
-  kFitError = 4,    // the fit could not be computed
-  kInternal = 70,   // a bug: please report it
-  // A device failed: not found, no permission, disconnected, timed out (docs/horus-scan.md).
-  kDeviceError = 5,
-};
+// The commands are thin: they wire CLI11 to the pipeline library (pipeline/), whose names they use
+// unqualified.
+using namespace s2m::pipeline;
 
 using Runner = std::function<int()>;
 
 Runner AddInfoCommand(CLI::App& app);
 Runner AddFitCommand(CLI::App& app);
+// `scan2model fit`: ComputeFit, then the text or JSON on standard output (notes and errors on standard
+// error); returns the exit code.
+int RunFit(const FitOptions& o);
 Runner AddRecordCommand(CLI::App& app);  // apps/acquire_commands.cpp
 Runner AddExportCommand(CLI::App& app);
-Runner AddBatchCommand(CLI::App& app);   // apps/batch_command.cpp, docs/batch.md
-Runner AddReportCommand(CLI::App& app);  // apps/report.cpp
-Runner AddScanCommand(CLI::App& app);    // apps/scan_command.cpp, docs/horus-scan.md
-Runner AddDevicesCommand(CLI::App& app);  // apps/devices_command.cpp, docs/devices.md
+Runner AddBatchCommand(CLI::App& app);      // apps/batch_command.cpp, docs/batch.md
+Runner AddReportCommand(CLI::App& app);     // apps/report_command.cpp
+Runner AddScanCommand(CLI::App& app);       // apps/scan_command.cpp, docs/horus-scan.md
+Runner AddDevicesCommand(CLI::App& app);    // apps/devices_command.cpp, docs/devices.md
 Runner AddCalibrateCommand(CLI::App& app);  // apps/calibrate_command.cpp, docs/laser-scanning.md
 
 }  // namespace s2m::app

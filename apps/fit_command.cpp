@@ -1,151 +1,60 @@
-#include <chrono>
-#include <fstream>
-#include <iomanip>
+// `scan2model fit`: the command line of ComputeFit (pipeline/fit_options.h).
 #include <iostream>
-#include <optional>
 #include <set>
-#include <sstream>
 
-#include "acquisition/format_error.h"
-#include "acquisition/nist_reference.h"
-#include "acquisition/point_cloud_io.h"
 #include "apps/commands.h"
-#include "apps/domain.h"
-#include "apps/fit_options.h"
-#include "apps/output.h"
-#include "fitting/primitive_compare.h"
-#include "fitting/primitive_fit.h"
+#include "pipeline/fit_option_table.h"
+#include "pipeline/fit_options.h"
+#include "pipeline/output.h"
 
 namespace s2m::app {
 namespace {
 
-// One named result value with its uncertainty, for both text and JSON output.
-struct Row {
-  std::string name;
-  nlohmann::json value;
-  std::string text;
-};
-
-std::vector<Row> Parameters(const Plane& s) {
-  return {{"point", ToJson(s.point), Format(s.point)}, {"normal", ToJson(s.normal), Format(s.normal)}};
-}
-std::vector<Row> Parameters(const Sphere& s) {
-  return {{"center", ToJson(s.center), Format(s.center)},
-          {"radius", s.radius, Format(s.radius)},
-          {"diameter", 2 * s.radius, Format(2 * s.radius)}};
-}
-std::vector<Row> Parameters(const Cylinder& s) {
-  return {{"axis_point", ToJson(s.axis_point), Format(s.axis_point)},
-          {"axis_direction", ToJson(s.axis_direction), Format(s.axis_direction)},
-          {"radius", s.radius, Format(s.radius)},
-          {"diameter", 2 * s.radius, Format(2 * s.radius)}};
-}
-std::vector<Row> Parameters(const Cone& s) {
-  const double degrees = 180.0 / M_PI;
-  return {{"axis_point", ToJson(s.axis_point), Format(s.axis_point)},
-          {"axis_direction", ToJson(s.axis_direction), Format(s.axis_direction)},
-          {"radius", s.radius, Format(s.radius) + "  (cross-section through the axis point)"},
-          {"surface_distance", s.SurfaceDistanceFromAxisPoint(), Format(s.SurfaceDistanceFromAxisPoint())},
-          {"half_angle", s.half_angle, Format(s.half_angle) + " rad"},
-          {"apex_angle_deg", 2 * s.half_angle * degrees, Format(2 * s.half_angle * degrees) + " deg (full)"},
-          {"apex", ToJson(s.Apex()), Format(s.Apex())}};
+// The help line: the table's text, its default and, for a manifest key, that key.
+std::string Help(const FitOptionSpec& spec) {
+  std::string help = spec.help;
+  if (!spec.default_text.empty()) help += " (default " + spec.default_text + ")";
+  if (!spec.key.empty()) help += " [batch manifest: " + spec.key + "]";
+  return help;
 }
 
-Plane ReadReference(const std::string& f, const Plane&) {
-  return ReadNistPlaneFit(f);
-}
-Sphere ReadReference(const std::string& f, const Sphere&) {
-  return ReadNistSphereFit(f);
-}
-Cylinder ReadReference(const std::string& f, const Cylinder&) {
-  return ReadNistCylinderFit(f);
-}
-Cone ReadReference(const std::string& f, const Cone&) {
-  return ReadNistConeFit(f);
-}
-
-template <class Shape, class FitFn>
-FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std::string& format,
-                               FitFn fit_fn) {
-  PrimitiveFitOptions options;
-  options.method = o.method == "sdm" ? PrimitiveMethod::kSdm : PrimitiveMethod::kTdm;
-  options.solver.max_iterations = o.max_iterations;
-  const auto start = std::chrono::steady_clock::now();
-  const PrimitiveFit<Shape> fit = fit_fn(scan.points, options);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const std::vector<Row> rows = Parameters(fit.shape);
-  const double extent = ComputeBounds(scan.points).diagonal();
-
-  std::optional<PrimitiveDeviation> deviation;
-  if (!o.reference.empty()) deviation = Compare(fit.shape, ReadReference(o.reference, fit.shape));
-  if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(fit.history));
-
-  FitOutcome outcome;
-  {
-    nlohmann::json& j = outcome.document;
-    j["schema"] = "scan2model.fit/1";
-    j["input"] = DescribeScan(scan, o.file, format);
-    j["model"] = o.model;
-    j["method"] = ToString(options.method);
-    for (const Row& r : rows) j["parameters"][r.name] = r.value;
-    j["nist_layout"] = ToNistLayout(fit.shape);
-    for (const ParameterUncertainty& u : fit.uncertainties) {
-      j["uncertainties"][u.name] = {{"standard_uncertainty", u.standard_uncertainty},
-                                    {"unit", u.is_angle ? "rad" : scan.units}};
+// One row of the fit option table as CLI11 options: the value checked and applied by the table itself, so
+// that the command line and the manifest accept exactly the same values.
+void AddTableOption(CLI::App& cmd, const FitOptionSpec& spec, const std::shared_ptr<FitOptions>& o) {
+  if (spec.choices_as_flags) {
+    // Each choice a flag of its own; the first (the default, stated explicitly) excludes the others.
+    CLI::Option* first = nullptr;
+    for (const std::string& choice : spec.choices) {
+      CLI::Option* flag = cmd.add_flag_function(
+          "--" + choice, [&spec, o, choice](std::int64_t) { ApplyFitOption(spec, choice, *o); },
+          "Multi-view solver: " + choice + (first == nullptr ? " (the default)" : "") + "; " + spec.help);
+      if (first == nullptr) {
+        first = flag;
+      } else {
+        flag->excludes(first);
+      }
     }
-    j["residuals"] = {{"count", fit.residuals.count},
-                      {"rms", fit.residuals.rms},
-                      {"max_abs", fit.residuals.max_abs},
-                      {"mean", fit.residuals.mean}};
-    j["iterations"] = fit.iterations;
-    j["stop_reason"] = ToString(fit.stop_reason);
-    j["seconds"] = seconds;
-    j["history"] = HistoryJson(fit.history);
-    if (deviation) {
-      j["reference"] = {{"file", o.reference},
-                        {"extent", extent},
-                        {"position", deviation->position},
-                        {"direction_rad", deviation->direction},
-                        {"size", deviation->size},
-                        {"apex_angle_rad", deviation->angle}};
-    }
-    j["deviations"] = DeviationsJson(scan.points, SignedDistances(fit.shape, scan.points));
+    return;
   }
-
-  std::ostringstream text;
-  text << "scan2model fit: " << o.model << " to " << scan.size() << " points of " << o.file << " (" << format
-       << ", units " << scan.units << ")\n\n";
-  for (const Row& r : rows) text << "  " << std::left << std::setw(18) << r.name << r.text << "\n";
-  if (!fit.uncertainties.empty()) {
-    text << "\n  standard uncertainties (type A, from the residuals)\n";
-    for (const ParameterUncertainty& u : fit.uncertainties) {
-      text << "  " << std::left << std::setw(18) << u.name << Format(u.standard_uncertainty, 3)
-           << (u.is_angle ? " rad" : "") << "\n";
-    }
-  } else {
-    text << "\n  no uncertainties: as many parameters as points (the fit interpolates and may not be "
-            "unique)\n";
+  if (spec.kind == FitOptionKind::kFlag) {
+    cmd.add_flag_function(
+        spec.names, [&spec, o](std::int64_t) { ApplyFitOption(spec, "true", *o); }, Help(spec));
+    return;
   }
-  text << "\n  residuals         RMS " << Format(fit.residuals.rms, 6) << ", max "
-       << Format(fit.residuals.max_abs, 6) << ", mean " << Format(fit.residuals.mean, 3) << "\n"
-       << "  solver            " << ToString(options.method) << " + Levenberg-Marquardt, " << fit.iterations
-       << " iterations, stopped: " << ToString(fit.stop_reason) << ", " << Format(seconds * 1e3, 3)
-       << " ms\n";
-  if (o.verbose) text << HistoryTable(fit.history);
-  if (deviation) {
-    text << "\n  against reference " << o.reference << " (relative to the data's extent " << Format(extent, 6)
-         << ")\n"
-         << "  position          " << Format(deviation->position / extent, 3) << "\n";
-    if (deviation->direction > 0 || !std::is_same_v<Shape, Sphere>) {
-      text << "  direction         " << Format(deviation->direction, 3) << " rad\n";
-    }
-    if (!std::is_same_v<Shape, Plane>)
-      text << "  size              " << Format(deviation->size / extent, 3) << "\n";
-    if (std::is_same_v<Shape, Cone>)
-      text << "  apex angle        " << Format(deviation->angle, 3) << " rad\n";
-  }
-  outcome.text = text.str();
-  return outcome;
+  cmd.add_option_function<std::string>(
+         spec.names, [&spec, o](const std::string& text) { ApplyFitOption(spec, text, *o); }, Help(spec))
+      ->check(CLI::Validator(
+          [&spec](std::string& text) {
+            try {
+              ParseFitOption(spec, text);
+              return std::string();
+            } catch (const std::invalid_argument& e) {
+              return std::string(e.what());
+            }
+          },
+          spec.kind == FitOptionKind::kChoice ? "CHOICE"
+          : spec.kind == FitOptionKind::kPath ? "FILE"
+                                              : "VALUE"));
 }
 
 }  // namespace
@@ -165,112 +74,10 @@ Runner AddFitCommand(CLI::App& app) {
          "Model to fit: plane, sphere, cylinder, cone, bspline-curve, bspline-surface, revolution, helical, "
          "spiral, or part:FILE (a constrained part, docs/parts.md)")
       ->required()
-      ->check(CLI::Validator(
-          [](std::string& model) -> std::string {
-            static const std::set<std::string> kModels = {"plane",      "sphere",        "cylinder",
-                                                          "cone",       "bspline-curve", "bspline-surface",
-                                                          "revolution", "helical",       "spiral"};
-            if (kModels.count(model) > 0) return "";
-            if (model.rfind("part:", 0) == 0) {
-              return model.size() > 5 ? "" : "part: needs a part file, e.g. part:block.part.json";
-            }
-            return model +
-                   " is not a model (plane, sphere, cylinder, cone, bspline-curve, bspline-surface, "
-                   "revolution, helical, spiral, part:FILE)";
-          },
-          "MODEL"));
-  cmd->add_option("--method", o->method,
-                  "Error term per iteration: pdm, tdm, sdm, cdm, gtdm or gn (primitives: tdm or sdm). "
-                  "Default: tdm for primitives and multi-view fits, sdm for splines")
-      ->check(CLI::IsMember({"pdm", "tdm", "sdm", "cdm", "gtdm", "gn"}));
-  cmd->add_option("--control-points", o->control_points,
-                  "Splines: control points, N for a curve, NUxNV for a surface (default 12 / 8x8)");
-  cmd->add_option("--order", o->order, "Splines: order (degree + 1)")
-      ->capture_default_str()
-      ->check(CLI::Range(2, 8));
-  cmd->add_flag(
-      "--closed", o->closed,
-      "bspline-curve: closed (periodic) curve; bspline-surface: periodic in u over a fitted cylinder");
-  cmd->add_option("--stretch", o->stretch,
-                  "Splines: fairness weight of the stretch (membrane) energy, unit box")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--bending", o->bending,
-                  "Splines: fairness weight of the bending (thin plate) energy, unit box")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--step-control", o->step_control, "Splines: lm (Levenberg-Marquardt), armijo or none")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"lm", "armijo", "none"}));
-  cmd->add_option(
-      "--output,-o", o->output,
-      "Splines: write PREFIX.json (control points, knots), PREFIX.ply (samples), PREFIX_history.csv; "
-      "multi-view fits: PREFIX.json");
-  cmd->add_option(
-      "--initial", o->initial,
-      "Splines: start from this curve or surface (a scan2model.bspline/1 JSON, e.g. an earlier PREFIX.json)");
-  cmd->add_option("--contour", o->contour, "Glyph (.glif) inputs: which contour to fit")
-      ->capture_default_str();
-  cmd->add_option("--max-iterations", o->max_iterations, "Iteration cap")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
-  cmd->add_option("--reference", o->reference, "A NIST .fit reference file to compare the result with");
-  cmd->add_option("--history", o->history, "Write the per-iteration history to this CSV file");
-  cmd->add_option("--units", o->units, "Declare the input's units (e.g. mm) when the file does not say");
-  CLI::Option* joint = cmd->add_flag(
-      "--joint", o->joint,
-      "Multi-view: solve every view's pose and the model together, one linear solve per iteration (the "
-      "default)");
-  cmd->add_flag("--alternating", o->alternating,
-                "Multi-view: the alternating baseline (registration step, then fitting step) instead of the "
-                "joint method")
-      ->excludes(joint);
-  cmd->add_flag("--register-then-fit", o->register_then_fit,
-                "Multi-view: keep one shared motion for all views (fit the pre-registered cloud; a baseline)")
-      ->excludes(joint);
-  cmd->add_flag("--verbose,-v", o->verbose,
-                "Print the per-iteration history (RMS, max distance, damping, step, time)");
-  cmd->add_flag("--json", o->json, "Machine-readable output (schema scan2model.fit/1, docs/cli.md)");
+      ->check(CLI::Validator([](std::string& model) { return ModelError(model); }, "MODEL"));
+  // The other options come from the table the batch manifest's keys come from too.
+  for (const FitOptionSpec& spec : FitOptionTable()) AddTableOption(*cmd, spec, o);
   return [o]() { return RunFit(*o); };
-}
-
-FitOutcome ComputeFit(const FitOptions& o) {
-  if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
-  if (o.model == "revolution" || o.model == "helical" || o.model == "spiral") return ComputeMultiViewFit(o);
-  if (o.model.rfind("part:", 0) == 0) return ComputePartFit(o);
-  if (o.model != "plane" && o.model != "sphere" && o.model != "cylinder" && o.model != "cone")
-    throw FitFailure(kUsage, o.model + " is not a model (docs/cli.md)");
-  FitOptions options = o;
-  if (options.method.empty()) options.method = "tdm";
-  if (options.method != "tdm" && options.method != "sdm") {
-    throw FitFailure(kUsage, "--method " + options.method + " applies to splines; primitives use tdm or sdm");
-  }
-  try {
-    const PointCloudFormat format = DetectFormat(options.file);
-    Scan scan = ReadPointCloud(options.file, format);
-    if (!options.units.empty()) scan.units = options.units;
-    const std::string f = ToString(format);
-    FitOutcome outcome;
-    if (options.model == "plane") {
-      outcome = ComputePrimitiveFit<Plane>(options, scan, f,
-                                           [](const auto& p, const auto& opt) { return FitPlane(p, opt); });
-    } else if (options.model == "sphere") {
-      outcome = ComputePrimitiveFit<Sphere>(options, scan, f,
-                                            [](const auto& p, const auto& opt) { return FitSphere(p, opt); });
-    } else if (options.model == "cylinder") {
-      outcome = ComputePrimitiveFit<Cylinder>(
-          options, scan, f, [](const auto& p, const auto& opt) { return FitCylinder(p, opt); });
-    } else {
-      outcome = ComputePrimitiveFit<Cone>(options, scan, f,
-                                          [](const auto& p, const auto& opt) { return FitCone(p, opt); });
-    }
-    outcome.notes = scan.metadata.notes;
-    return outcome;
-  } catch (const FormatError& e) {
-    throw FitFailure(kInputError, e.what());
-  } catch (const FitError& e) {
-    throw FitFailure(kFitError, options.file + ": " + e.what());
-  }
 }
 
 int RunFit(const FitOptions& o) {

@@ -6,7 +6,7 @@
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
 #include "apps/commands.h"
-#include "apps/output.h"
+#include "pipeline/output.h"
 
 namespace s2m::app {
 namespace {

@@ -5,7 +5,7 @@
 //                                                and half a millimetre (world: the lab's frame)
 //   s2m_make_demo_views block <manifest.json>    the counterbored block of
 //   docs/examples/counterbored_block.part.json
-//                                                (the "part" case of acquisition/synthetic_cases.h): 8 views,
+//                                                (the "part" case of synthetic/synthetic_cases.h): 8 views,
 //                                                0.02 mm noise, recorded poses off by 2 degrees and 2 mm
 //                                                (world: the part frame, as a fixture would give it)
 // Deterministic (fixed seeds).

@@ -18,10 +18,10 @@
 
 #include "acquisition/format_error.h"
 #include "apps/commands.h"
-#include "apps/output.h"
 #include "devices/horus_interfaces.h"
 #include "devices/horus_rig.h"
 #include "devices/horus_scan.h"
+#include "pipeline/output.h"
 #ifdef S2M_HAVE_HORUS_OPENCV
 #include "devices/horus_calibration.h"
 #include "devices/laser_line.h"
@@ -107,7 +107,10 @@ Runner AddScanCommand(CLI::App& app) {
   cmd->add_option(
       "--calibration", o->calibration,
       "Calibration JSON (scan2model calibrate); horus-virtual without it: the rig's true calibration");
-  cmd->add_option("--out", o->out, "The recording (.s2mrec); never overwritten, see --resume")->required();
+  cmd->add_option("-o,--output,--out", o->out,
+                  "The recording (.s2mrec); never overwritten, see --resume (--out: the old spelling, an "
+                  "alias for one release)")
+      ->required();
   cmd->add_option("--steps", o->steps, "Turntable steps per turn (400: 0.9 degrees)");
   cmd->add_option("--lasers", o->lasers, "Lasers to use, in order (0,1)")->delimiter(',');
   cmd->add_flag(

@@ -160,7 +160,7 @@ struct PoseErrorMeasure {
 // ---------------------------------------------------------------------------------------------------------
 // Section 1: registration of a scan to a known surface.
 
-// The bumpy 100 mm x 100 mm freeform patch (acquisition/synthetic_cases.h, BumpyPatch) whose shape fixes all
+// The bumpy 100 mm x 100 mm freeform patch (synthetic/synthetic_cases.h, BumpyPatch) whose shape fixes all
 // six degrees of freedom of a scan on it.
 BSplineSurface KnownSurface() {
   return BumpyPatch(0.03);

@@ -57,7 +57,7 @@ Eigen::Matrix3Xd Columns(const Eigen::Matrix3Xd& p, Eigen::Index count) {
   return out;
 }
 
-// The reference models of acquisition/synthetic_cases.h (truth), with their views' points in the model frame.
+// The reference models of synthetic/synthetic_cases.h (truth), with their views' points in the model frame.
 Family FromCase(const std::string& name) {
   SyntheticCase c = MakeSyntheticCase(name);
   Eigen::Index total = 0;

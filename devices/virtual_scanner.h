@@ -70,7 +70,7 @@ SceneMesh CounterboredBlockMesh(const Eigen::VectorXd& values, int segments = 12
 // read or has no triangles.
 SceneMesh ReadMeshPly(const std::filesystem::path& path, const std::string& units = "unknown");
 
-// "vase", "helical", "spiral" (the true surfaces of acquisition/synthetic_cases.h, in mm, tessellated over
+// "vase", "helical", "spiral" (the true surfaces of synthetic/synthetic_cases.h, in mm, tessellated over
 // their domains), "part" (CounterboredBlockMesh at 60 x 40 x 20, bore 10, counterbore 18 x 6 mm), or a .ply
 // mesh path. Throws std::invalid_argument for an unknown name, FormatError for an unreadable file.
 SceneMesh SceneByName(const std::string& name_or_mesh, const std::string& mesh_units = "mm");

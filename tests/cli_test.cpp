@@ -237,7 +237,7 @@ TEST(Cli, JointMultiViewFitOfTheDemoVase) {
             5 * doc["residuals"]["rms"].get<double>());
 }
 
-// The synthetic screw and shell (acquisition/synthetic_cases.h: 6 views, 0.02 mm noise, recorded poses off by
+// The synthetic screw and shell (synthetic/synthetic_cases.h: 6 views, 0.02 mm noise, recorded poses off by
 // 2 degrees and 2 mm), written as recordings and fitted from scratch: axis, pitch or growth from normals, the
 // generatrix from the points, then the joint fit.
 TEST(Cli, HelicalAndSpiralFitsFromRecordedViews) {

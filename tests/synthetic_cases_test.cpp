@@ -1,4 +1,4 @@
-// Issue 4's synthetic ground-truth cases (acquisition/synthetic_cases.h): a vase, a helical screw, a spiral
+// Issue 4's synthetic ground-truth cases (synthetic/synthetic_cases.h): a vase, a helical screw, a spiral
 // shell and the counterbored block, each split into 6-8 views with 0.02 mm noise and device poses off by 2
 // degrees and 2 mm. Every case: every measured quantity within 3 standard uncertainties, every observable
 // pose component within 4, RMS at the noise, and per-scan motions beat fitting the pre-registered cloud.

@@ -8,7 +8,7 @@
 #include "fitting/fit_result.h"
 #include "registration/scan.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 
 nlohmann::json ToJson(const Eigen::Vector3d& v);
 nlohmann::json ToJson(const Eigen::Matrix4d& m);
@@ -30,4 +30,4 @@ void WriteTextAtomically(const std::string& path, const std::string& text);
 // output.
 int ReportError(const std::string& command, const std::string& message, int exit_code, bool json);
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

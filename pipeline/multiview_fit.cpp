@@ -6,21 +6,22 @@
 #include <iomanip>
 #include <iostream>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "acquisition/format_error.h"
-#include "apps/commands.h"
-#include "apps/domain.h"
-#include "apps/fit_options.h"
-#include "apps/output.h"
-#include "apps/views.h"
 #include "fitting/initial_models.h"
 #include "fitting/joint_fit.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/primitive_fit.h"
+#include "pipeline/domain_measures.h"
+#include "pipeline/exit_code.h"
+#include "pipeline/fit_options.h"
+#include "pipeline/output.h"
+#include "pipeline/views.h"
 #include "registration/scan_to_scan.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 namespace {
 
 // The frame of the initial axis: z along the axis of the cylinder best fitting all views merged in the world.
@@ -166,17 +167,12 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     j["profile"]["samples_radius_uncertainty"] = nlohmann::json::array();
     for (double u : radius_uncertainty) j["profile"]["samples_radius_uncertainty"].push_back(NumberOrNull(u));
     if (kinematic && kinematic->helical()) {
-      j["pitch"] = {{"value", kinematic->pitch()},
-                    {"uncertainty", NumberOrNull(UncertaintyOf(*model, r, "pitch"))},
-                    {"lead_per_turn", 2 * M_PI * kinematic->pitch()}};
+      j["pitch"] = MeasureHelix(kinematic->pitch(), UncertaintyOf(*model, r, "pitch"), units).ToJson();
     }
     if (spiral) {
-      const double u_growth = UncertaintyOf(*model, r, "growth");
-      j["growth"] = {{"value", spiral->growth()},
-                     {"uncertainty", NumberOrNull(u_growth)},
-                     {"whorl_expansion_rate", spiral->WhorlExpansionRate()},
-                     {"whorl_expansion_rate_uncertainty",
-                      NumberOrNull(2 * M_PI * spiral->WhorlExpansionRate() * u_growth)}};
+      j["growth"] =
+          MeasureShell(spiral->growth(), UncertaintyOf(*model, r, "growth"), spiral->WhorlExpansionRate())
+              .ToJson();
     }
     std::vector<RigidMotion> corrected;
     for (std::size_t k = 0; k < K; ++k) corrected.push_back(world_T_model_fit * r.model_T_scan[k]);
@@ -189,10 +185,17 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     const Eigen::Matrix3Xd registered = Concatenate(model_points);
     const Eigen::VectorXd deviations = SignedDistancesAroundAxis(*model, registered);
     j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations);
-    j["adequacy"] = AdequacyJson(r.residuals.rms, EstimateNoise(set));
-    if (o.model == "revolution") j["vessel"] = VesselJson(j, units);
+    const Adequacy adequacy = AssessAdequacy(r.residuals.rms, EstimateNoise(set));
+    j["adequacy"] = adequacy.ToJson();
+    std::optional<VesselMeasures> vessel;
+    if (o.model == "revolution") {
+      std::vector<Eigen::Vector2d> height_radius;
+      for (const std::vector<double>& sample : samples) height_radius.emplace_back(sample[0], sample[1]);
+      vessel = MeasureVessel(axis_point, axis_direction, height_radius, radius_uncertainty, units);
+      j["vessel"] = vessel->ToJson();
+    }
     WriteRequestedFiles(o, j, r);
-    if (o.model == "revolution" && !o.output.empty()) WriteProfileFiles(o.output, j["vessel"], units);
+    if (vessel && !o.output.empty()) WriteProfileFiles(o.output, *vessel);
     std::ostringstream text;
     text << "scan2model fit: " << model->name() << " to " << K << " views (" << set.TotalPoints()
          << " points) of " << o.file << " (units " << units << ")\n\n"
@@ -220,8 +223,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     }
     text << ViewsTable(j["views"]) << UnobservableText(r);
     if (o.verbose) text << HistoryTable(r.history);
-    if (j.contains("vessel")) text << VesselText(j["vessel"], units);
-    text << AdequacyText(j["adequacy"]);
+    if (vessel) text << vessel->Text();
+    text << adequacy.Text();
     outcome.text = text.str();
     return outcome;
   } catch (const FormatError& e) {
@@ -235,4 +238,4 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
   }
 }
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

@@ -7,11 +7,11 @@
 #include <string>
 #include <vector>
 
-#include "apps/fit_options.h"
 #include "fitting/joint_fit.h"
+#include "pipeline/fit_options.h"
 #include "registration/scan.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 
 // A scan2model.views/1 manifest (.json) or Stanford .conf; any other file is read as one cloud, one view in
 // world coordinates. Throws FormatError.
@@ -41,4 +41,4 @@ std::string UnobservableText(const JointFitResult& result);
 // Writes PREFIX.json (with -o) and the history CSV (with --history) when asked.
 void WriteRequestedFiles(const FitOptions& o, const nlohmann::json& document, const JointFitResult& result);
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

@@ -12,15 +12,15 @@
 
 #include "acquisition/format_error.h"
 #include "acquisition/part_file.h"
-#include "apps/commands.h"
-#include "apps/domain.h"
-#include "apps/fit_options.h"
-#include "apps/output.h"
-#include "apps/views.h"
 #include "fitting/joint_fit.h"
 #include "fitting/part_model.h"
+#include "pipeline/domain_measures.h"
+#include "pipeline/exit_code.h"
+#include "pipeline/fit_options.h"
+#include "pipeline/output.h"
+#include "pipeline/views.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 namespace {
 
 constexpr double kDegreesPerRadian = 180.0 / M_PI;
@@ -55,21 +55,6 @@ Reported Report(const PartParameter& p, double value, double uncertainty, const 
 
 nlohmann::json NumberOrNull(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-}
-
-// A parameter against its tolerance (nominal +- tolerance): the plain verdict, and the decision of ISO
-// 14253-1 with the expanded uncertainty U = 2 u (conformance or non-conformance proven, or neither).
-struct Tolerance {
-  std::string verdict;   // "pass" when |deviation| <= tolerance, else "fail"
-  std::string decision;  // "conforms", "does not conform", "ambiguous"
-};
-Tolerance CheckTolerance(double deviation, double tolerance, double uncertainty) {
-  const double d = std::abs(deviation);
-  const double expanded =
-      std::isfinite(uncertainty) ? 2 * uncertainty : std::numeric_limits<double>::infinity();
-  return {d <= tolerance ? "pass" : "fail", d + expanded <= tolerance  ? "conforms"
-                                            : d - expanded > tolerance ? "does not conform"
-                                                                       : "ambiguous"};
 }
 
 // The correlation matrix of the shape parameters; empty when there is no covariance (too few points). Rows
@@ -189,7 +174,7 @@ FitOutcome ComputePartFit(const FitOptions& o) {
                               {"deviation", p.value - p.nominal},
                               {"unit", p.unit}};
       if (const auto t = file.tolerances.find(names[i]); t != file.tolerances.end()) {
-        const Tolerance check = CheckTolerance(p.value - p.nominal, t->second, p.uncertainty);
+        const ToleranceCheck check = CheckTolerance(p.value - p.nominal, t->second, p.uncertainty);
         entry["tolerance"] = t->second;
         entry["verdict"] = check.verdict;
         entry["decision"] = check.decision;
@@ -228,7 +213,8 @@ FitOutcome ComputePartFit(const FitOptions& o) {
     // Signed deviations of the registered points (world = part frame) and the fit's adequacy against the
     // views' own noise (docs/batch.md).
     j["deviations"] = DeviationsJson(registered, SignedDistancesToFaces(part, registered));
-    j["adequacy"] = AdequacyJson(r.residuals.rms, EstimateNoise(set));
+    const Adequacy adequacy = AssessAdequacy(r.residuals.rms, EstimateNoise(set));
+    j["adequacy"] = adequacy.ToJson();
     WriteRequestedFiles(o, j, r);
 
     std::ostringstream text;
@@ -274,7 +260,7 @@ FitOutcome ComputePartFit(const FitOptions& o) {
     }
     text << ViewsTable(j["views"]) << UnobservableText(r);
     if (o.verbose) text << HistoryTable(r.history);
-    text << AdequacyText(j["adequacy"]);
+    text << adequacy.Text();
     outcome.text = text.str();
     return outcome;
   } catch (const FormatError& e) {
@@ -286,4 +272,4 @@ FitOutcome ComputePartFit(const FitOptions& o) {
   }
 }
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

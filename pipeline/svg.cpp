@@ -1,4 +1,4 @@
-#include "apps/svg.h"
+#include "pipeline/svg.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <limits>
 #include <sstream>
 
-namespace s2m::app::svg {
+namespace s2m::pipeline::svg {
 namespace {
 
 constexpr int kLeft = 70, kRight = 20, kTop = 34, kBottom = 46;  // plot margins, pixels
@@ -316,4 +316,4 @@ std::string ColouredScatter(const std::string& title, const std::vector<Eigen::V
   return s.str();
 }
 
-}  // namespace s2m::app::svg
+}  // namespace s2m::pipeline::svg

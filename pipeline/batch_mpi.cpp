@@ -1,7 +1,7 @@
 // The only file that includes <mpi.h> (docs/batch.md): MPI_Init_thread (FUNNELED: only the main thread calls
 // MPI; the worker threads of each rank fit objects), MPI_Gatherv of each rank's summary entries to rank 0.
 
-#include "apps/batch_mpi.h"
+#include "pipeline/batch_mpi.h"
 
 #include <mpi.h>
 
@@ -9,7 +9,7 @@
 #include <numeric>
 #include <stdexcept>
 
-namespace s2m::app {
+namespace s2m::pipeline {
 namespace {
 
 class OpenMpiSession final : public MpiSession {
@@ -77,4 +77,4 @@ std::unique_ptr<MpiSession> StartMpi() {
   return std::make_unique<OpenMpiSession>();
 }
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

@@ -1,4 +1,4 @@
-#include "apps/views.h"
+#include "pipeline/views.h"
 
 #include <cmath>
 #include <filesystem>
@@ -9,9 +9,9 @@
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
 #include "acquisition/scan_set_io.h"
-#include "apps/output.h"
+#include "pipeline/output.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 
 ScanSet ReadViews(const std::string& file) {
   const std::string ext = std::filesystem::path(file).extension().string();
@@ -110,4 +110,4 @@ void WriteRequestedFiles(const FitOptions& o, const nlohmann::json& document, co
   if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(result.history));
 }
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

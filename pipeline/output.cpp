@@ -1,4 +1,4 @@
-#include "apps/output.h"
+#include "pipeline/output.h"
 
 #include <filesystem>
 #include <fstream>
@@ -8,7 +8,7 @@
 
 #include "acquisition/format_error.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 
 nlohmann::json ToJson(const Eigen::Vector3d& v) {
   return nlohmann::json::array({v.x(), v.y(), v.z()});
@@ -110,4 +110,4 @@ int ReportError(const std::string& command, const std::string& message, int exit
   return exit_code;
 }
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

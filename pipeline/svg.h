@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-namespace s2m::app::svg {
+namespace s2m::pipeline::svg {
 
 // Text escaped for XML character data and attribute values.
 std::string Escape(const std::string& text);
@@ -44,4 +44,4 @@ std::string ColouredScatter(const std::string& title, const std::vector<Eigen::V
                             const std::vector<double>& values, double range, const std::string& unit,
                             Size size = {});
 
-}  // namespace s2m::app::svg
+}  // namespace s2m::pipeline::svg

@@ -1,4 +1,4 @@
-#include "apps/report.h"
+#include "pipeline/report.h"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -9,16 +9,16 @@
 #include <sstream>
 
 #include "acquisition/format_error.h"
-#include "apps/batch.h"
-#include "apps/domain.h"
-#include "apps/output.h"
-#include "apps/svg.h"
+#include "pipeline/batch.h"
+#include "pipeline/domain_measures.h"
+#include "pipeline/output.h"
+#include "pipeline/svg.h"
 
 #ifndef S2M_VERSION
 #define S2M_VERSION "unknown"
 #endif
 
-namespace s2m::app {
+namespace s2m::pipeline {
 namespace {
 
 using svg::Escape;
@@ -108,7 +108,7 @@ std::string Summary(const nlohmann::json& d) {
   return s.str();
 }
 
-std::string Adequacy(const nlohmann::json& a) {
+std::string AdequacySection(const nlohmann::json& a) {
   std::ostringstream s;
   s << "<h2>Model adequacy</h2>\n<p>RMS of the fit " << Number(a["fit_rms"], 4)
     << ", noise of the views estimated "
@@ -136,7 +136,7 @@ std::string Vessel(const nlohmann::json& v) {
                                  Number(v["base_diameter_uncertainty"], 2) + " " + Escape(units)})
     << Row({"largest diameter", Number(v["max_diameter"], 6) + " " + Escape(units) + " at " +
                                     Number(v["max_diameter_height"], 4) + " above the base"})
-    << "</table>\n<figure>" << ProfileSvg(v, units)
+    << "</table>\n<figure>" << ProfileSvg(VesselMeasures::FromJson(v))
     << "<figcaption class=\"note\">Section left of the axis, outline right; "
     << Escape(v.value("convention", "")) << ".</figcaption></figure>\n";
   return s.str();
@@ -290,7 +290,7 @@ std::string ReportHtml(const nlohmann::json& in) {
       const std::string v = d["verdict"].get<std::string>();
       body << "<p>Tolerance verdict: <span class=\"" << v << "\">" << Escape(v) << "</span></p>\n";
     }
-    if (d.contains("adequacy")) body << Adequacy(d["adequacy"]);
+    if (d.contains("adequacy")) body << AdequacySection(d["adequacy"]);
     if (d.contains("vessel")) body << Vessel(d["vessel"]);
     body << Convergence(d) << Deviations(d) << Views(d);
   }
@@ -304,40 +304,4 @@ std::string ReportHtml(const nlohmann::json& in) {
   return html.str();
 }
 
-Runner AddReportCommand(CLI::App& app) {
-  struct Options {
-    std::string input, output;
-  };
-  auto o = std::make_shared<Options>();
-  CLI::App* cmd = app.add_subcommand(
-      "report", "Write a self-contained HTML report (inline SVG plots, no network) of a fit's JSON result");
-  cmd->add_option("result", o->input,
-                  "A result document: `fit --json` output, `fit -o PREFIX`'s PREFIX.json, or a batch object "
-                  "(OUTPUT/objects/ID.json)")
-      ->required();
-  cmd->add_option("--output,-o", o->output, "The HTML file to write")->required();
-  return [o]() {
-    try {
-      std::ifstream in(o->input);
-      if (!in) throw FormatError(o->input, "", "cannot open");
-      nlohmann::json j;
-      try {
-        j = nlohmann::json::parse(in);
-      } catch (const nlohmann::json::exception& e) {
-        throw FormatError(o->input, "", std::string("not valid JSON: ") + e.what());
-      }
-      std::string html;
-      try {
-        html = ReportHtml(j);
-      } catch (const std::exception& e) {  // missing members, wrong types: not a result we know
-        throw FormatError(o->input, "", e.what());
-      }
-      WriteTextAtomically(o->output, html);
-      return int{kOk};
-    } catch (const FormatError& e) {
-      return ReportError("report", e.what(), kInputError, false);
-    }
-  };
-}
-
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

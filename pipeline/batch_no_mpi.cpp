@@ -3,9 +3,9 @@
 #include <cstdlib>
 #include <stdexcept>
 
-#include "apps/batch_mpi.h"
+#include "pipeline/batch_mpi.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 
 bool MpiBuilt() {
   return false;
@@ -21,4 +21,4 @@ std::unique_ptr<MpiSession> StartMpi() {
       "this scan2model was built without MPI (install libopenmpi-dev and rebuild; docs/batch.md)");
 }
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

@@ -13,13 +13,13 @@
 #include "acquisition/format_error.h"
 #include "acquisition/glyph_outline.h"
 #include "acquisition/point_cloud_io.h"
-#include "apps/commands.h"
-#include "apps/fit_options.h"
-#include "apps/output.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
+#include "pipeline/exit_code.h"
+#include "pipeline/fit_options.h"
+#include "pipeline/output.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 namespace {
 
 class UsageError : public std::runtime_error {
@@ -269,4 +269,4 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
   }
 }
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

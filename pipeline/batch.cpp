@@ -1,4 +1,4 @@
-#include "apps/batch.h"
+#include "pipeline/batch.h"
 
 #include <omp.h>
 #include <unistd.h>
@@ -18,22 +18,15 @@
 #include <thread>
 
 #include "acquisition/format_error.h"
-#include "apps/commands.h"
-#include "apps/domain.h"
-#include "apps/output.h"
-#include "apps/report.h"
+#include "pipeline/domain_measures.h"
+#include "pipeline/exit_code.h"
+#include "pipeline/fit_option_table.h"
+#include "pipeline/output.h"
+#include "pipeline/report.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 namespace fs = std::filesystem;
 namespace {
-
-// The options an object may set (manifest "options" members or CSV columns), with their FitOptions field.
-const std::set<std::string>& KnownOptions() {
-  static const std::set<std::string> kOptions = {
-      "method",       "max_iterations", "control_points", "order",   "closed",  "stretch",  "bending",
-      "step_control", "units",          "solver",         "contour", "initial", "reference"};
-  return kOptions;
-}
 
 bool ValidId(const std::string& id) {
   if (id.empty() || id == "." || id == "..") return false;
@@ -56,25 +49,6 @@ std::string AsText(const nlohmann::json& v) {
   return v.dump();
 }
 
-double ParseNumber(const std::string& where, const std::string& key, const std::string& text) {
-  try {
-    std::size_t used = 0;
-    const double v = std::stod(text, &used);
-    if (used != text.size() || !std::isfinite(v)) throw std::invalid_argument("");
-    return v;
-  } catch (const std::exception&) {
-    throw FormatError(where, "", "option " + key + ": '" + text + "' is not a number");
-  }
-}
-
-int ParseInteger(const std::string& where, const std::string& key, const std::string& text, int min) {
-  const double v = ParseNumber(where, key, text);
-  if (v != std::floor(v) || v < min || v > 1e9)
-    throw FormatError(where, "",
-                      "option " + key + ": '" + text + "' is not an integer >= " + std::to_string(min));
-  return static_cast<int>(v);
-}
-
 // Builds one object from its members (all as JSON values); `where` names the manifest and the object for
 // errors.
 BatchObject MakeObject(const std::string& where, const fs::path& base, const std::string& id,
@@ -94,55 +68,21 @@ BatchObject MakeObject(const std::string& where, const fs::path& base, const std
   const std::string at = where + ": object " + id;
   for (const auto& [key, value] : options) {
     if (value.is_null() || (value.is_string() && value.get<std::string>().empty())) continue;  // default
-    if (KnownOptions().count(key) == 0) {
-      std::string known;
-      for (const std::string& k : KnownOptions()) known += (known.empty() ? "" : ", ") + k;
-      throw FormatError(where, "",
-                        "object " + id + ": unknown option '" + key + "' (options: " + known + ")");
+    // The keys and their values are those of `scan2model fit` (pipeline/fit_option_table.h).
+    const FitOptionSpec* option = FindManifestOption(key);
+    if (option == nullptr) {
+      throw FormatError(
+          where, "",
+          "object " + id + ": unknown option '" + key + "' (options: " + ManifestOptionKeys() + ")");
     }
-    const std::string text = AsText(value);
-    resolved_options[key] = text;
-    FitOptions& f = o.fit;
-    if (key == "method") {
-      static const std::set<std::string> kMethods = {"pdm", "tdm", "sdm", "cdm", "gtdm", "gn"};
-      if (kMethods.count(text) == 0)
-        throw FormatError(at, "", "method '" + text + "' (pdm, tdm, sdm, cdm, gtdm, gn)");
-      f.method = text;
-    } else if (key == "max_iterations") {
-      f.max_iterations = ParseInteger(at, key, text, 1);
-    } else if (key == "control_points") {
-      f.control_points = text;
-    } else if (key == "order") {
-      f.order = ParseInteger(at, key, text, 2);
-      if (f.order > 8) throw FormatError(at, "", "order " + text + " is above 8");
-    } else if (key == "closed") {
-      if (text != "true" && text != "false" && text != "1" && text != "0")
-        throw FormatError(at, "", "closed: '" + text + "' is not true or false");
-      f.closed = text == "true" || text == "1";
-    } else if (key == "stretch" || key == "bending") {
-      const double v = ParseNumber(at, key, text);
-      if (v < 0) throw FormatError(at, "", key + " is negative");
-      (key == "stretch" ? f.stretch : f.bending) = v;
-    } else if (key == "step_control") {
-      if (text != "lm" && text != "armijo" && text != "none")
-        throw FormatError(at, "", "step_control '" + text + "' (lm, armijo, none)");
-      f.step_control = text;
-    } else if (key == "units") {
-      f.units = text;
-    } else if (key == "solver") {
-      if (text != "joint" && text != "alternating" && text != "register-then-fit")
-        throw FormatError(at, "", "solver '" + text + "' (joint, alternating, register-then-fit)");
-      f.alternating = text == "alternating";
-      f.register_then_fit = text == "register-then-fit";
-    } else if (key == "contour") {
-      f.contour = ParseInteger(at, key, text, 0);
-    } else if (key == "initial") {
-      f.initial = Resolve(base, text);
-      resolved_options[key] = f.initial;
-    } else if (key == "reference") {
-      f.reference = Resolve(base, text);
-      resolved_options[key] = f.reference;
+    std::string text = AsText(value);
+    if (option->kind == FitOptionKind::kPath) text = Resolve(base, text);
+    try {
+      ApplyFitOption(*option, text, o.fit);
+    } catch (const std::invalid_argument& e) {
+      throw FormatError(at, "", e.what());
     }
+    resolved_options[key] = option->kind == FitOptionKind::kPath ? text : AsText(value);
   }
   o.spec = {{"input", o.fit.file}, {"model", o.fit.model}, {"options", resolved_options}};
   return o;
@@ -404,10 +344,8 @@ nlohmann::json ComputeObject(const BatchObject& object, const BatchOptions& opti
   const fs::path dir = ObjectsDir(options.output_dir);
   if (record["status"] == "ok") {
     const nlohmann::json& result = record["result"];
-    if (result.contains("vessel")) {
-      const std::string units = result["input"].value("units", "unknown");
-      WriteProfileFiles((dir / object.id).string(), result["vessel"], units);
-    }
+    if (result.contains("vessel"))
+      WriteProfileFiles((dir / object.id).string(), VesselMeasures::FromJson(result["vessel"]));
   }
   if (options.reports) {
     try {  // a report that cannot be drawn is a note, not a failed object
@@ -549,15 +487,11 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
     const nlohmann::json u = d.value("uncertainties", nlohmann::json::object());
     for (const auto& [name, value] : d["parameters"].items()) {
       if (value.is_array()) {
-        AddVector(out, name, value, name.find("direction") != std::string::npos ? "" : units);
+        AddVector(out, name, value, UnitOf(PrimitiveParameterKind(name), units));
       } else {
-        const bool angle = name.find("angle") != std::string::npos;
         const nlohmann::json unc =
             u.contains(name) ? u[name]["standard_uncertainty"] : nlohmann::json(nullptr);
-        out.push_back(Flat(name, value.get<double>(), unc,
-                           name == "apex_angle_deg" ? "deg"
-                           : angle                  ? "rad"
-                                                    : units));
+        out.push_back(Flat(name, value.get<double>(), unc, UnitOf(PrimitiveParameterKind(name), units)));
       }
     }
   } else if (schema == "scan2model.multiview/1") {
@@ -680,4 +614,4 @@ void WriteBatchSummary(const std::string& output_dir, const std::string& name, c
   WriteTextAtomically((fs::path(output_dir) / (name + ".csv")).string(), csv.str());
 }
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-namespace s2m::app {
+namespace s2m::pipeline {
 
 class MpiSession {
  public:
@@ -30,4 +30,4 @@ bool LaunchedByMpi();
 // MPI.
 std::unique_ptr<MpiSession> StartMpi();
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

@@ -6,9 +6,10 @@
 #include <string>
 #include <vector>
 
+#include "pipeline/exit_code.h"
 #include "registration/scan.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 
 struct FitOptions {
   std::string file;
@@ -46,8 +47,8 @@ struct FitOutcome {
   std::vector<std::string> notes;
 };
 
-// A fit that could not be computed: the message and the exit code of apps/commands.h (kUsage, kInputError,
-// kFitError).
+// A fit that could not be computed: the message and the exit code of pipeline/exit_code.h (kUsage,
+// kInputError, kFitError).
 class FitFailure : public std::runtime_error {
  public:
   FitFailure(int exit_code, const std::string& message)
@@ -61,9 +62,6 @@ class FitFailure : public std::runtime_error {
 // Runs the fit `o` describes (any model of `scan2model fit`); throws FitFailure. Writes the files options
 // ask for (-o PREFIX, --history), nothing on standard output or error.
 FitOutcome ComputeFit(const FitOptions& o);
-// `scan2model fit`: ComputeFit, then the text or JSON on standard output (notes and errors on standard
-// error); returns the exit code.
-int RunFit(const FitOptions& o);
 
 // The fits ComputeFit dispatches to; each throws FitFailure.
 // A B-spline curve or surface fit.
@@ -73,4 +71,4 @@ FitOutcome ComputeMultiViewFit(const FitOptions& options);
 // A joint multi-view fit of a constrained part (`--model part:FILE`, docs/parts.md).
 FitOutcome ComputePartFit(const FitOptions& options);
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

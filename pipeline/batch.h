@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "apps/fit_options.h"
+#include "pipeline/fit_options.h"
 
-namespace s2m::app {
+namespace s2m::pipeline {
 
 // One object of a manifest.
 struct BatchObject {
@@ -71,4 +71,4 @@ void WriteBatchSummary(const std::string& output_dir, const std::string& name, c
 // unit, ...}]: what the summary and the report's table show.
 nlohmann::json FlatParameters(const nlohmann::json& document);
 
-}  // namespace s2m::app
+}  // namespace s2m::pipeline

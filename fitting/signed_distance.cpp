@@ -1,0 +1,41 @@
+#include "fitting/signed_distance.h"
+
+#include <Eigen/Geometry>  // cross products
+#include <vector>
+
+#include "fitting/foot_point.h"
+
+namespace s2m {
+namespace {
+
+// Signed distances with the sign of (x - foot) . n, n = C_u x C_v at the foot point, optionally turned away
+// from the z axis.
+Eigen::VectorXd SignedDistances(const ParametricModel& model, const Eigen::Matrix3Xd& points,
+                                bool away_from_axis) {
+  std::vector<FootPoint> feet;
+  ComputeFootPoints(model, Eigen::MatrixXd(points), feet);
+  Eigen::VectorXd out(points.cols());
+  LocalGeometry g;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    const FootPoint& foot = feet[static_cast<std::size_t>(i)];
+    model.Evaluate(foot.t, 1, g);
+    const Eigen::Vector3d c = To3(g.point);
+    Eigen::Vector3d n = To3(g.d1.col(0)).cross(To3(g.d1.col(1)));
+    if (away_from_axis && n.dot(Eigen::Vector3d(c.x(), c.y(), 0.0)) < 0) n = -n;
+    const double side = (Eigen::Vector3d(points.col(i)) - c).dot(n);
+    out[i] = side < 0 ? -foot.distance : foot.distance;
+  }
+  return out;
+}
+
+}  // namespace
+
+Eigen::VectorXd SignedDistancesAroundAxis(const ParametricModel& model, const Eigen::Matrix3Xd& points) {
+  return SignedDistances(model, points, true);
+}
+
+Eigen::VectorXd SignedDistancesToFaces(const PartModel& part, const Eigen::Matrix3Xd& points) {
+  return SignedDistances(part, points, false);
+}
+
+}  // namespace s2m

@@ -1,0 +1,20 @@
+#pragma once
+// Signed orthogonal distances of points to a fitted model: the deviations the report colours and the batch
+// summarizes. Only the sign convention is added to the foot points (fitting/foot_point.h).
+
+#include <Eigen/Core>
+
+#include "fitting/parametric_model.h"
+#include "fitting/part_model.h"
+
+namespace s2m {
+
+// Signed orthogonal distances of points (model frame) to a model around the z axis (surface of revolution,
+// helical, spiral): positive on the side away from the axis (outside a pot's wall, the convention of
+// SampleAroundAxis).
+Eigen::VectorXd SignedDistancesAroundAxis(const ParametricModel& model, const Eigen::Matrix3Xd& points);
+// Signed distances of points (part frame) to their nearest faces: positive along the face's normal C_u x C_v
+// at the foot point (planes: their normal; cylinders: away from the axis).
+Eigen::VectorXd SignedDistancesToFaces(const PartModel& part, const Eigen::Matrix3Xd& points);
+
+}  // namespace s2m

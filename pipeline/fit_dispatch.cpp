@@ -1,0 +1,194 @@
+// ComputeFit: the dispatch of `scan2model fit` and `scan2model batch` to the fits of every model family, and
+// the primitive fits (plane, sphere, cylinder, cone) themselves.
+#include <chrono>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <optional>
+#include <set>
+#include <sstream>
+
+#include "acquisition/format_error.h"
+#include "acquisition/nist_reference.h"
+#include "acquisition/point_cloud_io.h"
+#include "fitting/primitive_compare.h"
+#include "fitting/primitive_fit.h"
+#include "pipeline/domain_measures.h"
+#include "pipeline/exit_code.h"
+#include "pipeline/fit_options.h"
+#include "pipeline/output.h"
+
+namespace s2m::pipeline {
+namespace {
+
+// One named result value with its uncertainty, for both text and JSON output.
+struct Row {
+  std::string name;
+  nlohmann::json value;
+  std::string text;
+};
+
+std::vector<Row> Parameters(const Plane& s) {
+  return {{"point", ToJson(s.point), Format(s.point)}, {"normal", ToJson(s.normal), Format(s.normal)}};
+}
+std::vector<Row> Parameters(const Sphere& s) {
+  return {{"center", ToJson(s.center), Format(s.center)},
+          {"radius", s.radius, Format(s.radius)},
+          {"diameter", 2 * s.radius, Format(2 * s.radius)}};
+}
+std::vector<Row> Parameters(const Cylinder& s) {
+  return {{"axis_point", ToJson(s.axis_point), Format(s.axis_point)},
+          {"axis_direction", ToJson(s.axis_direction), Format(s.axis_direction)},
+          {"radius", s.radius, Format(s.radius)},
+          {"diameter", 2 * s.radius, Format(2 * s.radius)}};
+}
+std::vector<Row> Parameters(const Cone& s) {
+  const double degrees = 180.0 / M_PI;
+  return {{"axis_point", ToJson(s.axis_point), Format(s.axis_point)},
+          {"axis_direction", ToJson(s.axis_direction), Format(s.axis_direction)},
+          {"radius", s.radius, Format(s.radius) + "  (cross-section through the axis point)"},
+          {"surface_distance", s.SurfaceDistanceFromAxisPoint(), Format(s.SurfaceDistanceFromAxisPoint())},
+          {"half_angle", s.half_angle, Format(s.half_angle) + " rad"},
+          {"apex_angle_deg", 2 * s.half_angle * degrees, Format(2 * s.half_angle * degrees) + " deg (full)"},
+          {"apex", ToJson(s.Apex()), Format(s.Apex())}};
+}
+
+Plane ReadReference(const std::string& f, const Plane&) {
+  return ReadNistPlaneFit(f);
+}
+Sphere ReadReference(const std::string& f, const Sphere&) {
+  return ReadNistSphereFit(f);
+}
+Cylinder ReadReference(const std::string& f, const Cylinder&) {
+  return ReadNistCylinderFit(f);
+}
+Cone ReadReference(const std::string& f, const Cone&) {
+  return ReadNistConeFit(f);
+}
+
+template <class Shape, class FitFn>
+FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std::string& format,
+                               FitFn fit_fn) {
+  PrimitiveFitOptions options;
+  options.method = o.method == "sdm" ? PrimitiveMethod::kSdm : PrimitiveMethod::kTdm;
+  options.solver.max_iterations = o.max_iterations;
+  const auto start = std::chrono::steady_clock::now();
+  const PrimitiveFit<Shape> fit = fit_fn(scan.points, options);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const std::vector<Row> rows = Parameters(fit.shape);
+  const double extent = ComputeBounds(scan.points).diagonal();
+
+  std::optional<PrimitiveDeviation> deviation;
+  if (!o.reference.empty()) deviation = Compare(fit.shape, ReadReference(o.reference, fit.shape));
+  if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(fit.history));
+
+  FitOutcome outcome;
+  {
+    nlohmann::json& j = outcome.document;
+    j["schema"] = "scan2model.fit/1";
+    j["input"] = DescribeScan(scan, o.file, format);
+    j["model"] = o.model;
+    j["method"] = ToString(options.method);
+    for (const Row& r : rows) j["parameters"][r.name] = r.value;
+    j["nist_layout"] = ToNistLayout(fit.shape);
+    for (const ParameterUncertainty& u : fit.uncertainties) {
+      j["uncertainties"][u.name] = {{"standard_uncertainty", u.standard_uncertainty},
+                                    {"unit", u.is_angle ? "rad" : scan.units}};
+    }
+    j["residuals"] = {{"count", fit.residuals.count},
+                      {"rms", fit.residuals.rms},
+                      {"max_abs", fit.residuals.max_abs},
+                      {"mean", fit.residuals.mean}};
+    j["iterations"] = fit.iterations;
+    j["stop_reason"] = ToString(fit.stop_reason);
+    j["seconds"] = seconds;
+    j["history"] = HistoryJson(fit.history);
+    if (deviation) {
+      j["reference"] = {{"file", o.reference},
+                        {"extent", extent},
+                        {"position", deviation->position},
+                        {"direction_rad", deviation->direction},
+                        {"size", deviation->size},
+                        {"apex_angle_rad", deviation->angle}};
+    }
+    j["deviations"] = DeviationsJson(scan.points, SignedDistances(fit.shape, scan.points));
+  }
+
+  std::ostringstream text;
+  text << "scan2model fit: " << o.model << " to " << scan.size() << " points of " << o.file << " (" << format
+       << ", units " << scan.units << ")\n\n";
+  for (const Row& r : rows) text << "  " << std::left << std::setw(18) << r.name << r.text << "\n";
+  if (!fit.uncertainties.empty()) {
+    text << "\n  standard uncertainties (type A, from the residuals)\n";
+    for (const ParameterUncertainty& u : fit.uncertainties) {
+      text << "  " << std::left << std::setw(18) << u.name << Format(u.standard_uncertainty, 3)
+           << (u.is_angle ? " rad" : "") << "\n";
+    }
+  } else {
+    text << "\n  no uncertainties: as many parameters as points (the fit interpolates and may not be "
+            "unique)\n";
+  }
+  text << "\n  residuals         RMS " << Format(fit.residuals.rms, 6) << ", max "
+       << Format(fit.residuals.max_abs, 6) << ", mean " << Format(fit.residuals.mean, 3) << "\n"
+       << "  solver            " << ToString(options.method) << " + Levenberg-Marquardt, " << fit.iterations
+       << " iterations, stopped: " << ToString(fit.stop_reason) << ", " << Format(seconds * 1e3, 3)
+       << " ms\n";
+  if (o.verbose) text << HistoryTable(fit.history);
+  if (deviation) {
+    text << "\n  against reference " << o.reference << " (relative to the data's extent " << Format(extent, 6)
+         << ")\n"
+         << "  position          " << Format(deviation->position / extent, 3) << "\n";
+    if (deviation->direction > 0 || !std::is_same_v<Shape, Sphere>) {
+      text << "  direction         " << Format(deviation->direction, 3) << " rad\n";
+    }
+    if (!std::is_same_v<Shape, Plane>)
+      text << "  size              " << Format(deviation->size / extent, 3) << "\n";
+    if (std::is_same_v<Shape, Cone>)
+      text << "  apex angle        " << Format(deviation->angle, 3) << " rad\n";
+  }
+  outcome.text = text.str();
+  return outcome;
+}
+
+}  // namespace
+
+FitOutcome ComputeFit(const FitOptions& o) {
+  if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
+  if (o.model == "revolution" || o.model == "helical" || o.model == "spiral") return ComputeMultiViewFit(o);
+  if (o.model.rfind("part:", 0) == 0) return ComputePartFit(o);
+  if (o.model != "plane" && o.model != "sphere" && o.model != "cylinder" && o.model != "cone")
+    throw FitFailure(kUsage, o.model + " is not a model (docs/cli.md)");
+  FitOptions options = o;
+  if (options.method.empty()) options.method = "tdm";
+  if (options.method != "tdm" && options.method != "sdm") {
+    throw FitFailure(kUsage, "--method " + options.method + " applies to splines; primitives use tdm or sdm");
+  }
+  try {
+    const PointCloudFormat format = DetectFormat(options.file);
+    Scan scan = ReadPointCloud(options.file, format);
+    if (!options.units.empty()) scan.units = options.units;
+    const std::string f = ToString(format);
+    FitOutcome outcome;
+    if (options.model == "plane") {
+      outcome = ComputePrimitiveFit<Plane>(options, scan, f,
+                                           [](const auto& p, const auto& opt) { return FitPlane(p, opt); });
+    } else if (options.model == "sphere") {
+      outcome = ComputePrimitiveFit<Sphere>(options, scan, f,
+                                            [](const auto& p, const auto& opt) { return FitSphere(p, opt); });
+    } else if (options.model == "cylinder") {
+      outcome = ComputePrimitiveFit<Cylinder>(
+          options, scan, f, [](const auto& p, const auto& opt) { return FitCylinder(p, opt); });
+    } else {
+      outcome = ComputePrimitiveFit<Cone>(options, scan, f,
+                                          [](const auto& p, const auto& opt) { return FitCone(p, opt); });
+    }
+    outcome.notes = scan.metadata.notes;
+    return outcome;
+  } catch (const FormatError& e) {
+    throw FitFailure(kInputError, e.what());
+  } catch (const FitError& e) {
+    throw FitFailure(kFitError, options.file + ": " + e.what());
+  }
+}
+
+}  // namespace s2m::pipeline

@@ -1,0 +1,300 @@
+#include "pipeline/fit_option_table.h"
+
+#include <cmath>
+#include <set>
+#include <stdexcept>
+
+namespace s2m::pipeline {
+namespace {
+
+std::string Join(const std::vector<std::string>& items) {
+  std::string out;
+  for (const std::string& item : items) out += (out.empty() ? "" : ", ") + item;
+  return out;
+}
+
+double ParseNumber(const std::string& key, const std::string& text) {
+  try {
+    std::size_t used = 0;
+    const double v = std::stod(text, &used);
+    if (used != text.size() || !std::isfinite(v)) throw std::invalid_argument("");
+    return v;
+  } catch (const std::exception&) {
+    throw std::invalid_argument("option " + key + ": '" + text + "' is not a number");
+  }
+}
+
+int ToInt(const std::string& text) {
+  return static_cast<int>(std::stod(text));
+}
+
+std::vector<FitOptionSpec> MakeTable() {
+  using K = FitOptionKind;
+  std::vector<FitOptionSpec> t;
+  t.push_back(
+      {"method",
+       "--method",
+       K::kChoice,
+       "",
+       "Error term per iteration: pdm, tdm, sdm, cdm, gtdm or gn (primitives: tdm or sdm). Default: tdm "
+       "for primitives and multi-view fits, sdm for splines",
+       {"pdm", "tdm", "sdm", "cdm", "gtdm", "gn"},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.method = v; }});
+  t.push_back({"control_points",
+               "--control-points",
+               K::kText,
+               "",
+               "Splines: control points, N for a curve, NUxNV for a surface (default 12 / 8x8)",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.control_points = v; }});
+  t.push_back({"order",
+               "--order",
+               K::kInteger,
+               "4",
+               "Splines: order (degree + 1)",
+               {},
+               false,
+               2,
+               8,
+               [](FitOptions& o, const std::string& v) { o.order = ToInt(v); }});
+  t.push_back(
+      {"closed",
+       "--closed",
+       K::kFlag,
+       "",
+       "bspline-curve: closed (periodic) curve; bspline-surface: periodic in u over a fitted cylinder",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.closed = v == "true"; }});
+  t.push_back({"stretch",
+               "--stretch",
+               K::kNumber,
+               "0",
+               "Splines: fairness weight of the stretch (membrane) energy, unit box",
+               {},
+               false,
+               0,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.stretch = std::stod(v); }});
+  t.push_back({"bending",
+               "--bending",
+               K::kNumber,
+               "0.001",
+               "Splines: fairness weight of the bending (thin plate) energy, unit box",
+               {},
+               false,
+               0,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.bending = std::stod(v); }});
+  t.push_back({"step_control",
+               "--step-control",
+               K::kChoice,
+               "lm",
+               "Splines: lm (Levenberg-Marquardt), armijo or none",
+               {"lm", "armijo", "none"},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.step_control = v; }});
+  t.push_back(
+      {"",
+       "--output,-o",
+       K::kText,
+       "",
+       "Splines: write PREFIX.json (control points, knots), PREFIX.ply (samples), PREFIX_history.csv; "
+       "multi-view fits: PREFIX.json",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.output = v; }});
+  t.push_back({"initial",
+               "--initial",
+               K::kPath,
+               "",
+               "Splines: start from this curve or surface (a scan2model.bspline/1 JSON, e.g. an earlier "
+               "PREFIX.json)",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.initial = v; }});
+  t.push_back({"contour",
+               "--contour",
+               K::kInteger,
+               "0",
+               "Glyph (.glif) inputs: which contour to fit",
+               {},
+               false,
+               0,
+               1e9,
+               [](FitOptions& o, const std::string& v) { o.contour = ToInt(v); }});
+  t.push_back({"max_iterations",
+               "--max-iterations",
+               K::kInteger,
+               "200",
+               "Iteration cap",
+               {},
+               false,
+               1,
+               1e9,
+               [](FitOptions& o, const std::string& v) { o.max_iterations = ToInt(v); }});
+  t.push_back({"reference",
+               "--reference",
+               K::kPath,
+               "",
+               "A NIST .fit reference file to compare the result with",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.reference = v; }});
+  t.push_back({"",
+               "--history",
+               K::kText,
+               "",
+               "Write the per-iteration history to this CSV file",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.history = v; }});
+  t.push_back({"units",
+               "--units",
+               K::kText,
+               "",
+               "Declare the input's units (e.g. mm) when the file does not say",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.units = v; }});
+  // The multi-view solver: on the command line the flags --joint (the default, stated explicitly),
+  // --alternating and --register-then-fit; in a manifest the key "solver". Each flag sets its own member, so
+  // that the command line keeps combining --alternating with --register-then-fit as it always has.
+  t.push_back(
+      {"solver",
+       "",
+       K::kChoice,
+       "joint",
+       "Multi-view: joint (every view's pose and the model together, one linear solve per iteration; the "
+       "default), alternating (the baseline: registration step, then fitting step) or register-then-fit "
+       "(one shared motion for all views: fit the pre-registered cloud; a baseline)",
+       {"joint", "alternating", "register-then-fit"},
+       true,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) {
+         if (v == "joint") o.joint = true;
+         if (v == "alternating") o.alternating = true;
+         if (v == "register-then-fit") o.register_then_fit = true;
+       }});
+  t.push_back({"",
+               "--verbose,-v",
+               K::kFlag,
+               "",
+               "Print the per-iteration history (RMS, max distance, damping, step, time)",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.verbose = v == "true"; }});
+  t.push_back({"",
+               "--json",
+               K::kFlag,
+               "",
+               "Machine-readable output (schema scan2model.fit/1, docs/cli.md)",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.json = v == "true"; }});
+  return t;
+}
+
+}  // namespace
+
+const std::vector<FitOptionSpec>& FitOptionTable() {
+  static const std::vector<FitOptionSpec> kTable = MakeTable();
+  return kTable;
+}
+
+const FitOptionSpec* FindManifestOption(const std::string& key) {
+  if (key.empty()) return nullptr;
+  for (const FitOptionSpec& o : FitOptionTable()) {
+    if (o.key == key) return &o;
+  }
+  return nullptr;
+}
+
+std::string ManifestOptionKeys() {
+  std::set<std::string> keys;  // sorted, as the manifest's error message has always listed them
+  for (const FitOptionSpec& o : FitOptionTable()) {
+    if (!o.key.empty()) keys.insert(o.key);
+  }
+  return Join(std::vector<std::string>(keys.begin(), keys.end()));
+}
+
+std::string ParseFitOption(const FitOptionSpec& o, const std::string& text) {
+  const std::string& name = o.key.empty() ? o.names : o.key;
+  switch (o.kind) {
+    case FitOptionKind::kText:
+    case FitOptionKind::kPath:
+      return text;
+    case FitOptionKind::kFlag:
+      if (text == "true" || text == "1") return "true";
+      if (text == "false" || text == "0") return "false";
+      throw std::invalid_argument(name + ": '" + text + "' is not true or false");
+    case FitOptionKind::kChoice:
+      for (const std::string& c : o.choices) {
+        if (c == text) return text;
+      }
+      throw std::invalid_argument(name + " '" + text + "' (" + Join(o.choices) + ")");
+    case FitOptionKind::kInteger: {
+      const double v = ParseNumber(name, text);
+      if (v != std::floor(v) || v < o.min || v > o.max) {
+        throw std::invalid_argument("option " + name + ": '" + text + "' is not an integer in [" +
+                                    std::to_string(static_cast<long long>(o.min)) + ", " +
+                                    std::to_string(static_cast<long long>(std::min(o.max, 1e9))) + "]");
+      }
+      return std::to_string(static_cast<long long>(v));
+    }
+    case FitOptionKind::kNumber: {
+      const double v = ParseNumber(name, text);
+      if (v < o.min || v > o.max) {
+        throw std::invalid_argument("option " + name + ": " + text + " is " +
+                                    (v < o.min ? "below " : "above ") +
+                                    std::to_string(v < o.min ? o.min : o.max));
+      }
+      return text;
+    }
+  }
+  return text;
+}
+
+void ApplyFitOption(const FitOptionSpec& option, const std::string& text, FitOptions& options) {
+  option.set(options, ParseFitOption(option, text));
+}
+
+std::string ModelError(const std::string& model) {
+  static const std::set<std::string> kModels = {"plane",      "sphere",        "cylinder",
+                                                "cone",       "bspline-curve", "bspline-surface",
+                                                "revolution", "helical",       "spiral"};
+  if (kModels.count(model) > 0) return "";
+  if (model.rfind("part:", 0) == 0)
+    return model.size() > 5 ? "" : "part: needs a part file, e.g. part:block.part.json";
+  return model +
+         " is not a model (plane, sphere, cylinder, cone, bspline-curve, bspline-surface, revolution, "
+         "helical, "
+         "spiral, part:FILE)";
+}
+
+}  // namespace s2m::pipeline

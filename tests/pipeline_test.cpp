@@ -1,0 +1,313 @@
+// The pipeline library in-process (docs/pipeline.md): the fit dispatch, the option table shared by `fit` and
+// the batch manifest, the typed domain measures, the batch engine and the report, without running the binary.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "acquisition/format_error.h"
+#include "pipeline/batch.h"
+#include "pipeline/domain_measures.h"
+#include "pipeline/fit_option_table.h"
+#include "pipeline/fit_options.h"
+#include "pipeline/report.h"
+#include "test_paths.h"
+
+namespace s2m::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Nist(const std::string& name) {
+  return test::TestData("nist/" + name).string();
+}
+
+fs::path FreshDir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("s2m_pipeline_test_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+TEST(FitDispatch, CylinderAgreesWithTheNistReference) {
+  FitOptions o;
+  o.file = Nist("cyl1.ds");
+  o.model = "cylinder";
+  o.reference = Nist("cyl1.fit");
+  const FitOutcome outcome = ComputeFit(o);
+  const nlohmann::json& d = outcome.document;
+  EXPECT_EQ(d["schema"], "scan2model.fit/1");
+  EXPECT_EQ(d["method"], "tdm");  // the primitives' default
+  EXPECT_EQ(d["input"]["points"], 500);
+  EXPECT_NEAR(d["parameters"]["diameter"].get<double>(), 57.289229507551100877, 1e-9);
+  EXPECT_LT(d["reference"]["direction_rad"].get<double>(), 1e-8);
+  EXPECT_EQ(d["deviations"]["count"], 500);
+  EXPECT_NE(outcome.text.find("scan2model fit: cylinder to 500 points"), std::string::npos) << outcome.text;
+}
+
+TEST(FitDispatch, FailuresCarryTheirExitCodes) {
+  FitOptions o;
+  o.file = Nist("cyl1.ds");
+  o.model = "torus";
+  try {
+    ComputeFit(o);
+    FAIL() << "an unknown model was fitted";
+  } catch (const FitFailure& e) {
+    EXPECT_EQ(e.exit_code(), kUsage);
+    EXPECT_NE(std::string(e.what()).find("torus is not a model"), std::string::npos) << e.what();
+  }
+  o.model = "sphere";
+  o.method = "gn";
+  try {
+    ComputeFit(o);
+    FAIL() << "a spline method was accepted for a primitive";
+  } catch (const FitFailure& e) {
+    EXPECT_EQ(e.exit_code(), kUsage);
+  }
+  o.method.clear();
+  o.file = "/nonexistent/cloud.ply";
+  try {
+    ComputeFit(o);
+    FAIL() << "a missing file was fitted";
+  } catch (const FitFailure& e) {
+    EXPECT_EQ(e.exit_code(), kInputError);
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/cloud.ply"), std::string::npos) << e.what();
+  }
+}
+
+TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
+  EXPECT_EQ(
+      ManifestOptionKeys(),
+      "bending, closed, contour, control_points, initial, max_iterations, method, order, reference, solver, "
+      "step_control, stretch, units");
+  for (const FitOptionSpec& spec : FitOptionTable()) {
+    EXPECT_TRUE(spec.set) << spec.key << spec.names;
+    // Every manifest key but the solver (three flags) is also a command-line option with the dashed name.
+    if (!spec.key.empty() && !spec.choices_as_flags) {
+      std::string dashed = "--" + spec.key;
+      for (char& c : dashed) c = c == '_' ? '-' : c;
+      EXPECT_EQ(spec.names.substr(0, dashed.size()), dashed) << spec.key;
+    }
+  }
+  EXPECT_EQ(FindManifestOption("colour"), nullptr);
+  EXPECT_EQ(FindManifestOption(""), nullptr);  // command-line-only rows have no key
+}
+
+TEST(FitOptionTable, ValuesAreCheckedAndApplied) {
+  FitOptions o;
+  ApplyFitOption(*FindManifestOption("max_iterations"), "17", o);
+  EXPECT_EQ(o.max_iterations, 17);
+  ApplyFitOption(*FindManifestOption("closed"), "1", o);
+  EXPECT_TRUE(o.closed);
+  ApplyFitOption(*FindManifestOption("bending"), "0.25", o);
+  EXPECT_DOUBLE_EQ(o.bending, 0.25);
+  ApplyFitOption(*FindManifestOption("solver"), "alternating", o);
+  EXPECT_TRUE(o.alternating);
+  EXPECT_FALSE(o.register_then_fit);
+  auto message = [](const std::string& key, const std::string& text) {
+    try {
+      ParseFitOption(*FindManifestOption(key), text);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(message("max_iterations", "many"), "option max_iterations: 'many' is not a number");
+  EXPECT_EQ(message("max_iterations", "0"),
+            "option max_iterations: '0' is not an integer in [1, 1000000000]");
+  EXPECT_EQ(message("order", "9"), "option order: '9' is not an integer in [2, 8]");
+  EXPECT_EQ(message("method", "newton"), "method 'newton' (pdm, tdm, sdm, cdm, gtdm, gn)");
+  EXPECT_EQ(message("closed", "yes"), "closed: 'yes' is not true or false");
+  EXPECT_NE(message("stretch", "-1").find("below"), std::string::npos);
+  EXPECT_EQ(message("step_control", "armijo"), "accepted");
+  EXPECT_EQ(ModelError("cone"), "");
+  EXPECT_EQ(ModelError("part:"), "part: needs a part file, e.g. part:block.part.json");
+  EXPECT_NE(ModelError("torus").find("torus is not a model"), std::string::npos);
+}
+
+TEST(DomainMeasures, AdequacyJsonAndVerdict) {
+  const Adequacy good = AssessAdequacy(0.03, 0.02);
+  EXPECT_DOUBLE_EQ(good.rms_to_noise, 1.5);
+  ASSERT_TRUE(good.adequate.has_value());
+  EXPECT_TRUE(*good.adequate);  // at the threshold
+  const nlohmann::json j = good.ToJson();
+  for (const char* key :
+       {"fit_rms", "noise_estimate", "rms_to_noise", "threshold", "adequate", "noise_method"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j.size(), 6u);
+  EXPECT_FALSE(*AssessAdequacy(0.05, 0.02).adequate);
+  const Adequacy unknown = AssessAdequacy(0.05, std::nan(""));
+  EXPECT_FALSE(unknown.adequate.has_value());
+  EXPECT_TRUE(unknown.ToJson()["adequate"].is_null());
+  EXPECT_TRUE(unknown.ToJson()["noise_estimate"].is_null());
+  EXPECT_NE(unknown.Text().find("unknown"), std::string::npos);
+  EXPECT_NE(AssessAdequacy(0.05, 0.02).Text().find("NOT adequate"), std::string::npos);
+}
+
+TEST(DomainMeasures, VesselFromAnAxisPointingDown) {
+  // A pot widening upwards, its fitted axis pointing down in the world: heights -i along -z are i above the
+  // axis point, so the narrow end (radius 2, at the axis point) is the base and the wide one the rim.
+  std::vector<Eigen::Vector2d> height_radius;
+  std::vector<double> uncertainty;
+  for (int i = 0; i <= 10; ++i) {
+    height_radius.emplace_back(-i, 2.0 + 0.1 * i);
+    uncertainty.push_back(0.01);
+  }
+  const VesselMeasures v =
+      MeasureVessel(Eigen::Vector3d(1, 2, 3), Eigen::Vector3d(0, 0, -1), height_radius, uncertainty, "mm");
+  EXPECT_EQ(v.units, "mm");
+  EXPECT_TRUE(v.up.isApprox(Eigen::Vector3d::UnitZ()));
+  EXPECT_DOUBLE_EQ(v.height.value, 10.0);
+  EXPECT_EQ(v.height.unit, "mm");
+  EXPECT_DOUBLE_EQ(v.base_diameter.value, 4.0);
+  EXPECT_DOUBLE_EQ(v.rim_diameter.value, 6.0);
+  EXPECT_DOUBLE_EQ(v.rim_diameter.uncertainty, 0.02);  // u(2r) = 2 u(r)
+  EXPECT_DOUBLE_EQ(v.max_diameter.value, 6.0);
+  EXPECT_TRUE(v.base_centre.isApprox(Eigen::Vector3d(1, 2, 3)));
+  const nlohmann::json j = v.ToJson();
+  EXPECT_EQ(j["units"], "mm");
+  EXPECT_EQ(j["profile"].size(), 11u);
+  EXPECT_TRUE(j["max_diameter"].is_number());
+  EXPECT_FALSE(j.contains("height_uncertainty"));  // the schema of docs/cli.md, unchanged
+  // The JSON reads back to the same measures (batch records, reports).
+  EXPECT_EQ(VesselMeasures::FromJson(j).ToJson(), j);
+  EXPECT_NE(ProfileCsv(v).find("height_above_base,radius,radius_uncertainty\n0,"), std::string::npos);
+  EXPECT_NE(ProfileSvg(v).find("rim &#216; 6 mm"), std::string::npos) << ProfileSvg(v);
+  EXPECT_THROW(MeasureVessel(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), {{0, 1}}, {}, "mm"),
+               std::invalid_argument);
+}
+
+TEST(DomainMeasures, ShellHelixAndTolerances) {
+  const ShellMeasures shell = MeasureShell(0.1, 0.01, std::exp(2 * M_PI * 0.1));
+  EXPECT_EQ(shell.growth.unit, "1/rad");
+  EXPECT_NEAR(shell.whorl_expansion_rate.uncertainty, 2 * M_PI * std::exp(2 * M_PI * 0.1) * 0.01, 1e-12);
+  EXPECT_EQ(shell.ToJson().size(), 4u);
+  EXPECT_TRUE(MeasureShell(0.1, std::nan(""), 1.87).ToJson()["uncertainty"].is_null());
+  const HelixMeasures helix = MeasureHelix(0.5, 0.001, "mm");
+  EXPECT_EQ(helix.pitch.unit, "mm/rad");
+  EXPECT_DOUBLE_EQ(helix.lead_per_turn, M_PI);
+  EXPECT_EQ(CheckTolerance(0.05, 0.1, 0.01).decision, "conforms");
+  EXPECT_EQ(CheckTolerance(0.09, 0.1, 0.01).decision, "ambiguous");
+  EXPECT_EQ(CheckTolerance(0.09, 0.1, 0.01).verdict, "pass");
+  EXPECT_EQ(CheckTolerance(-0.2, 0.1, 0.01).decision, "does not conform");
+  EXPECT_EQ(CheckTolerance(0.0, 0.1, std::nan("")).decision, "ambiguous");  // unknown uncertainty
+}
+
+TEST(DomainMeasures, PrimitiveParameterUnitsComeFromATable) {
+  EXPECT_EQ(UnitOf(PrimitiveParameterKind("radius"), "mm"), "mm");
+  EXPECT_EQ(UnitOf(PrimitiveParameterKind("axis_direction"), "mm"), "");
+  EXPECT_EQ(UnitOf(PrimitiveParameterKind("half_angle"), "mm"), "rad");
+  EXPECT_EQ(UnitOf(PrimitiveParameterKind("apex_angle_deg"), "mm"), "deg");
+  EXPECT_THROW(PrimitiveParameterKind("colour"), std::out_of_range);
+  // Every parameter the primitive fits write has a row.
+  for (const char* model : {"plane", "sphere", "cylinder", "cone"}) {
+    FitOptions o;
+    o.file = Nist(std::string(model) == "plane"    ? "pla1.ds"
+                  : std::string(model) == "sphere" ? "sph1.ds"
+                  : std::string(model) == "cone"   ? "con1.ds"
+                                                   : "cyl1.ds");
+    o.model = model;
+    o.units = "mm";
+    const nlohmann::json d = ComputeFit(o).document;
+    for (const auto& [name, value] : d["parameters"].items())
+      EXPECT_NO_THROW(PrimitiveParameterKind(name)) << name;
+    const nlohmann::json flat = FlatParameters(d);
+    ASSERT_FALSE(flat.empty()) << model;
+    for (const nlohmann::json& p : flat) {
+      if (p["name"] == "radius") {
+        EXPECT_EQ(p["unit"], "mm");
+      }
+    }
+  }
+}
+
+TEST(BatchEngine, RunsASmallManifestAndWritesTheSummary) {
+  const fs::path dir = FreshDir("batch");
+  std::ofstream(dir / "objects.csv") << "id,input,model,max_iterations\n"
+                                     << "cyl," << Nist("cyl1.ds") << ",cylinder,\n"
+                                     << "sph," << Nist("sph1.ds") << ",sphere,50\n"
+                                     << "gone,nowhere.ply,sphere,\n";
+  const BatchManifest manifest = ReadBatchManifest((dir / "objects.csv").string());
+  ASSERT_EQ(manifest.objects.size(), 3u);
+  EXPECT_EQ(manifest.objects[1].fit.max_iterations, 50);
+  EXPECT_EQ(manifest.objects[2].fit.file, (dir / "nowhere.ply").lexically_normal().string());
+  BatchOptions options;
+  options.output_dir = (dir / "out").string();
+  options.jobs = 1;
+  options.progress = false;
+  options.reports = true;
+  BatchCounts counts;
+  const std::vector<nlohmann::json> entries =
+      RunBatchObjects(manifest, ShardPositions(manifest.objects.size(), 0, 1), options, counts);
+  EXPECT_EQ(counts.computed, 3);
+  EXPECT_EQ(counts.ok, 2);
+  EXPECT_EQ(counts.failed, 1);
+  ASSERT_EQ(entries.size(), 3u);
+  EXPECT_EQ(entries[0]["status"], "ok");
+  bool diameter_seen = false;
+  for (const nlohmann::json& p : entries[0]["parameters"]) {
+    if (p["name"] != "diameter") continue;
+    diameter_seen = true;
+    EXPECT_NEAR(p["value"].get<double>(), 57.289229507551100877, 1e-9);
+  }
+  EXPECT_TRUE(diameter_seen) << entries[0].dump();
+  EXPECT_EQ(entries[2]["status"], "error");
+  EXPECT_EQ(entries[2]["exit_code"], static_cast<int>(kInputError));
+  EXPECT_TRUE(fs::exists(dir / "out" / "objects" / "cyl.html"));
+  WriteBatchSummary(options.output_dir, "summary", manifest, entries);
+  std::ifstream csv(dir / "out" / "summary.csv");
+  std::string header;
+  std::getline(csv, header);
+  EXPECT_EQ(header.substr(0, 30), "id,status,exit_code,model,inpu");
+  // A second run skips the finished objects and retries the failed one.
+  BatchCounts again;
+  RunBatchObjects(manifest, ShardPositions(manifest.objects.size(), 0, 1), options, again);
+  EXPECT_EQ(again.skipped, 2);
+  EXPECT_EQ(again.computed, 1);
+  fs::remove_all(dir);
+}
+
+TEST(BatchEngine, ManifestErrorsNameTheProblem) {
+  const fs::path dir = FreshDir("manifest_errors");
+  auto error = [&](const std::string& file, const std::string& text) {
+    std::ofstream(dir / file) << text;
+    try {
+      ReadBatchManifest((dir / file).string());
+    } catch (const FormatError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(error("a.csv", "id,input,model,colour\nx,y.ply,sphere,red\n").find("unknown option 'colour'"),
+            std::string::npos);
+  EXPECT_NE(error("b.csv", "id,input,model,order\nx,y.ply,bspline-curve,12\n")
+                .find("object x: option order: '12' is not an integer in [2, 8]"),
+            std::string::npos);
+  EXPECT_NE(error("c.csv", "id,input,model,solver\nx,y.json,revolution,sideways\n")
+                .find("solver 'sideways' (joint, alternating, register-then-fit)"),
+            std::string::npos);
+  fs::remove_all(dir);
+}
+
+TEST(Report, HtmlOfAFitAndOfAFailedObject) {
+  FitOptions o;
+  o.file = Nist("sph1.ds");
+  o.model = "sphere";
+  const std::string html = ReportHtml(ComputeFit(o).document);
+  EXPECT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u) << html.substr(0, 80);
+  EXPECT_NE(html.find("<svg"), std::string::npos);
+  EXPECT_EQ(html.find("<script"), std::string::npos);
+  const nlohmann::json failed = {
+      {"schema", "scan2model.batch_object/1"},
+      {"id", "x"},
+      {"status", "error"},
+      {"exit_code", 3},
+      {"error", "x.ply: cannot open"},
+      {"spec", {{"input", "x.ply"}, {"model", "sphere"}, {"options", nlohmann::json::object()}}}};
+  EXPECT_NE(ReportHtml(failed).find("x.ply: cannot open"), std::string::npos);
+  EXPECT_THROW(ReportHtml(nlohmann::json{{"schema", "something/1"}}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace s2m::pipeline
