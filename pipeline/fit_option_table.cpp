@@ -94,6 +94,20 @@ std::vector<FitOptionSpec> MakeTable() {
                0,
                1e300,
                [](FitOptions& o, const std::string& v) { o.bending = std::stod(v); }});
+  t.push_back(
+      {"loss",
+       "--loss",
+       K::kText,
+       "none",
+       "Robust loss of every fit: none, huber[:scale], cauchy[:scale] or tukey[:scale] (scale: a distance in "
+       "input units; omitted: 2.4-4.7 x the MAD noise estimate, re-estimated every iteration; docs/method.md "
+       "section 15)",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.loss = ParseRobustLoss(v); },
+       [](const std::string& v) { ParseRobustLoss(v); }});
   t.push_back({"step_control",
                "--step-control",
                K::kChoice,
@@ -247,6 +261,8 @@ std::string ParseFitOption(const FitOptionSpec& o, const std::string& text) {
   const std::string& name = o.key.empty() ? o.names : o.key;
   switch (o.kind) {
     case FitOptionKind::kText:
+      if (o.check) o.check(text);
+      return text;
     case FitOptionKind::kPath:
       return text;
     case FitOptionKind::kFlag:

@@ -33,6 +33,9 @@ struct FitOptionSpec {
   double min = -1e300, max = 1e300;  // kInteger, kNumber
   // Sets the FitOptions member from a value already checked by ParseFitOption.
   std::function<void(FitOptions&, const std::string&)> set;
+  // kText only: throws std::invalid_argument naming the accepted spellings when `text` is not one (empty:
+  // any).
+  std::function<void(const std::string&)> check = {};
 };
 
 // Every option of a fit but the input file and the model, in the order `fit --help` shows them.

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "fitting/robust_loss.h"
 #include "pipeline/exit_code.h"
 #include "registration/scan.h"
 
@@ -31,6 +32,7 @@ struct FitOptions {
   double stretch = 0.0;
   double bending = 1e-3;
   std::string step_control = "lm";
+  RobustLoss loss;      // --loss: the robust loss of every fit (fitting/robust_loss.h)
   std::string output;   // prefix for PREFIX.json, PREFIX.ply, PREFIX_history.csv
   int contour = 0;      // .glif inputs: which contour
   std::string initial;  // a scan2model.bspline/1 JSON to start from instead of the automatic initial model

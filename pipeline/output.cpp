@@ -50,6 +50,16 @@ nlohmann::json DescribeScan(const Scan& scan, const std::string& file, const std
   return j;
 }
 
+nlohmann::json LossJson(const RobustLoss& loss, double scale, const Eigen::VectorXd& weights) {
+  nlohmann::json j = {{"kind", ToString(loss.kind)}};
+  if (!loss.is_robust()) return j;
+  j["scale"] = scale;
+  j["scale_from_data"] = loss.scale_from_data();
+  j["down_weighted"] = (weights.array() < 0.5).count();
+  j["rejected"] = (weights.array() == 0.0).count();
+  return j;
+}
+
 nlohmann::json HistoryJson(const std::vector<IterationRecord>& history) {
   nlohmann::json out = nlohmann::json::array();
   for (const IterationRecord& r : history) {

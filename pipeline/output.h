@@ -6,6 +6,7 @@
 #include <string>
 
 #include "fitting/fit_result.h"
+#include "fitting/robust_loss.h"
 #include "registration/scan.h"
 
 namespace s2m::pipeline {
@@ -20,6 +21,10 @@ nlohmann::json DescribeScan(const Scan& scan, const std::string& file, const std
 
 // The per-iteration history as JSON (an array of objects) and as CSV (with a header line).
 nlohmann::json HistoryJson(const std::vector<IterationRecord>& history);
+// The robust loss of a fit: {"kind", "scale" (input units; estimated or given), "scale_from_data",
+// "down_weighted" (points with IRLS weight < 0.5), "rejected" (weight 0)}; {"kind": "none"} for least
+// squares.
+nlohmann::json LossJson(const RobustLoss& loss, double scale, const Eigen::VectorXd& weights);
 std::string HistoryCsv(const std::vector<IterationRecord>& history);
 // The history as an aligned text table (iteration, RMS, max distance, damping, step, time).
 std::string HistoryTable(const std::vector<IterationRecord>& history);

@@ -191,6 +191,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     options.optimizer.step_strategy = ParseStepControl(o.step_control);
     options.fairness = {o.stretch, o.bending};
     options.optimizer.max_iterations = o.max_iterations;
+    options.optimizer.loss = o.loss;
     const bool progress = o.interactive && !o.json && isatty(STDERR_FILENO);
     if (progress) {
       options.on_iteration = [](const IterationRecord& r) {
@@ -209,6 +210,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     j["model"] = o.model;
     j["method"] = ToString(options.error_term);
     j["step_control"] = ToString(options.optimizer.step_strategy);
+    j["loss"] = LossJson(o.loss, r.loss_scale, r.weights);
     j["fairness"] = {{"stretch", o.stretch}, {"bending", o.bending}};
     if (surface) {
       const auto& s = dynamic_cast<const BSplineSurface&>(*model);
@@ -248,12 +250,20 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     std::ostringstream text;
     text << "scan2model fit: " << model->name() << " (" << model->num_parameters() << " parameters) to "
          << points.cols() << " points of " << o.file << " (" << format << ", units " << units_out << ")\n\n"
-         << "  method            " << ToString(options.error_term) << " + " << ToString(options.optimizer.step_strategy)
-         << ", fairness stretch " << o.stretch << " bending " << o.bending << "\n"
+         << "  method            " << ToString(options.error_term) << " + "
+         << ToString(options.optimizer.step_strategy) << ", fairness stretch " << o.stretch << " bending "
+         << o.bending << "\n"
          << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
          << Format(r.residuals.max_abs, 6) << "\n"
          << "  solver            " << r.iterations << " iterations, stopped: " << ToString(r.stop_reason)
          << ", " << Format(seconds * 1e3, 4) << " ms\n";
+    if (o.loss.is_robust()) {
+      const nlohmann::json& loss = j["loss"];
+      text << "  loss              " << ToString(o.loss.kind) << ", scale " << Format(r.loss_scale, 6)
+           << (o.loss.scale_from_data() ? " (from the data)" : "") << ", "
+           << loss["down_weighted"].get<long>() << " points down-weighted, " << loss["rejected"].get<long>()
+           << " rejected\n";
+    }
     if (o.verbose) text << HistoryTable(r.history);
     if (!o.output.empty()) {
       text << "  written           " << o.output << ".json, " << o.output << ".ply, " << history_path << "\n";

@@ -11,6 +11,7 @@
 #include "pipeline/domain_measures.h"
 #include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
+#include "pipeline/output.h"
 #include "pipeline/report.h"
 #include "test_paths.h"
 
@@ -79,8 +80,8 @@ TEST(FitDispatch, FailuresCarryTheirExitCodes) {
 TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
   EXPECT_EQ(
       ManifestOptionKeys(),
-      "bending, closed, contour, control_points, initial, max_iterations, method, order, reference, solver, "
-      "step_control, stretch, units");
+      "bending, closed, contour, control_points, initial, loss, max_iterations, method, order, reference, "
+      "solver, step_control, stretch, units");
   for (const FitOptionSpec& spec : FitOptionTable()) {
     EXPECT_TRUE(spec.set) << spec.key << spec.names;
     // Every manifest key but the solver (three flags) is also a command-line option with the dashed name.
@@ -124,6 +125,37 @@ TEST(FitOptionTable, ValuesAreCheckedAndApplied) {
   EXPECT_EQ(ModelError("cone"), "");
   EXPECT_EQ(ModelError("part:"), "part: needs a part file, e.g. part:block.part.json");
   EXPECT_NE(ModelError("torus").find("torus is not a model"), std::string::npos);
+}
+
+TEST(FitOptionTable, TheLossIsParsedAndChecked) {
+  FitOptions o;
+  EXPECT_FALSE(o.loss.is_robust());
+  ApplyFitOption(*FindManifestOption("loss"), "tukey:0.25", o);
+  EXPECT_EQ(o.loss.kind, LossKind::kTukey);
+  EXPECT_DOUBLE_EQ(o.loss.scale, 0.25);
+  ApplyFitOption(*FindManifestOption("loss"), "cauchy", o);
+  EXPECT_EQ(o.loss.kind, LossKind::kCauchy);
+  EXPECT_TRUE(o.loss.scale_from_data());
+  for (const std::string bad : {"tukey:-1", "huber:x", "none:2", "l1", "tukey:"}) {
+    try {
+      ParseFitOption(*FindManifestOption("loss"), bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("huber[:scale]"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(Output, LossJsonCountsDownWeightedAndRejectedPoints) {
+  EXPECT_EQ(LossJson(RobustLoss{}, 0.0, Eigen::VectorXd()).dump(), R"({"kind":"none"})");
+  Eigen::VectorXd w(4);
+  w << 1.0, 0.7, 0.2, 0.0;
+  const nlohmann::json j = LossJson(ParseRobustLoss("tukey"), 0.3, w);
+  EXPECT_EQ(j["kind"], "tukey");
+  EXPECT_DOUBLE_EQ(j["scale"].get<double>(), 0.3);
+  EXPECT_TRUE(j["scale_from_data"].get<bool>());
+  EXPECT_EQ(j["down_weighted"].get<long>(), 2);
+  EXPECT_EQ(j["rejected"].get<long>(), 1);
 }
 
 TEST(DomainMeasures, AdequacyJsonAndVerdict) {
