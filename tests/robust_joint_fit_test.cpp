@@ -40,7 +40,8 @@ struct PoseErrors {
 PoseErrors LargestPoseErrors(const ParametricModel& fitted, const JointFitResult& r,
                              const std::vector<RigidMotion>& truth) {
   PoseErrors e;
-  for (const Motion6& m : ObservablePoseErrors(fitted, r.model_T_scan, truth)) {
+  for (Motion6 m : ObservablePoseErrors(fitted, r.model_T_scan, truth)) {
+    m = m.unaryExpr([](double v) { return std::isnan(v) ? 0.0 : v; });  // NaN: a gauge component
     e.rotation = std::max(e.rotation, m.head<3>().norm());
     e.translation = std::max(e.translation, m.tail<3>().norm());
   }
