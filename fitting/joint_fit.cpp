@@ -260,6 +260,7 @@ class JointFitProblem : public NonlinearProblem {
       : options_(options),
         K_(scans.size()),
         weighting_(options.optimizer.loss),
+        robust_(options.optimizer.loss.is_robust()),
         system_(options.optimizer.damping.diagonal_floor) {
     for (const auto& s : scans) total_ += s.cols();
     // Scale into the unit box (no translation: the model may be tied to its frame).
@@ -391,7 +392,8 @@ class JointFitProblem : public NonlinearProblem {
   void Project(const State::Sums& sums, bool one_motion, BlockArrowSystem& system,
                std::vector<Eigen::MatrixXd>& bases) const;
   double PointWeight(std::size_t k, const FootPoint& f, bool unit_scan_weights) const {
-    return (unit_scan_weights ? 1.0 : scan_weights_[k]) * weighting_.Weight(f.distance);
+    const double w = unit_scan_weights ? 1.0 : scan_weights_[k];
+    return robust_ ? w * weighting_.Weight(f.distance) : w;  // no call per point for plain least squares
   }
 
   const JointFitOptions& options_;
@@ -404,6 +406,7 @@ class JointFitProblem : public NonlinearProblem {
   Eigen::MatrixXd fairness_;
   Eigen::MatrixXd basis_scan_, basis_first_;  // gauge-reduced motion bases (6 x q)
   RobustWeighting weighting_;
+  bool robust_ = false;
   State state_, trial_;
   State::Sums own_sums_;  // a separate assembly pass's sums
   BlockArrowSystem system_;
@@ -463,11 +466,11 @@ void JointFitProblem::Summarize(State& s) const {
     double scan_rho = 0.0, scan_sq = 0.0;
     for (const FootPoint& f : s.feet[k]) {
       if (f.excluded) continue;
-      scan_rho += weighting_.Rho(f.distance);
+      if (robust_) scan_rho += weighting_.Rho(f.distance);
       scan_sq += f.distance * f.distance;
       ++s.used;
     }
-    sum += 0.5 * scan_weights_[k] * scan_rho;
+    sum += 0.5 * scan_weights_[k] * (robust_ ? scan_rho : scan_sq);
     sum_sq += scan_sq;
   }
   if (fairness_.size() > 0) {
