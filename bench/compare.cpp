@@ -226,7 +226,7 @@ Trajectory OursToModel(const ParametricModel& model, const Eigen::Matrix3Xd& sca
   ModelRegistrationOptions o;
   o.error_term = term;
   o.squared_distance_field = field;
-  o.max_iterations = max_iterations;
+  o.optimizer.max_iterations = max_iterations;
   o.rotation_tolerance = 1e-9;
   o.translation_tolerance = 1e-9;
   const ModelRegistrationResult r = RegisterToModel(model, scan, start, o);
@@ -703,7 +703,7 @@ void SectionFitting(const Settings& s, Csv& csv, FittingSummary& summary) {
     std::unique_ptr<ParametricModel> model = vase.start->Clone();
     JointFitOptions o = vase.options;
     o.alternating = alternating;
-    if (s.quick) o.max_iterations = 10;
+    if (s.quick) o.optimizer.max_iterations = 10;
     Run run{alternating ? "alternating" : "joint",
             FitJointly(*model, vase.views.scans, vase.views.model_T_scan_recorded, o)};
     for (const Motion6& e :
@@ -824,9 +824,9 @@ ScalingResult RunScaling(long long points, int views, int iterations) {
   KinematicSurface start = KinematicSurface::Revolution(truth.basis(), truth.profile() * 1.01);
   JointFitOptions o;
   o.error_term = ErrorTerm::kSdm;
-  o.max_iterations = iterations;
+  o.optimizer.max_iterations = iterations;
   o.shared_motion_iterations = 0;
-  o.objective_tolerance = 0.0;
+  o.optimizer.objective_tolerance = 0.0;
   const double cpu0 = CpuSeconds();
   const auto wall0 = Clock::now();
   const JointFitResult r = FitJointly(start, v.scans, v.model_T_scan_recorded, o);

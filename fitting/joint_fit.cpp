@@ -1,7 +1,5 @@
 #include "fitting/joint_fit.h"
 
-#include <omp.h>
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <chrono>
@@ -13,6 +11,10 @@
 
 #include "fitting/covariance.h"
 #include "fitting/foot_point.h"
+#include "fitting/linear_solver.h"
+#include "fitting/minimizer.h"
+#include "fitting/parallel_reduction.h"
+#include "fitting/robust_loss.h"
 #include "registration/rigid_step.h"
 
 namespace s2m {
@@ -154,22 +156,522 @@ void AccumulatePoint(const ParametricModel& model, const Eigen::Vector3d& x, con
   }
 }
 
-// The per-thread reduction skeleton of both assembly passes (the foot-point pass that assembles as it goes,
-// and the reference pass at known feet): every thread sums its share of points 0..n-1 into its own Partial
-// (reset to r parameters), `point(j, scratch, partial)` adding point j's terms; the caller then adds the
-// partials in thread order.
-template <typename PointTerms>
-void AccumulateInParallel(Eigen::Index n, int r, std::vector<Partial>& partials, const PointTerms& point) {
-#pragma omp parallel
-  {
-#pragma omp single
-    partials.resize(static_cast<std::size_t>(omp_get_num_threads()));
-    Partial& mine = partials[static_cast<std::size_t>(omp_get_thread_num())];
-    mine.Reset(r);
-    PointScratch scratch;
-#pragma omp for schedule(static)
-    for (Eigen::Index j = 0; j < n; ++j) point(j, scratch, mine);
+// The names of the six motion components (c, cbar) in the reports.
+const char* const kMotionNames[6] = {"rotation x",    "rotation y",    "rotation z",
+                                     "translation x", "translation y", "translation z"};
+
+// Names a null direction v of the full joint matrix by its largest components (shape parameters, or scans'
+// motions mapped back to (c, cbar) through their gauge bases): those within half of the largest, the three
+// largest spelled out, e.g. "top[1,1] + top[1,2] + scan 3 translation z + 20 more" for a common shift that
+// displacements absorb.
+std::string NameUnobservableDirection(const ParametricModel& model, const BlockArrowSystem& system,
+                                      const std::vector<Eigen::MatrixXd>& bases, const Eigen::VectorXd& v) {
+  std::vector<std::pair<double, std::string>> components;
+  for (Eigen::Index j = 0; j < system.shape_size(); ++j)
+    components.push_back({std::abs(v[j]), model.parameter_name(static_cast<int>(j))});
+  for (std::size_t k = 0; k < bases.size(); ++k) {
+    const Motion6 m = bases[k] * v.segment(system.block_offset(k), bases[k].cols());
+    for (int c = 0; c < 6; ++c)
+      components.push_back({std::abs(m[c]), "scan " + std::to_string(k) + " " + kMotionNames[c]});
   }
+  std::stable_sort(components.begin(), components.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::string name;
+  std::size_t shown = 0, similar = 0;
+  for (const auto& [size, component] : components) {
+    if (size < 0.5 * components.front().first) break;
+    ++similar;
+    if (shown < 3) {
+      name += (shown > 0 ? " + " : "") + component;
+      ++shown;
+    }
+  }
+  if (similar > shown) name += " + " + std::to_string(similar - shown) + " more";
+  return name;
+}
+
+// Standard uncertainties (type A, GUM) from the final information matrix (the GTDM normal matrix of the
+// orthogonal distances with the IRLS weights w_j of the robust loss, 1 for plain least squares; unit scan
+// weights; gauge-reduced coordinates) by the one covariance routine (fitting/covariance.h): s^2 H^+ with
+// s^2 = sum w_j d_j^2 / (n_eff - p), n_eff = sum w_j (docs/method.md eq. 48), mapped to input units. Along
+// unobservable directions H^+ is the pseudo-inverse: quantities that do not change along them (a profile's
+// radius at a height under control points sliding along the profile) keep valid uncertainties through
+// shape_covariance; a single parameter or pose component that moves along them gets NaN.
+void EstimateJointUncertainty(const CovarianceEstimate& estimate, const BlockArrowSystem& system,
+                              const std::vector<Eigen::MatrixXd>& bases, double scale, JointFitResult& result) {
+  if (estimate.covariance.size() == 0) return;
+  const Eigen::Index r = system.shape_size();
+  const Eigen::MatrixXd& cov = estimate.covariance;
+  // A pose component is touched by the null directions by the same rule as a parameter.
+  const double touch_threshold = CovarianceOptions{}.touch_threshold;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  result.shape_covariance = cov.topLeftCorner(r, r) * (scale * scale);
+  result.shape_uncertainty = estimate.standard_uncertainty.head(r) * scale;
+  for (std::size_t k = 0; k < bases.size(); ++k) {
+    const Eigen::MatrixXd& B = bases[k];
+    const Eigen::Index offset = system.block_offset(k), q = B.cols();
+    const Eigen::Matrix<double, 6, 6> c6 = B * cov.block(offset, offset, q, q) * B.transpose();
+    const Motion6 touched = B.cwiseAbs2() * estimate.null_share.segment(offset, q);
+    Motion6 sigma;
+    for (int c = 0; c < 6; ++c)
+      sigma[c] = touched[c] > touch_threshold ? nan : std::sqrt(std::max(c6(c, c), 0.0));
+    ScanPoseUncertainty u;
+    u.rotation = sigma.head<3>();
+    u.translation = sigma.tail<3>() * scale;
+    result.pose_uncertainty.push_back(u);
+  }
+}
+
+// The joint fit as the minimizer's problem (docs/method.md section 6 and 14). The state is the model and the
+// scans' poses (data scaled into the unit box), the scan points in the model frame, their exact foot points
+// and, when the evaluation that found them assembled them, the normal equations there. A linearization is
+// the block-arrow system of the error term at those feet, projected onto the gauge bases (one shared motion
+// block in stage 1); a trial applies the shape step and each scan's exact helical motion and recomputes the
+// feet. The stage logic (stage 1: all scans share one motion; stage 2: one motion per scan) lives in
+// AfterIteration and OnNoDecrease.
+class JointFitProblem : public NonlinearProblem {
+ public:
+  JointFitProblem(const ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
+                  const std::vector<RigidMotion>& model_T_scan, const JointFitOptions& options)
+      : options_(options),
+        K_(scans.size()),
+        weighting_(options.optimizer.loss),
+        robust_(options.optimizer.loss.is_robust()),
+        system_(options.optimizer.damping.diagonal_floor) {
+    for (const auto& s : scans) total_ += s.cols();
+    // Scale into the unit box (no translation: the model may be tied to its frame).
+    for (std::size_t k = 0; k < K_; ++k)
+      scale_ = std::max(scale_, model_T_scan[k].apply(scans[k]).cwiseAbs().maxCoeff());
+    scale_ = scale_ > 0 ? scale_ : 1.0;
+    weighting_.set_units(scale_);
+    data_.resize(K_);
+    state_.model = model.Clone();
+    state_.model->ApplySimilarity(1.0 / scale_, VecS::Zero(3));
+    for (std::size_t k = 0; k < K_; ++k) {
+      data_[k] = scans[k] / scale_;
+      state_.poses.push_back(RigidMotion(model_T_scan[k].rotation(), model_T_scan[k].translation() / scale_));
+    }
+    r_ = state_.model->num_parameters();
+    scan_weights_.assign(K_, 1.0);
+    for (std::size_t k = 0; k < K_; ++k)
+      scan_weights_[k] = options.scan_weights ? 1.0 / static_cast<double>(data_[k].cols()) : 1.0;
+    // Fairness weights keep the engine's meaning (relative to the sum of squared distances over all points):
+    // with scan weights w_k the data term carries sum_k w_k N_k / N of that sum, and the fairness term is
+    // scaled alike.
+    double data_weight = 0.0;
+    for (std::size_t k = 0; k < K_; ++k)
+      data_weight += scan_weights_[k] * static_cast<double>(data_[k].cols());
+    fairness_ = state_.model->FairnessMatrix(options.fairness) * (data_weight / static_cast<double>(total_));
+    SetUpGauge();
+    shared_ = (options.shared_motion_iterations > 0 || !options.per_scan_motions) && K_ > 1;
+    Evaluate(state_, nullptr);
+  }
+
+  void set_unknowns(BlockArrowSystem::Unknowns unknowns) { unknowns_ = unknowns; }
+
+  double Cost() const override { return state_.objective; }
+
+  LinearSystem& Linearize() override {
+    if (weighting_.loss().scale_from_data()) {
+      // The scale follows the current distances (docs/method.md eq. 15.5); the evaluation could not weigh
+      // its sums with it (the median needs every distance first), so they are assembled again below.
+      UpdateLossScale();
+      Summarize(state_);
+    }
+    Project(SumsAt(state_, options_.error_term, false), shared_, system_, bases_);
+    if (fairness_.size() > 0) {
+      system_.h_dd += 2.0 * fairness_;
+      system_.g_d += 2.0 * fairness_ * state_.model->parameters();
+    }
+    system_.unknowns = unknowns_;
+    return system_;
+  }
+
+  double EvaluateTrial(const Eigen::VectorXd& step, bool final_if_accepted) override {
+    const Eigen::VectorXd step_d = step.head(r_);
+    trial_.model = state_.model->Clone();
+    trial_.model->ApplyStep(step_d);
+    trial_.poses = state_.poses;
+    // The largest change of a shape parameter or a motion component (unit-box units, radians).
+    double largest = step_d.size() > 0 ? step_d.cwiseAbs().maxCoeff() : 0.0;
+    for (std::size_t k = 0; k < K_; ++k) {
+      const std::size_t b = bases_.size() == 1 ? 0 : k;
+      const Motion6 v = bases_[b] * step.segment(system_.block_offset(b), bases_[b].cols());
+      largest = std::max(largest, v.cwiseAbs().maxCoeff());
+      trial_.poses[k] = RigidMotion::FromHelicalVelocity(v.head<3>(), v.tail<3>()) * state_.poses[k];
+    }
+    warm_mode_ = largest <= options_.trusted_warm_start_step ? WarmStart::kTrusted : WarmStart::kVerified;
+    accumulate_next_ = !final_if_accepted;
+    Evaluate(trial_, &state_);
+    warm_mode_ = WarmStart::kVerified;
+    trial_shape_step_norm_ = step_d.norm();
+    return std::isnan(trial_.objective) ? std::numeric_limits<double>::infinity() : trial_.objective;
+  }
+
+  // `trial_` keeps its buffers across iterations: the accepted trial is swapped in and the old state's
+  // buffers are overwritten by the next trial (no per-iteration allocation of points and foot points).
+  void AcceptTrial() override {
+    std::swap(state_, trial_);
+    shape_step_norm_ = trial_shape_step_norm_;
+  }
+
+  // The fit has no step test of its own (JointFitOptimizerDefaults): only a positive tolerance applies.
+  bool StepIsNegligible(const Eigen::VectorXd& step, double tolerance) const override {
+    return tolerance > 0.0 && NonlinearProblem::StepIsNegligible(step, tolerance);
+  }
+  double ParameterNorm() const override { return state_.model->parameters().norm(); }
+
+  // The record's step norm is the shape step's (the motions' components are radians and unit-box lengths).
+  void DescribeState(IterationRecord& record) const override {
+    record.rms = state_.rms * scale_;
+    record.max_distance = 0.0;
+    for (const auto& feet : state_.feet)
+      for (const FootPoint& f : feet)
+        if (!f.excluded) record.max_distance = std::max(record.max_distance, f.distance * scale_);
+    record.step_norm = shape_step_norm_;
+  }
+
+  // Stage 1 (one shared motion) lasts shared_motion_iterations iterations or until its relative decrease
+  // falls below 1e-6, and never ends the fit on the objective tolerance; stage 2 (and a fit that stays in
+  // stage 1) stops on the minimizer's decision.
+  std::optional<StopReason> AfterIteration(const IterationSummary& summary,
+                                           std::optional<StopReason> proposed) override {
+    if (shared_) ++shared_iterations_;
+    if (proposed == StopReason::kTargetReached) return proposed;
+    if (shared_ && options_.per_scan_motions) {
+      if (shared_iterations_ >= options_.shared_motion_iterations || summary.relative_decrease < 1e-6)
+        shared_ = false;
+      return std::nullopt;
+    }
+    return proposed;
+  }
+
+  // Stage 1 cannot improve further: free the per-scan motions.
+  bool OnNoDecrease() override {
+    if (!(shared_ && options_.per_scan_motions)) return false;
+    shared_ = false;
+    return true;
+  }
+
+  // The result at the current state: the model and poses in input units (model updated in place), residuals,
+  // the unobservable directions and the uncertainties.
+  JointFitResult Finish(ParametricModel& model, MinimizerSummary summary);
+
+ private:
+  void SetUpGauge();
+  void ResetSums(State::Sums& sums) const;
+  void AddScan(std::size_t k, State::Sums& sums) const;
+  void Evaluate(State& s, const State* warm);
+  void Summarize(State& s) const;
+  void UpdateLossScale();
+  const State::Sums& SumsAt(const State& st, ErrorTerm term, bool unit_scan_weights);
+  void Project(const State::Sums& sums, bool one_motion, BlockArrowSystem& system,
+               std::vector<Eigen::MatrixXd>& bases) const;
+  double PointWeight(std::size_t k, const FootPoint& f, bool unit_scan_weights) const {
+    const double w = unit_scan_weights ? 1.0 : scan_weights_[k];
+    return robust_ ? w * weighting_.Weight(f.distance) : w;  // no call per point for plain least squares
+  }
+
+  const JointFitOptions& options_;
+  std::size_t K_;
+  Eigen::Index total_ = 0;
+  int r_ = 0;
+  double scale_ = 0.0;
+  std::vector<Eigen::Matrix3Xd> data_;
+  std::vector<double> scan_weights_;
+  Eigen::MatrixXd fairness_;
+  Eigen::MatrixXd basis_scan_, basis_first_;  // gauge-reduced motion bases (6 x q)
+  RobustWeighting weighting_;
+  bool robust_ = false;
+  State state_, trial_;
+  State::Sums own_sums_;  // a separate assembly pass's sums
+  BlockArrowSystem system_;
+  std::vector<Eigen::MatrixXd> bases_;  // of system_'s motion blocks
+  BlockArrowSystem::Unknowns unknowns_ = BlockArrowSystem::Unknowns::kAll;
+  std::vector<Partial> partials_;  // per thread, reused by every pass
+  bool shared_ = false;
+  int shared_iterations_ = 0;
+  // Whether the evaluation of the next trial sums the normal equations: not when no iteration can follow it
+  // (final_if_accepted), where they would go unused.
+  bool accumulate_next_ = true;
+  // How the next evaluation uses its warm start (the previous state's feet): verified unless the step from
+  // that state was small (options.trusted_warm_start_step).
+  WarmStart warm_mode_ = WarmStart::kVerified;
+  double shape_step_norm_ = 0.0, trial_shape_step_norm_ = 0.0;
+};
+
+// Gauge (docs/method.md section 6): motion directions the model is invariant to are removed from every scan,
+// and the common motions a change of shape absorbs from the first scan only.
+void JointFitProblem::SetUpGauge() {
+  basis_scan_ = options_.remove_gauge ? GaugeComplement(state_.model->InvariantMotions())
+                                      : Eigen::MatrixXd::Identity(6, 6);
+  std::vector<Motion6> first_gauge = state_.model->InvariantMotions();
+  for (const Motion6& m : state_.model->CommonMotionsAbsorbedByShape()) first_gauge.push_back(m);
+  basis_first_ = options_.remove_gauge ? GaugeComplement(first_gauge) : Eigen::MatrixXd::Identity(6, 6);
+}
+
+void JointFitProblem::ResetSums(State::Sums& sums) const {
+  sums.h_bb.resize(K_);
+  sums.h_db.resize(K_);
+  sums.g_b.resize(K_);
+  sums.h_dd.setZero(r_, r_);
+  sums.g_d.setZero(r_);
+}
+
+// Scan k's per-thread partial sums into `sums` (its motion blocks; the shape block is shared by all scans),
+// added in thread order: a run is reproducible for a given thread count.
+void JointFitProblem::AddScan(std::size_t k, State::Sums& sums) const {
+  sums.h_bb[k].setZero();
+  sums.h_db[k].setZero(r_, 6);
+  sums.g_b[k].setZero();
+  for (const Partial& p : partials_) {
+    sums.h_bb[k] += p.h_bb;
+    sums.h_db[k] += p.h_bd.transpose();
+    sums.g_b[k] += p.g_b;
+    sums.h_dd += p.h_dd;
+    sums.g_d += p.g_d;
+  }
+}
+
+// The objective 1/2 sum_k w_k sum_j rho(d_j^2) + P^T K P (docs/method.md eqs. 6.1 and 15.6; rho(s) = s
+// without a robust loss) and the RMS over the points not excluded.
+void JointFitProblem::Summarize(State& s) const {
+  double sum = 0.0, sum_sq = 0.0;
+  s.used = 0;
+  for (std::size_t k = 0; k < K_; ++k) {
+    double scan_rho = 0.0, scan_sq = 0.0;
+    for (const FootPoint& f : s.feet[k]) {
+      if (f.excluded) continue;
+      if (robust_) scan_rho += weighting_.Rho(f.distance);
+      scan_sq += f.distance * f.distance;
+      ++s.used;
+    }
+    sum += 0.5 * scan_weights_[k] * (robust_ ? scan_rho : scan_sq);
+    sum_sq += scan_sq;
+  }
+  if (fairness_.size() > 0) {
+    const Eigen::VectorXd p = s.model->parameters();
+    sum += p.dot(fairness_ * p);
+  }
+  s.objective = sum;
+  s.rms = std::sqrt(sum_sq / static_cast<double>(std::max<Eigen::Index>(s.used, 1)));
+}
+
+// The robust scale from the normal distances of the points not excluded, all scans together (eq. 15.5).
+void JointFitProblem::UpdateLossScale() {
+  Eigen::VectorXd d(state_.used);
+  Eigen::Index i = 0;
+  for (const auto& feet : state_.feet)
+    for (const FootPoint& f : feet)
+      if (!f.excluded && i < d.size()) d[i++] = f.distance;
+  weighting_.Update(d.head(i));
+}
+
+// Foot points of every scan at the state's model and poses, the objective, and (with
+// options.reuse_foot_geometry) the normal equations at the new feet with the iteration's error term: the
+// foot point search ends with the model's geometry at the foot, which the assembly needs, so the next
+// iteration's assembly is done here, in the same pass, should this state be accepted (a rejected trial
+// wastes it; the linear solve and step control are unchanged). A loss whose scale comes from the data
+// weighs the sums with the scale of the next linearization, which needs these distances first: then the
+// linearization assembles them.
+void JointFitProblem::Evaluate(State& s, const State* warm) {
+  s.current.resize(K_);
+  s.feet.resize(K_);
+  const bool accumulate =
+      options_.reuse_foot_geometry && accumulate_next_ && !weighting_.loss().scale_from_data();
+  if (accumulate) ResetSums(s.sums);
+  for (std::size_t k = 0; k < K_; ++k) {
+    s.current[k].resize(3, data_[k].cols());  // no-op when the buffer is reused
+    s.current[k].noalias() = s.poses[k].rotation() * data_[k];
+    s.current[k].colwise() += s.poses[k].translation();
+    if (!accumulate) {
+      ComputeFootPoints(*s.model, s.current[k], s.feet[k], warm ? &warm->feet[k] : nullptr, warm_mode_);
+      if (!options_.left_out.empty()) {
+        for (std::size_t j = 0; j < s.feet[k].size(); ++j) s.feet[k][j].excluded = options_.left_out[k][j];
+      }
+      continue;
+    }
+    // ComputeFootPoints' loop (the same FootPointOf calls), fused with the assembly.
+    const Eigen::Index n = data_[k].cols();
+    s.feet[k].resize(static_cast<std::size_t>(n));
+    const FootPointContext context(*s.model);
+    const std::vector<FootPoint>* previous = warm ? &warm->feet[k] : nullptr;
+    const ParametricModel& model_k = *s.model;
+    const Eigen::MatrixXd& points = s.current[k];
+    std::vector<FootPoint>& feet = s.feet[k];
+    const int r = r_;
+    AccumulateInParallel<PointScratch>(
+        n, partials_, [r](Partial& p) { p.Reset(r); },
+        [&](Eigen::Index j, PointScratch& scratch, Partial& mine) {
+          const auto i = static_cast<std::size_t>(j);
+          FootPoint& f = feet[i];
+          f = FootPointOf(context, points.col(j), previous ? &(*previous)[i].t : nullptr, warm_mode_,
+                          scratch.geo);
+          if (!options_.left_out.empty()) f.excluded = options_.left_out[k][i];
+          if (f.excluded) return;
+          // Closed-form feet leave the geometry unspecified.
+          if (context.closed_form) model_k.Evaluate(f.t, 2, scratch.geo);
+          AccumulatePoint(model_k, points.col(j), f, options_.error_term, PointWeight(k, f, false), scratch,
+                          mine);
+        });
+    AddScan(k, s.sums);
+  }
+  s.sums_valid = accumulate;
+  Summarize(s);
+}
+
+// The sums at the state's feet: those its evaluation accumulated, else a pass that evaluates the model at
+// every foot again (the final GTDM matrix, a loss scale from the data, or options.reuse_foot_geometry off).
+const State::Sums& JointFitProblem::SumsAt(const State& st, ErrorTerm term, bool unit_scan_weights) {
+  if (st.sums_valid && term == options_.error_term && !unit_scan_weights) return st.sums;
+  ResetSums(own_sums_);
+  const int r = r_;
+  for (std::size_t k = 0; k < K_; ++k) {
+    const Eigen::MatrixXd& points = st.current[k];
+    AccumulateInParallel<PointScratch>(
+        points.cols(), partials_, [r](Partial& p) { p.Reset(r); },
+        [&](Eigen::Index j, PointScratch& scratch, Partial& mine) {
+          const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
+          if (f.excluded) return;
+          st.model->Evaluate(f.t, 2, scratch.geo);
+          AccumulatePoint(*st.model, points.col(j), f, term, PointWeight(k, f, unit_scan_weights), scratch,
+                          mine);
+        });
+    AddScan(k, own_sums_);
+  }
+  return own_sums_;
+}
+
+// The block-arrow normal equations (docs/method.md eq. 6.4) from the full-motion sums, each motion block
+// projected onto its gauge-reduced basis B (B^T H B, H_db B, B^T g; shared motion: all scans onto the
+// first's).
+void JointFitProblem::Project(const State::Sums& sums, bool one_motion, BlockArrowSystem& system,
+                              std::vector<Eigen::MatrixXd>& bases) const {
+  const std::size_t blocks = one_motion ? 1 : K_;
+  bases.resize(blocks);
+  system.h_bb.resize(blocks);
+  system.h_db.resize(blocks);
+  system.g_b.resize(blocks);
+  for (std::size_t b = 0; b < blocks; ++b) {
+    bases[b] = b == 0 ? basis_first_ : basis_scan_;
+    Eigen::Matrix<double, 6, 6> h6 = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::MatrixXd hdb6 = Eigen::MatrixXd::Zero(r_, 6);
+    Motion6 g6 = Motion6::Zero();
+    for (std::size_t k = 0; k < K_; ++k) {
+      if ((one_motion ? 0 : k) != b) continue;
+      h6 += sums.h_bb[k];
+      hdb6 += sums.h_db[k];
+      g6 += sums.g_b[k];
+    }
+    const Eigen::MatrixXd& B = bases[b];
+    system.h_bb[b] = B.transpose() * h6 * B;
+    system.h_db[b] = hdb6 * B;
+    system.g_b[b] = B.transpose() * g6;
+  }
+  system.h_dd = sums.h_dd;
+  system.g_d = sums.g_d;
+}
+
+JointFitResult JointFitProblem::Finish(ParametricModel& model, MinimizerSummary summary) {
+  JointFitResult result;
+  result.iterations = summary.iterations;
+  result.shared_iterations = shared_iterations_;
+  result.stop_reason = summary.stop_reason;
+  result.history = std::move(summary.history);
+  result.loss_scale = weighting_.scale();
+  State& st = state_;
+  // The state stays in the unit box for the final matrix (its points are there).
+  const std::unique_ptr<ParametricModel> fitted = st.model->Clone();
+  fitted->ApplySimilarity(scale_, VecS::Zero(3));
+  model.CopyFrom(*fitted);
+  Eigen::VectorXd all(st.used);
+  Eigen::Index offset = 0;
+  double weighted_square_sum = 0.0, effective_count = 0.0;  // in the unit box
+  for (std::size_t k = 0; k < K_; ++k) {
+    RigidMotion pose(st.poses[k].rotation(), st.poses[k].translation() * scale_);
+    pose.normalize();
+    result.model_T_scan.push_back(pose);
+    std::vector<double> d;
+    for (const FootPoint& f : st.feet[k]) {
+      if (f.excluded) continue;
+      d.push_back(f.distance * scale_);
+      const double w = weighting_.Weight(f.distance);
+      weighted_square_sum += w * f.distance * f.distance;
+      effective_count += w;
+    }
+    const Eigen::Map<const Eigen::VectorXd> dk(d.data(), static_cast<Eigen::Index>(d.size()));
+    result.per_scan.push_back(ComputeResidualStatistics(dk));
+    all.segment(offset, dk.size()) = dk;
+    offset += dk.size();
+  }
+  result.residuals = ComputeResidualStatistics(all);
+  result.excluded_points = total_ - st.used;
+
+  // Unobservable directions (docs/method.md section 6): the null space of the full normal matrix built with
+  // the whole normal space (GTDM), so that SDM's tangential terms cannot mask a motion that slides scans
+  // along the surface. Unit scan weights and the IRLS weights: the same matrix then also gives the
+  // Gauss-Newton covariance of the orthogonal distances.
+  BlockArrowSystem final_system;
+  std::vector<Eigen::MatrixXd> bases;
+  Project(SumsAt(st, ErrorTerm::kGtdm, true), false, final_system, bases);
+  if (fairness_.size() > 0) final_system.h_dd += 2.0 * fairness_;
+  const Eigen::MatrixXd full = final_system.FullMatrix();
+  // One eigen-decomposition gives the null directions and the covariance (EstimateCovariance).
+  const CovarianceEstimate estimate = EstimateCovariance(full, weighted_square_sum, effective_count);
+  for (const Eigen::VectorXd& v : estimate.null_directions)
+    result.unobservable.push_back(NameUnobservableDirection(model, final_system, bases, v));
+  EstimateJointUncertainty(estimate, final_system, bases, scale_, result);
+  return result;
+}
+
+// The alternating baseline (docs/method.md section 6): per iteration one registration half-step (motions,
+// model fixed), then one fitting half-step (model, poses fixed), each by its own minimizer (its own damping);
+// an iteration counts when either half-step was accepted. Converges linearly (zig-zag).
+MinimizerSummary MinimizeAlternating(JointFitProblem& problem, const OptimizerOptions& options,
+                                     Clock::time_point start) {
+  TrustRegionMinimizer motions(options), shape(options);
+  MinimizerSummary summary;
+  if (options.target_rms > 0.0) {
+    IterationRecord initial;
+    problem.DescribeState(initial);
+    if (initial.rms <= options.target_rms) {
+      summary.stop_reason = StopReason::kTargetReached;
+      return summary;
+    }
+  }
+  while (summary.iterations < options.max_iterations) {
+    problem.set_unknowns(BlockArrowSystem::Unknowns::kMotions);
+    const TrustRegionMinimizer::Outcome registration = motions.Iterate(problem, false);
+    problem.set_unknowns(BlockArrowSystem::Unknowns::kShape);
+    const TrustRegionMinimizer::Outcome fitting = shape.Iterate(problem, false);
+    if (!registration.accepted && !fitting.accepted) {
+      if (problem.OnNoDecrease()) continue;
+      summary.stop_reason = StopReason::kNoFurtherDecrease;
+      break;
+    }
+    ++summary.iterations;
+    IterationSummary s = fitting.accepted ? fitting.summary : registration.summary;
+    if (registration.accepted) {
+      s.cost_before = registration.summary.cost_before;
+      s.record.damping = registration.summary.record.damping;  // the registration half-step's
+    }
+    s.relative_decrease = s.cost_before > 0.0 ? (s.cost_before - s.cost_after) / s.cost_before : 0.0;
+    s.record.iteration = summary.iterations;
+    s.record.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    summary.history.push_back(s.record);
+    std::optional<StopReason> proposed;
+    if (options.target_rms > 0.0 && s.record.rms <= options.target_rms) {
+      proposed = StopReason::kTargetReached;
+    } else if (s.relative_decrease <= options.objective_tolerance) {
+      proposed = StopReason::kObjectiveTolerance;
+    }
+    if (const std::optional<StopReason> decision = problem.AfterIteration(s, proposed)) {
+      summary.stop_reason = *decision;
+      break;
+    }
+  }
+  summary.final_damping = motions.damping();
+  return summary;
 }
 
 }  // namespace
@@ -187,434 +689,16 @@ JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matri
     }
   }
   if (model.ambient_dimension() != 3) throw std::invalid_argument("the joint fit needs a model in 3D");
-  Eigen::Index total = 0;
   for (const auto& s : scans) {
     if (s.cols() == 0) throw std::invalid_argument("a scan has no points");
     if (!s.allFinite()) throw std::invalid_argument("a scan contains NaN or inf coordinates");
-    total += s.cols();
   }
   const auto start = Clock::now();
-
-  // Scale into the unit box (no translation: the model may be tied to its frame).
-  double scale = 0.0;
-  for (std::size_t k = 0; k < K; ++k) {
-    const Eigen::Matrix3Xd p = model_T_scan[k].apply(scans[k]);
-    scale = std::max(scale, p.cwiseAbs().maxCoeff());
-  }
-  scale = scale > 0 ? scale : 1.0;
-  std::vector<Eigen::Matrix3Xd> data(K);
-  State state;
-  state.model = model.Clone();
-  state.model->ApplySimilarity(1.0 / scale, VecS::Zero(3));
-  for (std::size_t k = 0; k < K; ++k) {
-    data[k] = scans[k] / scale;
-    state.poses.push_back(RigidMotion(model_T_scan[k].rotation(), model_T_scan[k].translation() / scale));
-  }
-  std::vector<double> weights(K, 1.0);
-  for (std::size_t k = 0; k < K; ++k)
-    weights[k] = options.scan_weights ? 1.0 / static_cast<double>(data[k].cols()) : 1.0;
-  // Fairness weights keep the engine's meaning (relative to the sum of squared distances over all points):
-  // with scan weights w_k the data term carries sum_k w_k N_k / N of that sum, and the fairness term is
-  // scaled alike.
-  double data_weight = 0.0;
-  for (std::size_t k = 0; k < K; ++k) data_weight += weights[k] * static_cast<double>(data[k].cols());
-  const Eigen::MatrixXd K_fair =
-      state.model->FairnessMatrix(options.fairness) * (data_weight / static_cast<double>(total));
-  const Eigen::MatrixXd B_scan = options.remove_gauge ? GaugeComplement(state.model->InvariantMotions())
-                                                      : Eigen::MatrixXd::Identity(6, 6);
-  std::vector<Motion6> first_gauge = state.model->InvariantMotions();
-  for (const Motion6& m : state.model->CommonMotionsAbsorbedByShape()) first_gauge.push_back(m);
-  const Eigen::MatrixXd B_first =
-      options.remove_gauge ? GaugeComplement(first_gauge) : Eigen::MatrixXd::Identity(6, 6);
-
-  const int r = state.model->num_parameters();
-  // Scan k's per-thread partial sums into `sums` (its motion blocks; the shape block is shared by all scans).
-  auto add_scan = [&](std::size_t k, State::Sums& sums, const std::vector<Partial>& partials) {
-    sums.h_bb[k].setZero();
-    sums.h_db[k].setZero(r, 6);
-    sums.g_b[k].setZero();
-    // Added in thread order: a run is reproducible for a given thread count.
-    for (const Partial& p : partials) {
-      sums.h_bb[k] += p.h_bb;
-      sums.h_db[k] += p.h_bd.transpose();
-      sums.g_b[k] += p.g_b;
-      sums.h_dd += p.h_dd;
-      sums.g_d += p.g_d;
-    }
-  };
-  auto reset_sums = [&](State::Sums& sums) {
-    sums.h_bb.resize(K);
-    sums.h_db.resize(K);
-    sums.g_b.resize(K);
-    sums.h_dd.setZero(r, r);
-    sums.g_d.setZero(r);
-  };
-  std::vector<Partial> partials;  // per thread, reused by every pass
-  // Whether the evaluation of the next trial sums the normal equations: not when no iteration can follow it
-  // (the last one allowed), where they would go unused.
-  bool accumulate_next = true;
-  // How the next evaluation uses its warm start (the previous state's feet): verified unless the step from
-  // that state was small (options.trusted_warm_start_step).
-  WarmStart warm_mode = WarmStart::kVerified;
-
-  // Foot points of every scan at the state's model and poses, the objective, and (with
-  // options.reuse_foot_geometry) the normal equations at the new feet with the iteration's error term: the
-  // foot point search ends with the model's geometry at the foot, which the assembly needs, so the next
-  // iteration's assembly is done here, in the same pass, should this state be accepted (a rejected trial
-  // wastes it; the linear solve and step control are unchanged).
-  auto evaluate = [&](State& s, const State* warm) {
-    s.current.resize(K);
-    s.feet.resize(K);
-    const bool accumulate = options.reuse_foot_geometry && accumulate_next;
-    if (accumulate) reset_sums(s.sums);
-    double sum = 0.0, sum_sq = 0.0;
-    s.used = 0;
-    for (std::size_t k = 0; k < K; ++k) {
-      s.current[k].resize(3, data[k].cols());  // no-op when the buffer is reused
-      s.current[k].noalias() = s.poses[k].rotation() * data[k];
-      s.current[k].colwise() += s.poses[k].translation();
-      if (!accumulate) {
-        ComputeFootPoints(*s.model, s.current[k], s.feet[k], warm ? &warm->feet[k] : nullptr, warm_mode);
-        if (!options.left_out.empty()) {
-          for (std::size_t j = 0; j < s.feet[k].size(); ++j) s.feet[k][j].excluded = options.left_out[k][j];
-        }
-      } else {
-        // ComputeFootPoints' loop (the same FootPointOf calls), fused with the assembly.
-        const Eigen::Index n = data[k].cols();
-        s.feet[k].resize(static_cast<std::size_t>(n));
-        const FootPointContext context(*s.model);
-        const std::vector<FootPoint>* previous = warm ? &warm->feet[k] : nullptr;
-        const ParametricModel& model_k = *s.model;
-        const Eigen::MatrixXd& points = s.current[k];
-        std::vector<FootPoint>& feet = s.feet[k];
-        AccumulateInParallel(n, r, partials, [&](Eigen::Index j, PointScratch& scratch, Partial& mine) {
-          const auto i = static_cast<std::size_t>(j);
-          FootPoint& f = feet[i];
-          f = FootPointOf(context, points.col(j), previous ? &(*previous)[i].t : nullptr, warm_mode,
-                          scratch.geo);
-          if (!options.left_out.empty()) f.excluded = options.left_out[k][i];
-          if (f.excluded) return;
-          // Closed-form feet leave the geometry unspecified.
-          if (context.closed_form) model_k.Evaluate(f.t, 2, scratch.geo);
-          AccumulatePoint(model_k, points.col(j), f, options.error_term, weights[k], scratch, mine);
-        });
-        add_scan(k, s.sums, partials);
-      }
-      double scan_sq = 0.0;
-      for (const FootPoint& f : s.feet[k]) {
-        if (f.excluded) continue;
-        scan_sq += f.distance * f.distance;
-        ++s.used;
-      }
-      sum += 0.5 * weights[k] * scan_sq;
-      sum_sq += scan_sq;
-    }
-    s.sums_valid = accumulate;
-    if (K_fair.size() > 0) {
-      const Eigen::VectorXd p = s.model->parameters();
-      sum += p.dot(K_fair * p);
-    }
-    s.objective = sum;
-    s.rms = std::sqrt(sum_sq / static_cast<double>(std::max<Eigen::Index>(s.used, 1)));
-  };
-  evaluate(state, nullptr);
-
-  JointFitResult result;
-  double lambda = 1e-6;
-  bool shared = (options.shared_motion_iterations > 0 || !options.per_scan_motions) && K > 1;
-  result.stop_reason = StopReason::kMaxIterations;
-  if (options.target_rms > 0 && state.rms * scale <= options.target_rms)
-    result.stop_reason = StopReason::kTargetReached;
-
-  // The block-arrow normal equations at the current foot points: shape block (h_dd, g_d), one motion block
-  // per scan (or one shared block), coupling h_db. Motions are in the gauge-reduced bases.
-  struct System {
-    std::vector<Eigen::MatrixXd> basis, h_bb, h_db;
-    std::vector<Eigen::VectorXd> g_b;
-    Eigen::MatrixXd h_dd;
-    Eigen::VectorXd g_d;
-  };
-  auto assemble = [&](const State& st, bool one_motion, ErrorTerm term, bool unit_weights = false) {
-    // The sums at the state's feet: those its evaluation accumulated, else a pass that evaluates the model at
-    // every foot again (the final GTDM matrix, or options.reuse_foot_geometry off).
-    State::Sums own;
-    const State::Sums* sums = &st.sums;
-    if (!(st.sums_valid && term == options.error_term && !unit_weights)) {
-      reset_sums(own);
-      for (std::size_t k = 0; k < K; ++k) {
-        const double w = unit_weights ? 1.0 : weights[k];
-        const Eigen::MatrixXd& points = st.current[k];
-        AccumulateInParallel(points.cols(), r, partials,
-                             [&](Eigen::Index j, PointScratch& scratch, Partial& mine) {
-                               const FootPoint& f = st.feet[k][static_cast<std::size_t>(j)];
-                               if (f.excluded) return;
-                               st.model->Evaluate(f.t, 2, scratch.geo);
-                               AccumulatePoint(*st.model, points.col(j), f, term, w, scratch, mine);
-                             });
-        add_scan(k, own, partials);
-      }
-      sums = &own;
-    }
-    // Project the full motions onto the gauge-reduced bases (shared motion: all scans onto the first's).
-    System sys;
-    const std::size_t blocks = one_motion ? 1 : K;
-    for (std::size_t b = 0; b < blocks; ++b) {
-      sys.basis.push_back(b == 0 ? B_first : B_scan);
-      Eigen::Matrix<double, 6, 6> h6 = Eigen::Matrix<double, 6, 6>::Zero();
-      Eigen::MatrixXd hdb6 = Eigen::MatrixXd::Zero(r, 6);
-      Motion6 g6 = Motion6::Zero();
-      for (std::size_t k = 0; k < K; ++k) {
-        if ((one_motion ? 0 : k) != b) continue;
-        h6 += sums->h_bb[k];
-        hdb6 += sums->h_db[k];
-        g6 += sums->g_b[k];
-      }
-      const Eigen::MatrixXd& B = sys.basis[b];
-      sys.h_bb.push_back(B.transpose() * h6 * B);
-      sys.h_db.push_back(hdb6 * B);
-      sys.g_b.push_back(B.transpose() * g6);
-    }
-    sys.h_dd = sums->h_dd;
-    sys.g_d = sums->g_d;
-    if (K_fair.size() > 0) {
-      sys.h_dd += 2.0 * K_fair;
-      sys.g_d += 2.0 * K_fair * st.model->parameters();
-    }
-    return sys;
-  };
-
-  // Damps a block with lambda * max(diag, floor): the floor keeps damping effective in near-null directions.
-  auto damped = [](const Eigen::MatrixXd& h, double damping) {
-    Eigen::MatrixXd a = h;
-    if (h.size() == 0) return a;  // a scan whose every motion is gauge (a model carrying its own pose)
-    const double floor = 1e-9 * h.diagonal().cwiseAbs().maxCoeff() + 1e-300;
-    a.diagonal() += damping * h.diagonal().cwiseAbs().cwiseMax(floor);
-    return a;
-  };
-
-  // The whole block-arrow matrix as one dense matrix (shape block first, then the motion blocks in order).
-  auto full_matrix = [&](const System& sys) {
-    Eigen::Index dim = r;
-    for (const Eigen::MatrixXd& b : sys.basis) dim += b.cols();
-    Eigen::MatrixXd full = Eigen::MatrixXd::Zero(dim, dim);
-    full.topLeftCorner(r, r) = sys.h_dd;
-    Eigen::Index offset = r;
-    for (std::size_t b = 0; b < sys.basis.size(); ++b) {
-      const Eigen::Index q = sys.basis[b].cols();
-      full.block(offset, offset, q, q) = sys.h_bb[b];
-      full.block(0, offset, r, q) = sys.h_db[b];
-      full.block(offset, 0, q, r) = sys.h_db[b].transpose();
-      offset += q;
-    }
-    return full;
-  };
-
-  enum class Unknowns { kAll, kMotions, kShape };
-  // One Levenberg-Marquardt step on the chosen unknowns (all: the joint method; motions or shape alone: the
-  // two half-steps of the alternating baseline). Returns false when no damping gives a decrease.
-  double last_step_norm = 0.0;
-  auto step = [&](const System& sys, Unknowns which, double& damping, State& trial) {
-    const std::size_t blocks = sys.basis.size();
-    while (true) {
-      Eigen::VectorXd step_d = Eigen::VectorXd::Zero(r);
-      std::vector<Eigen::VectorXd> step_b(blocks);
-      std::vector<Eigen::LDLT<Eigen::MatrixXd>> inv(blocks);
-      for (std::size_t b = 0; b < blocks; ++b) inv[b].compute(damped(sys.h_bb[b], damping));
-      if (which == Unknowns::kAll) {
-        // Schur complement: eliminate every motion block, solve for the shape, back-substitute.
-        Eigen::MatrixXd S = damped(sys.h_dd, damping);
-        Eigen::VectorXd rhs = -sys.g_d;
-        for (std::size_t b = 0; b < blocks; ++b) {
-          S.noalias() -= sys.h_db[b] * inv[b].solve(sys.h_db[b].transpose());
-          rhs.noalias() += sys.h_db[b] * inv[b].solve(sys.g_b[b]);
-        }
-        step_d = S.ldlt().solve(rhs);
-      } else if (which == Unknowns::kShape) {
-        step_d = damped(sys.h_dd, damping).ldlt().solve(-sys.g_d);
-      }
-      for (std::size_t b = 0; b < blocks; ++b) {
-        step_b[b] = which == Unknowns::kShape
-                        ? Eigen::VectorXd::Zero(sys.basis[b].cols())
-                        : Eigen::VectorXd(inv[b].solve(-sys.g_b[b] - sys.h_db[b].transpose() * step_d));
-      }
-      trial.model = state.model->Clone();
-      trial.model->ApplyStep(step_d);
-      trial.poses = state.poses;
-      // The largest change of a shape parameter or a motion component (unit-box units, radians).
-      double largest = step_d.size() > 0 ? step_d.cwiseAbs().maxCoeff() : 0.0;
-      for (std::size_t k = 0; k < K; ++k) {
-        const std::size_t b = blocks == 1 ? 0 : k;
-        const Motion6 v = sys.basis[b] * step_b[b];
-        largest = std::max(largest, v.cwiseAbs().maxCoeff());
-        trial.poses[k] = RigidMotion::FromHelicalVelocity(v.head<3>(), v.tail<3>()) * state.poses[k];
-      }
-      warm_mode = largest <= options.trusted_warm_start_step ? WarmStart::kTrusted : WarmStart::kVerified;
-      evaluate(trial, &state);
-      warm_mode = WarmStart::kVerified;
-      if (trial.objective < state.objective) {
-        last_step_norm = step_d.norm();
-        damping = std::max(damping * 0.1, 1e-12);
-        return true;
-      }
-      damping *= 10.0;
-      if (damping > 1e12) return false;
-    }
-  };
-
-  double lambda_shape = lambda;  // the alternating baseline damps its two half-steps separately
-  State trial;
-  while (result.stop_reason == StopReason::kMaxIterations && result.iterations < options.max_iterations) {
-    // `trial` keeps its buffers across iterations: an accepted trial is swapped in and the old state's
-    // buffers are overwritten by the next trial (no per-iteration allocation of points and foot points).
-    bool accepted = false;
-    const double objective_before = state.objective;
-    accumulate_next = options.alternating || result.iterations + 1 < options.max_iterations;
-    if (!options.alternating) {
-      accepted = step(assemble(state, shared, options.error_term), Unknowns::kAll, lambda, trial);
-      if (accepted) std::swap(state, trial);
-    } else {
-      // Alternating baseline: a registration step (motions, model fixed), then a fitting step (model, poses
-      // fixed).
-      if (step(assemble(state, shared, options.error_term), Unknowns::kMotions, lambda, trial)) {
-        std::swap(state, trial);
-        accepted = true;
-      }
-      if (step(assemble(state, shared, options.error_term), Unknowns::kShape, lambda_shape, trial)) {
-        std::swap(state, trial);
-        accepted = true;
-      }
-    }
-    if (!accepted) {
-      if (shared && options.per_scan_motions) {  // stage 1 cannot improve further: free the per-scan motions
-        shared = false;
-        continue;
-      }
-      result.stop_reason = StopReason::kNoFurtherDecrease;
-      break;
-    }
-    const double relative = (objective_before - state.objective) / objective_before;
-    ++result.iterations;
-    if (shared) ++result.shared_iterations;
-    IterationRecord rec;
-    rec.iteration = result.iterations;
-    rec.rms = state.rms * scale;
-    for (const auto& feet : state.feet)
-      for (const FootPoint& f : feet)
-        if (!f.excluded) rec.max_distance = std::max(rec.max_distance, f.distance * scale);
-    rec.objective = state.objective;
-    rec.damping = lambda;
-    rec.step_norm = last_step_norm;
-    rec.seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    result.history.push_back(rec);
-    if (options.target_rms > 0 && rec.rms <= options.target_rms) {
-      result.stop_reason = StopReason::kTargetReached;
-    } else if (shared && options.per_scan_motions &&
-               (result.shared_iterations >= options.shared_motion_iterations || relative < 1e-6)) {
-      shared = false;
-    } else if ((!shared || !options.per_scan_motions) && relative <= options.objective_tolerance) {
-      result.stop_reason = StopReason::kObjectiveTolerance;
-    }
-  }
-
-  state.model->ApplySimilarity(scale, VecS::Zero(3));
-  model.CopyFrom(*state.model);
-  result.model_T_scan.clear();
-  Eigen::VectorXd all(state.used);
-  Eigen::Index offset = 0;
-  for (std::size_t k = 0; k < K; ++k) {
-    RigidMotion pose(state.poses[k].rotation(), state.poses[k].translation() * scale);
-    pose.normalize();
-    result.model_T_scan.push_back(pose);
-    std::vector<double> d;
-    for (const FootPoint& f : state.feet[k]) {
-      if (!f.excluded) d.push_back(f.distance * scale);
-    }
-    const Eigen::Map<const Eigen::VectorXd> dk(d.data(), static_cast<Eigen::Index>(d.size()));
-    result.per_scan.push_back(ComputeResidualStatistics(dk));
-    all.segment(offset, dk.size()) = dk;
-    offset += dk.size();
-  }
-  result.residuals = ComputeResidualStatistics(all);
-  result.excluded_points = total - state.used;
-
-  // Unobservable directions (METHOD.md section 6): the null space of the full normal matrix built with the
-  // whole normal space (GTDM), so that SDM's tangential terms cannot mask a motion that slides scans along
-  // the surface.
-  // Unit weights: the same matrix then also gives the Gauss-Newton covariance of the orthogonal distances.
-  const System sys = assemble(state, false, ErrorTerm::kGtdm, true);
-  const Eigen::MatrixXd full = full_matrix(sys);
-  const Eigen::Index dim = full.rows();
-  std::vector<std::pair<Eigen::Index, std::size_t>> block_offset;  // (offset, scan)
-  Eigen::Index offset_b = r;
-  for (std::size_t b = 0; b < sys.basis.size(); ++b) {
-    block_offset.push_back({offset_b, b});
-    offset_b += sys.basis[b].cols();
-  }
-  // Its eigen-decomposition, once, gives the null directions and the covariance (EstimateCovariance, unit
-  // weights: sum d^2 in the normalized units over the points used).
-  const double sum_of_squares = std::pow(result.residuals.rms / scale, 2) * static_cast<double>(state.used);
-  const CovarianceEstimate estimate =
-      EstimateCovariance(full, sum_of_squares, static_cast<double>(state.used));
-  static const char* kMotionNames[6] = {"rotation x",    "rotation y",    "rotation z",
-                                        "translation x", "translation y", "translation z"};
-  for (const Eigen::VectorXd& v : estimate.null_directions) {
-    // Name it by its largest components (shape parameters, or scans' motions mapped back to (c, cbar)):
-    // those within half of the largest, the three largest spelled out, e.g. "top[1,1] + top[1,2] +
-    // scan 3 translation z + 20 more" for a common shift that displacements absorb.
-    std::vector<std::pair<double, std::string>> components;
-    for (Eigen::Index j = 0; j < r; ++j)
-      components.push_back({std::abs(v[j]), model.parameter_name(static_cast<int>(j))});
-    for (const auto& [offset_k, k] : block_offset) {
-      const Motion6 m = sys.basis[k] * v.segment(offset_k, sys.basis[k].cols());
-      for (int c = 0; c < 6; ++c)
-        components.push_back({std::abs(m[c]), "scan " + std::to_string(k) + " " + kMotionNames[c]});
-    }
-    std::stable_sort(components.begin(), components.end(),
-                     [](const auto& a, const auto& b) { return a.first > b.first; });
-    std::string name;
-    std::size_t shown = 0, similar = 0;
-    for (const auto& [size, component] : components) {
-      if (size < 0.5 * components.front().first) break;
-      ++similar;
-      if (shown < 3) {
-        name += (shown > 0 ? " + " : "") + component;
-        ++shown;
-      }
-    }
-    if (similar > shown) name += " + " + std::to_string(similar - shown) + " more";
-    result.unobservable.push_back(name);
-  }
-
-  // Standard uncertainties (type A, GUM): covariance s^2 (J^T J)^-1 of the Gauss-Newton problem in the
-  // orthogonal distances at the solution, s^2 = sum d^2 / (N - p), in the gauge-reduced coordinates; mapped
-  // to input units.
-  // With unobservable directions the covariance is the pseudo-inverse's: no variance along them. Quantities
-  // that do not change along them (a profile's radius at a height does not change when control points slide
-  // along the profile, a re-parametrization) keep valid uncertainties through shape_covariance; a single
-  // parameter or pose component that moves along them gets NaN.
-  if (state.used > dim) {
-    const Eigen::MatrixXd& cov = estimate.covariance;
-    const Eigen::VectorXd& null_weight = estimate.null_share;  // per unknown: its share of null directions
-    // A pose component is touched by the null directions by the same rule as a parameter.
-    const double touch_threshold = CovarianceOptions{}.touch_threshold;
-    const double nan = std::numeric_limits<double>::quiet_NaN();
-    result.shape_covariance = cov.topLeftCorner(r, r) * (scale * scale);
-    result.shape_uncertainty = estimate.standard_uncertainty.head(r) * scale;
-    for (const auto& [offset_k, k] : block_offset) {
-      const Eigen::MatrixXd& B = sys.basis[k];
-      const Eigen::Index q = B.cols();
-      const Eigen::Matrix<double, 6, 6> c6 = B * cov.block(offset_k, offset_k, q, q) * B.transpose();
-      const Motion6 touched = B.cwiseAbs2() * null_weight.segment(offset_k, q);
-      Motion6 sigma;
-      for (int c = 0; c < 6; ++c)
-        sigma[c] = touched[c] > touch_threshold ? nan : std::sqrt(std::max(c6(c, c), 0.0));
-      ScanPoseUncertainty u;
-      u.rotation = sigma.head<3>();
-      u.translation = sigma.tail<3>() * scale;
-      result.pose_uncertainty.push_back(u);
-    }
-  }
-  return result;
+  TrustRegionMinimizer minimizer(options.optimizer);  // validates the options
+  JointFitProblem problem(model, scans, model_T_scan, options);
+  MinimizerSummary summary = options.alternating ? MinimizeAlternating(problem, options.optimizer, start)
+                                                 : minimizer.Minimize(problem, 0, start);
+  return problem.Finish(model, std::move(summary));
 }
 
 JointFitResult FitPartJointly(PartModel& part, const std::vector<Eigen::Matrix3Xd>& scans,
@@ -627,7 +711,7 @@ JointFitResult FitPartJointly(PartModel& part, const std::vector<Eigen::Matrix3X
   // 1e-15 (measured on the block: stopping at 1e-10 left the width 3 standard uncertainties short, and the
   // near-edge points chosen from that state kept it there).
   JointFitOptions tight = options;
-  tight.objective_tolerance = std::min(options.objective_tolerance, 1e-15);
+  tight.optimizer.objective_tolerance = std::min(options.optimizer.objective_tolerance, 1e-15);
   const JointFitResult first = FitJointly(part, scans, model_T_scan, tight);
   // The points near edges, chosen once at the first pass's solution: re-deciding them every iteration lets
   // the fit settle on different self-consistent sets from different starts (measured on the counterbored

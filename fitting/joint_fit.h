@@ -17,15 +17,39 @@
 
 #include "fitting/fit_result.h"
 #include "fitting/geometric_fit.h"
+#include "fitting/optimizer_options.h"
 #include "fitting/parametric_model.h"
 #include "fitting/part_model.h"
 #include "registration/rigid_motion.h"
 
 namespace s2m {
 
+// The joint fit's minimizer settings (fitting/minimizer.h), the values its own loop always used: damping
+// from 1e-6 (x 10 on a rejected step, x 0.1 on an accepted one, kept in [1e-12, 1e12]) relative to each
+// block's diagonal, floored at 1e-9 of the block's largest diagonal entry (the motion blocks of a nearly
+// invariant model have near-null directions); at most 100 accepted iterations, both stages together; stop
+// (in stage 2) when the relative decrease falls below 1e-10. No gradient test and no step test (0): a
+// joint step mixes shape parameters and motions, which no single step norm compares, and the objective test
+// ends the fit first. target_rms (input units) and the robust loss (optimizer.loss; its scale a distance in
+// input units, 0: from the normal distances at every linearization) apply as documented there.
+inline OptimizerOptions JointFitOptimizerDefaults() {
+  OptimizerOptions o;
+  o.max_iterations = 100;
+  o.objective_tolerance = 1e-10;
+  o.step_tolerance = 0.0;
+  o.gradient_tolerance = 0.0;
+  o.damping.initial = 1e-6;
+  o.damping.min = 1e-12;
+  o.damping.max = 1e12;
+  o.damping.diagonal_floor = 1e-9;
+  return o;
+}
+
 struct JointFitOptions {
   ErrorTerm error_term = ErrorTerm::kSdm;
-  int max_iterations = 100;          // both stages together
+  // Termination, damping and robust loss (JointFitOptimizerDefaults). The alternating baseline runs two
+  // minimizers with these settings, one per half-step, each keeping its own damping.
+  OptimizerOptions optimizer = JointFitOptimizerDefaults();
   int shared_motion_iterations = 5;  // stage 1 length (0: start with per-scan motions)
   bool per_scan_motions = true;  // false: stay in stage 1, i.e. fit the initially registered cloud (baseline)
   // The alternating baseline of METHOD.md section 6: per iteration one registration step (motions only), then
@@ -34,10 +58,8 @@ struct JointFitOptions {
   // Remove the gauge directions the model declares (default). Off, the solver runs on the full motions
   // (damping keeps it going) and reports the directions it could not observe, by name.
   bool remove_gauge = true;
-  FairnessWeights fairness;            // on data scaled into the unit box
-  bool scan_weights = true;            // w_k = 1 / N_k (each scan counts the same), else 1
-  double objective_tolerance = 1e-10;  // stop (in stage 2) when the relative decrease falls below this
-  double target_rms = 0.0;             // stop as soon as the RMS (input units) reaches this (0: off)
+  FairnessWeights fairness;  // on data scaled into the unit box
+  bool scan_weights = true;  // w_k = 1 / N_k (each scan counts the same), else 1
   // Points to leave out, per scan (true: left out), fixed for the whole fit; empty: none. Overrides the
   // model's own per-iteration choice (AmbiguousFootPoint), which can settle differently from different
   // starts.
@@ -74,6 +96,9 @@ struct JointFitResult {
   int shared_iterations = 0;  // how many of them used one shared motion
   StopReason stop_reason = StopReason::kMaxIterations;
   std::vector<IterationRecord> history;
+  // The robust loss's scale at the solution, input units (optimizer.loss: the given one or the last estimate
+  // from the data); 0 for plain least squares.
+  double loss_scale = 0.0;
   // Directions of the final normal matrix (whole normal space) with no information, each named by its
   // dominant parameter, e.g. "scan 2 rotation z". Empty when every remaining unknown is determined.
   std::vector<std::string> unobservable;

@@ -1,26 +1,24 @@
 #include "fitting/model_registration.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
+#include <optional>
 #include <stdexcept>
 
 #include "fitting/foot_point.h"
+#include "fitting/linear_solver.h"
+#include "fitting/minimizer.h"
+#include "fitting/parallel_reduction.h"
+#include "fitting/robust_loss.h"
 #include "registration/principal_curvatures.h"
 #include "registration/rigid_step.h"
 
 namespace s2m {
 namespace {
-
-double MeanSquare(const std::vector<FootPoint>& feet) {
-  double sum = 0.0;
-  for (const FootPoint& f : feet) sum += f.distance * f.distance;
-  return sum / static_cast<double>(feet.size());
-}
 
 // TDM's and SDM's error matrices at an exact foot on a surface in 3D, added as rank-one directions
 // (RigidNormalEquations::AddDirection) straight from the model's derivatives `g` at the foot: TDM needs only
@@ -66,72 +64,242 @@ bool AddSurfaceDirections(ErrorTerm term, const LocalGeometry& g, const Eigen::V
   return true;
 }
 
-}  // namespace
+// The 6 x 6 normal equations of a rigid step as the minimizer's linear system, damped as registration
+// always was: lambda diag(H) (SolveRigidVelocity).
+class RigidSystem : public LinearSystem {
+ public:
+  RigidNormalEquations eq;
+  Eigen::Index num_parameters() const override { return 6; }
+  bool Solve(double lambda, Eigen::VectorXd& step) override {
+    step = SolveRigidVelocity(eq, lambda);
+    return step.allFinite();
+  }
+  double Slope(const Eigen::VectorXd& step) const override { return eq.g.dot(step); }
+  double ModelChange(const Eigen::VectorXd& step) const override {
+    return eq.g.dot(step) + 0.5 * step.dot(eq.H * step);
+  }
+  double GradientMeasure(double cost) const override {
+    const double residual_norm = std::sqrt(std::max(2.0 * cost, 0.0));
+    double largest = 0.0;
+    for (int k = 0; k < 6; ++k) {
+      if (eq.H(k, k) > 0.0 && residual_norm > 0.0)
+        largest = std::max(largest, std::abs(eq.g[k]) / (std::sqrt(eq.H(k, k)) * residual_norm));
+    }
+    return largest;  // docs/method.md eq. 14.6
+  }
+};
 
-ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eigen::Matrix3Xd& scan_points,
-                                        const RigidMotion& initial, const ModelRegistrationOptions& options) {
-  if (model.ambient_dimension() != 3) throw std::invalid_argument("rigid registration needs a model in 3D");
-  if (scan_points.cols() == 0) throw std::invalid_argument("no scan points to register");
-  if (!scan_points.allFinite()) throw std::invalid_argument("the scan points contain NaN or inf");
-  const auto start = std::chrono::steady_clock::now();
-  const double size =
-      std::max((scan_points.rowwise().maxCoeff() - scan_points.rowwise().minCoeff()).norm(), 1e-300);
+// Per-thread scratch of the registration pass.
+struct RegistrationScratch {
+  LocalGeometry geo;
+  SquaredDistanceField::Answer answer;
+};
 
-  ModelRegistrationResult result;
-  result.model_T_scan = initial;
-  // Both point buffers are allocated once; every trial overwrites `moved` in place.
-  Eigen::Matrix3Xd current(3, scan_points.cols()), moved(3, scan_points.cols());
-  auto place = [&scan_points](const RigidMotion& pose, Eigen::Matrix3Xd& out) {
+// Registration to a fixed model as the minimizer's problem (docs/method.md sections 5 and 14): the state is
+// the pose, the scan's points placed by it (always from the original scan: no drift), their feet (exact, or
+// the squared distance field's in its phase) and the normal equations of the next step, assembled in the
+// same pass as the feet. The objective is 1/2 mean rho(d_j^2) (1/2 the mean square without a robust loss).
+class RegistrationProblem : public NonlinearProblem {
+ public:
+  RegistrationProblem(const ParametricModel& model, const Eigen::Matrix3Xd& scan_points,
+                      const RigidMotion& initial, const ModelRegistrationOptions& options)
+      : model_(model),
+        scan_points_(scan_points),
+        options_(options),
+        // GN's implicit-function Jacobian is for shape parameters; for a rigid motion of the data SDM is its
+        // analogue.
+        term_(options.error_term == ErrorTerm::kGn ? ErrorTerm::kSdm : options.error_term),
+        weight_(1.0 / static_cast<double>(scan_points.cols())),
+        context_(model),
+        field_(options.squared_distance_field),
+        surface_(model.domain().dimension == 2),
+        weighting_(options.optimizer.loss),
+        field_phase_(field_ != nullptr),
+        pose_(initial) {
+    size_ = std::max((scan_points.rowwise().maxCoeff() - scan_points.rowwise().minCoeff()).norm(), 1e-300);
+    // Both point buffers are allocated once; every trial overwrites `moved_` in place.
+    current_.resize(3, scan_points.cols());
+    moved_.resize(3, scan_points.cols());
+    Place(pose_, current_);
+    Pass(current_, false, field_phase_, true, feet_, geometry_, exact_, system_.eq);
+    cost_ = Objective(feet_);
+  }
+
+  double Cost() const override { return cost_; }
+
+  LinearSystem& Linearize() override {
+    if (weighting_.loss().scale_from_data() || !equations_valid_) {
+      // The scale follows the current distances (eq. 15.5); the equations are assembled with it at the
+      // current feet (warm from themselves: Newton stops at once).
+      if (weighting_.loss().scale_from_data()) weighting_.Update(Distances(feet_));
+      Pass(current_, true, field_phase_, true, trial_feet_, trial_geometry_, trial_exact_, system_.eq);
+      feet_.swap(trial_feet_);
+      geometry_.swap(trial_geometry_);
+      exact_.swap(trial_exact_);
+      cost_ = Objective(feet_);
+      equations_valid_ = true;
+    }
+    return system_;
+  }
+
+  double EvaluateTrial(const Eigen::VectorXd& step, bool final_if_accepted) override {
+    // The field's approximant no longer decreased at the last trial: its fixed point is reached, and the
+    // field phase ends (no further, more damped trial is evaluated).
+    if (field_phase_ && field_rejected_) return std::numeric_limits<double>::infinity();
+    trial_pose_ = RigidMotion::FromHelicalVelocity(step.head<3>(), step.tail<3>()) * pose_;
+    Place(trial_pose_, moved_);
+    // A trial that, if accepted, is the last of its phase needs no normal equations; a loss scale from the
+    // data re-assembles them at the next linearization anyway.
+    trial_equations_ = !final_if_accepted && !weighting_.loss().scale_from_data();
+    Pass(moved_, true, field_phase_, trial_equations_, trial_feet_, trial_geometry_, trial_exact_, trial_eq_);
+    trial_cost_ = Objective(trial_feet_);
+    if (field_phase_ && !(trial_cost_ < cost_) &&
+        options_.optimizer.step_strategy == StepStrategy::kTrustRegion)
+      field_rejected_ = true;
+    return std::isnan(trial_cost_) ? std::numeric_limits<double>::infinity() : trial_cost_;
+  }
+
+  void AcceptTrial() override {
+    pose_ = trial_pose_;
+    current_.swap(moved_);
+    feet_.swap(trial_feet_);
+    geometry_.swap(trial_geometry_);
+    exact_.swap(trial_exact_);
+    std::swap(system_.eq, trial_eq_);
+    equations_valid_ = trial_equations_;
+    cost_ = trial_cost_;
+  }
+
+  // Registration's own step test: the step's rotation (rad) and translation (relative to the scan's size)
+  // below their tolerances; in the field phase below field_step_tolerance too.
+  bool StepIsNegligible(const Eigen::VectorXd& step, double /*tolerance*/) const override {
+    const RigidMotion motion = RigidMotion::FromHelicalVelocity(step.head<3>(), step.tail<3>());
+    const double tolerance = field_phase_ ? options_.field_step_tolerance : 0.0;
+    return motion.angle() <= std::max(tolerance, options_.rotation_tolerance) &&
+           motion.translation().norm() <= std::max(tolerance, options_.translation_tolerance) * size_;
+  }
+
+  void DescribeState(IterationRecord& record) const override {
+    double sum = 0.0;
+    record.max_distance = 0.0;
+    for (const FootPoint& f : feet_) {
+      sum += f.distance * f.distance;
+      record.max_distance = std::max(record.max_distance, f.distance);
+    }
+    record.rms = std::sqrt(sum / static_cast<double>(feet_.size()));
+  }
+
+  std::optional<StopReason> AfterIteration(const IterationSummary& /*summary*/,
+                                           std::optional<StopReason> proposed) override {
+    pose_history_.push_back(pose_);
+    if (field_phase_) ++field_iterations_;
+    return proposed;
+  }
+
+  // Leaves the field: exact feet at the current pose (warm from the field's parameters).
+  void SwitchToExact() {
+    field_phase_ = false;
+    Pass(current_, true, false, true, trial_feet_, trial_geometry_, trial_exact_, trial_eq_);
+    feet_.swap(trial_feet_);
+    geometry_.swap(trial_geometry_);
+    exact_.swap(trial_exact_);
+    std::swap(system_.eq, trial_eq_);
+    equations_valid_ = true;
+    cost_ = Objective(feet_);
+  }
+
+  bool field_phase() const { return field_phase_; }
+  int field_iterations() const { return field_iterations_; }
+  const RigidMotion& pose() const { return pose_; }
+  std::vector<RigidMotion>& pose_history() { return pose_history_; }
+  const std::vector<FootPoint>& feet() const { return feet_; }
+  double loss_scale() const { return weighting_.scale(); }
+
+ private:
+  void Place(const RigidMotion& pose, Eigen::Matrix3Xd& out) const {
     // A coefficient-wise product: a 3 x 3 rotation gains nothing from GEMM's packing.
-    out.noalias() = pose.rotation().lazyProduct(scan_points);
+    out.noalias() = pose.rotation().lazyProduct(scan_points_);
     out.colwise() += pose.translation();
-  };
-  // GN's implicit-function Jacobian is for shape parameters; for a rigid motion of the data SDM is its
-  // analogue.
-  const ErrorTerm term = options.error_term == ErrorTerm::kGn ? ErrorTerm::kSdm : options.error_term;
-  const double weight = 1.0 / static_cast<double>(scan_points.cols());
-  const FootPointContext context(model);
-  // One pass over the points per pose: the foot point (warm from `warm` when given) and, at it, the point's
-  // contribution to the 6x6 normal equations of the next step, accumulated per thread and summed in thread
-  // order (deterministic for a given thread count). Newton leaves the model's point and derivatives at the
-  // foot in `geo`, so the assembly evaluates the model again only for closed-form feet. The normal equations
-  // of a rejected trial are simply dropped. The model's geometry at each foot is kept for the next pass: the
-  // model is fixed, so Newton's first evaluation at the previous foot would recompute exactly these numbers.
-  // With a squared distance field (options.squared_distance_field), points inside its band take the field's
-  // approximate foot and SDM approximant instead (exact[i] = 0): no Newton, no model evaluation.
-  const SquaredDistanceField* field = options.squared_distance_field;
-  // `equations` false: the pass is the last one whatever its outcome (its step ends the iterations or the
-  // field phase if accepted, and a rejected trial re-solves the previous equations), so only the feet are
-  // computed: neither the frames, the normal equations nor the geometry for a next pass.
-  const bool surface = model.domain().dimension == 2;
-  auto feet_and_equations = [&](const Eigen::Matrix3Xd& points, const std::vector<FootPoint>* warm,
-                                const std::vector<LocalGeometry>* warm_geometry,
-                                const std::vector<char>* warm_exact, bool use_field, bool equations,
-                                std::vector<FootPoint>& out, std::vector<LocalGeometry>& out_geometry,
-                                std::vector<char>& out_exact, RigidNormalEquations& eq) {
-    out.resize(static_cast<std::size_t>(points.cols()));
-    // Newton's geometry is kept for the next pass only in the exact phase (not touching 100 bytes per point
-    // in the field's passes).
-    if (use_field || !equations)
-      out_geometry.clear();
-    else
-      out_geometry.resize(static_cast<std::size_t>(points.cols()));
-    out_exact.resize(static_cast<std::size_t>(points.cols()));
-    std::vector<RigidNormalEquations> partial;
-#pragma omp parallel
-    {
-#pragma omp single
-      partial.resize(static_cast<std::size_t>(omp_get_num_threads()));
-      RigidNormalEquations& mine = partial[static_cast<std::size_t>(omp_get_thread_num())];
-      LocalGeometry geo;
-      SquaredDistanceField::Answer answer;
-#pragma omp for schedule(static)
-      for (Eigen::Index j = 0; j < points.cols(); ++j) {
+  }
+
+  static Eigen::VectorXd Distances(const std::vector<FootPoint>& feet) {
+    Eigen::VectorXd d(static_cast<Eigen::Index>(feet.size()));
+    for (std::size_t j = 0; j < feet.size(); ++j) d[static_cast<Eigen::Index>(j)] = feet[j].distance;
+    return d;
+  }
+
+  // 1/2 mean rho(d_j^2) (docs/method.md eqs. 5.1 and 15.6).
+  double Objective(const std::vector<FootPoint>& feet) const {
+    double sum = 0.0;
+    for (const FootPoint& f : feet) sum += weighting_.Rho(f.distance);
+    return 0.5 * (sum / static_cast<double>(feet.size()));
+  }
+
+  void Pass(const Eigen::Matrix3Xd& points, bool warm, bool use_field, bool equations,
+            std::vector<FootPoint>& out, std::vector<LocalGeometry>& out_geometry,
+            std::vector<char>& out_exact, RigidNormalEquations& eq);
+
+  const ParametricModel& model_;
+  const Eigen::Matrix3Xd& scan_points_;
+  const ModelRegistrationOptions& options_;
+  ErrorTerm term_;
+  double weight_;
+  FootPointContext context_;
+  const SquaredDistanceField* field_;
+  bool surface_;
+  RobustWeighting weighting_;
+  bool field_phase_;
+  bool field_rejected_ = false;
+  double size_ = 1.0;
+  RigidMotion pose_, trial_pose_;
+  Eigen::Matrix3Xd current_, moved_;
+  std::vector<FootPoint> feet_, trial_feet_;
+  std::vector<LocalGeometry> geometry_, trial_geometry_;
+  std::vector<char> exact_, trial_exact_;
+  RigidSystem system_;
+  RigidNormalEquations trial_eq_;
+  std::vector<RigidNormalEquations> partials_;
+  bool equations_valid_ = true, trial_equations_ = true;
+  double cost_ = 0.0, trial_cost_ = 0.0;
+  std::vector<RigidMotion> pose_history_;
+  int field_iterations_ = 0;
+};
+
+// One pass over the points per pose: the foot point (warm from the current feet when `warm`) and, at it,
+// the point's contribution to the 6x6 normal equations of the next step (with its IRLS weight rho'(d^2)),
+// accumulated per thread and summed in thread order (deterministic for a given thread count). Newton leaves
+// the model's point and derivatives at the foot in the scratch geometry, so the assembly evaluates the model
+// again only for closed-form feet. The model's geometry at each foot is kept for the next pass: the model is
+// fixed, so Newton's first evaluation at the previous foot would recompute exactly these numbers. With a
+// squared distance field, points inside its band take the field's approximate foot and SDM approximant
+// instead (exact[i] = 0): no Newton, no model evaluation. `equations` false: only the feet are computed
+// (neither the frames, the normal equations nor the geometry for a next pass).
+void RegistrationProblem::Pass(const Eigen::Matrix3Xd& points, bool warm, bool use_field, bool equations,
+                               std::vector<FootPoint>& out, std::vector<LocalGeometry>& out_geometry,
+                               std::vector<char>& out_exact, RigidNormalEquations& eq) {
+  const std::vector<FootPoint>* warm_feet = warm ? &feet_ : nullptr;
+  out.resize(static_cast<std::size_t>(points.cols()));
+  // Newton's geometry is kept for the next pass only in the exact phase (not touching 100 bytes per point in
+  // the field's passes).
+  if (use_field || !equations)
+    out_geometry.clear();
+  else
+    out_geometry.resize(static_cast<std::size_t>(points.cols()));
+  out_exact.resize(static_cast<std::size_t>(points.cols()));
+  const SquaredDistanceField* field = field_;
+  const ErrorTerm term = term_;
+  // The previous pass kept Newton's geometry only when it assembled equations in the exact phase.
+  const bool warm_geometry = warm && geometry_.size() == feet_.size() && exact_.size() == feet_.size();
+  AccumulateInParallel<RegistrationScratch>(
+      points.cols(), partials_, [](RigidNormalEquations& p) { p = RigidNormalEquations(); },
+      [&](Eigen::Index j, RegistrationScratch& scratch, RigidNormalEquations& mine) {
         const auto i = static_cast<std::size_t>(j);
+        SquaredDistanceField::Answer& answer = scratch.answer;
         if (use_field && field->Query(points.col(j), answer, equations && term != ErrorTerm::kTdm)) {
           out[i] = FootPoint{answer.t, std::sqrt(answer.squared_distance), false, false};
           out_exact[i] = 0;
-          if (!equations) continue;
+          if (!equations) return;
+          const double weight = weight_ * weighting_.Weight(out[i].distance);
           const PrincipalFrame& f = answer.frame;
           const Eigen::Vector3d x3 = points.col(j), r = x3 - answer.foot;
           if (term == ErrorTerm::kTdm || term == ErrorTerm::kSdm) {
@@ -145,126 +313,64 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
           } else {
             mine.Add({x3, answer.foot, ErrorMatrix(term, f, 3), weight});
           }
-          continue;
+          return;
         }
         const VecS x = points.col(j);
         // The model is fixed and the points moved by one small rigid step: the previous feet are trusted.
         // Newton's geometry at the previous foot is reused only when that foot was exact.
-        const bool reuse = warm != nullptr && !context.closed_form && (*warm_exact)[i] != 0;
+        const bool reuse = warm_geometry && !context_.closed_form && exact_[i] != 0;
         // Newton works in place in the kept geometry (no copy afterwards).
-        LocalGeometry& g = use_field || !equations ? geo : out_geometry[i];
-        if (reuse) g = (*warm_geometry)[i];
-        out[i] =
-            FootPointOf(context, x, warm != nullptr ? &(*warm)[i].t : nullptr, WarmStart::kTrusted, g, reuse);
+        LocalGeometry& g = use_field || !equations ? scratch.geo : out_geometry[i];
+        if (reuse) g = geometry_[i];
+        out[i] = FootPointOf(context_, x, warm_feet != nullptr ? &(*warm_feet)[i].t : nullptr,
+                             WarmStart::kTrusted, g, reuse);
         out_exact[i] = use_field ? 0 : 1;
-        if (!equations) continue;
-        if (context.closed_form) model.Evaluate(out[i].t, 2, g);
-        if (surface && (term == ErrorTerm::kTdm || term == ErrorTerm::kSdm) &&
+        if (!equations) return;
+        const double weight = weight_ * weighting_.Weight(out[i].distance);
+        if (context_.closed_form) model_.Evaluate(out[i].t, 2, g);
+        if (surface_ && (term == ErrorTerm::kTdm || term == ErrorTerm::kSdm) &&
             AddSurfaceDirections(term, g, points.col(j), weight, mine))
-          continue;
+          return;
         const PrincipalFrame frame = ComputePrincipalFrame(g, x);
         mine.Add({points.col(j), To3(g.point), ErrorMatrix(term, frame, 3), weight});
-      }
-    }
-    eq = RigidNormalEquations();
-    for (const RigidNormalEquations& p : partial) eq.Add(p);
-  };
-  bool field_phase = field != nullptr;
-  place(initial, current);
-  std::vector<FootPoint> feet, trial_feet;
-  std::vector<LocalGeometry> geometry, trial_geometry;
-  std::vector<char> exact, trial_exact;
-  RigidNormalEquations eq, trial_eq;
-  feet_and_equations(current, nullptr, nullptr, nullptr, field_phase, true, feet, geometry, exact, eq);
-  double mean_square = MeanSquare(feet);
-  double lambda = options.damping ? 1e-6 : 0.0;
-  int limit = options.max_iterations;
-  // Leaves the field: exact feet at the current pose (warm from the field's parameters), then at most
-  // exact_final_iterations exact iterations.
-  auto switch_to_exact = [&] {
-    field_phase = false;
-    feet_and_equations(current, &feet, &geometry, &exact, false, true, trial_feet, trial_geometry,
-                       trial_exact, trial_eq);
-    feet.swap(trial_feet);
-    geometry.swap(trial_geometry);
-    exact.swap(trial_exact);
-    std::swap(eq, trial_eq);
-    mean_square = MeanSquare(feet);
-    lambda = options.damping ? 1e-6 : 0.0;
-    limit = std::min(options.max_iterations, result.iterations + std::max(0, options.exact_final_iterations));
-    result.stop_reason = StopReason::kMaxIterations;
-    if (options.target_rms > 0 && std::sqrt(mean_square) <= options.target_rms)
-      result.stop_reason = StopReason::kTargetReached;
-  };
-  result.stop_reason = StopReason::kMaxIterations;
-  if (options.target_rms > 0 && std::sqrt(mean_square) <= options.target_rms)
-    result.stop_reason = StopReason::kTargetReached;
+      });
+  eq = RigidNormalEquations();
+  for (const RigidNormalEquations& p : partials_) eq.Add(p);
+}
 
-  while (true) {
-    if (field_phase && (result.stop_reason != StopReason::kMaxIterations || result.iterations >= limit))
-      switch_to_exact();
-    if (result.stop_reason != StopReason::kMaxIterations || result.iterations >= limit) break;
-    bool accepted = false;
-    Eigen::Matrix<double, 6, 1> velocity;
-    RigidMotion step;
-    while (true) {
-      velocity = SolveRigidVelocity(eq, lambda);
-      step = RigidMotion::FromHelicalVelocity(velocity.head<3>(), velocity.tail<3>());
-      const RigidMotion trial = step * result.model_T_scan;
-      place(trial, moved);  // from the original scan: no drift
-      // Whether this trial, if accepted, is the last of its phase (the iteration limit, or a step below the
-      // tolerance, as tested after the iteration below): then its normal equations are never solved.
-      const double tolerance = field_phase ? options.field_step_tolerance : 0.0;
-      const bool last =
-          result.iterations + 1 >= limit ||
-          (step.angle() <= std::max(tolerance, options.rotation_tolerance) &&
-           step.translation().norm() <= std::max(tolerance, options.translation_tolerance) * size);
-      feet_and_equations(moved, &feet, &geometry, &exact, field_phase, !last, trial_feet, trial_geometry,
-                         trial_exact, trial_eq);
-      const double trial_mean_square = MeanSquare(trial_feet);
-      if (!options.damping || trial_mean_square < mean_square) {
-        result.model_T_scan = trial;
-        current.swap(moved);
-        feet.swap(trial_feet);
-        geometry.swap(trial_geometry);
-        exact.swap(trial_exact);
-        std::swap(eq, trial_eq);
-        mean_square = trial_mean_square;
-        lambda = options.damping ? std::max(lambda * 0.1, 1e-12) : 0.0;
-        accepted = true;
-        break;
-      }
-      // The field's approximant no longer decreases: its fixed point is reached, the exact feet take over.
-      if (field_phase) break;
-      lambda *= 10.0;
-      if (lambda > 1e12) break;
-    }
-    if (!accepted) {
-      result.stop_reason = StopReason::kNoFurtherDecrease;
-      if (field_phase) continue;
-      break;
-    }
-    ++result.iterations;
-    if (field_phase) ++result.field_iterations;
-    IterationRecord rec;
-    rec.iteration = result.iterations;
-    rec.rms = std::sqrt(mean_square);
-    for (const FootPoint& f : feet) rec.max_distance = std::max(rec.max_distance, f.distance);
-    rec.objective = 0.5 * mean_square;
-    rec.damping = lambda;
-    rec.step_norm = velocity.norm();
-    rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    result.history.push_back(rec);
-    result.pose_history.push_back(result.model_T_scan);
-    const double tolerance = field_phase ? options.field_step_tolerance : 0.0;
-    if (options.target_rms > 0 && rec.rms <= options.target_rms) {
-      result.stop_reason = StopReason::kTargetReached;
-    } else if (step.angle() <= std::max(tolerance, options.rotation_tolerance) &&
-               step.translation().norm() <= std::max(tolerance, options.translation_tolerance) * size) {
-      result.stop_reason = StopReason::kStepTolerance;
-    }
+}  // namespace
+
+ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eigen::Matrix3Xd& scan_points,
+                                        const RigidMotion& initial, const ModelRegistrationOptions& options) {
+  if (model.ambient_dimension() != 3) throw std::invalid_argument("rigid registration needs a model in 3D");
+  if (scan_points.cols() == 0) throw std::invalid_argument("no scan points to register");
+  if (!scan_points.allFinite()) throw std::invalid_argument("the scan points contain NaN or inf");
+  const auto start = std::chrono::steady_clock::now();
+  TrustRegionMinimizer minimizer(options.optimizer);  // validates the options
+  RegistrationProblem problem(model, scan_points, initial, options);
+  MinimizerSummary summary = minimizer.Minimize(problem, 0, start);
+  if (problem.field_phase()) {
+    // The field phase then up to exact_final_iterations iterations with exact feet (Newton from the field's
+    // foot parameters, then from the previous exact feet with their geometry), fresh damping, one history.
+    problem.SwitchToExact();
+    OptimizerOptions exact = options.optimizer;
+    exact.max_iterations = std::min(options.optimizer.max_iterations - summary.iterations,
+                                    std::max(0, options.exact_final_iterations));
+    MinimizerSummary exact_summary = TrustRegionMinimizer(exact).Minimize(problem, summary.iterations, start);
+    summary.iterations += exact_summary.iterations;
+    summary.stop_reason = exact_summary.stop_reason;
+    for (const IterationRecord& rec : exact_summary.history) summary.history.push_back(rec);
   }
+  ModelRegistrationResult result;
+  result.model_T_scan = problem.pose();
   result.model_T_scan.normalize();
+  result.iterations = summary.iterations;
+  result.field_iterations = problem.field_iterations();
+  result.stop_reason = summary.stop_reason;
+  result.history = std::move(summary.history);
+  result.pose_history = std::move(problem.pose_history());
+  result.loss_scale = problem.loss_scale();
+  const std::vector<FootPoint>& feet = problem.feet();
   Eigen::VectorXd d(static_cast<Eigen::Index>(feet.size()));
   for (std::size_t j = 0; j < feet.size(); ++j) d[static_cast<Eigen::Index>(j)] = feet[j].distance;
   result.residuals = ComputeResidualStatistics(d);

@@ -9,6 +9,7 @@
 
 #include "fitting/fit_result.h"
 #include "fitting/geometric_fit.h"
+#include "fitting/optimizer_options.h"
 #include "fitting/parametric_model.h"
 #include "fitting/squared_distance_field.h"
 #include "registration/rigid_motion.h"
@@ -16,14 +17,31 @@
 
 namespace s2m {
 
+// Registration's minimizer settings (fitting/minimizer.h), the values its own loop always used: at most 100
+// iterations (both phases together); Levenberg-Marquardt on the 6 x 6 system from damping 1e-6 (x 10 on a
+// rejected step, x 0.1 on an accepted one, kept in [1e-12, 1e12]), the true RMS re-evaluated at every trial;
+// StepStrategy::kFullStep takes the undamped step whatever the RMS does (plain ICP / point-to-plane as
+// usually run). No objective and no gradient test (0): registration stops on its own step test, a rotation
+// and a translation (rotation_tolerance, translation_tolerance below; optimizer.step_tolerance is not used).
+// target_rms (input units) and the robust loss (optimizer.loss; scale in input units, 0: from the normal
+// distances at every linearization) apply as documented there.
+inline OptimizerOptions ModelRegistrationOptimizerDefaults() {
+  OptimizerOptions o;
+  o.max_iterations = 100;
+  o.objective_tolerance = 0.0;
+  o.gradient_tolerance = 0.0;
+  o.damping.initial = 1e-6;
+  o.damping.min = 1e-12;
+  o.damping.max = 1e12;
+  return o;
+}
+
 struct ModelRegistrationOptions {
   ErrorTerm error_term =
       ErrorTerm::kSdm;  // pdm (ICP), tdm (point-to-plane), sdm; cdm, gtdm and gn also accepted
-  int max_iterations = 100;
+  OptimizerOptions optimizer = ModelRegistrationOptimizerDefaults();
   double rotation_tolerance = 1e-12;     // stop when the step's rotation (rad) ...
   double translation_tolerance = 1e-12;  // ... and translation (relative to the scan's size) fall below these
-  double target_rms = 0.0;               // stop as soon as RMS <= target (0: off)
-  bool damping = true;                   // Levenberg-Marquardt on the 6x6 system, true RMS re-evaluated
   // A precomputed squared distance field of the SAME model (null: off, every foot exact). When given, the
   // iterations first use its O(1) approximants of d^2 (squared_distance_field.h; Mitra, Gelfand, Pottmann,
   // Guibas, SGP 2004) for the points inside its band (exact feet for the others) until a step moves the scan
@@ -46,6 +64,9 @@ struct ModelRegistrationResult {
   std::vector<IterationRecord> history;
   std::vector<RigidMotion> pose_history;  // model_T_scan after each iteration (history[i]'s pose)
   int field_iterations = 0;               // of `iterations`, those with the squared distance field
+  // The robust loss's scale at the solution, input units (the given one or the last estimate from the
+  // data); 0 for plain least squares.
+  double loss_scale = 0.0;
 };
 
 // Registers `scan_points` (3 x n, scan coordinates) to `model` starting from `initial` (model_T_scan).

@@ -33,7 +33,7 @@ JointFitOptions JointOptions(const FitOptions& o) {
   // after 200, 2 s, to the same result): SDM's tangential terms damp the profile's re-parametrization, the
   // slow direction once the data sit at the noise level (docs/registration.md).
   options.error_term = ErrorTermFromString(o.method.empty() ? "tdm" : o.method);
-  options.max_iterations = o.max_iterations;
+  options.optimizer.max_iterations = o.max_iterations;
   options.alternating = o.alternating;
   options.per_scan_motions = !o.register_then_fit;
   return options;

@@ -383,7 +383,7 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
   c.name = name;
   c.noise = 0.02;
   c.options.error_term = ErrorTerm::kTdm;
-  c.options.max_iterations = 100;
+  c.options.optimizer.max_iterations = 100;
   if (name == "vase") {
     // The demo's vase (recordings/README.md), 150 mm tall; 8 views at 20 degrees elevation.
     Eigen::Matrix2Xd profile(2, 8);
@@ -412,7 +412,7 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
     // SDM here: from 2-degree pose errors TDM stalls 12 % above the noise (measured: RMS 0.0224 for noise
     // 0.02 after 100 iterations), SDM reaches the noise.
     c.options.error_term = ErrorTerm::kSdm;
-    c.options.max_iterations = 150;
+    c.options.optimizer.max_iterations = 150;
     const KinematicSurface true_vase = *truth;
     const std::vector<RigidMotion> true_poses = c.views.model_T_scan_true;
     c.measure = [true_vase, true_poses](const ParametricModel& m, const JointFitResult& r) {

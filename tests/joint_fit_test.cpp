@@ -74,7 +74,7 @@ TEST(JointFit, RecoversProfileAndAxesOfAPotFromThreeViews) {
   const PotScans views = ScanPot(truth, 0.0);
   KinematicSurface pot = StartingProfile();
   JointFitOptions o;
-  o.max_iterations = 60;
+  o.optimizer.max_iterations = 60;
   const JointFitResult r = FitJointly(pot, views.scans, views.initial, o);
   EXPECT_LT(r.residuals.rms, 1e-7) << ToString(r.stop_reason) << " after " << r.iterations << " iterations";
   EXPECT_GT(r.shared_iterations, 0);
@@ -100,7 +100,7 @@ TEST(JointFit, PerScanMotionsBeatFittingThePreRegisteredCloud) {
   const PotScans views = ScanPot(TruePot(), 0.002);
   KinematicSurface shared_only = StartingProfile(), joint = StartingProfile();
   JointFitOptions o;
-  o.max_iterations = 40;
+  o.optimizer.max_iterations = 40;
   o.per_scan_motions = false;  // the baseline: one motion for the whole pre-registered cloud
   const double rms_shared = FitJointly(shared_only, views.scans, views.initial, o).residuals.rms;
   o.per_scan_motions = true;
@@ -116,8 +116,8 @@ TEST(JointFit, JointNeedsFewerIterationsThanAlternatingToTheSameRms) {
     KinematicSurface pot = StartingProfile();
     JointFitOptions o;
     o.alternating = alternating == 1;
-    o.target_rms = 1e-6;
-    o.max_iterations = 200;
+    o.optimizer.target_rms = 1e-6;
+    o.optimizer.max_iterations = 200;
     const JointFitResult r = FitJointly(pot, views.scans, views.initial, o);
     ASSERT_EQ(r.stop_reason, StopReason::kTargetReached) << (alternating ? "alternating" : "joint");
     iterations[alternating] = r.iterations;
@@ -130,7 +130,7 @@ TEST(JointFit, GaugeIsRemovedOrReportedByName) {
   const PotScans views = ScanPot(TruePot(), 0.0);
   KinematicSurface pot = StartingProfile();
   JointFitOptions o;
-  o.max_iterations = 40;
+  o.optimizer.max_iterations = 40;
   EXPECT_TRUE(FitJointly(pot, views.scans, views.initial, o).unobservable.empty());
   // With the gauge left in, each scan's rotation about the axis (and one common axial shift) stay
   // undetermined.
@@ -176,7 +176,7 @@ TEST(JointFit, ReportedUncertaintiesMatchTheMonteCarloScatter) {
     KinematicSurface pot = truth;
     JointFitOptions o;
     o.shared_motion_iterations = 0;
-    o.max_iterations = 30;
+    o.optimizer.max_iterations = 30;
     const JointFitResult r = FitJointly(pot, scans, initial, o);
     ASSERT_EQ(r.pose_uncertainty.size(), 3u);
     const RigidMotion error =
@@ -242,7 +242,7 @@ TEST(JointFit, RecoversThePitchOfAHelicalSurfaceAndTheGrowthOfASpiralShell) {
   ViewsOf(helical, -2.0 * M_PI, 2.0 * M_PI, scans, initial);
   KinematicSurface start = KinematicSurface::Helical(UnitSpacedClamped(4, 6), drill * 1.01, 0.19, 2.0);
   JointFitOptions o;
-  o.max_iterations = 80;
+  o.optimizer.max_iterations = 80;
   const JointFitResult r = FitJointly(start, scans, initial, o);
   EXPECT_LT(r.residuals.rms, 1e-8) << ToString(r.stop_reason);
   EXPECT_NEAR(start.pitch(), 0.2, 1e-8);
@@ -296,7 +296,7 @@ TEST(JointFit, PrimitivesRemoveTheirSymmetriesFromEveryScan) {
     auto model = truth->Clone();
     model->ApplyStep(Eigen::VectorXd::Constant(model->num_parameters(), 0.02));
     JointFitOptions o;
-    o.max_iterations = 60;
+    o.optimizer.max_iterations = 60;
     const JointFitResult r = FitJointly(*model, scans, initial, o);
     EXPECT_LT(r.residuals.rms, 1e-8) << kind << " " << ToString(r.stop_reason);
     for (const std::string& name : r.unobservable) EXPECT_EQ(name.find("scan"), std::string::npos) << name;
@@ -323,7 +323,7 @@ TEST(JointFit, AssemblyFromTheFootPointPassMatchesTheSeparatePass) {
   for (const bool reuse : {true, false}) {
     KinematicSurface pot = StartingProfile();
     JointFitOptions o;
-    o.max_iterations = 25;
+    o.optimizer.max_iterations = 25;
     o.reuse_foot_geometry = reuse;
     results.push_back(FitJointly(pot, views.scans, views.initial, o));
     parameters.push_back(pot.parameters());
@@ -365,7 +365,7 @@ TEST(JointFit, AssemblyFromTheFootPointPassMatchesTheSeparatePass) {
     auto model = truth.Clone();
     model->ApplyStep(Eigen::VectorXd::Constant(model->num_parameters(), 0.02));
     JointFitOptions o;
-    o.max_iterations = 30;
+    o.optimizer.max_iterations = 30;
     o.reuse_foot_geometry = reuse;
     iterations.push_back(FitJointly(*model, scans, initial, o).iterations);
     cylinder.push_back(model->parameters());
@@ -385,7 +385,7 @@ TEST(JointFit, TrustedWarmStartsAfterSmallStepsGiveTheVerifiedResult) {
   for (const double trust : {1e-2, 0.0}) {
     KinematicSurface pot = StartingProfile();
     JointFitOptions o;
-    o.max_iterations = 30;
+    o.optimizer.max_iterations = 30;
     o.trusted_warm_start_step = trust;
     results.push_back(FitJointly(pot, views.scans, views.initial, o));
     parameters.push_back(pot.parameters());

@@ -70,8 +70,8 @@ TEST(ModelRegistration, TdmAndSdmRecoverThePoseInFewIterationsPdmNeedsMany) {
   for (int k = 0; k < 3; ++k) {
     ModelRegistrationOptions o;
     o.error_term = terms[k];
-    o.target_rms = 1e-12;
-    o.max_iterations = 300;
+    o.optimizer.target_rms = 1e-12;
+    o.optimizer.max_iterations = 300;
     const ModelRegistrationResult r = RegisterToModel(sheet, scan, RigidMotion::Identity(), o);
     iterations[k] = r.stop_reason == StopReason::kTargetReached ? r.iterations : 100000;
     if (terms[k] != ErrorTerm::kPdm) {

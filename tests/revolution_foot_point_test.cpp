@@ -354,7 +354,7 @@ TEST(RevolutionFootPoint, JointFitWithReducedFeetAndFactoredAssemblyMatchesTheGe
     scans.push_back(every_fourth);
   }
   JointFitOptions o = c.options;
-  o.max_iterations = 12;
+  o.optimizer.max_iterations = 12;
   const auto& start = dynamic_cast<const KinematicSurface&>(*c.start);
   KinematicSurface fast = start;
   Forwarding generic(start, false);

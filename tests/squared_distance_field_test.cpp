@@ -254,7 +254,7 @@ TEST(SquaredDistanceField, WarmStartedExactIterationEqualsTheColdOne) {
     ASSERT_EQ(warm.iterations - warm.field_iterations, 1) << ToString(term);
     const RigidMotion field_pose = warm.pose_history[static_cast<std::size_t>(warm.field_iterations - 1)];
     o.squared_distance_field = nullptr;
-    o.max_iterations = 1;
+    o.optimizer.max_iterations = 1;
     const ModelRegistrationResult cold = RegisterToModel(patch, s.scan, field_pose, o);
     ASSERT_EQ(cold.iterations, 1) << ToString(term);
     EXPECT_LT(MaxDisplacement(s.scan, warm.model_T_scan, cold.model_T_scan), 1e-9) << ToString(term);
@@ -297,7 +297,7 @@ TEST(SquaredDistanceField, ExactStepEqualsTheGeneralErrorMatrixStep) {
     const RigidMotion expected = RigidMotion::FromHelicalVelocity(v.head<3>(), v.tail<3>()) * s.start;
     ModelRegistrationOptions o;
     o.error_term = term;
-    o.max_iterations = 1;
+    o.optimizer.max_iterations = 1;
     const ModelRegistrationResult r = RegisterToModel(patch, s.scan, s.start, o);
     ASSERT_EQ(r.iterations, 1) << ToString(term);
     EXPECT_LT(MaxDisplacement(s.scan, r.model_T_scan, expected), 1e-9) << ToString(term);
