@@ -8,7 +8,7 @@
 #include <cstdio>
 #include <random>
 
-#include "acquisition/synthetic_cases.h"
+#include "synthetic/synthetic_cases.h"
 #include "fitting/bspline_models.h"
 #include "fitting/foot_point.h"
 #include "fitting/joint_fit.h"
