@@ -198,7 +198,8 @@ std::string NameUnobservableDirection(const ParametricModel& model, const BlockA
 // radius at a height under control points sliding along the profile) keep valid uncertainties through
 // shape_covariance; a single parameter or pose component that moves along them gets NaN.
 void EstimateJointUncertainty(const CovarianceEstimate& estimate, const BlockArrowSystem& system,
-                              const std::vector<Eigen::MatrixXd>& bases, double scale, JointFitResult& result) {
+                              const std::vector<Eigen::MatrixXd>& bases, double scale,
+                              JointFitResult& result) {
   if (estimate.covariance.size() == 0) return;
   const Eigen::Index r = system.shape_size();
   const Eigen::MatrixXd& cov = estimate.covariance;

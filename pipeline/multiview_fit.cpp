@@ -130,6 +130,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     j["model"] = o.model;
     j["method"] = ToString(options.error_term);
     j["solver"] = SolverName(options);
+    j["loss"] = LossJson(o.loss, r.loss_scale, Eigen::VectorXd());
     j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
     const auto* kinematic = dynamic_cast<const KinematicSurface*>(model.get());
     const auto* spiral = dynamic_cast<const SpiralSurface*>(model.get());

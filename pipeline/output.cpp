@@ -55,6 +55,7 @@ nlohmann::json LossJson(const RobustLoss& loss, double scale, const Eigen::Vecto
   if (!loss.is_robust()) return j;
   j["scale"] = scale;
   j["scale_from_data"] = loss.scale_from_data();
+  if (weights.size() == 0) return j;  // a fit that reports no per-point weights
   j["down_weighted"] = (weights.array() < 0.5).count();
   j["rejected"] = (weights.array() == 0.0).count();
   return j;

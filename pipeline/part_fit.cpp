@@ -163,6 +163,7 @@ FitOutcome ComputePartFit(const FitOptions& o) {
     j["part"] = {{"file", part_path}, {"name", d.name}, {"units", units}, {"faces", d.faces.size()}};
     j["method"] = ToString(options.error_term);
     j["solver"] = SolverName(options);
+    j["loss"] = LossJson(o.loss, r.loss_scale, Eigen::VectorXd());
     j["parameters"] = nlohmann::json::array();
     std::string verdict;  // over the parameters with tolerances: "pass", "fail", or none
     for (std::size_t i = 0; i < reported.size(); ++i) {

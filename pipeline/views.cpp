@@ -34,6 +34,7 @@ JointFitOptions JointOptions(const FitOptions& o) {
   // slow direction once the data sit at the noise level (docs/registration.md).
   options.error_term = ErrorTermFromString(o.method.empty() ? "tdm" : o.method);
   options.optimizer.max_iterations = o.max_iterations;
+  options.optimizer.loss = o.loss;
   options.alternating = o.alternating;
   options.per_scan_motions = !o.register_then_fit;
   return options;
