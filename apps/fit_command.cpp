@@ -68,8 +68,8 @@ template <class Shape, class FitFn>
 FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std::string& format,
                                FitFn fit_fn) {
   PrimitiveFitOptions options;
-  options.method = o.method == "sdm" ? PrimitiveMethod::kSdm : PrimitiveMethod::kTdm;
-  options.solver.max_iterations = o.max_iterations;
+  options.error_term = ErrorTermFromString(o.method);
+  options.optimizer.max_iterations = o.max_iterations;
   const auto start = std::chrono::steady_clock::now();
   const PrimitiveFit<Shape> fit = fit_fn(scan.points, options);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -86,7 +86,7 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
     j["schema"] = "scan2model.fit/1";
     j["input"] = DescribeScan(scan, o.file, format);
     j["model"] = o.model;
-    j["method"] = ToString(options.method);
+    j["method"] = ToString(options.error_term);
     for (const Row& r : rows) j["parameters"][r.name] = r.value;
     j["nist_layout"] = ToNistLayout(fit.shape);
     for (const ParameterUncertainty& u : fit.uncertainties) {
@@ -128,9 +128,9 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   }
   text << "\n  residuals         RMS " << Format(fit.residuals.rms, 6) << ", max "
        << Format(fit.residuals.max_abs, 6) << ", mean " << Format(fit.residuals.mean, 3) << "\n"
-       << "  solver            " << ToString(options.method) << " + Levenberg-Marquardt, " << fit.iterations
-       << " iterations, stopped: " << ToString(fit.stop_reason) << ", " << Format(seconds * 1e3, 3)
-       << " ms\n";
+       << "  solver            " << ToString(options.error_term) << " + Levenberg-Marquardt, "
+       << fit.iterations << " iterations, stopped: " << ToString(fit.stop_reason) << ", "
+       << Format(seconds * 1e3, 3) << " ms\n";
   if (o.verbose) text << HistoryTable(fit.history);
   if (deviation) {
     text << "\n  against reference " << o.reference << " (relative to the data's extent " << Format(extent, 6)

@@ -111,12 +111,6 @@ void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std:
   }
 }
 
-double DataObjective(const std::vector<FootPoint>& feet) {
-  double f = 0.0;
-  for (const FootPoint& p : feet) f += 0.5 * p.distance * p.distance;
-  return f;
-}
-
 // LDLT with diagonal pivoting reveals the rank of a positive semidefinite matrix: tiny trailing pivots.
 bool IsSingular(const Eigen::LDLT<Eigen::MatrixXd>& ldlt) {
   if (ldlt.info() != Eigen::Success) return true;
