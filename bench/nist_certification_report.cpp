@@ -25,13 +25,12 @@ struct Summary {
 };
 
 template <class Shape, class Fit, class Read>
-void Run(const fs::path& dir, const char* prefix, PrimitiveMethod method, Fit fit_fn, Read read_fn,
-         Summary& s) {
+void Run(const fs::path& dir, const char* prefix, ErrorTerm method, Fit fit_fn, Read read_fn, Summary& s) {
   for (int i = 1; i <= 15; ++i) {
     const std::string name = prefix + std::to_string(i);
     const Scan scan = ReadPointCloud(dir / (name + ".ds"));
     PrimitiveFitOptions options;
-    options.method = method;
+    options.error_term = method;
     const auto start = std::chrono::steady_clock::now();
     const auto fit = fit_fn(scan.points, options);
     s.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -61,7 +60,7 @@ int main(int argc, char** argv) {
       << "| geometry | method | max position dev. (rel.) | max direction dev. (rad) | max size dev. (rel.) | "
          "max apex-angle dev. (rad) | worst set | mean / max iterations | total time (ms) |\n"
       << "|---|---|---|---|---|---|---|---|---|\n";
-  for (PrimitiveMethod method : {PrimitiveMethod::kTdm, PrimitiveMethod::kSdm}) {
+  for (ErrorTerm method : {ErrorTerm::kTdm, ErrorTerm::kSdm}) {
     Summary plane, sphere, cylinder, cone;
     Run<Plane>(
         root / "Plane", "pla", method, [](auto& p, auto& o) { return FitPlane(p, o); }, ReadNistPlaneFit,

@@ -38,15 +38,4 @@ enum class StopReason {
 };
 const char* ToString(StopReason reason);
 
-// Stopping and damping settings of the Levenberg-Marquardt loop (METHOD.md section 9).
-struct SolverOptions {
-  int max_iterations = 200;
-  double step_tolerance = 1e-14;       // on ||delta|| / (1 + ||x||), normalized units
-  double gradient_tolerance = 1e-14;   // on max |cos| between the residual and the Jacobian columns
-  double objective_tolerance = 1e-20;  // on the relative decrease of the objective
-  double initial_damping = 1e-6;       // lambda, relative to diag(H) (scale-aware Marquardt damping)
-  double max_damping = 1e16;
-  bool record_history = true;
-};
-
 }  // namespace s2m

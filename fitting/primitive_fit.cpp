@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <Eigen/QR>
 #include <algorithm>
 #include <chrono>
@@ -13,7 +14,9 @@
 #include <string>
 
 #include "fitting/covariance.h"
+#include "fitting/minimizer.h"
 #include "fitting/parametric_model.h"
+#include "fitting/robust_loss.h"
 
 namespace s2m {
 namespace {
@@ -70,6 +73,49 @@ void MoveAxis(const Eigen::Vector3d& point, const Eigen::Vector3d& direction, co
 // section 3), and the SDM term adds beta_k (T_k^T C_P)^T (T_k^T C_P) with C_P the motion of the model point
 // at a fixed surface parameter.
 
+// An SDM weight scaled by a point's robust IRLS weight (no weights: plain least squares, unchanged).
+double Weighted(const double* weights, Eigen::Index i, double beta) {
+  return weights ? weights[i] * beta : beta;
+}
+
+// The plane is fitted in closed form (FitPlane); this local model serves its robust refinement. Local
+// parameters (w, t1, t2): the point moves by w n, the normal becomes n + t1 e1 + t2 e2 (normalized) with
+// (e1, e2, n) = FrameWithAxis(n); so d = n.(y - p) has the rows (-1, e1.(y - p), e2.(y - p)). A plane has
+// no curvature: SDM adds no tangential terms.
+struct PlaneLocal {
+  using Shape = Plane;
+  static constexpr int kParams = 3;
+  static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix3d& cov, double scale) {
+    return {{"offset", std::sqrt(cov(0, 0)) * scale, false},
+            {"normal_direction", std::sqrt(cov(1, 1) + cov(2, 2)), true}};
+  }
+  static double Magnitude(const Plane& s) { return s.point.norm() + 1.0; }
+
+  template <class JacobianT, class TangentialT>
+  static void Linearize(const Plane& s, const Eigen::Matrix3Xd& y, bool /*sdm*/, const double* /*weights*/,
+                        Eigen::VectorXd& d, JacobianT& J, TangentialT& T) {
+    const Eigen::Matrix3d frame = FrameWithAxis(s.normal);
+    const Eigen::Index n = y.cols();
+    d.resize(n);
+    J.resize(n, kParams);
+    T.setZero();
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const Eigen::Vector3d v = y.col(i) - s.point;
+      d[i] = s.normal.dot(v);
+      J.row(i) << -1.0, frame.col(0).dot(v), frame.col(1).dot(v);
+    }
+  }
+
+  static Plane Update(const Plane& s, const Eigen::VectorXd& delta) {
+    const Eigen::Matrix3d frame = FrameWithAxis(s.normal);
+    Plane out;
+    out.point = s.point + delta[0] * s.normal;
+    out.normal = (s.normal + delta[1] * frame.col(0) + delta[2] * frame.col(1)).normalized();
+    out.point = out.normal * out.normal.dot(out.point);  // the foot of the origin: a canonical point
+    return out;
+  }
+};
+
 struct SphereLocal {
   using Shape = Sphere;
   static constexpr int kParams = 4;
@@ -84,8 +130,8 @@ struct SphereLocal {
   static double Magnitude(const Sphere& s) { return s.center.norm() + std::abs(s.radius); }
 
   template <class JacobianT, class TangentialT>
-  static void Linearize(const Sphere& s, const Eigen::Matrix3Xd& y, bool sdm, Eigen::VectorXd& d,
-                        JacobianT& J, TangentialT& T) {
+  static void Linearize(const Sphere& s, const Eigen::Matrix3Xd& y, bool sdm, const double* weights,
+                        Eigen::VectorXd& d, JacobianT& J, TangentialT& T) {
     const Eigen::Index n = y.cols();
     d.resize(n);
     J.resize(n, kParams);
@@ -98,7 +144,7 @@ struct SphereLocal {
       d[i] = rho - s.radius;
       J.row(i) << -normal.transpose(), -1.0;
       if (sdm) {
-        const double beta = SdmWeight(d[i], kappa);
+        const double beta = Weighted(weights, i, SdmWeight(d[i], kappa));
         // C_P = [I | n]: both tangential directions see the centre block only.
         if (beta > 0)
           T.template topLeftCorner<3, 3>() +=
@@ -127,8 +173,8 @@ struct CylinderLocal {
   // z axis is the current axis (Forbes, NPL DITC 140/89, section 6). Foot point of y: s = y - d n, n = (cos
   // t, sin t, 0).
   template <class JacobianT, class TangentialT>
-  static void Linearize(const Cylinder& s, const Eigen::Matrix3Xd& y, bool sdm, Eigen::VectorXd& d,
-                        JacobianT& J, TangentialT& T) {
+  static void Linearize(const Cylinder& s, const Eigen::Matrix3Xd& y, bool sdm, const double* weights,
+                        Eigen::VectorXd& d, JacobianT& J, TangentialT& T) {
     const Eigen::Matrix3d frame = FrameWithAxis(s.axis_direction);
     const Eigen::Index n = y.cols();
     d.resize(n);
@@ -143,7 +189,7 @@ struct CylinderLocal {
       if (sdm) {
         // Circumferential direction T1 = (-sin, cos, 0), kappa1 = -1/r; the rulings are straight (kappa2 =
         // 0).
-        const double beta = SdmWeight(d[i], kappa);
+        const double beta = Weighted(weights, i, SdmWeight(d[i], kappa));
         if (beta > 0) {
           t << -sn, c, -z * sn, z * c, 0.0;
           T.noalias() += beta * t * t.transpose();
@@ -179,8 +225,8 @@ struct ConeLocal {
   // 140/89, section 7): s, the orthogonal distance from the axis point to the surface, stays well conditioned
   // for small apex angles where the apex runs off to infinity.
   template <class JacobianT, class TangentialT>
-  static void Linearize(const Cone& s, const Eigen::Matrix3Xd& y, bool sdm, Eigen::VectorXd& d, JacobianT& J,
-                        TangentialT& T) {
+  static void Linearize(const Cone& s, const Eigen::Matrix3Xd& y, bool sdm, const double* weights,
+                        Eigen::VectorXd& d, JacobianT& J, TangentialT& T) {
     const Eigen::Matrix3d frame = FrameWithAxis(s.axis_direction);
     const double cpsi = std::cos(s.half_angle), spsi = std::sin(s.half_angle);
     const double offset = s.radius * cpsi;
@@ -200,7 +246,7 @@ struct ConeLocal {
         // straight.
         const double rho_foot = rho - d[i] * cpsi;
         if (rho_foot > 0) {
-          const double beta = SdmWeight(d[i], -cpsi / rho_foot);
+          const double beta = Weighted(weights, i, SdmWeight(d[i], -cpsi / rho_foot));
           const double h = z + d[i] * spsi;
           if (beta > 0) {
             t << -sn, c, -h * sn, h * c, 0.0, 0.0;
@@ -225,102 +271,197 @@ struct ConeLocal {
   }
 };
 
-// ---- Levenberg-Marquardt over a model's local parametrization (METHOD.md section 9)
-// ----------------------------
+// ---- The fit as the minimizer's problem (minimizer.h; METHOD.md section 9)
+// -----------------------------------------------------------------------------------------------------------
 
-template <class Model>
-PrimitiveFit<typename Model::Shape> Solve(const Eigen::Matrix3Xd& y, typename Model::Shape shape,
-                                          const PrimitiveFitOptions& options, double scale) {
-  constexpr int P = Model::kParams;
+// Cov = s_w^2 (J^T W J)^-1 with s_w^2 = sum w d^2 / (sum w - p) at the solution (normalized units); without
+// weights s^2 (J^T J)^-1 with s^2 = sum d^2 / (n - p), the Gauss-Newton covariance (GUM type A). The
+// weighted normal matrix with the effective degrees of freedom sum w - p is the robust fits' estimate (the
+// first-order form of the M-estimator's covariance; Huber, "Robust Statistics", 1981, section 7.6). nullopt
+// when the normal matrix is singular or there are no degrees of freedom left.
+template <int P>
+std::optional<Eigen::Matrix<double, P, P>> LocalCovariance(const Eigen::Matrix<double, Eigen::Dynamic, P>& J,
+                                                           const Eigen::VectorXd& d,
+                                                           const Eigen::VectorXd& weights) {
+  using Mat = Eigen::Matrix<double, P, P>;
+  const bool weighted = weights.size() > 0;
+  const double effective_count = weighted ? weights.sum() : static_cast<double>(d.size());
+  const Mat normal = weighted ? Mat(J.transpose() * weights.asDiagonal() * J) : Mat(J.transpose() * J);
+  const double weighted_squares = weighted ? weights.dot(d.cwiseAbs2()) : d.squaredNorm();
+  // The one covariance routine (fitting/covariance.h): s_w^2 N^+ with the effective degrees of freedom.
+  const CovarianceEstimate estimate = EstimateCovariance(normal, weighted_squares, effective_count);
+  if (estimate.covariance.size() == 0 || !estimate.null_directions.empty()) return std::nullopt;
+  return Mat(estimate.covariance);
+}
+
+// The normal equations H = J^T W J + T, g = J^T W d of one linearization, P x P. The damped step is solved
+// by a fixed-size LDLT (stack storage, unrolled: the systems have 3 to 6 unknowns) with the damping of
+// AddDamping (linear_solver.h). Its optimality measure is the largest cosine between the (weighted)
+// residual vector and a Jacobian column, |g_k| / (|W^1/2 J_k| |W^1/2 d|): the SDM terms T are not part of a
+// column's length.
+template <int P>
+class PrimitiveNormalEquations : public DenseNormalEquations {
+ public:
   using Vec = Eigen::Matrix<double, P, 1>;
   using Mat = Eigen::Matrix<double, P, P>;
-  const SolverOptions& so = options.solver;
-  const bool sdm = options.method == PrimitiveMethod::kSdm;
-  const auto start = Clock::now();
-  const double n = static_cast<double>(y.cols());
-
-  PrimitiveFit<typename Model::Shape> fit;
-  fit.stop_reason = StopReason::kMaxIterations;
-  Eigen::VectorXd d = SignedDistances(shape, y);
-  double f = 0.5 * d.squaredNorm();
-  double lambda = so.initial_damping;
-  Eigen::Matrix<double, Eigen::Dynamic, P> J;
-  Mat T;
-  bool stopped = false;
-
-  while (!stopped && fit.iterations < so.max_iterations) {
-    Model::Linearize(shape, y, sdm, d, J, T);
-    const Vec g = J.transpose() * d;
-    // First-order optimality, scale-free: the largest cosine between the residual and a Jacobian column.
-    const double d_norm = d.norm();
-    double max_cos = 0.0;
+  explicit PrimitiveNormalEquations(double diagonal_floor) : floor_(diagonal_floor) {}
+  void Set(const Mat& h, const Vec& g, const Vec& column_squared_norms, double residual_norm) {
+    h_ = h;
+    g_ = g;
+    H() = h;
+    this->g() = g;
+    column_squared_norms_ = column_squared_norms;
+    residual_norm_ = residual_norm;
+  }
+  bool Solve(double lambda, Eigen::VectorXd& step) override {
+    Mat a = h_;
+    const double floor = floor_ * h_.diagonal().maxCoeff();
+    a.diagonal() += lambda * h_.diagonal().cwiseMax(floor);
+    const Vec x = a.ldlt().solve(-g_);
+    step = x;
+    return step.allFinite();
+  }
+  double GradientMeasure(double /*cost*/) const override {
+    if (!(residual_norm_ > 0.0)) return 0.0;
+    double largest = 0.0;
     for (int k = 0; k < P; ++k) {
-      const double col = J.col(k).norm();
-      if (col > 0 && d_norm > 0) max_cos = std::max(max_cos, std::abs(g[k]) / (col * d_norm));
+      const double column = std::sqrt(column_squared_norms_[k]);
+      if (column > 0) largest = std::max(largest, std::abs(g_[k]) / (column * residual_norm_));
     }
-    if (d_norm == 0.0 || max_cos <= so.gradient_tolerance) {
-      fit.stop_reason = StopReason::kGradientTolerance;
-      break;
+    return largest;
+  }
+
+ private:
+  Mat h_;
+  Vec g_, column_squared_norms_;
+  double residual_norm_ = 0.0;
+  double floor_;
+};
+
+// The state is the shape (normalized units) and its signed distances; a linearization is the TDM or SDM
+// normal equations at the frozen closed-form foot points, weighted by the robust loss (scale re-estimated
+// from the current distances first); a trial applies the local increment and recomputes the distances.
+template <class Model>
+class PrimitiveFitProblem : public NonlinearProblem {
+ public:
+  using Shape = typename Model::Shape;
+  static constexpr int P = Model::kParams;
+
+  PrimitiveFitProblem(const Eigen::Matrix3Xd& y, const Shape& start, const PrimitiveFitOptions& options,
+                      double unit)
+      : y_(y),
+        shape_(start),
+        sdm_(options.error_term == ErrorTerm::kSdm),
+        unit_(unit),
+        weighting_(options.optimizer.loss),
+        normal_(options.optimizer.damping.diagonal_floor) {
+    weighting_.set_units(unit_);
+    d_ = SignedDistances(shape_, y_);
+    UpdateWeights();
+    cost_ = Objective(d_);
+  }
+
+  double Cost() const override { return cost_; }
+
+  LinearSystem& Linearize() override {
+    if (weighting_.is_robust()) {  // the scale follows the current residuals (robust_loss.h)
+      UpdateWeights();
+      cost_ = Objective(d_);
     }
-    const Mat H = J.transpose() * J + T;
-    const double diag_floor = 1e-12 * H.diagonal().maxCoeff();
-    while (true) {
-      Mat A = H;
-      A.diagonal() += lambda * H.diagonal().cwiseMax(diag_floor);
-      const Vec delta = A.ldlt().solve(-g);
-      if (delta.allFinite() && delta.norm() <= so.step_tolerance * (1.0 + Model::Magnitude(shape))) {
-        fit.stop_reason = StopReason::kStepTolerance;
-        stopped = true;
-        break;
-      }
-      if (delta.allFinite()) {
-        const typename Model::Shape candidate = Model::Update(shape, delta);
-        Eigen::VectorXd dc = SignedDistances(candidate, y);
-        const double fc = 0.5 * dc.squaredNorm();
-        if (fc < f) {
-          const double relative_decrease = (f - fc) / f;
-          shape = candidate;
-          d = std::move(dc);
-          f = fc;
-          ++fit.iterations;
-          if (so.record_history) {
-            IterationRecord r;
-            r.iteration = fit.iterations;
-            r.rms = std::sqrt(2.0 * f / n) * scale;
-            r.max_distance = d.cwiseAbs().maxCoeff() * scale;
-            r.objective = f;
-            r.damping = lambda;
-            r.step_norm = delta.norm();
-            r.seconds = std::chrono::duration<double>(Clock::now() - start).count();
-            fit.history.push_back(r);
-          }
-          lambda = std::max(lambda * 0.1, 1e-15);
-          if (relative_decrease <= so.objective_tolerance) {
-            fit.stop_reason = StopReason::kObjectiveTolerance;
-            stopped = true;
-          }
-          break;
-        }
-      }
-      lambda *= 10.0;
-      if (lambda > so.max_damping) {
-        fit.stop_reason = StopReason::kNoFurtherDecrease;
-        stopped = true;
-        break;
-      }
+    const double* weights = weighting_.is_robust() ? weights_.data() : nullptr;
+    Model::Linearize(shape_, y_, sdm_, weights, linear_d_, J_, T_);
+    if (weights) {
+      const Eigen::Matrix<double, Eigen::Dynamic, P> WJ = weights_.asDiagonal() * J_;
+      const Mat JtWJ = J_.transpose() * WJ;
+      normal_.Set(JtWJ + T_, WJ.transpose() * linear_d_, JtWJ.diagonal(),
+                  std::sqrt(weights_.dot(linear_d_.cwiseAbs2())));
+    } else {
+      normal_.Set(J_.transpose() * J_ + T_, J_.transpose() * linear_d_,
+                  J_.colwise().squaredNorm().transpose(), linear_d_.norm());
+    }
+    return normal_;
+  }
+
+  double EvaluateTrial(const Eigen::VectorXd& step, bool /*final_if_accepted*/) override {
+    trial_shape_ = Model::Update(shape_, step);
+    trial_d_ = SignedDistances(trial_shape_, y_);
+    trial_cost_ = Objective(trial_d_);
+    return std::isfinite(trial_cost_) ? trial_cost_ : std::numeric_limits<double>::infinity();
+  }
+
+  void AcceptTrial() override {
+    shape_ = trial_shape_;
+    d_.swap(trial_d_);
+    cost_ = trial_cost_;
+  }
+
+  double ParameterNorm() const override { return Model::Magnitude(shape_); }
+
+  void DescribeState(IterationRecord& record) const override {
+    record.rms = std::sqrt(d_.squaredNorm() / static_cast<double>(y_.cols())) * unit_;
+    record.max_distance = d_.cwiseAbs().maxCoeff() * unit_;
+  }
+
+  // Fills the fit's shape, covariance-based uncertainties (the plain TDM Jacobian at the solution) and the
+  // robust loss's final scale and rejections.
+  void Describe(PrimitiveFit<Shape>& fit) {
+    fit.shape = shape_;
+    Eigen::VectorXd weights;
+    if (weighting_.is_robust()) {
+      UpdateWeights();
+      weights = weights_;
+      fit.loss_scale = weighting_.scale();
+      fit.rejected = (weights_.array() < 0.5).count();
+    }
+    if (y_.cols() > P) {
+      Model::Linearize(shape_, y_, /*sdm=*/false, nullptr, linear_d_, J_, T_);
+      if (const auto cov = LocalCovariance<P>(J_, linear_d_, weights))
+        fit.uncertainties = Model::Uncertainties(*cov, unit_);
     }
   }
-  fit.shape = shape;
-  // Covariance of the local parameters at the solution (Gauss-Newton, normalized units); none when J^T J is
-  // singular (a degenerate fit: its local parameters are not all determined).
-  if (y.cols() > P) {
-    Model::Linearize(shape, y, /*sdm=*/false, d, J, T);
-    const Mat JtJ = J.transpose() * J;
-    const CovarianceEstimate estimate =
-        EstimateCovariance(JtJ, d.squaredNorm(), static_cast<double>(y.cols()));
-    if (estimate.null_directions.empty())
-      fit.uncertainties = Model::Uncertainties(Mat(estimate.covariance), scale);
+
+ private:
+  using Vec = Eigen::Matrix<double, P, 1>;
+  using Mat = Eigen::Matrix<double, P, P>;
+
+  // 1/2 sum rho(d_j^2) (robust_loss.h); 1/2 sum d_j^2 for plain least squares.
+  double Objective(const Eigen::VectorXd& d) const {
+    if (!weighting_.is_robust()) return 0.5 * d.squaredNorm();
+    double f = 0.0;
+    for (Eigen::Index j = 0; j < d.size(); ++j) f += 0.5 * weighting_.Rho(d[j]);
+    return f;
   }
+
+  void UpdateWeights() {
+    if (!weighting_.is_robust()) return;
+    weighting_.Update(d_);
+    weights_.resize(d_.size());
+    for (Eigen::Index j = 0; j < d_.size(); ++j) weights_[j] = weighting_.Weight(d_[j]);
+  }
+
+  const Eigen::Matrix3Xd& y_;
+  Shape shape_, trial_shape_;
+  bool sdm_;
+  double unit_;
+  RobustWeighting weighting_;
+  Eigen::VectorXd weights_;  // IRLS weights rho'(d^2) at the last linearization (robust fits only)
+  PrimitiveNormalEquations<P> normal_;
+  Eigen::VectorXd d_, trial_d_, linear_d_;
+  Eigen::Matrix<double, Eigen::Dynamic, P> J_;
+  Mat T_;
+  double cost_ = 0.0, trial_cost_ = 0.0;
+};
+
+template <class Model>
+PrimitiveFit<typename Model::Shape> Solve(const Eigen::Matrix3Xd& y, const typename Model::Shape& start,
+                                          const PrimitiveFitOptions& options, double scale) {
+  PrimitiveFitProblem<Model> problem(y, start, options, scale);
+  MinimizerSummary summary = TrustRegionMinimizer(options.optimizer).Minimize(problem);
+  PrimitiveFit<typename Model::Shape> fit;
+  fit.iterations = summary.iterations;
+  fit.stop_reason = summary.stop_reason;
+  if (options.record_history) fit.history = std::move(summary.history);
+  problem.Describe(fit);
   return fit;
 }
 
@@ -411,14 +552,11 @@ std::optional<Cone> ConeForDirection(const Eigen::Matrix3Xd& y, const Eigen::Vec
   return cone;
 }
 
-// Scores every candidate direction, then refines the best few mutually distinct ones and keeps the lowest
-// objective.
-template <class Model, class Guess>
-PrimitiveFit<typename Model::Shape> FitWithDirectionSearch(const NormalizedData& data,
-                                                           const PrimitiveFitOptions& options, Guess guess,
-                                                           const char* what) {
-  using Shape = typename Model::Shape;
-  const Eigen::Matrix3Xd sample = Subsample(data.points, options.max_initialization_points);
+// Scores every candidate direction and returns the best few mutually distinct algebraic guesses, best first.
+template <class Shape, class Guess>
+std::vector<Shape> DirectionSearchStarts(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options,
+                                         Guess guess, const char* what) {
+  const Eigen::Matrix3Xd sample = Subsample(points, options.max_initialization_points);
   struct Scored {
     double score;
     Shape shape;
@@ -444,23 +582,102 @@ PrimitiveFit<typename Model::Shape> FitWithDirectionSearch(const NormalizedData&
     if (distinct) starts.push_back(s.shape);
     if (static_cast<int>(starts.size()) >= std::max(1, options.refined_candidates)) break;
   }
+  return starts;
+}
 
-  // Starts are in order of their algebraic score. A later start replaces the current best only when it is
-  // clearly lower: with as many points as parameters several surfaces interpolate the data exactly (objective
-  // at rounding level), and the one reached from the best algebraic guess is the one closest to the data's
-  // overall shape.
-  const double rounding_floor = 1e-24 * static_cast<double>(data.points.cols());
-  std::optional<PrimitiveFit<Shape>> best;
+// 1/2 sum rho(d^2) at loss scale `scale` (input units; the data are in units of `unit`).
+template <class Shape>
+double RobustObjective(const Shape& shape, const Eigen::Matrix3Xd& y, const RobustLoss& loss, double scale,
+                       double unit) {
+  RobustLoss fixed = loss;
+  fixed.scale = scale;
+  RobustWeighting weighting(fixed);
+  weighting.set_units(unit);
+  const Eigen::VectorXd d = SignedDistances(shape, y);
+  double f = 0.0;
+  for (Eigen::Index j = 0; j < d.size(); ++j) f += 0.5 * weighting.Rho(d[j]);
+  return f;
+}
+
+// Refines every start and keeps the lowest objective. Starts are in order of preference. A later start
+// replaces the current best only when it is clearly lower: with as many points as parameters several surfaces
+// interpolate the data exactly (objective at rounding level), and the one reached from the best algebraic
+// guess is the one closest to the data's overall shape. Robust objectives are compared at one scale, the
+// smallest of the fits' final scales: a fit that is off has a wider MAD scale, and a wider scale alone lowers
+// a bounded loss's objective (Tukey's rho saturates at c^2 / 3).
+template <class Model>
+PrimitiveFit<typename Model::Shape> RefineBest(const Eigen::Matrix3Xd& y,
+                                               const std::vector<typename Model::Shape>& starts,
+                                               const PrimitiveFitOptions& options, double unit) {
+  using Shape = typename Model::Shape;
+  std::vector<PrimitiveFit<Shape>> fits;
+  fits.reserve(starts.size());
+  for (const Shape& start : starts) fits.push_back(Solve<Model>(y, start, options, unit));
+  const RobustLoss& loss = options.optimizer.loss;
+  double common_scale = std::numeric_limits<double>::infinity();
+  for (const PrimitiveFit<Shape>& fit : fits) common_scale = std::min(common_scale, fit.loss_scale);
+  const double rounding_floor = 1e-24 * static_cast<double>(y.cols());
+  std::size_t best = 0;
   double best_objective = std::numeric_limits<double>::infinity();
-  for (const Shape& start : starts) {
-    PrimitiveFit<Shape> fit = Solve<Model>(data.points, start, options, data.scale);
-    const double objective = SignedDistances(fit.shape, data.points).squaredNorm();
+  for (std::size_t k = 0; k < fits.size(); ++k) {
+    const double objective = loss.is_robust() ? RobustObjective(fits[k].shape, y, loss, common_scale, unit)
+                                              : SignedDistances(fits[k].shape, y).squaredNorm();
     if (objective < best_objective * (1.0 - 1e-9) - rounding_floor) {
       best_objective = objective;
-      best = std::move(fit);
+      best = k;
     }
   }
-  return *best;
+  return std::move(fits[best]);
+}
+
+// The points of y nearest `shape`: the given fraction of them (at least `min_points`), in their order.
+template <class Shape>
+Eigen::Matrix3Xd NearestPoints(const Eigen::Matrix3Xd& y, const Shape& shape, double fraction,
+                               Eigen::Index min_points) {
+  const Eigen::VectorXd distance = SignedDistances(shape, y).cwiseAbs();
+  const Eigen::Index keep = std::min(
+      y.cols(), std::max(min_points, static_cast<Eigen::Index>(fraction * static_cast<double>(y.cols()))));
+  std::vector<Eigen::Index> order(static_cast<std::size_t>(y.cols()));
+  std::iota(order.begin(), order.end(), Eigen::Index{0});
+  std::nth_element(order.begin(), order.begin() + (keep - 1), order.end(),
+                   [&](Eigen::Index a, Eigen::Index b) { return distance[a] < distance[b]; });
+  order.resize(static_cast<std::size_t>(keep));
+  std::sort(order.begin(), order.end());
+  Eigen::Matrix3Xd out(3, keep);
+  for (Eigen::Index i = 0; i < keep; ++i) out.col(i) = y.col(order[static_cast<std::size_t>(i)]);
+  return out;
+}
+
+// A fit from the usual (algebraic, least-squares) starts; a robust fit also refines from a start found on a
+// trimmed set: the least-squares fit of the half of the points nearest the plain least-squares fit, refined
+// by concentration steps, which the gross outliers (uniform in space, mostly far from any surface near the
+// data) do not reach (primitive_fit.h). `starts_for(points)` gives the usual starts of a point set.
+template <class Model, class StartsFor>
+PrimitiveFit<typename Model::Shape> FitFromStarts(const Eigen::Matrix3Xd& y,
+                                                  const PrimitiveFitOptions& options, double unit,
+                                                  StartsFor starts_for) {
+  using Shape = typename Model::Shape;
+  std::vector<Shape> starts = starts_for(y);
+  if (!options.optimizer.loss.is_robust()) return RefineBest<Model>(y, starts, options, unit);
+  PrimitiveFitOptions plain = options;
+  plain.optimizer.loss = RobustLoss{};
+  plain.record_history = false;
+  Shape trimmed_start = RefineBest<Model>(y, starts, plain, unit).shape;
+  try {
+    // Concentration steps of least trimmed squares (Rousseeuw & Van Driessen, "Computing LTS regression for
+    // large data sets", 2006, section 2): refit the half of the points nearest the current fit; each step
+    // lowers the trimmed sum of squares. The first searches starts afresh on the trimmed half.
+    for (int round = 0; round < 3; ++round) {
+      const Eigen::Matrix3Xd trimmed = NearestPoints(y, trimmed_start, 0.5, 2 * Model::kParams);
+      const std::vector<Shape> trimmed_starts =
+          round == 0 ? starts_for(trimmed) : std::vector<Shape>{trimmed_start};
+      trimmed_start = RefineBest<Model>(trimmed, trimmed_starts, plain, unit).shape;
+    }
+    starts.push_back(trimmed_start);
+  } catch (const FitError&) {
+    // The trimmed half is degenerate (e.g. collinear): the usual starts remain.
+  }
+  return RefineBest<Model>(y, starts, options, unit);
 }
 
 Sphere AlgebraicSphere(const Eigen::Matrix3Xd& y) {
@@ -479,15 +696,26 @@ Sphere AlgebraicSphere(const Eigen::Matrix3Xd& y) {
 
 }  // namespace
 
-const char* ToString(PrimitiveMethod method) {
-  return method == PrimitiveMethod::kSdm ? "sdm" : "tdm";
+namespace {
+
+// Primitives take the two error terms their closed-form feet support; invalid optimizer options are reported
+// before any work (OptimizerOptions::IsValid).
+void CheckOptions(const PrimitiveFitOptions& options) {
+  if (options.error_term != ErrorTerm::kTdm && options.error_term != ErrorTerm::kSdm) {
+    throw std::invalid_argument(std::string("primitive fits accept the error terms ") +
+                                ToString(ErrorTerm::kTdm) + " and " + ToString(ErrorTerm::kSdm) + ", not " +
+                                ToString(options.error_term));
+  }
+  std::string why;
+  if (!options.optimizer.IsValid(&why)) throw std::invalid_argument("invalid optimizer options: " + why);
 }
 
-PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions&) {
-  const NormalizedData data = Normalize(points, 3, "plane");
-  // The least-squares plane passes through the centroid; its normal is the direction of least variance
-  // (the minimizer of sum (n.(x - c))^2 over unit n), so no iteration is needed.
-  const Eigen::Matrix3d scatter = data.points * data.points.transpose();
+// The least-squares plane passes through the centroid; its normal is the direction of least variance (the
+// minimizer of sum (n.(x - c))^2 over unit n), so no iteration is needed. Points in normalized units.
+PrimitiveFit<Plane> ClosedFormPlane(const Eigen::Matrix3Xd& y) {
+  const Eigen::Vector3d centroid = y.rowwise().mean();
+  const Eigen::Matrix3Xd centred = y.colwise() - centroid;
+  const Eigen::Matrix3d scatter = centred * centred.transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
   const Eigen::Vector3d values = eig.eigenvalues();
   // Second singular value below 1e-6 of the first: the points lie on a line (to rounding), the normal is
@@ -498,20 +726,39 @@ PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitO
   normal.cwiseAbs().maxCoeff(&k);
   if (normal[k] < 0) normal = -normal;  // deterministic sign: largest component positive
   PrimitiveFit<Plane> fit;
-  fit.shape = {Eigen::Vector3d::Zero(), normal};
+  fit.shape = {centroid, normal};
   fit.stop_reason = StopReason::kClosedForm;
-  const Eigen::Index n = data.points.cols();
+  const Eigen::Index n = y.cols();
   if (n > 3) {
     // Local parameters (offset along n, tilts towards e1 and e2): d ~ d0 - w - t1 (e1.y) - t2 (e2.y).
     Eigen::MatrixXd J(n, 3);
     J.col(0).setConstant(-1.0);
-    J.col(1) = -(eig.eigenvectors().col(2).transpose() * data.points).transpose();
-    J.col(2) = -(eig.eigenvectors().col(1).transpose() * data.points).transpose();
+    J.col(1) = -(eig.eigenvectors().col(2).transpose() * centred).transpose();
+    J.col(2) = -(eig.eigenvectors().col(1).transpose() * centred).transpose();
     // values[0] = sum of the squared distances to the plane.
     const Eigen::Matrix3d cov =
         EstimateCovariance(J.transpose() * J, values[0], static_cast<double>(n)).covariance;
-    fit.uncertainties = {{"offset", std::sqrt(cov(0, 0)) * data.scale, false},
+    fit.uncertainties = {{"offset", std::sqrt(cov(0, 0)), false},
                          {"normal_direction", std::sqrt(cov(1, 1) + cov(2, 2)), true}};
+  }
+  return fit;
+}
+
+}  // namespace
+
+PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+  CheckOptions(options);
+  const NormalizedData data = Normalize(points, 3, "plane");
+  PrimitiveFit<Plane> fit;
+  if (options.optimizer.loss.is_robust()) {
+    // A robust plane iterates (PlaneLocal) from the closed-form plane and from the trimmed set's.
+    fit = FitFromStarts<PlaneLocal>(data.points, options, data.scale, [](const Eigen::Matrix3Xd& y) {
+      return std::vector<Plane>{ClosedFormPlane(y).shape};
+    });
+  } else {
+    fit = ClosedFormPlane(data.points);
+    for (ParameterUncertainty& u : fit.uncertainties)
+      if (!u.is_angle) u.standard_uncertainty *= data.scale;
   }
   Finish(fit, data, points);
   return fit;
@@ -519,6 +766,7 @@ PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitO
 
 PrimitiveFit<Sphere> RefineSphere(const Eigen::Matrix3Xd& points, const Sphere& initial,
                                   const PrimitiveFitOptions& options) {
+  CheckOptions(options);
   const NormalizedData data = Normalize(points, 4, "sphere");
   const Sphere start{(initial.center - data.offset) / data.scale, initial.radius / data.scale};
   PrimitiveFit<Sphere> fit = Solve<SphereLocal>(data.points, start, options, data.scale);
@@ -527,15 +775,18 @@ PrimitiveFit<Sphere> RefineSphere(const Eigen::Matrix3Xd& points, const Sphere& 
 }
 
 PrimitiveFit<Sphere> FitSphere(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+  CheckOptions(options);
   const NormalizedData data = Normalize(points, 4, "sphere");
-  PrimitiveFit<Sphere> fit =
-      Solve<SphereLocal>(data.points, AlgebraicSphere(data.points), options, data.scale);
+  PrimitiveFit<Sphere> fit = FitFromStarts<SphereLocal>(
+      data.points, options, data.scale,
+      [](const Eigen::Matrix3Xd& y) { return std::vector<Sphere>{AlgebraicSphere(y)}; });
   Finish(fit, data, points);
   return fit;
 }
 
 PrimitiveFit<Cylinder> RefineCylinder(const Eigen::Matrix3Xd& points, const Cylinder& initial,
                                       const PrimitiveFitOptions& options) {
+  CheckOptions(options);
   const NormalizedData data = Normalize(points, 5, "cylinder");
   Cylinder start{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
                  initial.radius / data.scale};
@@ -545,15 +796,19 @@ PrimitiveFit<Cylinder> RefineCylinder(const Eigen::Matrix3Xd& points, const Cyli
 }
 
 PrimitiveFit<Cylinder> FitCylinder(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+  CheckOptions(options);
   const NormalizedData data = Normalize(points, 5, "cylinder");
   PrimitiveFit<Cylinder> fit =
-      FitWithDirectionSearch<CylinderLocal>(data, options, CylinderForDirection, "cylinder");
+      FitFromStarts<CylinderLocal>(data.points, options, data.scale, [&](const Eigen::Matrix3Xd& y) {
+        return DirectionSearchStarts<Cylinder>(y, options, CylinderForDirection, "cylinder");
+      });
   Finish(fit, data, points);
   return fit;
 }
 
 PrimitiveFit<Cone> RefineCone(const Eigen::Matrix3Xd& points, const Cone& initial,
                               const PrimitiveFitOptions& options) {
+  CheckOptions(options);
   const NormalizedData data = Normalize(points, 6, "cone");
   Cone start{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
              initial.half_angle, initial.radius / data.scale};
@@ -563,8 +818,12 @@ PrimitiveFit<Cone> RefineCone(const Eigen::Matrix3Xd& points, const Cone& initia
 }
 
 PrimitiveFit<Cone> FitCone(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+  CheckOptions(options);
   const NormalizedData data = Normalize(points, 6, "cone");
-  PrimitiveFit<Cone> fit = FitWithDirectionSearch<ConeLocal>(data, options, ConeForDirection, "cone");
+  PrimitiveFit<Cone> fit =
+      FitFromStarts<ConeLocal>(data.points, options, data.scale, [&](const Eigen::Matrix3Xd& y) {
+        return DirectionSearchStarts<Cone>(y, options, ConeForDirection, "cone");
+      });
   Finish(fit, data, points);
   return fit;
 }
@@ -575,7 +834,7 @@ Eigen::MatrixXd JacobianOf(const typename Model::Shape& s, const Eigen::Matrix3X
   Eigen::VectorXd d;
   Eigen::Matrix<double, Eigen::Dynamic, Model::kParams> J;
   Eigen::Matrix<double, Model::kParams, Model::kParams> T;
-  Model::Linearize(s, points, false, d, J, T);
+  Model::Linearize(s, points, false, nullptr, d, J, T);
   return J;
 }
 }  // namespace

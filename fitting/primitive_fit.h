@@ -2,10 +2,18 @@
 // Orthogonal-distance least-squares fits of primitives (plane, sphere, cylinder, cone).
 //
 // Foot points are closed form; each iteration builds the TDM or SDM normal equations of METHOD.md section 2
-// at the frozen foot points and takes a Levenberg-Marquardt step (section 9). Cylinders and cones are
-// linearized in a local frame whose z axis is the current axis (Forbes, "Least squares best fit geometric
-// elements", NPL DITC 140/89), which keeps the normal matrix well conditioned; data are centred and scaled
-// into the unit box first (section 3).
+// at the frozen foot points and the one minimizer of every fit (minimizer.h: Levenberg-Marquardt, section 9)
+// takes the step. Cylinders and cones are linearized in a local frame whose z axis is the current axis
+// (Forbes, "Least squares best fit geometric elements", NPL DITC 140/89), which keeps the normal matrix well
+// conditioned; data are centred and scaled into the unit box first (section 3).
+//
+// Robust fits (optimizer.loss): each point's rows are weighted by the IRLS weight rho'(d^2) at every
+// linearization and the objective is 1/2 sum rho(d^2) (robust_loss.h; Triggs et al. 2000, section 4.3).
+// The algebraic initial guesses are least squares, which gross outliers ruin; so a robust Fit* refines
+// robustly from the usual starts and also from a start found on a trimmed set (the least-squares fit of the
+// half of the points nearest the plain least-squares fit, then three concentration steps of least trimmed
+// squares: refit the half nearest the last fit), and keeps the lower robust objective (both
+// evaluated with the smaller of their two loss scales, so that neither wins by a wider scale alone).
 
 #include <Eigen/Core>
 #include <stdexcept>
@@ -13,23 +21,29 @@
 #include <vector>
 
 #include "fitting/fit_result.h"
+#include "fitting/geometric_fit.h"
+#include "fitting/optimizer_options.h"
 #include "fitting/primitives.h"
 
 namespace s2m {
-
-enum class PrimitiveMethod {
-  kTdm,  // tangent-distance minimization: Gauss-Newton on the orthogonal distances
-  kSdm,  // squared-distance minimization: TDM plus curvature-weighted tangential terms
-};
-const char* ToString(PrimitiveMethod method);
 
 struct PrimitiveFitOptions {
   // TDM (Gauss-Newton on the distances, the algorithm behind the NIST reference fits) is the default for
   // primitives: near the solution the residuals straddle the surface, SDM clamps the inner half of its
   // curvature terms to zero and so converges linearly, while TDM's omitted terms cancel (measured on the NIST
-  // sets: docs/primitives.md).
-  PrimitiveMethod method = PrimitiveMethod::kTdm;
-  SolverOptions solver;
+  // sets: docs/primitives.md). Primitives accept ErrorTerm::kTdm and ErrorTerm::kSdm only (others throw
+  // std::invalid_argument).
+  ErrorTerm error_term = ErrorTerm::kTdm;
+  // Termination, damping and the robust loss. The primitives' defaults differ from the minimizer's: the
+  // closed-form foot points are exact, so the fits are run to rounding level (the NIST certification asks
+  // for agreement to about 1e-12 of the extent): at most 200 iterations, step 1e-14 relative to the
+  // parameters, first-order optimality 1e-14 (the largest cosine between the residual vector and a Jacobian
+  // column), relative objective decrease 1e-20; Marquardt's damping starts at 1e-6 relative to diag(H)
+  // (x10 on a rejected step, x0.1 on an accepted one, within [1e-15, 1e16]), with the diagonal floored at
+  // 1e-12 of its largest entry. Tolerances are in the normalized units of the unit box.
+  OptimizerOptions optimizer = DefaultOptimizer();
+  // Keep the per-iteration records (PrimitiveFit::history).
+  bool record_history = true;
   // Initial guess for cylinders and cones: axis directions tried on a Fibonacci hemisphere (plus the
   // principal axes of the data), scored by an algebraic fit; the best `refined_candidates` are refined and
   // the lowest objective wins. Only up to `max_initialization_points` evenly spaced points are used for the
@@ -37,10 +51,28 @@ struct PrimitiveFitOptions {
   int direction_samples = 400;
   int refined_candidates = 4;
   int max_initialization_points = 2000;
+
+  static OptimizerOptions DefaultOptimizer() {
+    OptimizerOptions o;
+    o.max_iterations = 200;
+    o.step_tolerance = 1e-14;
+    o.gradient_tolerance = 1e-14;
+    o.objective_tolerance = 1e-20;
+    o.damping.update = DampingUpdate::kMultiplicative;
+    o.damping.initial = 1e-6;
+    o.damping.increase = 10.0;
+    o.damping.decrease = 0.1;
+    o.damping.min = 1e-15;
+    o.damping.max = 1e16;
+    o.damping.diagonal_floor = 1e-12;
+    return o;
+  }
 };
 
 // A type-A standard uncertainty (GUM) from the Gauss-Newton covariance s^2 (J^T J)^-1 at the solution, with
-// s^2 = sum d^2 / (n - p): valid for independent, equal-variance errors and an adequate model. Lengths are in
+// s^2 = sum d^2 / (n - p): valid for independent, equal-variance errors and an adequate model. Robust fits
+// use the weighted normal matrix with the effective degrees of freedom: s_w^2 (J^T W J)^-1 with
+// s_w^2 = sum w d^2 / (sum w - p) and W the final IRLS weights rho'(d^2). Lengths are in
 // input units, angles in radians. Axis positions are perpendicular to the axis, at the reported axis point.
 struct ParameterUncertainty {
   std::string name;
@@ -55,7 +87,12 @@ struct PrimitiveFit {
   std::vector<ParameterUncertainty> uncertainties;  // empty when n <= number of parameters
   int iterations = 0;
   StopReason stop_reason = StopReason::kMaxIterations;
-  std::vector<IterationRecord> history;
+  std::vector<IterationRecord> history;  // empty unless options.record_history
+  // Robust fits: the loss scale c at the solution (input units; estimated from the data by MAD unless given)
+  // and the number of points whose final IRLS weight rho'(d^2) is below 0.5 ("rejected"). 0 and 0 for plain
+  // least squares.
+  double loss_scale = 0.0;
+  Eigen::Index rejected = 0;
 };
 
 // Thrown for inputs no fit can use: too few points, non-finite coordinates, degenerate configurations.

@@ -70,8 +70,9 @@ template <class Shape, class FitFn>
 FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std::string& format,
                                FitFn fit_fn) {
   PrimitiveFitOptions options;
-  options.method = o.method == "sdm" ? PrimitiveMethod::kSdm : PrimitiveMethod::kTdm;
-  options.solver.max_iterations = o.max_iterations;
+  options.error_term = ErrorTermFromString(o.method);
+  options.optimizer.max_iterations = o.max_iterations;
+  options.optimizer.loss = o.loss;
   const auto start = std::chrono::steady_clock::now();
   const PrimitiveFit<Shape> fit = fit_fn(scan.points, options);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -88,7 +89,7 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
     j["schema"] = "scan2model.fit/1";
     j["input"] = DescribeScan(scan, o.file, format);
     j["model"] = o.model;
-    j["method"] = ToString(options.method);
+    j["method"] = ToString(options.error_term);
     for (const Row& r : rows) j["parameters"][r.name] = r.value;
     j["nist_layout"] = ToNistLayout(fit.shape);
     for (const ParameterUncertainty& u : fit.uncertainties) {
@@ -99,6 +100,8 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
                       {"rms", fit.residuals.rms},
                       {"max_abs", fit.residuals.max_abs},
                       {"mean", fit.residuals.mean}};
+    j["loss"] = LossJson(o.loss, fit.loss_scale, Eigen::VectorXd());
+    if (o.loss.is_robust()) j["loss"]["down_weighted"] = fit.rejected;
     j["iterations"] = fit.iterations;
     j["stop_reason"] = ToString(fit.stop_reason);
     j["seconds"] = seconds;
@@ -130,7 +133,7 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   }
   text << "\n  residuals         RMS " << Format(fit.residuals.rms, 6) << ", max "
        << Format(fit.residuals.max_abs, 6) << ", mean " << Format(fit.residuals.mean, 3) << "\n"
-       << "  solver            " << ToString(options.method) << " + Levenberg-Marquardt, " << fit.iterations
+       << "  solver            " << ToString(options.error_term) << " + Levenberg-Marquardt, " << fit.iterations
        << " iterations, stopped: " << ToString(fit.stop_reason) << ", " << Format(seconds * 1e3, 3)
        << " ms\n";
   if (o.verbose) text << HistoryTable(fit.history);

@@ -40,10 +40,10 @@ struct Outcome {
   double extent = 0.0;
 };
 
-Outcome FitAndCompare(const Case& c, PrimitiveMethod method) {
+Outcome FitAndCompare(const Case& c, ErrorTerm method) {
   const Scan scan = ReadPointCloud(c.data);
   PrimitiveFitOptions options;
-  options.method = method;
+  options.error_term = method;
   Outcome out;
   out.extent = ComputeBounds(scan.points).diagonal();
   const std::string kind = Kind(c.name);
@@ -55,7 +55,7 @@ Outcome FitAndCompare(const Case& c, PrimitiveMethod method) {
   return out;
 }
 
-void ExpectCertified(const Case& c, PrimitiveMethod method) {
+void ExpectCertified(const Case& c, ErrorTerm method) {
   const Outcome o = FitAndCompare(c, method);
   const double tol = Tolerance(c.name);
   EXPECT_LE(o.deviation.position / o.extent, tol) << c.name << " axis/centre position";
@@ -91,10 +91,10 @@ std::vector<Case> ShippedCases() {
 
 class NistShipped : public ::testing::TestWithParam<Case> {};
 TEST_P(NistShipped, TdmAgreesWithTheReferenceFit) {
-  ExpectCertified(GetParam(), PrimitiveMethod::kTdm);
+  ExpectCertified(GetParam(), ErrorTerm::kTdm);
 }
 TEST_P(NistShipped, SdmAgreesWithTheReferenceFit) {
-  ExpectCertified(GetParam(), PrimitiveMethod::kSdm);
+  ExpectCertified(GetParam(), ErrorTerm::kSdm);
 }
 INSTANTIATE_TEST_SUITE_P(Nist, NistShipped, ::testing::ValuesIn(ShippedCases()),
                          [](const auto& param_info) { return param_info.param.name; });
@@ -107,10 +107,10 @@ class NistShared : public ::testing::TestWithParam<Case> {
   }
 };
 TEST_P(NistShared, TdmAgreesWithTheReferenceFit) {
-  ExpectCertified(GetParam(), PrimitiveMethod::kTdm);
+  ExpectCertified(GetParam(), ErrorTerm::kTdm);
 }
 TEST_P(NistShared, SdmAgreesWithTheReferenceFit) {
-  ExpectCertified(GetParam(), PrimitiveMethod::kSdm);
+  ExpectCertified(GetParam(), ErrorTerm::kSdm);
 }
 INSTANTIATE_TEST_SUITE_P(Nist, NistShared, ::testing::ValuesIn(SharedCases()),
                          [](const auto& param_info) { return param_info.param.name; });

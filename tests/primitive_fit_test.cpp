@@ -109,16 +109,15 @@ TYPED_TEST(PrimitiveFamily, ZeroIncrementIsTheIdentity) {
 // ---- Exact recovery from noise-free data, both methods
 // --------------------------------------------------------
 
-class BothMethods : public ::testing::TestWithParam<PrimitiveMethod> {
+class BothMethods : public ::testing::TestWithParam<ErrorTerm> {
  protected:
   PrimitiveFitOptions Options() const {
     PrimitiveFitOptions o;
-    o.method = GetParam();
+    o.error_term = GetParam();
     return o;
   }
 };
-INSTANTIATE_TEST_SUITE_P(Methods, BothMethods,
-                         ::testing::Values(PrimitiveMethod::kTdm, PrimitiveMethod::kSdm),
+INSTANTIATE_TEST_SUITE_P(Methods, BothMethods, ::testing::Values(ErrorTerm::kTdm, ErrorTerm::kSdm),
                          [](const auto& param_info) { return std::string(ToString(param_info.param)); });
 
 TEST_P(BothMethods, RecoversAnExactSphereFromAHemisphere) {
