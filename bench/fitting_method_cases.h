@@ -1,5 +1,5 @@
 #pragma once
-// The fitting-method comparison of docs/fitting-engine.md (METHOD.md section 11), shared by the
+// The fitting-method comparison of docs/fitting-engine.md (docs/method.md section 11), shared by the
 // fitting_methods report and the compare driver: each error term fits the same cases from the same start for
 // a full budget; the common target is 5 % above the lowest RMS any method reaches.
 

@@ -1,4 +1,4 @@
-// Iterations and time each error term needs to reach a common RMS on the paper's test cases (METHOD.md
+// Iterations and time each error term needs to reach a common RMS on the paper's test cases (docs/method.md
 // section 11): sparse non-uniform points on a circle, points on a square from a one-sided start, and the
 // glyph outlines. The common target is 5 % above the lowest RMS any method reaches within 300 iterations.
 // Prints a markdown table. Usage: fitting_methods [path/to/font_glyphs]   (default:

@@ -216,7 +216,7 @@ void BSplineCurve::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Jaco
 Eigen::MatrixXd BSplineCurve::FairnessMatrix(const FairnessWeights& w) const {
   if (w.stretch == 0.0 && w.bending == 0.0) return {};
   Eigen::MatrixXd k = Eigen::MatrixXd::Zero(basis_.num_control(), basis_.num_control());
-  // F_1 = integral |C'|^2 = P^T (G1 (x) I) P and F_2 likewise (METHOD.md section 3; Wang et al. 2006, section
+  // F_1 = integral |C'|^2 = P^T (G1 (x) I) P and F_2 likewise (docs/method.md section 3; Wang et al. 2006, section
   // 5).
   if (w.stretch != 0.0) k += w.stretch * Gram(basis_, 1);
   if (w.bending != 0.0 && basis_.order() > 2) k += w.bending * Gram(basis_, 2);

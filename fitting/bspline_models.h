@@ -1,6 +1,6 @@
 #pragma once
 // B-spline models for the fitting engine: curves in the plane or in space (open or closed) and tensor-product
-// surfaces (clamped, or periodic in u). P enters linearly (METHOD.md section 7).
+// surfaces (clamped, or periodic in u). P enters linearly (docs/method.md section 7).
 
 #include "fitting/bspline_basis.h"
 #include "fitting/parametric_model.h"

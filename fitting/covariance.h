@@ -1,6 +1,6 @@
 #pragma once
 // The covariance of a least-squares estimate from its information matrix, with gauge freedom: one routine for
-// the joint fit and the primitive fits (METHOD.md section 6 for the unobservable directions).
+// the joint fit and the primitive fits (docs/method.md section 6 for the unobservable directions).
 
 #include <Eigen/Core>
 #include <vector>

@@ -175,7 +175,7 @@ FootPoint RefineFootPoint(const ParametricModel& model, const ParameterDomain& d
 }
 
 bool IsBoundaryFootPoint(const ParameterDomain& d, const ParamT& t, const LocalGeometry& g, const VecS& x) {
-  // On an open boundary the orthogonality condition need not hold: record it for the end rule (METHOD.md
+  // On an open boundary the orthogonality condition need not hold: record it for the end rule (docs/method.md
   // section 4).
   const VecS r = g.point - x;
   for (int k = 0; k < d.dimension; ++k) {

@@ -1,5 +1,5 @@
 #pragma once
-// Foot points on parametric models (METHOD.md section 10): a seed from the nearest model sample or the
+// Foot points on parametric models (docs/method.md section 10): a seed from the nearest model sample or the
 // previous parameter, then safeguarded Newton on the orthogonality condition C_t^T (C - X) = 0 that stays in
 // the domain, wraps periodic seams and stops on a boundary when the closest point is there.
 

@@ -17,7 +17,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 // CDM's squared weight; near a curvature centre (delta*kappa -> 1) the denominator becomes -(1 + |delta
-// kappa|), the rule METHOD.md gives for CDM and GN.
+// kappa|), the rule docs/method.md gives for CDM and GN.
 double CdmWeight(double delta, double kappa) {
   const double dk = delta * kappa;
   double denom = dk - 1.0;
@@ -31,8 +31,8 @@ struct Normalization {
   double scale = 1.0;
 };
 
-// Assembles H = sum J^T M J and g = sum C_P^T M r over all points (in parallel), METHOD.md sections 1-2.
-// `weights` (empty: all 1) are the robust loss's IRLS weights rho'(d_j^2) (docs/method.md eq. 15.6).
+// Assembles H = sum J^T M J and g = sum C_P^T M r over all points (in parallel), docs/method.md sections 1-2.
+// `weights` (empty: all 1) are the robust loss's IRLS weights rho'(d_j^2) (docs/method.md eq. 46).
 void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std::vector<FootPoint>& feet,
               const GeometricFitOptions& options, const Eigen::VectorXd& weights, Eigen::MatrixXd& H,
               Eigen::VectorXd& g) {
@@ -96,7 +96,7 @@ void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std:
       const Eigen::Vector3d m_residual = M * residual;
       for (std::size_t a = 0; a < entries.size(); ++a) {
         const Eigen::Vector3d m_col = M * columns[a];
-        // The right-hand side is always C_P^T (M r) with the plain C_P (METHOD.md section 2).
+        // The right-hand side is always C_P^T (M r) with the plain C_P (docs/method.md section 2).
         g_local[entries[a].index] += gn && !foot.on_boundary ? w_gn * entries[a].column.dot(residual)
                                                              : entries[a].column.dot(m_residual);
         for (std::size_t b = 0; b < entries.size(); ++b)
@@ -202,7 +202,7 @@ Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s) {
 }
 
 Eigen::Matrix3d EndRuleMatrix(ErrorTerm term, const PrincipalFrame& f, const Eigen::Vector3d& offset, int s) {
-  // METHOD.md section 4: e_outer = cos(theta) e_PD + (1 - cos(theta)) e_term, theta between the boundary's
+  // docs/method.md section 4: e_outer = cos(theta) e_PD + (1 - cos(theta)) e_term, theta between the boundary's
   // tangent space and X - s.
   double tangential = 0.0;
   for (int k = 0; k < f.tangent_count; ++k)
@@ -265,7 +265,7 @@ class GeometricFitProblem : public NonlinearProblem {
   double Cost() const override { return cost_; }
 
   LinearSystem& Linearize() override {
-    if (weighting_.is_robust()) {  // the scale follows the current residuals (eq. 15.5)
+    if (weighting_.is_robust()) {  // the scale follows the current residuals (eq. 47)
       UpdateWeights();
       cost_ = Objective(*model_, feet_);
     }
@@ -339,7 +339,7 @@ class GeometricFitProblem : public NonlinearProblem {
   }
 
  private:
-  // 1/2 sum rho(d_j^2) + P^T K P (docs/method.md eqs. 1.1, 3.1 and 15.6).
+  // 1/2 sum rho(d_j^2) + P^T K P (docs/method.md eqs. 1, 11 and 43).
   double Objective(const ParametricModel& m, const std::vector<FootPoint>& feet) const {
     double f = 0.0;
     for (const FootPoint& p : feet) f += 0.5 * weighting_.Rho(p.distance);
@@ -387,7 +387,7 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
     throw std::invalid_argument("the initial " + model.name() + " has NaN or inf parameters");
   const auto start = Clock::now();
 
-  // Normalize data and model into the unit box (METHOD.md section 3).
+  // Normalize data and model into the unit box (docs/method.md section 3).
   Normalization norm;
   norm.offset = VecS::Zero(s);
   if (options.normalize) {

@@ -1,7 +1,7 @@
 #pragma once
 // The fitting engine: minimizes 1/2 sum_j d^2(X_j, C(P; .)) + F_s(P) over the shape parameters P of any
 // ParametricModel by alternating exact foot points and one linear least-squares step on a local quadratic
-// model built with one of the six error terms of METHOD.md section 2 (Wang, Pottmann, Liu, ACM TOG 25 (2006);
+// model built with one of the six error terms of docs/method.md section 2 (Wang, Pottmann, Liu, ACM TOG 25 (2006);
 // Liu & Wang, GMP 2008).
 
 #include <Eigen/Core>
@@ -29,18 +29,18 @@ const char* ToString(ErrorTerm term);
 // The 3x3 matrix M of the quadratic error term e^T M e of one data point in the principal frame `f` at its
 // foot point (first s rows and columns used). For kGn, which builds its own Jacobian, the identity.
 Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s);
-// The error term of a data point whose foot point lies on an open boundary (the end rule of METHOD.md section
+// The error term of a data point whose foot point lies on an open boundary (the end rule of docs/method.md section
 // 4), with offset = X - s: cos(theta) I + (1 - cos(theta)) M_term.
 Eigen::Matrix3d EndRuleMatrix(ErrorTerm term, const PrincipalFrame& f, const Eigen::Vector3d& offset, int s);
 ErrorTerm ErrorTermFromString(const std::string& name);  // "pdm", "tdm", ...; throws std::invalid_argument
 
 struct GeometricFitOptions {
   ErrorTerm error_term = ErrorTerm::kSdm;
-  // Fairness weights, applied to data normalized into the unit box (METHOD.md section 3): curves alpha
+  // Fairness weights, applied to data normalized into the unit box (docs/method.md section 3): curves alpha
   // (stretch) and beta (bending); surfaces membrane and thin plate. Paper default for curves: bending 0.001.
   FairnessWeights fairness;
   bool normalize = true;      // scale data and model into the unit box while fitting
-  bool open_end_rule = true;  // METHOD.md section 4 for points whose foot point lies on an open boundary
+  bool open_end_rule = true;  // docs/method.md section 4 for points whose foot point lies on an open boundary
   // Termination, damping, step strategy (trust region by default; full step and Armijo backtracking are the
   // baselines) and the robust loss: the one minimizer's options (optimizer_options.h). Tolerances are in the
   // normalized units of the unit box, the target RMS in input units. The defaults are the minimizer's: at

@@ -1,5 +1,5 @@
 #pragma once
-// Initial models for the fitting engine (METHOD.md section 8).
+// Initial models for the fitting engine (docs/method.md section 8).
 
 #include <Eigen/Core>
 
@@ -57,7 +57,7 @@ SpiralSurface InitialSpiralWithGrowthSearch(const Eigen::Matrix3Xd& points_in_ce
 SpiralSurface InitialSpiral(const Eigen::Matrix3Xd& points_in_centre_frame, double growth, int num_control,
                             int order, double margin = 0.3);
 
-// The axis of a kinematic surface from surface normals by line geometry (METHOD.md section 8; Pottmann,
+// The axis of a kinematic surface from surface normals by line geometry (docs/method.md section 8; Pottmann,
 // Randrup, "Rotational and helical surface approximation for reverse engineering", Computing 60 (1998); for
 // spiral surfaces Hofer, Pottmann, Ravani, "From curve design algorithms to the design of rigid body
 // motions", Visual Computer 20 (2004), equiform motions). The surface is invariant under a one-parameter

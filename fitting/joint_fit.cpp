@@ -274,7 +274,7 @@ class JointFitProblem : public NonlinearProblem {
 
   LinearSystem& Linearize() override {
     if (weighting_.loss().scale_from_data()) {
-      // The scale follows the current distances (docs/method.md eq. 15.5); the evaluation could not weigh
+      // The scale follows the current distances (docs/method.md eq. 47); the evaluation could not weigh
       // its sums with it (the median needs every distance first), so they are assembled again below.
       UpdateLossScale();
       Summarize(state_);
@@ -434,7 +434,7 @@ void JointFitProblem::AddScan(std::size_t k, State::Sums& sums) const {
   }
 }
 
-// The objective 1/2 sum_k w_k sum_j rho(d_j^2) + P^T K P (docs/method.md eqs. 6.1 and 15.6; rho(s) = s
+// The objective 1/2 sum_k w_k sum_j rho(d_j^2) + P^T K P (docs/method.md eqs. 19 and 43; rho(s) = s
 // without a robust loss) and the RMS over the points not excluded.
 void JointFitProblem::Summarize(State& s) const {
   double sum = 0.0, sum_sq = 0.0;
@@ -458,7 +458,7 @@ void JointFitProblem::Summarize(State& s) const {
   s.rms = std::sqrt(sum_sq / static_cast<double>(std::max<Eigen::Index>(s.used, 1)));
 }
 
-// The robust scale from the normal distances of the points not excluded, all scans together (eq. 15.5).
+// The robust scale from the normal distances of the points not excluded, all scans together (eq. 47).
 void JointFitProblem::UpdateLossScale() {
   Eigen::VectorXd d(state_.used);
   Eigen::Index i = 0;
@@ -543,7 +543,7 @@ const State::Sums& JointFitProblem::SumsAt(const State& st, ErrorTerm term, bool
   return own_sums_;
 }
 
-// The block-arrow normal equations (docs/method.md eq. 6.4) from the full-motion sums, each motion block
+// The block-arrow normal equations (docs/method.md eq. 20) from the full-motion sums, each motion block
 // projected onto its gauge-reduced basis B (B^T H B, H_db B, B^T g; shared motion: all scans onto the
 // first's).
 void JointFitProblem::Project(const State::Sums& sums, bool one_motion, BlockArrowSystem& system,

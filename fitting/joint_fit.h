@@ -1,5 +1,5 @@
 #pragma once
-// Joint registration and fitting (METHOD.md section 6; Liu, Pottmann, Wang, CAD 38(6) 2006, section 5): one
+// Joint registration and fitting (docs/method.md section 6; Liu, Pottmann, Wang, CAD 38(6) 2006, section 5): one
 // rigid motion per scan and the model's shape parameters are solved TOGETHER, one linear solve per iteration.
 //
 // Per iteration, with frames and error terms frozen at the current foot points, F = sum_k w_k sum_j e^T M e
@@ -52,7 +52,7 @@ struct JointFitOptions {
   OptimizerOptions optimizer = JointFitOptimizerDefaults();
   int shared_motion_iterations = 5;  // stage 1 length (0: start with per-scan motions)
   bool per_scan_motions = true;  // false: stay in stage 1, i.e. fit the initially registered cloud (baseline)
-  // The alternating baseline of METHOD.md section 6: per iteration one registration step (motions only), then
+  // The alternating baseline of docs/method.md section 6: per iteration one registration step (motions only), then
   // one fitting step (shape only), instead of one joint step. Converges linearly (zig-zag).
   bool alternating = false;
   // Remove the gauge directions the model declares (default). Off, the solver runs on the full motions

@@ -135,7 +135,7 @@ class GeneratrixCurve final : public ParametricModel {
 };
 
 // The feet of a surface of revolution (pitch 0) with r(u) >= 0 everywhere, in x's meridian half-plane
-// (FootPointReduction; METHOD.md section 10). With x = (rho cos phi, rho sin phi, h),
+// (FootPointReduction; docs/method.md section 10). With x = (rho cos phi, rho sin phi, h),
 // d^2(u, v) = (rho - r)^2 + (z - h)^2 + 2 rho r (1 - cos(v - phi)): for r >= 0 the last term is >= 0 and zero
 // at v = phi, so the foot is (u*, phi) with u* the foot of (rho, h) on the generatrix, at the same distance;
 // and at v = phi the orthogonality residual along u is the generatrix's, so the boundary flag is too.
@@ -388,7 +388,7 @@ Eigen::MatrixXd KinematicSurface::FairnessMatrix(const FairnessWeights& w) const
         .eval();
   };
   Eigen::MatrixXd k = Eigen::MatrixXd::Zero(n, n);
-  // Fairness of the generatrix (r(u), z(u)) as a plane curve (METHOD.md section 3).
+  // Fairness of the generatrix (r(u), z(u)) as a plane curve (docs/method.md section 3).
   if (w.stretch != 0.0) k += w.stretch * gram(1);
   if (w.bending != 0.0 && basis_.order() > 2) k += w.bending * gram(2);
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(num_parameters(), num_parameters());

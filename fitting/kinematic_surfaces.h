@@ -1,5 +1,5 @@
 #pragma once
-// Kinematic surfaces with a B-spline generatrix (METHOD.md section 7; Liu, Pottmann, Wang, CAD 38(6) 2006,
+// Kinematic surfaces with a B-spline generatrix (docs/method.md section 7; Liu, Pottmann, Wang, CAD 38(6) 2006,
 // section 4): surfaces of revolution (pots) and helical surfaces (drills), in their own adapted frame whose z
 // axis is the axis:  x(u, v) = sum_k (r_k cos v, r_k sin v, z_k) B_k(u) + (0, 0, p v),  p = 0 for revolution.
 
@@ -77,7 +77,7 @@ class KinematicSurface final : public ParametricModel {
   SpanPowerForm generatrix_;  // of profile_; rebuilt in the constructor, set_parameters and ApplySimilarity
 };
 
-// Spiral surface (shells; METHOD.md section 7): x(u, v) = e^{p v} sum_k (r_k cos v, r_k sin v, z_k) B_k(u)
+// Spiral surface (shells; docs/method.md section 7): x(u, v) = e^{p v} sum_k (r_k cos v, r_k sin v, z_k) B_k(u)
 // for v in [v_lo, v_hi] (the whorls, unwrapped), growth parameter p. The growth enters non-linearly; its
 // Jacobian at fixed (u, v) is v x(u, v), the linearization at the current value (section 6). The whorl
 // expansion rate is exp(2 pi p).

@@ -24,7 +24,7 @@ const char* ToString(DampingScaling scaling) {
 namespace {
 
 // The general least-squares problem min 1/2 |r(x)|^2 as the minimizer's problem: the Jacobian and residual
-// of the current x in a DenseJacobianSystem (QR-solved, docs/method.md eq. 14.2), the damping scale D of the
+// of the current x in a DenseJacobianSystem (QR-solved, docs/method.md eq. 38), the damping scale D of the
 // chosen scaling, and the trial's residual and Jacobian kept for its acceptance.
 class DenseLeastSquaresProblem : public NonlinearProblem {
  public:

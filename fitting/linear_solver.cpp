@@ -15,7 +15,7 @@ void AddDamping(Eigen::MatrixXd& a, double lambda, double diagonal_floor) {
 
 namespace {
 
-// max_k |g_k| / sqrt(2 cost H_kk) over the columns with H_kk > 0 (eq. 14.6).
+// max_k |g_k| / sqrt(2 cost H_kk) over the columns with H_kk > 0 (eq. 42).
 double LargestCosine(const Eigen::VectorXd& g, const Eigen::VectorXd& diagonal, double cost) {
   const double residual_norm = std::sqrt(std::max(2.0 * cost, 0.0));
   if (!(residual_norm > 0.0)) return 0.0;
@@ -55,7 +55,7 @@ double DenseNormalEquations::GradientMeasure(double cost) const {
 
 bool DenseJacobianSystem::Solve(double lambda, Eigen::VectorXd& step) {
   const Eigen::Index m = j_.rows(), n = j_.cols();
-  // min |J dx + r|^2 + lambda |D dx|^2 = |[J; sqrt(lambda) D] dx + [r; 0]|^2 (eq. 14.2 in least-squares
+  // min |J dx + r|^2 + lambda |D dx|^2 = |[J; sqrt(lambda) D] dx + [r; 0]|^2 (eq. 38 in least-squares
   // form).
   augmented_.resize(m + n, n);
   augmented_.topRows(m) = j_;
@@ -102,7 +102,7 @@ bool BlockArrowSystem::Solve(double lambda, Eigen::VectorXd& step) {
   }
   Eigen::VectorXd step_d = Eigen::VectorXd::Zero(r);
   if (unknowns == Unknowns::kAll) {
-    // Schur complement S = H_dd - sum H_db H_bb^-1 H_db^T (docs/method.md eq. 6.5): eliminate every motion
+    // Schur complement S = H_dd - sum H_db H_bb^-1 H_db^T (docs/method.md eq. 21): eliminate every motion
     // block, solve for the shape, back-substitute.
     Eigen::MatrixXd s = h_dd;
     AddDamping(s, lambda, floor_);

@@ -1,7 +1,7 @@
 #pragma once
 // Linear-solver strategies of the minimizer (minimizer.h; docs/method.md section 14): each holds one
 // linearization of a fit at its current state (frozen foot points) and solves the damped step
-//   (H + lambda D^2) dx = -g                                              (docs/method.md eq. 14.2)
+//   (H + lambda D^2) dx = -g                                              (docs/method.md eq. 38)
 // in the way its structure calls for: dense LDLT of the normal equations (geometric and primitive fits,
 // registration), QR of the damped Jacobian (the general least-squares core, which keeps the digits of
 // ill-conditioned problems), or Schur elimination of the block-arrow joint system (one motion block per
@@ -25,7 +25,7 @@ class LinearSystem {
   virtual double Slope(const Eigen::VectorXd& step) const = 0;
   virtual double ModelChange(const Eigen::VectorXd& step) const = 0;
   // The scale-free first-order optimality measure: the largest cosine between the residual vector (norm
-  // sqrt(2 cost)) and a Jacobian column (norm sqrt(H_kk)), |g_k| / sqrt(2 cost H_kk) (eq. 14.6).
+  // sqrt(2 cost)) and a Jacobian column (norm sqrt(H_kk)), |g_k| / sqrt(2 cost H_kk) (eq. 42).
   virtual double GradientMeasure(double cost) const = 0;
 };
 
@@ -52,7 +52,7 @@ class DenseNormalEquations : public LinearSystem {
   double floor_;
 };
 
-// lambda max(|diag A|, floor max |diag A|) added to A's diagonal: the damping of one block (eq. 14.2).
+// lambda max(|diag A|, floor max |diag A|) added to A's diagonal: the damping of one block (eq. 38).
 void AddDamping(Eigen::MatrixXd& a, double lambda, double diagonal_floor);
 
 // A dense Jacobian J and residual r: min |J dx + r|^2 + lambda |D dx|^2 as one least-squares problem solved
@@ -82,7 +82,7 @@ class DenseJacobianSystem : public LinearSystem {
   Eigen::VectorXd rhs_;
 };
 
-// The block-arrow normal equations of the joint fit (docs/method.md section 6, eq. 6.4): a shape block
+// The block-arrow normal equations of the joint fit (docs/method.md section 6, eq. 20): a shape block
 // (h_dd, g_d), one motion block per scan (h_bb, g_b, in gauge-reduced coordinates) and their coupling h_db.
 // The step is [d; b_1; ...; b_K]. Solving eliminates every motion block by its Schur complement, solves the
 // shape, and back-substitutes (cost linear in the number of scans). `unknowns` selects the joint step or one

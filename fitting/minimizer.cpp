@@ -7,7 +7,7 @@
 namespace s2m {
 
 bool NonlinearProblem::StepIsNegligible(const Eigen::VectorXd& step, double tolerance) const {
-  return step.norm() <= tolerance * (1.0 + ParameterNorm());  // docs/method.md eq. 14.5
+  return step.norm() <= tolerance * (1.0 + ParameterNorm());  // docs/method.md eq. 42
 }
 
 std::optional<StopReason> NonlinearProblem::AfterIteration(const IterationSummary& /*summary*/,
@@ -106,7 +106,7 @@ TrustRegionMinimizer::Outcome TrustRegionMinimizer::Iterate(NonlinearProblem& pr
           return out;
         }
         const double trial = problem.EvaluateTrial(taken, final_if_accepted);
-        // Armijo's sufficient decrease along the step (docs/method.md eq. 14.7).
+        // Armijo's sufficient decrease along the step (docs/method.md eq. 28).
         if (trial <= cost + options_.armijo_c * alpha * slope) return accept(taken, trial, 0.0, false);
       }
       out.stop_reason = StopReason::kNoFurtherDecrease;

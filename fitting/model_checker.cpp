@@ -486,7 +486,7 @@ void Checker::CheckInvariantMotions(const ParametricModel& m, const std::vector<
     const Eigen::Matrix3Xd normals = NormalSpace(g);
     const Eigen::Vector3d point = To3(g.point);
     for (std::size_t k = 0; k < motions.size(); ++k) {
-      // The velocity of the model point under the motion, x' = x + cbar + c x x (METHOD.md section 5): the
+      // The velocity of the model point under the motion, x' = x + cbar + c x x (docs/method.md section 5): the
       // model maps onto itself to first order iff it is tangent, i.e. the distance of any point near the
       // model does not change to first order.
       const Eigen::Vector3d c = motions[k].head<3>(), cbar = motions[k].tail<3>();
@@ -654,7 +654,7 @@ void Checker::CheckApplyStep(const ParametricModel& m, const std::vector<Sample>
         check,
         (c1 - PointAt(*set, s.t)).norm() / (step.norm() * size_ + kFloorFraction * size_ * o_.step_fraction),
         [&] { return where + ": ApplyStep(D) and set_parameters(P + D) differ"; });
-    // ... moves the points by J D to first order (METHOD.md section 6: the linearized problem's step) ...
+    // ... moves the points by J D to first order (docs/method.md section 6: the linearized problem's step) ...
     DenseJacobian(m, s.t, false, columns);
     const Eigen::Vector3d predicted = columns * step;
     Record(check,
@@ -702,7 +702,7 @@ void Checker::CheckFeet(const ParametricModel& m, const std::vector<Sample>& sam
       return where + ": farther than Newton's foot (" + std::to_string(fast.distance) + " vs " +
              std::to_string(newton.distance) + ")";
     });
-    // ... and orthogonal: C_t^T (C - x) = 0 (METHOD.md section 10) unless on an open boundary.
+    // ... and orthogonal: C_t^T (C - x) = 0 (docs/method.md section 10) unless on an open boundary.
     if (!fast.on_boundary) {
       LocalGeometry at_foot;
       m.Evaluate(fast.t, 1, at_foot);

@@ -23,7 +23,7 @@ namespace {
 // TDM's and SDM's error matrices at an exact foot on a surface in 3D, added as rank-one directions
 // (RigidNormalEquations::AddDirection) straight from the model's derivatives `g` at the foot: TDM needs only
 // the unit normal n = C_u x C_v / |C_u x C_v|; SDM adds the principal directions T_k with the weights
-// SdmWeight(delta, kappa_k) (METHOD.md section 2), the principal curvatures and directions being the
+// SdmWeight(delta, kappa_k) (docs/method.md section 2), the principal curvatures and directions being the
 // eigenpairs of the shape operator S = I^-1 II (first and second fundamental forms; do Carmo, section 3-3),
 // solved in closed form (SolvePrincipalCurvatures). The same M as ComputePrincipalFrame + ErrorMatrix (up to
 // rounding) without their 3 x 3 matrices. False (nothing added) for a degenerate metric: the caller falls
@@ -85,7 +85,7 @@ class RigidSystem : public LinearSystem {
       if (eq.H(k, k) > 0.0 && residual_norm > 0.0)
         largest = std::max(largest, std::abs(eq.g[k]) / (std::sqrt(eq.H(k, k)) * residual_norm));
     }
-    return largest;  // docs/method.md eq. 14.6
+    return largest;  // docs/method.md eq. 42
   }
 };
 
@@ -129,7 +129,7 @@ class RegistrationProblem : public NonlinearProblem {
 
   LinearSystem& Linearize() override {
     if (weighting_.loss().scale_from_data() || !equations_valid_) {
-      // The scale follows the current distances (eq. 15.5); the equations are assembled with it at the
+      // The scale follows the current distances (eq. 47); the equations are assembled with it at the
       // current feet (warm from themselves: Newton stops at once).
       if (weighting_.loss().scale_from_data()) weighting_.Update(Distances(feet_));
       Pass(current_, true, field_phase_, true, trial_feet_, trial_geometry_, trial_exact_, system_.eq);
@@ -228,7 +228,7 @@ class RegistrationProblem : public NonlinearProblem {
     return d;
   }
 
-  // 1/2 mean rho(d_j^2) (docs/method.md eqs. 5.1 and 15.6).
+  // 1/2 mean rho(d_j^2) (docs/method.md eqs. 16 and 43).
   double Objective(const std::vector<FootPoint>& feet) const {
     double sum = 0.0;
     for (const FootPoint& f : feet) sum += weighting_.Rho(f.distance);

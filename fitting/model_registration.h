@@ -1,5 +1,5 @@
 #pragma once
-// Registration of scans to a fixed model (METHOD.md section 5): the model stays, each scan moves rigidly.
+// Registration of scans to a fixed model (docs/method.md section 5): the model stays, each scan moves rigidly.
 // Every iteration computes foot points of the scan's current points, builds the chosen error term at them,
 // solves for the velocity (c, cbar) and applies it as the exact helical motion; points are re-expressed from
 // the original scan every iteration, so no drift accumulates.

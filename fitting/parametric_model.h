@@ -1,6 +1,6 @@
 #pragma once
 // The model interface of the fitting engine: a parametric family C(P; t) with shape parameters P (r numbers)
-// and location parameters t (m = 1 for curves, 2 for surfaces) in R^s (s = 2 or 3). METHOD.md section 1.
+// and location parameters t (m = 1 for curves, 2 for surfaces) in R^s (s = 2 or 3). docs/method.md section 1.
 
 #include <Eigen/Core>
 #include <array>
@@ -20,7 +20,7 @@ using MatS = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxAmbien
 // t: curves use t[0], surfaces t[0] and t[1]. t[2] is the face index of multi-face models (PartModel: which
 // face the foot point lies on; it never changes in Newton steps) and 0 otherwise.
 using ParamT = std::array<double, 3>;
-// A rigid-motion velocity (c, cbar) of METHOD.md section 5: rotation c, then translation cbar.
+// A rigid-motion velocity (c, cbar) of docs/method.md section 5: rotation c, then translation cbar.
 using Motion6 = Eigen::Matrix<double, 6, 1>;
 
 // A point of the model's space padded to 3D (z = 0 for planar models).
@@ -75,7 +75,7 @@ struct FairnessWeights {
 
 class ParametricModel;
 
-// A foot-point problem that reduces to one on a simpler model (METHOD.md section 10). A surface of
+// A foot-point problem that reduces to one on a simpler model (docs/method.md section 10). A surface of
 // revolution: the distance from x to its point (u, v) is d^2 = rho^2 + r^2 - 2 rho r cos(v - phi) + (z - h)^2
 // (x in cylinder coordinates (rho, phi, h), (r(u), z(u)) the generatrix), which for r >= 0 is smallest at v =
 // phi. So the foot of x lies in x's meridian half-plane and is the foot of (rho, h) on the planar generatrix:
@@ -111,14 +111,14 @@ class ParametricModel {
   virtual Eigen::VectorXd parameters() const = 0;
   virtual void set_parameters(const Eigen::VectorXd& p) = 0;
   // Applies a step D of the linearized problem. Models whose parameters enter non-linearly (rotations)
-  // linearize at the current value and override this (METHOD.md section 6, last item); the default adds D.
+  // linearize at the current value and override this (docs/method.md section 6, last item); the default adds D.
   virtual void ApplyStep(const Eigen::VectorXd& step) { set_parameters(parameters() + step); }
   // Maps the model by x -> scale * x + offset (data normalization into the unit box and back).
   virtual void ApplySimilarity(double scale, const VecS& offset) = 0;
   // False for models tied to their own frame (kinematic surfaces: the axis is the frame's z axis): data are
   // then normalized by scale alone.
   virtual bool SupportsTranslation() const { return true; }
-  // Gauge of the joint solver (METHOD.md section 6): rigid-motion velocities of one scan the model is
+  // Gauge of the joint solver (docs/method.md section 6): rigid-motion velocities of one scan the model is
   // invariant to (e.g. rotation about the axis of a surface of revolution), and velocities that, applied to
   // all scans together, a change of shape absorbs (a common translation along that axis). Both are removed
   // from the unknowns.
@@ -143,7 +143,7 @@ class ParametricModel {
   }
   // Parameter values whose model points seed the foot-point search (spread over the whole domain).
   virtual std::vector<ParamT> SampleParameters() const = 0;
-  // Models that compute their own foot points (closed form on primitives, METHOD.md section 10; per face on
+  // Models that compute their own foot points (closed form on primitives, docs/method.md section 10; per face on
   // parts) fill t and return true; the engine then skips its sample search and Newton.
   virtual bool ClosedFormFootPoint(const VecS& x, ParamT& t) const {
     (void)x;
@@ -161,7 +161,7 @@ class ParametricModel {
   // sample search and safeguarded Newton on the reduced model and lifts the result.
   virtual std::unique_ptr<FootPointReduction> MakeFootPointReduction() const { return nullptr; }
   // Models with their own feet: true when the foot point t of x lies on an open boundary, where the
-  // orthogonality condition need not hold (the end rule applies, METHOD.md section 4).
+  // orthogonality condition need not hold (the end rule applies, docs/method.md section 4).
   virtual bool FootPointOnBoundary(const VecS& x, const ParamT& t) const {
     (void)x;
     (void)t;
@@ -176,7 +176,7 @@ class ParametricModel {
   }
 };
 
-// The principal frame of the model at a foot point, oriented towards a data point X (METHOD.md section 2):
+// The principal frame of the model at a foot point, oriented towards a data point X (docs/method.md section 2):
 // unit tangents T_k with signed curvatures kappa_k w.r.t. the unit normal n, an orthonormal basis of the
 // normal space, and delta = n.(X - s) >= 0.
 struct PrincipalFrame {

@@ -33,7 +33,7 @@ Eigen::Vector3d RadialDu(const PartFace& f, double u) {
   return -std::sin(u) * f.frame.col(0) + std::cos(u) * f.frame.col(1);
 }
 
-// One analytic face's foot point in closed form (METHOD.md section 10): the unsigned distance and, with
+// One analytic face's foot point in closed form (docs/method.md section 10): the unsigned distance and, with
 // kParameter, the foot's t (u, v; t[2] is left to the caller). The angle u needs an atan2, the distance does
 // not: the nearest-face search asks for t only on the face that wins. `c`: the face's
 // PartModel::FaceConstants.

@@ -1,5 +1,5 @@
 #pragma once
-// Constrained parts (METHOD.md section 7, last item; Liu, Pottmann, Wang, CAD 38(6) 2006, section 6): several
+// Constrained parts (docs/method.md section 7, last item; Liu, Pottmann, Wang, CAD 38(6) 2006, section 6): several
 // faces (plane, cylinder, cone, sphere, torus, B-spline patch) placed in ONE adapted part frame and sharing
 // named parameters, e.g. a block whose top face lies at z = height and whose counterbore floor at z = height
 // - depth. Every face quantity is a linear expression in the named parameters, so the part's shape Jacobian

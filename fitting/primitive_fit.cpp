@@ -23,7 +23,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Data centred at the centroid and scaled uniformly into the unit box (METHOD.md section 3), so that
+// Data centred at the centroid and scaled uniformly into the unit box (docs/method.md section 3), so that
 // tolerances and damping do not depend on the user's units or on where the part sits in the scanner's frame.
 struct NormalizedData {
   Eigen::Vector3d offset;
@@ -271,7 +271,7 @@ struct ConeLocal {
   }
 };
 
-// ---- The fit as the minimizer's problem (minimizer.h; METHOD.md section 9)
+// ---- The fit as the minimizer's problem (minimizer.h; docs/method.md section 9)
 // -----------------------------------------------------------------------------------------------------------
 
 // Cov = s_w^2 (J^T W J)^-1 with s_w^2 = sum w d^2 / (sum w - p) at the solution (normalized units); without

@@ -1,7 +1,7 @@
 #pragma once
 // Orthogonal-distance least-squares fits of primitives (plane, sphere, cylinder, cone).
 //
-// Foot points are closed form; each iteration builds the TDM or SDM normal equations of METHOD.md section 2
+// Foot points are closed form; each iteration builds the TDM or SDM normal equations of docs/method.md section 2
 // at the frozen foot points and the one minimizer of every fit (minimizer.h: Levenberg-Marquardt, section 9)
 // takes the step. Cylinders and cones are linearized in a local frame whose z axis is the current axis
 // (Forbes, "Least squares best fit geometric elements", NPL DITC 140/89), which keeps the normal matrix well

@@ -212,7 +212,7 @@ bool SphereModel::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, boo
 }
 
 // A rotation with unit angular velocity a about the line through p has the velocity field v(x) = a x (x - p)
-// = cbar + a x x with cbar = p x a (METHOD.md section 5's (c, cbar)).
+// = cbar + a x x with cbar = p x a (docs/method.md section 5's (c, cbar)).
 std::vector<Motion6> CylinderModel::InvariantMotions() const {
   const Eigen::Vector3d a = frame_.col(2);
   Motion6 rotation, translation;

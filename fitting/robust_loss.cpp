@@ -67,10 +67,10 @@ LossValue EvaluateLoss(LossKind kind, double c, double s) {
   LossValue v;
   const double c2 = c * c;
   switch (kind) {
-    case LossKind::kNone:  // eq. 15.1
+    case LossKind::kNone:  // eq. 44
       v.rho = s;
       break;
-    case LossKind::kHuber:  // eq. 15.2
+    case LossKind::kHuber:  // eq. 44
       if (s <= c2) {
         v.rho = s;
       } else {
@@ -80,14 +80,14 @@ LossValue EvaluateLoss(LossKind kind, double c, double s) {
         v.second = -0.5 * v.first / s;
       }
       break;
-    case LossKind::kCauchy: {  // eq. 15.3
+    case LossKind::kCauchy: {  // eq. 44
       const double u = 1.0 + s / c2;
       v.rho = c2 * std::log1p(s / c2);
       v.first = 1.0 / u;
       v.second = -1.0 / (c2 * u * u);
       break;
     }
-    case LossKind::kTukey:  // eq. 15.4
+    case LossKind::kTukey:  // eq. 44
       if (s <= c2) {
         const double u = 1.0 - s / c2;
         v.rho = c2 / 3.0 * (1.0 - u * u * u);
@@ -127,7 +127,7 @@ double MadSigma(const Eigen::Ref<const Eigen::VectorXd>& distances) {
   if (a.size() % 2 == 0) {
     median = 0.5 * (median + *std::max_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(mid)));
   }
-  return 1.4826 * median;  // eq. 15.5: the consistency factor 1 / Phi^-1(3/4) of the normal distribution
+  return 1.4826 * median;  // eq. 47: the consistency factor 1 / Phi^-1(3/4) of the normal distribution
 }
 
 void RobustWeighting::Update(const Eigen::Ref<const Eigen::VectorXd>& distances) {

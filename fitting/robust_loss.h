@@ -2,10 +2,10 @@
 // Robust losses of the squared residual (the meaning of Ceres' LossFunction): a point whose orthogonal
 // distance is d contributes 1/2 rho(s) with s = d^2 to the objective instead of 1/2 s. The fits apply them by
 // iteratively reweighted least squares: each point's error matrix is weighted by rho'(s) at the current foot
-// points (docs/method.md section 15, eqs. 15.1-15.6; Triggs, McLauchlan, Hartley, Fitzgibbon, "Bundle
+// points (docs/method.md section 15, eqs. 43-47; Triggs, McLauchlan, Hartley, Fitzgibbon, "Bundle
 // adjustment - a modern synthesis", 2000, section 4.3, in its first-order form). The scale c is a distance in
 // input units: given by the user, or c = k sigma from the data with sigma the MAD estimate of the normal
-// distances (eq. 15.5) and k the loss's 95 %-efficiency constant.
+// distances (eq. 47) and k the loss's 95 %-efficiency constant.
 
 #include <Eigen/Core>
 #include <string>
@@ -23,7 +23,7 @@ const char* ToString(LossKind kind);
 
 struct RobustLoss {
   LossKind kind = LossKind::kNone;
-  // c, a distance in input units; 0: estimated from the data at every linearization (eq. 15.5).
+  // c, a distance in input units; 0: estimated from the data at every linearization (eq. 47).
   double scale = 0.0;
   bool is_robust() const { return kind != LossKind::kNone; }
   bool scale_from_data() const { return is_robust() && !(scale > 0.0); }
@@ -34,7 +34,7 @@ struct RobustLoss {
 RobustLoss ParseRobustLoss(const std::string& text);
 std::string ToString(const RobustLoss& loss);  // the spelling ParseRobustLoss reads back
 
-// rho(s), rho'(s) and rho''(s) at a squared residual s >= 0 for scale c > 0 (eqs. 15.1-15.4).
+// rho(s), rho'(s) and rho''(s) at a squared residual s >= 0 for scale c > 0 (eq. 44).
 struct LossValue {
   double rho = 0.0;
   double first = 1.0;   // rho'(s): the IRLS weight
@@ -46,7 +46,7 @@ LossValue EvaluateLoss(LossKind kind, double c, double s);
 // distribution; Holland & Welsch 1977). 1 for kNone.
 double TuningConstant(LossKind kind);
 
-// sigma = 1.4826 median |d_j| (eq. 15.5): the normal distances of a fitted surface scatter about zero, so the
+// sigma = 1.4826 median |d_j| (eq. 47): the normal distances of a fitted surface scatter about zero, so the
 // median absolute deviation is taken about zero, not about the median. 0 for no distances.
 double MadSigma(const Eigen::Ref<const Eigen::VectorXd>& distances);
 

@@ -179,7 +179,7 @@ bool SquaredDistanceField::Query(const Eigen::Vector3d& y, Answer& out, bool tan
   const Eigen::Vector3d t1 = c.e1 + c.k1 * u * c.n;
   const Eigen::Vector3d offset = y - out.foot;
   double delta = offset.dot(normal), k1 = c.k1, k2 = c.k2;
-  if (delta < 0) {  // METHOD.md section 2: n towards the data point, delta >= 0, kappa signed w.r.t. n
+  if (delta < 0) {  // docs/method.md section 2: n towards the data point, delta >= 0, kappa signed w.r.t. n
     normal = -normal;
     delta = -delta;
     k1 = -k1;

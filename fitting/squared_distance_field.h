@@ -8,7 +8,7 @@
 // (Pottmann & Hofer, "Geometry of the squared distance function to curves and surfaces", 2003). A query y is
 // answered in O(1): the cell containing y, then the foot of y on the osculating paraboloid z = (k1 u^2 + k2
 // v^2) / 2 of the model at p (frame e1, e2, n), whose normal, tangents and the cell's curvatures give the SDM
-// second-order approximant of d^2 at y (METHOD.md section 2):
+// second-order approximant of d^2 at y (docs/method.md section 2):
 //   F(x) = beta1 ((x - q).T1)^2 + beta2 ((x - q).T2)^2 + ((x - q).N)^2,  beta_k = SdmWeight(delta, k_k),
 // i.e. Pottmann & Hofer's d/(d - rho_k) weights clamped at 0 (positive semidefinite), at the approximate foot
 // q. Using the paraboloid's foot rather than the Taylor approximant at the cell centre makes the distance

@@ -16,11 +16,11 @@ void LevenbergMarquardtStrategy::Reset() {
 
 void LevenbergMarquardtStrategy::StepAccepted(double gain_ratio) {
   if (options_.update == DampingUpdate::kNielsen) {
-    // Madsen, Nielsen, Tingleff (2004), eq. 3.16 (docs/method.md eq. 14.4).
+    // Madsen, Nielsen, Tingleff (2004), eq. 3.16 (docs/method.md eq. 41).
     lambda_ *= std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * gain_ratio - 1.0, 3));
     nu_ = 2.0;
   } else {
-    lambda_ *= options_.decrease;  // eq. 14.3
+    lambda_ *= options_.decrease;  // eq. 41
   }
   lambda_ = std::max(lambda_, options_.min);
 }

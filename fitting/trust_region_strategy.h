@@ -1,7 +1,7 @@
 #pragma once
 // The Levenberg-Marquardt trust-region strategy: owns the damping lambda of the damped normal equations
 // (H + lambda D^2) dx = -g and updates it from each trial's outcome (docs/method.md section 14,
-// eqs. 14.3-14.4). The minimizer (minimizer.h) asks it for lambda, tells it whether the trial decreased the
+// eq. 41). The minimizer (minimizer.h) asks it for lambda, tells it whether the trial decreased the
 // true objective and by how much against the linear model's prediction, and stops when the strategy is
 // exhausted.
 

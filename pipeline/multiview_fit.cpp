@@ -31,7 +31,7 @@ RigidMotion InitialAxisFrame(const ScanSet& set) {
 }
 
 // Helical and spiral surfaces: the axis (and pitch or growth, and the spiral's centre) from normals by line
-// geometry (METHOD.md section 8), normals from local plane fits over 12 neighbours of the merged views.
+// geometry (docs/method.md section 8), normals from local plane fits over 12 neighbours of the merged views.
 KinematicAxis InitialKinematicAxis(const ScanSet& set, KinematicKind kind) {
   const Eigen::Matrix3Xd merged = set.MergedWorldPoints();
   return KinematicAxisFromNormals(merged, EstimateNormals(merged, 12), kind);

@@ -106,7 +106,7 @@ Eigen::MatrixXd ControlPointsFromJson(const nlohmann::json& j) {
   return m;
 }
 
-// A user-given initial curve or surface: a scan2model.bspline/1 document (METHOD.md section 8).
+// A user-given initial curve or surface: a scan2model.bspline/1 document (docs/method.md section 8).
 std::unique_ptr<ParametricModel> ReadInitialModel(const std::string& path, bool surface) {
   try {
     std::ifstream in(path);

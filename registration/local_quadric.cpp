@@ -92,7 +92,7 @@ SurfacePoint LocalQuadric::At(double x, double y) const {
   // The shape operator is I^{-1} II; its eigenvalues are the principal curvatures and its eigenvectors w the
   // principal directions X_x w_1 + X_y w_2. At a point with zero slope (h_x = h_y = 0) this is the
   // eigen-decomposition of [[2a, b], [b, 2c]]. II = X_ij . N, so kappa > 0 where the surface bends towards N
-  // (METHOD.md section 2's convention).
+  // (docs/method.md section 2's convention).
   const double hx = 2.0 * q[0] * x + q[1] * y + q[3];
   const double hy = q[1] * x + 2.0 * q[2] * y + q[4];
   const double w = std::sqrt(1.0 + hx * hx + hy * hy);

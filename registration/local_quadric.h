@@ -2,7 +2,7 @@
 // Second-order local geometry of a sampled surface: a quadric height field fitted over a point's k nearest
 // neighbours in the frame of its tangent plane, its principal curvatures and directions (the
 // eigen-decomposition of the shape operator), foot points on it, and the second-order approximant of the
-// squared distance function that SDM minimizes (METHOD.md section 2; Pottmann & Hofer 2003; Pottmann,
+// squared distance function that SDM minimizes (docs/method.md section 2; Pottmann & Hofer 2003; Pottmann,
 // Leopoldseder & Hofer, "Registration without ICP", CVIU 95(1) 2004). Pure Eigen, no files.
 
 #include <Eigen/Core>
@@ -10,7 +10,7 @@
 
 namespace s2m {
 
-// The SDM weight of one tangential direction, delta*kappa / (delta*kappa - 1) clamped at 0 (METHOD.md section
+// The SDM weight of one tangential direction, delta*kappa / (delta*kappa - 1) clamped at 0 (docs/method.md section
 // 2; Wang, Pottmann, Liu, ACM TOG 25 (2006), eq. 9), with kappa signed w.r.t. the unit normal n and delta =
 // n.(X - s). It is the coefficient d/(d - rho_k) of the second-order approximant of the squared distance
 // function in the principal frame at the foot point (Pottmann & Hofer, "Geometry of the squared distance
@@ -24,7 +24,7 @@ inline double SdmWeight(double delta, double kappa) {
 }
 
 // A point of a surface with its first- and second-order geometry. kappa1 <= kappa2 are signed w.r.t.
-// `normal`: positive when the surface bends towards the normal (METHOD.md section 2). direction1, direction2,
+// `normal`: positive when the surface bends towards the normal (docs/method.md section 2). direction1, direction2,
 // normal are orthonormal.
 struct SurfacePoint {
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
@@ -87,7 +87,7 @@ class LocalQuadric {
 std::vector<SurfacePoint> EstimatePrincipalCurvatures(const Eigen::Matrix3Xd& points, int neighbours);
 
 // The SDM error matrix M = sum_k SdmWeight(delta, kappa_k) T_k T_k^T + n n^T at the foot point s of x, with
-// the normal oriented towards x so that delta = n.(x - s) >= 0 (METHOD.md section 2). (x' - s)^T M (x' - s)
+// the normal oriented towards x so that delta = n.(x - s) >= 0 (docs/method.md section 2). (x' - s)^T M (x' - s)
 // is the second-order approximant of the squared distance of x' to the surface (Pottmann & Hofer 2003).
 Eigen::Matrix3d SdmErrorMatrix(const SurfacePoint& foot, const Eigen::Vector3d& x);
 

@@ -1,6 +1,6 @@
 #pragma once
 // A static k-d tree over 3D points (2D data use z = 0) for nearest-sample queries: seeds foot-point searches
-// (METHOD.md section 10). Built once per iteration over samples of the current model.
+// (docs/method.md section 10). Built once per iteration over samples of the current model.
 
 #include <Eigen/Core>
 #include <vector>

@@ -1,5 +1,5 @@
 #pragma once
-// One linearized rigid-registration step (METHOD.md section 5; Liu, Pottmann, Wang, CAD 38(6) 2006, section
+// One linearized rigid-registration step (docs/method.md section 5; Liu, Pottmann, Wang, CAD 38(6) 2006, section
 // 3): a small motion of a point about its current position x is x' = x + cbar + c x x. With each point's
 // quadratic error term (x' - s)^T M (x' - s) frozen at its model point s, the motion (c, cbar) solves a 6x6
 // linear system. PDM (M = I) is classic ICP, TDM (M = n n^T) point-to-plane ICP (Chen-Medioni), SDM adds

@@ -133,7 +133,7 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
         std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
         threshold = 3.0 * d[d.size() / 2];
       }
-      // Residual r = x - t with both views moving (METHOD.md section 5): x' = x + A(x) m_k, A(y) = [-[y]x I],
+      // Residual r = x - t with both views moving (docs/method.md section 5): x' = x + A(x) m_k, A(y) = [-[y]x I],
       // error r'^T M r' with M frozen; all poses are solved at once. PDM and TDM move the target with view l,
       // t' = t + A(t) m_l (Chen & Medioni's plane kept parallel). The quadric terms instead take the step of
       // x relative to view l, whose surface (with s and M) stays fixed in l's frame: x' - s = r + A(x) (m_k -

@@ -1,7 +1,7 @@
 #pragma once
 // Scan-to-scan registration without a model: every view is aligned to all the others, all poses solved
-// together in each sweep (METHOD.md section 5 with both views of a pair moving). One view is held fixed: the
-// registration determines the views only relative to each other. Error terms per pair (METHOD.md section 2):
+// together in each sweep (docs/method.md section 5 with both views of a pair moving). One view is held fixed: the
+// registration determines the views only relative to each other. Error terms per pair (docs/method.md section 2):
 // point-to-plane (TDM; Chen & Medioni 1992), point-to-point (PDM; Besl & McKay 1992, classic ICP), or the
 // second-order approximant of the squared distance to the other view's surface (SDM; Pottmann, Leopoldseder &
 // Hofer, "Registration without ICP", CVIU 95(1) 2004), with principal curvatures from local quadric fits

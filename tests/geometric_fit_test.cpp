@@ -1,4 +1,4 @@
-// The fitting engine (METHOD.md sections 1-4, 9-10): models, foot points, the six error terms and step
+// The fitting engine (docs/method.md sections 1-4, 9-10): models, foot points, the six error terms and step
 // control.
 
 #include <gtest/gtest.h>
@@ -573,7 +573,7 @@ TEST(ErrorTerms, PlainTdmOnA3DCurveIsReportedSingular) {
 
 TEST(GeometricFit, OpenCurveEndsFollowTheDataWithTheEndRule) {
   // Points on a half circle; the initial open curve covers only the middle of a smaller arc. The end rule
-  // (METHOD.md section 4) pulls the ends out to the data's ends; without it the ends lag behind.
+  // (docs/method.md section 4) pulls the ends out to the data's ends; without it the ends lag behind.
   Eigen::MatrixXd x(2, 60);
   for (int i = 0; i < 60; ++i) x.col(i) << std::cos(M_PI * i / 59), std::sin(M_PI * i / 59);
   Eigen::MatrixXd p(2, 6);

@@ -1,4 +1,4 @@
-// The joint solver (METHOD.md section 6) on a synthetic pot scanned in three overlapping views.
+// The joint solver (docs/method.md section 6) on a synthetic pot scanned in three overlapping views.
 
 #include "fitting/joint_fit.h"
 
@@ -95,7 +95,7 @@ TEST(JointFit, RecoversProfileAndAxesOfAPotFromThreeViews) {
 }
 
 TEST(JointFit, PerScanMotionsBeatFittingThePreRegisteredCloud) {
-  // METHOD.md section 6: fitting the initially registered cloud (one shared motion only) leaves the
+  // docs/method.md section 6: fitting the initially registered cloud (one shared motion only) leaves the
   // registration error in the result; freeing the per-scan motions removes it.
   const PotScans views = ScanPot(TruePot(), 0.002);
   KinematicSurface shared_only = StartingProfile(), joint = StartingProfile();

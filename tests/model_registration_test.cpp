@@ -1,4 +1,4 @@
-// Rigid registration: the linearized step (METHOD.md section 5) and registration of scans to a fixed model.
+// Rigid registration: the linearized step (docs/method.md section 5) and registration of scans to a fixed model.
 
 #include <gtest/gtest.h>
 

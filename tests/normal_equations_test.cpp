@@ -1,7 +1,7 @@
 // The normal equations against finite differences of the objectives they linearize. The joint solver's
 // assembly (fitting/joint_fit.cpp) is internal, so this checks its public building blocks: the rigid step's
-// 6 x 6 system (registration/rigid_step.h; METHOD.md section 5) and the geometric fit's error matrices
-// (fitting/geometric_fit.h; METHOD.md section 2) on models at exact foot points.
+// 6 x 6 system (registration/rigid_step.h; docs/method.md section 5) and the geometric fit's error matrices
+// (fitting/geometric_fit.h; docs/method.md section 2) on models at exact foot points.
 
 #include <gtest/gtest.h>
 
@@ -49,7 +49,7 @@ std::vector<PointConstraint> RandomConstraints(std::mt19937& rng, int count) {
   return out;
 }
 
-// E(c, cbar) = sum w (x' - s)^T M (x' - s) with x' = x + cbar + c x x (METHOD.md section 5, eq. of the
+// E(c, cbar) = sum w (x' - s)^T M (x' - s) with x' = x + cbar + c x x (docs/method.md section 5, eq. of the
 // linearized motion).
 double RigidObjective(const std::vector<PointConstraint>& constraints, const Vector6& velocity) {
   const Eigen::Vector3d c = velocity.head<3>(), cbar = velocity.tail<3>();
@@ -170,7 +170,7 @@ struct NormalEquations {
 };
 
 // sum_j J_j^T M_j J_j and sum_j J_j^T M_j (C(t_j) - x_j), J_j = dC/dP at the exact foot t_j, M_j the error
-// term's matrix in the principal frame there (METHOD.md section 2): the geometric fit's system.
+// term's matrix in the principal frame there (docs/method.md section 2): the geometric fit's system.
 NormalEquations Assemble(const ParametricModel& model, const Eigen::Matrix3Xd& points, ErrorTerm term) {
   const int r = model.num_parameters();
   NormalEquations out{Eigen::MatrixXd::Zero(r, r), Eigen::VectorXd::Zero(r)};
@@ -202,7 +202,7 @@ Eigen::Matrix3Xd PointsNear(const ParametricModel& model, double noise, std::mt1
   for (Eigen::Index j = 0; j < points.cols(); ++j) {
     ParamT t = ts[static_cast<std::size_t>(j) * ts.size() / static_cast<std::size_t>(points.cols())];
     t[0] += 0.013;  // off the sample grid (and a sphere's poles)
-    // Inside open ends: a foot on a boundary is the end rule's, not an orthogonal projection (METHOD.md
+    // Inside open ends: a foot on a boundary is the end rule's, not an orthogonal projection (docs/method.md
     // section 4), and there the distance is not differentiable in the shape.
     for (std::size_t k = 0; k < 2; ++k) {
       const double width = d.hi[k] - d.lo[k];

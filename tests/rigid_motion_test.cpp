@@ -7,7 +7,7 @@
 namespace s2m {
 namespace {
 
-// METHOD.md section 5, literally: x -> a0 + R(a, phi)(x - a0) + p phi a.
+// docs/method.md section 5, literally: x -> a0 + R(a, phi)(x - a0) + p phi a.
 Eigen::Vector3d HelicalLiteral(const Eigen::Vector3d& c, const Eigen::Vector3d& cbar,
                                const Eigen::Vector3d& x) {
   const double phi = c.norm();

@@ -92,7 +92,7 @@ TEST_P(MultiViewCase, PerScanMotionsBeatFittingThePreRegisteredCloud) {
   EXPECT_LT(error[1], 0.5 * error[0]);
 }
 
-// METHOD.md section 8: the axis (and pitch, or spiral centre and growth) from normals estimated on the noisy
+// docs/method.md section 8: the axis (and pitch, or spiral centre and growth) from normals estimated on the noisy
 // merged views, placed anywhere in the world.
 TEST(InitialGuess, KinematicAxesFromNormalsByLineGeometry) {
   const RigidMotion world_T_model = RigidMotion::FromHelicalVelocity({0.3, -0.5, 0.2}, {40.0, -25.0, 60.0});
