@@ -15,7 +15,7 @@ echo
 # The same result as a self-contained HTML report (docs/batch.md), and the vessel's profile drawing.
 "$build/apps/scan2model" report "$out/vase.json" -o "$out/vase_report.html"
 echo
-"$build/apps/scan2model" export "$root/recordings/pot.s2mrec" --out "$out/pot_views" --remove-outliers \
+"$build/apps/scan2model" export "$root/recordings/pot.s2mrec" -o "$out/pot_views" --remove-outliers \
   --outlier-stddev 3 --normals -q
 "$build/apps/scan2model" fit --model revolution "$out/pot_views/views.json" -o "$out/pot"
 echo
