@@ -1,6 +1,7 @@
 #include "acquisition/frame_source.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <chrono>
 #include <cmath>
@@ -15,6 +16,7 @@
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
 #include "acquisition/scan_set_io.h"
+#include "fitting/enum_names.h"
 
 namespace s2m {
 
@@ -22,22 +24,22 @@ namespace fs = std::filesystem;
 
 static_assert(std::endian::native == std::endian::little, "the payload codec assumes a little-endian host");
 
+namespace {
+
+constexpr std::array<EnumName<FrameKind>, 3> kFrameKindNames = {{
+    {FrameKind::kPoints, "points"},
+    {FrameKind::kDepth, "depth"},
+    {FrameKind::kProfile, "profile"},
+}};
+
+}  // namespace
+
 const char* ToString(FrameKind kind) {
-  switch (kind) {
-    case FrameKind::kDepth:
-      return "depth";
-    case FrameKind::kProfile:
-      return "profile";
-    default:
-      return "points";
-  }
+  return NameOf(kFrameKindNames, kind, "points");
 }
 
 FrameKind FrameKindFromString(const std::string& kind) {
-  if (kind == "points") return FrameKind::kPoints;
-  if (kind == "depth") return FrameKind::kDepth;
-  if (kind == "profile") return FrameKind::kProfile;
-  throw std::invalid_argument("unknown frame kind '" + kind + "' (points, depth or profile)");
+  return ValueOf(kFrameKindNames, kind, "frame kind");
 }
 
 namespace {

@@ -12,11 +12,14 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <stdexcept>
 #include <string>
+
+#include "fitting/enum_names.h"
 
 namespace s2m {
 namespace {
@@ -51,23 +54,16 @@ class CountingIcp : public pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointX
 
 std::string StopReason(pcl::registration::DefaultConvergenceCriteria<float>::ConvergenceState state) {
   using C = pcl::registration::DefaultConvergenceCriteria<float>;
-  switch (state) {
-    case C::CONVERGENCE_CRITERIA_ITERATIONS:
-      return "maximum iterations";
-    case C::CONVERGENCE_CRITERIA_TRANSFORM:
-      return "transformation epsilon";
-    case C::CONVERGENCE_CRITERIA_ABS_MSE:
-      return "absolute MSE";
-    case C::CONVERGENCE_CRITERIA_REL_MSE:
-      return "relative MSE";
-    case C::CONVERGENCE_CRITERIA_NO_CORRESPONDENCES:
-      return "no correspondences";
-    case C::CONVERGENCE_CRITERIA_FAILURE_AFTER_MAX_ITERATIONS:
-      return "failure after maximum iterations";
-    case C::CONVERGENCE_CRITERIA_NOT_CONVERGED:
-      break;
-  }
-  return "not converged";
+  static constexpr std::array<EnumName<C::ConvergenceState>, 7> kStateNames = {{
+      {C::CONVERGENCE_CRITERIA_ITERATIONS, "maximum iterations"},
+      {C::CONVERGENCE_CRITERIA_TRANSFORM, "transformation epsilon"},
+      {C::CONVERGENCE_CRITERIA_ABS_MSE, "absolute MSE"},
+      {C::CONVERGENCE_CRITERIA_REL_MSE, "relative MSE"},
+      {C::CONVERGENCE_CRITERIA_NO_CORRESPONDENCES, "no correspondences"},
+      {C::CONVERGENCE_CRITERIA_FAILURE_AFTER_MAX_ITERATIONS, "failure after maximum iterations"},
+      {C::CONVERGENCE_CRITERIA_NOT_CONVERGED, "not converged"},
+  }};
+  return NameOf(kStateNames, state, "not converged");
 }
 
 double Diagonal(const Eigen::Matrix3Xd& p) {

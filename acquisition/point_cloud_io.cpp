@@ -1,5 +1,6 @@
 #include "acquisition/point_cloud_io.h"
 
+#include <array>
 #include <bit>
 #include <cctype>
 #include <cstdio>
@@ -9,6 +10,7 @@
 
 #include "acquisition/format_error.h"
 #include "acquisition/formats/readers.h"
+#include "fitting/enum_names.h"
 
 namespace s2m {
 namespace {
@@ -26,17 +28,13 @@ std::string LowerExtension(const std::filesystem::path& path) {
 }  // namespace
 
 const char* ToString(PointCloudFormat format) {
-  switch (format) {
-    case PointCloudFormat::kPly:
-      return "ply";
-    case PointCloudFormat::kPcd:
-      return "pcd";
-    case PointCloudFormat::kText:
-      return "text";
-    case PointCloudFormat::kNistDs:
-      return "nist-ds";
-  }
-  return "unknown";
+  static constexpr std::array<EnumName<PointCloudFormat>, 4> kFormatNames = {{
+      {PointCloudFormat::kPly, "ply"},
+      {PointCloudFormat::kPcd, "pcd"},
+      {PointCloudFormat::kText, "text"},
+      {PointCloudFormat::kNistDs, "nist-ds"},
+  }};
+  return NameOf(kFormatNames, format);
 }
 
 PointCloudFormat DetectFormat(const std::filesystem::path& path) {

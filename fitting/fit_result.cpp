@@ -1,6 +1,9 @@
 #include "fitting/fit_result.h"
 
+#include <array>
 #include <cmath>
+
+#include "fitting/enum_names.h"
 
 namespace s2m {
 
@@ -14,24 +17,22 @@ ResidualStatistics ComputeResidualStatistics(const Eigen::VectorXd& d) {
   return s;
 }
 
+namespace {
+
+constexpr std::array<EnumName<StopReason>, 7> kStopReasonNames = {{
+    {StopReason::kClosedForm, "closed form"},
+    {StopReason::kStepTolerance, "step below tolerance"},
+    {StopReason::kGradientTolerance, "gradient below tolerance"},
+    {StopReason::kObjectiveTolerance, "objective decrease below tolerance"},
+    {StopReason::kNoFurtherDecrease, "no further decrease at machine precision"},
+    {StopReason::kMaxIterations, "iteration limit reached"},
+    {StopReason::kTargetReached, "target RMS reached"},
+}};
+
+}  // namespace
+
 const char* ToString(StopReason reason) {
-  switch (reason) {
-    case StopReason::kClosedForm:
-      return "closed form";
-    case StopReason::kStepTolerance:
-      return "step below tolerance";
-    case StopReason::kGradientTolerance:
-      return "gradient below tolerance";
-    case StopReason::kObjectiveTolerance:
-      return "objective decrease below tolerance";
-    case StopReason::kNoFurtherDecrease:
-      return "no further decrease at machine precision";
-    case StopReason::kMaxIterations:
-      return "iteration limit reached";
-    case StopReason::kTargetReached:
-      return "target RMS reached";
-  }
-  return "unknown";
+  return NameOf(kStopReasonNames, reason);
 }
 
 }  // namespace s2m

@@ -2,12 +2,14 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <optional>
 #include <sstream>
 
+#include "fitting/enum_names.h"
 #include "fitting/minimizer.h"
 #include "fitting/robust_loss.h"
 
@@ -213,30 +215,25 @@ Eigen::Matrix3d EndRuleMatrix(ErrorTerm term, const PrincipalFrame& f, const Eig
   return cos_theta * identity + (1.0 - cos_theta) * ErrorMatrix(term, f, s);
 }
 
+namespace {
+
+constexpr std::array<EnumName<ErrorTerm>, 6> kErrorTermNames = {{
+    {ErrorTerm::kPdm, "pdm"},
+    {ErrorTerm::kTdm, "tdm"},
+    {ErrorTerm::kSdm, "sdm"},
+    {ErrorTerm::kCdm, "cdm"},
+    {ErrorTerm::kGtdm, "gtdm"},
+    {ErrorTerm::kGn, "gn"},
+}};
+
+}  // namespace
+
 const char* ToString(ErrorTerm term) {
-  switch (term) {
-    case ErrorTerm::kPdm:
-      return "pdm";
-    case ErrorTerm::kTdm:
-      return "tdm";
-    case ErrorTerm::kSdm:
-      return "sdm";
-    case ErrorTerm::kCdm:
-      return "cdm";
-    case ErrorTerm::kGtdm:
-      return "gtdm";
-    case ErrorTerm::kGn:
-      return "gn";
-  }
-  return "unknown";
+  return NameOf(kErrorTermNames, term);
 }
 
 ErrorTerm ErrorTermFromString(const std::string& name) {
-  for (ErrorTerm t : {ErrorTerm::kPdm, ErrorTerm::kTdm, ErrorTerm::kSdm, ErrorTerm::kCdm, ErrorTerm::kGtdm,
-                      ErrorTerm::kGn}) {
-    if (name == ToString(t)) return t;
-  }
-  throw std::invalid_argument("unknown error term '" + name + "' (pdm, tdm, sdm, cdm, gtdm, gn)");
+  return ValueOf(kErrorTermNames, name, "error term");
 }
 
 namespace {

@@ -1,24 +1,28 @@
 #include "fitting/least_squares.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
+#include "fitting/enum_names.h"
 #include "fitting/minimizer.h"
 
 namespace s2m {
 
+namespace {
+
+constexpr std::array<EnumName<DampingScaling>, 3> kDampingScalingNames = {{
+    {DampingScaling::kIsotropic, "isotropic"},
+    {DampingScaling::kMarquardt, "marquardt"},
+    {DampingScaling::kAutomatic, "automatic"},
+}};
+
+}  // namespace
+
 const char* ToString(DampingScaling scaling) {
-  switch (scaling) {
-    case DampingScaling::kIsotropic:
-      return "isotropic";
-    case DampingScaling::kMarquardt:
-      return "marquardt";
-    case DampingScaling::kAutomatic:
-      return "automatic";
-  }
-  return "?";
+  return NameOf(kDampingScalingNames, scaling, "?");
 }
 
 namespace {

@@ -194,6 +194,11 @@ class Checker {
   }
 
   ModelCheck& Get(const char* name);
+  // Records, at every sample, how far `other` puts C(t) from where m has it (relative to the model's size):
+  // `what` says what should have left the points in place.
+  void RecordSamePoints(ModelCheck& check, const ParametricModel& m, const ParametricModel& other,
+                        const std::vector<Sample>& samples, const std::string& label,
+                        const std::string& what);
 
   const ParametricModel& model_;
   ModelCheckOptions o_;
@@ -208,6 +213,15 @@ ModelCheck& Checker::Get(const char* name) {
   for (ModelCheck& c : checks_)
     if (c.name == name) return c;
   throw std::logic_error(std::string("no check named ") + name);
+}
+
+void Checker::RecordSamePoints(ModelCheck& check, const ParametricModel& m, const ParametricModel& other,
+                               const std::vector<Sample>& samples, const std::string& label,
+                               const std::string& what) {
+  for (const Sample& s : samples) {
+    Record(check, (PointAt(other, s.t) - PointAt(m, s.t)).norm() / size_,
+           [&] { return label + ", " + FormatT(s.t, m_) + ": " + what; });
+  }
 }
 
 Eigen::Vector3d Checker::FirstDifference(const ParametricModel& m, const Sample& s, int k) const {
@@ -567,10 +581,7 @@ void Checker::CheckSimilarity(const ParametricModel& m, const std::vector<Sample
              ") after the map and its inverse";
     });
   }
-  for (const Sample& s : samples) {
-    Record(check, (PointAt(*moved, s.t) - PointAt(m, s.t)).norm() / size_,
-           [&] { return label + ", " + FormatT(s.t, m_) + ": moved by the map and its inverse"; });
-  }
+  RecordSamePoints(check, m, *moved, samples, label, "moved by the map and its inverse");
 }
 
 void Checker::CheckCloneCopy(const ParametricModel& m, const std::vector<Sample>& samples,
@@ -583,10 +594,7 @@ void Checker::CheckCloneCopy(const ParametricModel& m, const std::vector<Sample>
         a.ambient_dimension() != m.ambient_dimension() || a.parameters() != m.parameters()) {
       Record(check, kInfinity, [&] { return label + ": " + what + " differs in name or parameters"; });
     }
-    for (const Sample& s : samples) {
-      Record(check, (PointAt(a, s.t) - PointAt(m, s.t)).norm() / size_,
-             [&] { return label + ", " + FormatT(s.t, m_) + ": " + what; });
-    }
+    RecordSamePoints(check, m, a, samples, label, what);
   };
   compare(*clone, "the clone");
   // A changed clone leaves the original alone, and CopyFrom restores the original's state.
@@ -624,10 +632,7 @@ void Checker::CheckRoundTrip(const ParametricModel& m, const std::vector<Sample>
       return label + ": parameter " + std::to_string(i) + " after set_parameters(parameters())";
     });
   }
-  for (const Sample& s : samples) {
-    Record(check, (PointAt(*copy, s.t) - PointAt(m, s.t)).norm() / size_,
-           [&] { return label + ", " + FormatT(s.t, m_) + ": moved by set_parameters(parameters())"; });
-  }
+  RecordSamePoints(check, m, *copy, samples, label, "moved by set_parameters(parameters())");
 }
 
 void Checker::CheckApplyStep(const ParametricModel& m, const std::vector<Sample>& samples,

@@ -1,6 +1,9 @@
 #include "fitting/optimizer_options.h"
 
+#include <array>
 #include <cmath>
+
+#include "fitting/enum_names.h"
 
 namespace s2m {
 namespace {
@@ -17,28 +20,25 @@ bool NonNegative(double v) {
   return std::isfinite(v) && v >= 0.0;
 }
 
+constexpr std::array<EnumName<DampingUpdate>, 2> kDampingUpdateNames = {{
+    {DampingUpdate::kMultiplicative, "multiplicative"},
+    {DampingUpdate::kNielsen, "nielsen"},
+}};
+
+constexpr std::array<EnumName<StepStrategy>, 3> kStepStrategyNames = {{
+    {StepStrategy::kTrustRegion, "levenberg-marquardt"},
+    {StepStrategy::kFullStep, "none"},
+    {StepStrategy::kArmijo, "armijo"},
+}};
+
 }  // namespace
 
 const char* ToString(DampingUpdate update) {
-  switch (update) {
-    case DampingUpdate::kMultiplicative:
-      return "multiplicative";
-    case DampingUpdate::kNielsen:
-      return "nielsen";
-  }
-  return "unknown";
+  return NameOf(kDampingUpdateNames, update);
 }
 
 const char* ToString(StepStrategy strategy) {
-  switch (strategy) {
-    case StepStrategy::kTrustRegion:
-      return "levenberg-marquardt";
-    case StepStrategy::kFullStep:
-      return "none";
-    case StepStrategy::kArmijo:
-      return "armijo";
-  }
-  return "unknown";
+  return NameOf(kStepStrategyNames, strategy);
 }
 
 bool DampingOptions::IsValid(std::string* why) const {

@@ -1,11 +1,13 @@
 #include "fitting/part_model.h"
 
 #include <Eigen/Dense>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
 #include "fitting/bspline_models.h"
+#include "fitting/enum_names.h"
 #include "fitting/fast_atan2.h"
 #include "fitting/foot_point.h"
 
@@ -132,22 +134,21 @@ double LinearExpression::Evaluate(const Eigen::VectorXd& parameters) const {
   return v;
 }
 
+namespace {
+
+constexpr std::array<EnumName<FaceType>, 6> kFaceTypeNames = {{
+    {FaceType::kPlane, "plane"},
+    {FaceType::kCylinder, "cylinder"},
+    {FaceType::kCone, "cone"},
+    {FaceType::kSphere, "sphere"},
+    {FaceType::kTorus, "torus"},
+    {FaceType::kSplinePatch, "spline_patch"},
+}};
+
+}  // namespace
+
 const char* ToString(FaceType type) {
-  switch (type) {
-    case FaceType::kPlane:
-      return "plane";
-    case FaceType::kCylinder:
-      return "cylinder";
-    case FaceType::kCone:
-      return "cone";
-    case FaceType::kSphere:
-      return "sphere";
-    case FaceType::kTorus:
-      return "torus";
-    case FaceType::kSplinePatch:
-      return "spline_patch";
-  }
-  return "?";
+  return NameOf(kFaceTypeNames, type, "?");
 }
 
 PartModel::PartModel(PartDefinition definition) : definition_(std::move(definition)) {

@@ -1,40 +1,40 @@
 #include "fitting/robust_loss.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <stdexcept>
+
+#include "fitting/enum_names.h"
 
 namespace s2m {
 
+namespace {
+
+constexpr std::array<EnumName<LossKind>, 4> kLossKindNames = {{
+    {LossKind::kNone, "none"},
+    {LossKind::kHuber, "huber"},
+    {LossKind::kCauchy, "cauchy"},
+    {LossKind::kTukey, "tukey"},
+}};
+
+}  // namespace
+
 const char* ToString(LossKind kind) {
-  switch (kind) {
-    case LossKind::kNone:
-      return "none";
-    case LossKind::kHuber:
-      return "huber";
-    case LossKind::kCauchy:
-      return "cauchy";
-    case LossKind::kTukey:
-      return "tukey";
-  }
-  return "unknown";
+  return NameOf(kLossKindNames, kind);
 }
 
 RobustLoss ParseRobustLoss(const std::string& text) {
   const std::size_t colon = text.find(':');
   const std::string name = text.substr(0, colon);
   RobustLoss loss;
-  bool known = false;
-  for (LossKind kind : {LossKind::kNone, LossKind::kHuber, LossKind::kCauchy, LossKind::kTukey}) {
-    if (name == ToString(kind)) {
-      loss.kind = kind;
-      known = true;
-    }
-  }
+  const std::optional<LossKind> kind = FindValue(kLossKindNames, name);
   const std::string spellings =
       " (none, huber[:scale], cauchy[:scale], tukey[:scale]; scale > 0 in input units)";
-  if (!known) throw std::invalid_argument("unknown loss '" + text + "'" + spellings);
+  if (!kind) throw std::invalid_argument("unknown loss '" + text + "'" + spellings);
+  loss.kind = *kind;
   if (colon != std::string::npos) {
     const std::string value = text.substr(colon + 1);
     std::size_t used = 0;

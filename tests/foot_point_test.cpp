@@ -3,36 +3,28 @@
 // closed-form feet (ParametricModel::ClosedFormFoot) must agree with the separate calls they replace; the
 // model registration's fused foot-point and assembly pass must still converge to the true pose.
 
+#include "fitting/foot_point.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
-#include "synthetic/synthetic_cases.h"
 #include "fitting/bspline_models.h"
-#include "fitting/foot_point.h"
 #include "fitting/initial_models.h"
 #include "fitting/model_registration.h"
 #include "fitting/part_model.h"
 #include "fitting/primitive_models.h"
+#include "synthetic/synthetic_cases.h"
+#include "test_models.h"
 
 namespace s2m {
 namespace {
 
-// Noisy points over the inner part of a model's domain.
+// Points over the inner part of a model's domain with Gaussian noise of standard deviation `noise`.
 Eigen::Matrix3Xd PointsNear(const ParametricModel& model, int count, double noise, std::uint64_t seed) {
-  const ParameterDomain d = model.domain();
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0.1, 0.9);
-  std::normal_distribution<double> gauss(0.0, noise);
-  Eigen::Matrix3Xd p(3, count);
-  LocalGeometry g;
-  for (int j = 0; j < count; ++j) {
-    model.Evaluate({d.lo[0] + u(rng) * (d.hi[0] - d.lo[0]), d.lo[1] + u(rng) * (d.hi[1] - d.lo[1]), 0.0}, 0,
-                   g);
-    p.col(j) = To3(g.point) + Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
-  }
-  return p;
+  return test::PointsOverInnerDomain(model, count, 0.1, 0.9, std::normal_distribution<double>(0.0, noise),
+                                     seed);
 }
 
 // The points moved by a small rigid motion (0.2 degree, 0.05 % of the size): the next iteration's points.
@@ -196,13 +188,8 @@ TEST(FootPointFastPaths, ClosedFormFootOfAPartAgreesWithTheSeparateCalls) {
 TEST(FootPointFastPaths, ModelRegistrationWithFusedPassRecoversThePose) {
   const BSplineSurface patch = BumpyPatch(0.0);
   const Eigen::Matrix3Xd on_model = PointsNear(patch, 3000, 0.0, 9);
-  const RigidMotion truth(RotationAboutAxis(Eigen::Vector3d(1, 2, 3).normalized(), 0.4),
-                          Eigen::Vector3d(30, -10, 5));
+  const auto [truth, start] = test::ThreeDegreeRegistrationPoses();
   const Eigen::Matrix3Xd scan = truth.inverse().apply(on_model);
-  const RigidMotion start =
-      RigidMotion(RotationAboutAxis(Eigen::Vector3d(-1, 1, 2).normalized(), 3 * M_PI / 180),
-                  Eigen::Vector3d(1.2, -1.0, 1.0)) *
-      truth;
   for (const ErrorTerm term : {ErrorTerm::kSdm, ErrorTerm::kTdm}) {
     ModelRegistrationOptions o;
     o.error_term = term;

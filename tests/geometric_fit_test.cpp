@@ -1,6 +1,8 @@
 // The fitting engine (docs/method.md sections 1-4, 9-10): models, foot points, the six error terms and step
 // control.
 
+#include "fitting/geometric_fit.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -13,12 +15,12 @@
 #include "acquisition/nist_reference.h"
 #include "acquisition/point_cloud_io.h"
 #include "fitting/bspline_models.h"
-#include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/part_model.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_models.h"
+#include "test_models.h"
 #include "test_paths.h"
 
 namespace s2m {
@@ -104,32 +106,8 @@ using ModelFactory = std::function<std::unique_ptr<ParametricModel>()>;
 std::unique_ptr<ParametricModel> PartWithFace(FaceType type) {
   PartDefinition d;
   d.parameters = {{"a", 2.0, false}, {"b", 0.5, false}, {"angle", 0.35, true}};
-  PartFace f;
+  PartFace f = test::TiltedTestFace(type, 0, 0.0);
   f.name = "face";
-  f.type = type;
-  f.frame = Eigen::AngleAxisd(0.6, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
-  f.origin[0] = {0.3, {{0, 0.5}}};
-  f.origin[1] = {-0.2, {{1, 1.0}}};
-  f.origin[2] = {0.1, {}};
-  f.offset = {0.25, {{0, 1.0}, {1, -1.0}}};
-  f.radius = {0.4, {{0, 1.0}, {1, 0.5}}};
-  f.minor_radius = {0.1, {{1, 1.0}}};
-  f.half_angle = {0.1, {{2, 1.0}}};
-  if (type == FaceType::kSplinePatch) {
-    // A cubic x quadratic patch whose knots span the family tests' parameter band ([-2, 2]); the control
-    // points' coordinates depend on both lengths.
-    SplinePatch patch{BSplineBasis::Clamped(4, {-2, -2, -2, -2, 0, 2, 2, 2, 2}),
-                      BSplineBasis::Clamped(3, {-2, -2, -2, 0.3, 2, 2, 2}),
-                      {}};
-    for (int i = 0; i < 5; ++i) {
-      for (int j = 0; j < 4; ++j) {
-        patch.control_points.push_back(
-            {LinearExpression{i - 2.0, {{0, 0.1 * i}}}, LinearExpression{j - 1.5, {{1, 0.2}}},
-             LinearExpression{0.3 * std::sin(i + 2.0 * j), {{0, 0.05 * j}, {1, 0.3}}}});
-      }
-    }
-    f.patch = std::move(patch);
-  }
   PartFace other = f;
   other.patch.reset();
   other.name = "other";

@@ -16,6 +16,7 @@
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/part_model.h"
 #include "fitting/primitive_models.h"
+#include "test_models.h"
 
 namespace s2m {
 namespace {
@@ -155,31 +156,8 @@ std::unique_ptr<ParametricModel> PartWithEveryFaceType() {
                             FaceType::kSphere, FaceType::kTorus,    FaceType::kSplinePatch};
   int k = 0;
   for (FaceType type : types) {
-    PartFace f;
+    PartFace f = test::TiltedTestFace(type, k, -4.0);
     f.name = ToString(type);
-    f.type = type;
-    f.frame =
-        Eigen::AngleAxisd(0.6 + 0.3 * k, Eigen::Vector3d(1, -2, 0.5 + k).normalized()).toRotationMatrix();
-    f.origin[0] = {0.3 + 3.0 * k, {{0, 0.5}}};
-    f.origin[1] = {-0.2, {{1, 1.0}}};
-    f.origin[2] = {0.1, {}};
-    f.offset = {0.25 + k, {{0, 1.0}, {1, -1.0}}};
-    f.radius = {0.4, {{0, 1.0}, {1, 0.5}}};
-    f.minor_radius = {0.1, {{1, 1.0}}};
-    f.half_angle = {0.1, {{2, 1.0}}};
-    if (type == FaceType::kSplinePatch) {
-      SplinePatch patch{BSplineBasis::Clamped(4, {-2, -2, -2, -2, 0, 2, 2, 2, 2}),
-                        BSplineBasis::Clamped(3, {-2, -2, -2, 0.3, 2, 2, 2}),
-                        {}};
-      for (int i = 0; i < 5; ++i) {
-        for (int j = 0; j < 4; ++j) {
-          patch.control_points.push_back(
-              {LinearExpression{i - 2.0, {{0, 0.1 * i}}}, LinearExpression{j - 1.5, {{1, 0.2}}},
-               LinearExpression{0.3 * std::sin(i + 2.0 * j) - 4.0, {{0, 0.05 * j}, {1, 0.3}}}});
-        }
-      }
-      f.patch = std::move(patch);
-    }
     faces.push_back(f);
     ++k;
   }

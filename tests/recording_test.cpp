@@ -15,8 +15,8 @@
 
 #include "acquisition/format_error.h"
 #include "acquisition/scan_set_io.h"
-#include "synthetic/synthetic_cases.h"
 #include "raw_sql.h"
+#include "synthetic/synthetic_cases.h"
 #include "test_support.h"
 
 namespace s2m {
@@ -329,15 +329,8 @@ TEST(Recording, WrongVersionMissingTablesAndBadContentAreClearErrors) {
 
 // The command's output (stdout only) and exit code.
 std::pair<int, std::string> RunCli(const std::string& args) {
-  const std::string cmd = std::string(S2M_CLI_PATH) + " " + args + " 2>/dev/null";
-  std::string out;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return {-1, out};
-  char buffer[4096];
-  std::size_t n;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+  const test::ShellResult r = test::Shell(std::string(S2M_CLI_PATH) + " " + args, /*merge_stderr=*/false);
+  return {r.exit_code, r.out};
 }
 
 // `info` and `fit --model revolution` on the demo vase as a recording: the fit reads the same views as from

@@ -8,7 +8,6 @@
 #include <cmath>
 #include <random>
 
-#include "synthetic/synthetic_cases.h"
 #include "fitting/bspline_models.h"
 #include "fitting/foot_point.h"
 #include "fitting/initial_models.h"
@@ -16,6 +15,8 @@
 #include "fitting/primitive_models.h"
 #include "registration/local_quadric.h"
 #include "registration/rigid_step.h"
+#include "synthetic/synthetic_cases.h"
+#include "test_models.h"
 
 namespace s2m {
 namespace {
@@ -24,17 +25,8 @@ namespace {
 // [-offset, offset] along every axis.
 Eigen::Matrix3Xd PointsAround(const ParametricModel& model, int count, double offset, double inner_lo,
                               double inner_hi, std::uint64_t seed) {
-  const ParameterDomain d = model.domain();
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(inner_lo, inner_hi), off(-offset, offset);
-  Eigen::Matrix3Xd p(3, count);
-  LocalGeometry g;
-  for (int j = 0; j < count; ++j) {
-    model.Evaluate({d.lo[0] + u(rng) * (d.hi[0] - d.lo[0]), d.lo[1] + u(rng) * (d.hi[1] - d.lo[1]), 0.0}, 0,
-                   g);
-    p.col(j) = To3(g.point) + Eigen::Vector3d(off(rng), off(rng), off(rng));
-  }
-  return p;
+  return test::PointsOverInnerDomain(model, count, inner_lo, inner_hi,
+                                     std::uniform_real_distribution<double>(-offset, offset), seed);
 }
 
 struct Agreement {
@@ -153,13 +145,8 @@ TEST(SquaredDistanceField, RegistrationWithTheFieldRecoversThePose) {
   fo.cell_size = 1.0;
   const SquaredDistanceField field(patch, fo);
   const Eigen::Matrix3Xd on_model = PointsAround(patch, 3000, 0.0, 0.1, 0.9, 9);
-  const RigidMotion truth(RotationAboutAxis(Eigen::Vector3d(1, 2, 3).normalized(), 0.4),
-                          Eigen::Vector3d(30, -10, 5));
+  const auto [truth, start] = test::ThreeDegreeRegistrationPoses();
   const Eigen::Matrix3Xd scan = truth.inverse().apply(on_model);
-  const RigidMotion start =
-      RigidMotion(RotationAboutAxis(Eigen::Vector3d(-1, 1, 2).normalized(), 3 * M_PI / 180),
-                  Eigen::Vector3d(1.2, -1.0, 1.0)) *
-      truth;
   for (const ErrorTerm term : {ErrorTerm::kSdm, ErrorTerm::kTdm}) {
     ModelRegistrationOptions o;
     o.error_term = term;
@@ -199,12 +186,10 @@ NoisyScan MakeNoisyScan(const ParametricModel& model, int count) {
     const Eigen::Vector3d n = Eigen::Vector3d(g.d1.col(0)).cross(Eigen::Vector3d(g.d1.col(1))).normalized();
     s.on_model.col(j) = To3(g.point) + gauss(rng) * n;
   }
-  s.truth =
-      RigidMotion(RotationAboutAxis(Eigen::Vector3d(1, 2, 3).normalized(), 0.4), Eigen::Vector3d(30, -10, 5));
+  const test::RegistrationPoses poses = test::ThreeDegreeRegistrationPoses();
+  s.truth = poses.truth;
+  s.start = poses.start;
   s.scan = s.truth.inverse().apply(s.on_model);
-  s.start = RigidMotion(RotationAboutAxis(Eigen::Vector3d(-1, 1, 2).normalized(), 3 * M_PI / 180),
-                        Eigen::Vector3d(1.2, -1.0, 1.0)) *
-            s.truth;
   return s;
 }
 

@@ -4,7 +4,6 @@
 #include "devices/virtual_scanner.h"
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -356,15 +355,8 @@ TEST(VirtualScanner, DeviceSpecParsingAndBadOptions) {
 
 // The command's exit code and standard output.
 std::pair<int, std::string> RunCli(const std::string& args) {
-  const std::string cmd = std::string(S2M_CLI_PATH) + " " + args + " 2>/dev/null";
-  std::string out;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return {-1, out};
-  char buffer[4096];
-  std::size_t n;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+  const test::ShellResult r = test::Shell(std::string(S2M_CLI_PATH) + " " + args, /*merge_stderr=*/false);
+  return {r.exit_code, r.out};
 }
 
 // `record --device virtual:...` then `export`: the exported views (PLY + manifest, read back by the manifest
