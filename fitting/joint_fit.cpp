@@ -632,13 +632,9 @@ MinimizerSummary MinimizeAlternating(JointFitProblem& problem, const OptimizerOp
                                      Clock::time_point start) {
   TrustRegionMinimizer motions(options), shape(options);
   MinimizerSummary summary;
-  if (options.target_rms > 0.0) {
-    IterationRecord initial;
-    problem.DescribeState(initial);
-    if (initial.rms <= options.target_rms) {
-      summary.stop_reason = StopReason::kTargetReached;
-      return summary;
-    }
+  if (TargetReachedAtStart(problem, options)) {
+    summary.stop_reason = StopReason::kTargetReached;
+    return summary;
   }
   while (summary.iterations < options.max_iterations) {
     problem.set_unknowns(BlockArrowSystem::Unknowns::kMotions);

@@ -117,17 +117,20 @@ TrustRegionMinimizer::Outcome TrustRegionMinimizer::Iterate(NonlinearProblem& pr
   return out;
 }
 
+bool TargetReachedAtStart(const NonlinearProblem& problem, const OptimizerOptions& options) {
+  if (!(options.target_rms > 0.0)) return false;
+  IterationRecord initial;
+  problem.DescribeState(initial);
+  return initial.rms <= options.target_rms;
+}
+
 MinimizerSummary TrustRegionMinimizer::Minimize(NonlinearProblem& problem, int first_iteration,
                                                 std::chrono::steady_clock::time_point start) {
   MinimizerSummary summary;
-  if (options_.target_rms > 0.0) {
-    IterationRecord initial;
-    problem.DescribeState(initial);
-    if (initial.rms <= options_.target_rms) {
-      summary.stop_reason = StopReason::kTargetReached;
-      summary.final_damping = strategy_.damping();
-      return summary;
-    }
+  if (TargetReachedAtStart(problem, options_)) {
+    summary.stop_reason = StopReason::kTargetReached;
+    summary.final_damping = strategy_.damping();
+    return summary;
   }
   while (true) {
     if (summary.iterations >= options_.max_iterations) {

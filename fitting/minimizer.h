@@ -68,6 +68,10 @@ struct MinimizerSummary {
   double final_damping = 0.0;
 };
 
+// Whether the problem's current state already meets options.target_rms (off when it is 0): then no iteration
+// is needed.
+bool TargetReachedAtStart(const NonlinearProblem& problem, const OptimizerOptions& options);
+
 class TrustRegionMinimizer {
  public:
   // Throws std::invalid_argument when the options are not valid (OptimizerOptions::IsValid's reason).

@@ -764,68 +764,69 @@ PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitO
   return fit;
 }
 
-PrimitiveFit<Sphere> RefineSphere(const Eigen::Matrix3Xd& points, const Sphere& initial,
-                                  const PrimitiveFitOptions& options) {
+// A refinement from the caller's start (given in input units; `to_unit_box` maps it into the unit box of the
+// data) or a fit from automatic starts (`starts` in the unit box), then back to input units.
+template <class Local, class ToUnitBox>
+PrimitiveFit<typename Local::Shape> RefineInUnitBox(const Eigen::Matrix3Xd& points,
+                                                    const PrimitiveFitOptions& options, int min_points,
+                                                    const char* what, const ToUnitBox& to_unit_box) {
   CheckOptions(options);
-  const NormalizedData data = Normalize(points, 4, "sphere");
-  const Sphere start{(initial.center - data.offset) / data.scale, initial.radius / data.scale};
-  PrimitiveFit<Sphere> fit = Solve<SphereLocal>(data.points, start, options, data.scale);
+  const NormalizedData data = Normalize(points, min_points, what);
+  PrimitiveFit<typename Local::Shape> fit = Solve<Local>(data.points, to_unit_box(data), options, data.scale);
   Finish(fit, data, points);
   return fit;
 }
 
-PrimitiveFit<Sphere> FitSphere(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+template <class Local, class Starts>
+PrimitiveFit<typename Local::Shape> FitInUnitBox(const Eigen::Matrix3Xd& points,
+                                                 const PrimitiveFitOptions& options, int min_points,
+                                                 const char* what, const Starts& starts) {
   CheckOptions(options);
-  const NormalizedData data = Normalize(points, 4, "sphere");
-  PrimitiveFit<Sphere> fit = FitFromStarts<SphereLocal>(
-      data.points, options, data.scale,
-      [](const Eigen::Matrix3Xd& y) { return std::vector<Sphere>{AlgebraicSphere(y)}; });
+  const NormalizedData data = Normalize(points, min_points, what);
+  PrimitiveFit<typename Local::Shape> fit = FitFromStarts<Local>(data.points, options, data.scale, starts);
   Finish(fit, data, points);
   return fit;
+}
+
+PrimitiveFit<Sphere> RefineSphere(const Eigen::Matrix3Xd& points, const Sphere& initial,
+                                  const PrimitiveFitOptions& options) {
+  return RefineInUnitBox<SphereLocal>(points, options, 4, "sphere", [&](const NormalizedData& data) {
+    return Sphere{(initial.center - data.offset) / data.scale, initial.radius / data.scale};
+  });
+}
+
+PrimitiveFit<Sphere> FitSphere(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+  return FitInUnitBox<SphereLocal>(points, options, 4, "sphere", [](const Eigen::Matrix3Xd& y) {
+    return std::vector<Sphere>{AlgebraicSphere(y)};
+  });
 }
 
 PrimitiveFit<Cylinder> RefineCylinder(const Eigen::Matrix3Xd& points, const Cylinder& initial,
                                       const PrimitiveFitOptions& options) {
-  CheckOptions(options);
-  const NormalizedData data = Normalize(points, 5, "cylinder");
-  Cylinder start{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
-                 initial.radius / data.scale};
-  PrimitiveFit<Cylinder> fit = Solve<CylinderLocal>(data.points, start, options, data.scale);
-  Finish(fit, data, points);
-  return fit;
+  return RefineInUnitBox<CylinderLocal>(points, options, 5, "cylinder", [&](const NormalizedData& data) {
+    return Cylinder{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
+                    initial.radius / data.scale};
+  });
 }
 
 PrimitiveFit<Cylinder> FitCylinder(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
-  CheckOptions(options);
-  const NormalizedData data = Normalize(points, 5, "cylinder");
-  PrimitiveFit<Cylinder> fit =
-      FitFromStarts<CylinderLocal>(data.points, options, data.scale, [&](const Eigen::Matrix3Xd& y) {
-        return DirectionSearchStarts<Cylinder>(y, options, CylinderForDirection, "cylinder");
-      });
-  Finish(fit, data, points);
-  return fit;
+  return FitInUnitBox<CylinderLocal>(points, options, 5, "cylinder", [&](const Eigen::Matrix3Xd& y) {
+    return DirectionSearchStarts<Cylinder>(y, options, CylinderForDirection, "cylinder");
+  });
 }
 
 PrimitiveFit<Cone> RefineCone(const Eigen::Matrix3Xd& points, const Cone& initial,
                               const PrimitiveFitOptions& options) {
-  CheckOptions(options);
-  const NormalizedData data = Normalize(points, 6, "cone");
-  Cone start{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
-             initial.half_angle, initial.radius / data.scale};
-  PrimitiveFit<Cone> fit = Solve<ConeLocal>(data.points, start, options, data.scale);
-  Finish(fit, data, points);
-  return fit;
+  return RefineInUnitBox<ConeLocal>(points, options, 6, "cone", [&](const NormalizedData& data) {
+    return Cone{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
+                initial.half_angle, initial.radius / data.scale};
+  });
 }
 
 PrimitiveFit<Cone> FitCone(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
-  CheckOptions(options);
-  const NormalizedData data = Normalize(points, 6, "cone");
-  PrimitiveFit<Cone> fit =
-      FitFromStarts<ConeLocal>(data.points, options, data.scale, [&](const Eigen::Matrix3Xd& y) {
-        return DirectionSearchStarts<Cone>(y, options, ConeForDirection, "cone");
-      });
-  Finish(fit, data, points);
-  return fit;
+  return FitInUnitBox<ConeLocal>(points, options, 6, "cone", [&](const Eigen::Matrix3Xd& y) {
+    return DirectionSearchStarts<Cone>(y, options, ConeForDirection, "cone");
+  });
 }
 
 namespace {

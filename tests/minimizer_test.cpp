@@ -85,13 +85,18 @@ TEST(Minimizer, EveryStepStrategyAndDampingUpdateFindsTheKnownMinimum) {
   }
 }
 
+// Minimizes `problem` with `o` except for the tolerances given (the others off): the summary.
+MinimizerSummary MinimizeWithTolerances(ExponentialProblem& problem, OptimizerOptions o, double objective,
+                                        double step, double gradient) {
+  o.objective_tolerance = objective;
+  o.step_tolerance = step;
+  o.gradient_tolerance = gradient;
+  return TrustRegionMinimizer(o).Minimize(problem);
+}
+
 TEST(Minimizer, NoisyDataEndAtTheLeastSquaresMinimumWhereTheGradientVanishes) {
   ExponentialProblem problem(0.01);
-  OptimizerOptions o;
-  o.objective_tolerance = 0.0;
-  o.step_tolerance = 0.0;
-  o.gradient_tolerance = 1e-10;
-  const MinimizerSummary s = TrustRegionMinimizer(o).Minimize(problem);
+  const MinimizerSummary s = MinimizeWithTolerances(problem, {}, 0.0, 0.0, 1e-10);
   EXPECT_EQ(s.stop_reason, StopReason::kGradientTolerance);
   EXPECT_LE(problem.Linearize().GradientMeasure(problem.Cost()), 1e-10);
 }
@@ -125,12 +130,8 @@ TEST(Minimizer, StopReasons) {
   }
   {
     ExponentialProblem problem(0.01);
-    OptimizerOptions o;
-    o.gradient_tolerance = 0.0;
-    o.step_tolerance = 0.0;
-    o.objective_tolerance = 1e-6;
-    const MinimizerSummary s = TrustRegionMinimizer(o).Minimize(problem);
-    EXPECT_EQ(s.stop_reason, StopReason::kObjectiveTolerance);
+    EXPECT_EQ(MinimizeWithTolerances(problem, {}, 1e-6, 0.0, 0.0).stop_reason,
+              StopReason::kObjectiveTolerance);
   }
   {
     // A problem whose every trial leaves its domain: the damping grows past its maximum.

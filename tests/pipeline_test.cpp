@@ -47,34 +47,32 @@ TEST(FitDispatch, CylinderAgreesWithTheNistReference) {
   EXPECT_NE(outcome.text.find("scan2model fit: cylinder to 500 points"), std::string::npos) << outcome.text;
 }
 
+// The failure ComputeFit throws for `o` (a test failure, and an empty message, when it fits instead).
+std::pair<int, std::string> FailureOf(const FitOptions& o) {
+  try {
+    ComputeFit(o);
+  } catch (const FitFailure& e) {
+    return {e.exit_code(), e.what()};
+  }
+  ADD_FAILURE() << o.model << " on " << o.file << " with method '" << o.method << "' was fitted";
+  return {-1, ""};
+}
+
 TEST(FitDispatch, FailuresCarryTheirExitCodes) {
   FitOptions o;
   o.file = Nist("cyl1.ds");
   o.model = "torus";
-  try {
-    ComputeFit(o);
-    FAIL() << "an unknown model was fitted";
-  } catch (const FitFailure& e) {
-    EXPECT_EQ(e.exit_code(), kUsage);
-    EXPECT_NE(std::string(e.what()).find("torus is not a model"), std::string::npos) << e.what();
-  }
+  const auto [unknown_code, unknown] = FailureOf(o);
+  EXPECT_EQ(unknown_code, kUsage);
+  EXPECT_NE(unknown.find("torus is not a model"), std::string::npos) << unknown;
   o.model = "sphere";
-  o.method = "gn";
-  try {
-    ComputeFit(o);
-    FAIL() << "a spline method was accepted for a primitive";
-  } catch (const FitFailure& e) {
-    EXPECT_EQ(e.exit_code(), kUsage);
-  }
+  o.method = "gn";  // a spline method for a primitive
+  EXPECT_EQ(FailureOf(o).first, kUsage);
   o.method.clear();
   o.file = "/nonexistent/cloud.ply";
-  try {
-    ComputeFit(o);
-    FAIL() << "a missing file was fitted";
-  } catch (const FitFailure& e) {
-    EXPECT_EQ(e.exit_code(), kInputError);
-    EXPECT_NE(std::string(e.what()).find("/nonexistent/cloud.ply"), std::string::npos) << e.what();
-  }
+  const auto [missing_code, missing] = FailureOf(o);
+  EXPECT_EQ(missing_code, kInputError);
+  EXPECT_NE(missing.find("/nonexistent/cloud.ply"), std::string::npos) << missing;
 }
 
 TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {

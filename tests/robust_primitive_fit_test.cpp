@@ -129,29 +129,31 @@ void Expect(const Tally& t, const std::string& what) {
   EXPECT_GE(t.plain_outside, 95) << what << ": least |error| / u of least squares " << t.least_plain;
 }
 
-TEST(RobustPrimitiveFit, SphereWithTukeyWithinItsUncertaintyLeastSquaresBiased) {
-  const Tally t = RunSeeds<Sphere>("tukey", 400, ContaminatedSphere,
-                                   [](const auto& p, const auto& o) { return FitSphere(p, o); });
-  Expect(t, "sphere, tukey");
+// Each robust loss on each contaminated shape: the robust radius within 3 of its uncertainties, least squares
+// biased far outside them (Expect).
+struct RobustCase {
+  const char* name;
+  const char* loss;
+  bool sphere;
+};
+
+class RobustPrimitiveFitCases : public ::testing::TestWithParam<RobustCase> {};
+
+TEST_P(RobustPrimitiveFitCases, RobustRadiusWithinItsUncertaintyLeastSquaresBiased) {
+  const RobustCase& c = GetParam();
+  const Tally t = c.sphere
+                      ? RunSeeds<Sphere>(c.loss, 400, ContaminatedSphere,
+                                         [](const auto& p, const auto& o) { return FitSphere(p, o); })
+                      : RunSeeds<Cylinder>(c.loss, 400, ContaminatedCylinder,
+                                           [](const auto& p, const auto& o) { return FitCylinder(p, o); });
+  Expect(t, c.name);
 }
 
-TEST(RobustPrimitiveFit, SphereWithCauchyWithinItsUncertainty) {
-  const Tally t = RunSeeds<Sphere>("cauchy", 400, ContaminatedSphere,
-                                   [](const auto& p, const auto& o) { return FitSphere(p, o); });
-  Expect(t, "sphere, cauchy");
-}
-
-TEST(RobustPrimitiveFit, CylinderWithTukeyWithinItsUncertaintyLeastSquaresBiased) {
-  const Tally t = RunSeeds<Cylinder>("tukey", 400, ContaminatedCylinder,
-                                     [](const auto& p, const auto& o) { return FitCylinder(p, o); });
-  Expect(t, "cylinder, tukey");
-}
-
-TEST(RobustPrimitiveFit, CylinderWithCauchyWithinItsUncertainty) {
-  const Tally t = RunSeeds<Cylinder>("cauchy", 400, ContaminatedCylinder,
-                                     [](const auto& p, const auto& o) { return FitCylinder(p, o); });
-  Expect(t, "cylinder, cauchy");
-}
+INSTANTIATE_TEST_SUITE_P(RobustPrimitiveFit, RobustPrimitiveFitCases,
+                         ::testing::Values(RobustCase{"sphere, tukey", "tukey", true},
+                                           RobustCase{"sphere, cauchy", "cauchy", true},
+                                           RobustCase{"cylinder, tukey", "tukey", false},
+                                           RobustCase{"cylinder, cauchy", "cauchy", false}));
 
 TEST(RobustPrimitiveFit, RejectsErrorTermsPrimitivesDoNotTake) {
   const Eigen::Matrix3Xd points = Eigen::Matrix3Xd::Random(3, 20);
