@@ -11,6 +11,7 @@
 
 #include "fitting/enum_names.h"
 #include "fitting/minimizer.h"
+#include "fitting/parallel_reduction.h"
 #include "fitting/robust_loss.h"
 
 namespace s2m {
@@ -44,72 +45,85 @@ void Assemble(const ParametricModel& model, const Eigen::MatrixXd& y, const std:
   H.setZero(r, r);
   g.setZero(r);
   const bool gn = options.error_term == ErrorTerm::kGn;
-#pragma omp parallel
-  {
-    Eigen::MatrixXd h_local = Eigen::MatrixXd::Zero(r, r);
-    Eigen::VectorXd g_local = Eigen::VectorXd::Zero(r);
+  // Per-thread partial normal equations and scratch (parallel_reduction.h), added in thread order.
+  struct Partial {
+    Eigen::MatrixXd h;
+    Eigen::VectorXd g;
+  };
+  struct Scratch {
     LocalGeometry geo;
     std::vector<JacobianEntry> entries;
     std::vector<Eigen::Vector3d> columns;
-#pragma omp for schedule(static)
-    for (Eigen::Index j = 0; j < n; ++j) {
-      const FootPoint& foot = feet[static_cast<std::size_t>(j)];
-      const VecS x = y.col(j);
-      model.Evaluate(foot.t, 2, geo);
-      model.ShapeJacobian(foot.t, gn, entries);
-      const Eigen::Vector3d residual = To3(geo.point - x);  // r = s - X
-      const int m = static_cast<int>(geo.d1.cols());
-      Eigen::Matrix3d M;
-      columns.resize(entries.size());
-      for (std::size_t a = 0; a < entries.size(); ++a) columns[a] = entries[a].column;
-      if (foot.on_boundary && options.open_end_rule) {
-        M = EndRuleMatrix(gn ? ErrorTerm::kSdm : options.error_term, ComputePrincipalFrame(geo, x), -residual,
-                          s);
-      } else if (gn) {
-        // Full Jacobian C_P - C_t G^-1 Q, G = C_t^T C_t + [r . C_tk tl], Q_k = C_tk^T C_P + r^T dC_P/dt_k.
-        Eigen::Matrix2d G = Eigen::Matrix2d::Identity();
-        const Eigen::Vector3d c0 = To3(geo.d1.col(0));
-        const Eigen::Vector3d c1 = m > 1 ? To3(geo.d1.col(1)) : Eigen::Vector3d::Zero();
-        G(0, 0) = c0.squaredNorm() + residual.dot(To3(geo.d2.col(0)));
-        if (m > 1) {
-          G(0, 1) = G(1, 0) = c0.dot(c1) + residual.dot(To3(geo.d2.col(1)));
-          G(1, 1) = c1.squaredNorm() + residual.dot(To3(geo.d2.col(2)));
-        }
-        const double det = m == 1 ? G(0, 0) : G.determinant();
-        if (std::abs(det) > 1e-14 * std::pow(c0.squaredNorm() + c1.squaredNorm(), m)) {
-          const Eigen::Matrix2d Ginv =
-              m == 1 ? Eigen::Matrix2d(Eigen::Matrix2d::Identity() / G(0, 0)) : Eigen::Matrix2d(G.inverse());
-          for (std::size_t a = 0; a < entries.size(); ++a) {
-            Eigen::Vector2d q = Eigen::Vector2d::Zero();
-            q[0] = c0.dot(entries[a].column) + residual.dot(entries[a].dcolumn_dt[0]);
-            if (m > 1) q[1] = c1.dot(entries[a].column) + residual.dot(entries[a].dcolumn_dt[1]);
-            const Eigen::Vector2d w = Ginv * q;
-            columns[a] = entries[a].column - c0 * w[0] -
-                         (m > 1 ? Eigen::Vector3d(c1 * w[1]) : Eigen::Vector3d::Zero());
+  };
+  std::vector<Partial> partials;
+  AccumulateInParallel<Scratch>(
+      n, partials,
+      [r](Partial& p) {
+        p.h.setZero(r, r);
+        p.g.setZero(r);
+      },
+      [&](Eigen::Index j, Scratch& scratch, Partial& mine) {
+        LocalGeometry& geo = scratch.geo;
+        std::vector<JacobianEntry>& entries = scratch.entries;
+        std::vector<Eigen::Vector3d>& columns = scratch.columns;
+        Eigen::MatrixXd& h_local = mine.h;
+        Eigen::VectorXd& g_local = mine.g;
+        const FootPoint& foot = feet[static_cast<std::size_t>(j)];
+        const VecS x = y.col(j);
+        model.Evaluate(foot.t, 2, geo);
+        model.ShapeJacobian(foot.t, gn, entries);
+        const Eigen::Vector3d residual = To3(geo.point - x);  // r = s - X
+        const int m = static_cast<int>(geo.d1.cols());
+        Eigen::Matrix3d M;
+        columns.resize(entries.size());
+        for (std::size_t a = 0; a < entries.size(); ++a) columns[a] = entries[a].column;
+        if (foot.on_boundary && options.open_end_rule) {
+          M = EndRuleMatrix(gn ? ErrorTerm::kSdm : options.error_term, ComputePrincipalFrame(geo, x),
+                            -residual, s);
+        } else if (gn) {
+          // Full Jacobian C_P - C_t G^-1 Q, G = C_t^T C_t + [r . C_tk tl], Q_k = C_tk^T C_P + r^T
+          // dC_P/dt_k.
+          Eigen::Matrix2d G = Eigen::Matrix2d::Identity();
+          const Eigen::Vector3d c0 = To3(geo.d1.col(0));
+          const Eigen::Vector3d c1 = m > 1 ? To3(geo.d1.col(1)) : Eigen::Vector3d::Zero();
+          G(0, 0) = c0.squaredNorm() + residual.dot(To3(geo.d2.col(0)));
+          if (m > 1) {
+            G(0, 1) = G(1, 0) = c0.dot(c1) + residual.dot(To3(geo.d2.col(1)));
+            G(1, 1) = c1.squaredNorm() + residual.dot(To3(geo.d2.col(2)));
           }
+          const double det = m == 1 ? G(0, 0) : G.determinant();
+          if (std::abs(det) > 1e-14 * std::pow(c0.squaredNorm() + c1.squaredNorm(), m)) {
+            const Eigen::Matrix2d Ginv = m == 1 ? Eigen::Matrix2d(Eigen::Matrix2d::Identity() / G(0, 0))
+                                                : Eigen::Matrix2d(G.inverse());
+            for (std::size_t a = 0; a < entries.size(); ++a) {
+              Eigen::Vector2d q = Eigen::Vector2d::Zero();
+              q[0] = c0.dot(entries[a].column) + residual.dot(entries[a].dcolumn_dt[0]);
+              if (m > 1) q[1] = c1.dot(entries[a].column) + residual.dot(entries[a].dcolumn_dt[1]);
+              const Eigen::Vector2d w = Ginv * q;
+              columns[a] = entries[a].column - c0 * w[0] -
+                           (m > 1 ? Eigen::Vector3d(c1 * w[1]) : Eigen::Vector3d::Zero());
+            }
+          }
+          M.setZero();
+          M.topLeftCorner(s, s).setIdentity();
+        } else {
+          M = ErrorMatrix(options.error_term, ComputePrincipalFrame(geo, x), s);
         }
-        M.setZero();
-        M.topLeftCorner(s, s).setIdentity();
-      } else {
-        M = ErrorMatrix(options.error_term, ComputePrincipalFrame(geo, x), s);
-      }
-      if (weights.size() > 0) M *= weights[j];
-      const double w_gn = weights.size() > 0 ? weights[j] : 1.0;
-      const Eigen::Vector3d m_residual = M * residual;
-      for (std::size_t a = 0; a < entries.size(); ++a) {
-        const Eigen::Vector3d m_col = M * columns[a];
-        // The right-hand side is always C_P^T (M r) with the plain C_P (docs/method.md section 2).
-        g_local[entries[a].index] += gn && !foot.on_boundary ? w_gn * entries[a].column.dot(residual)
-                                                             : entries[a].column.dot(m_residual);
-        for (std::size_t b = 0; b < entries.size(); ++b)
-          h_local(entries[b].index, entries[a].index) += columns[b].dot(m_col);
-      }
-    }
-#pragma omp critical
-    {
-      H += h_local;
-      g += g_local;
-    }
+        if (weights.size() > 0) M *= weights[j];
+        const double w_gn = weights.size() > 0 ? weights[j] : 1.0;
+        const Eigen::Vector3d m_residual = M * residual;
+        for (std::size_t a = 0; a < entries.size(); ++a) {
+          const Eigen::Vector3d m_col = M * columns[a];
+          // The right-hand side is always C_P^T (M r) with the plain C_P (docs/method.md section 2).
+          g_local[entries[a].index] += gn && !foot.on_boundary ? w_gn * entries[a].column.dot(residual)
+                                                               : entries[a].column.dot(m_residual);
+          for (std::size_t b = 0; b < entries.size(); ++b)
+            h_local(entries[b].index, entries[a].index) += columns[b].dot(m_col);
+        }
+      });
+  for (const Partial& p : partials) {
+    H += p.h;
+    g += p.g;
   }
 }
 
@@ -204,8 +218,8 @@ Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s) {
 }
 
 Eigen::Matrix3d EndRuleMatrix(ErrorTerm term, const PrincipalFrame& f, const Eigen::Vector3d& offset, int s) {
-  // docs/method.md section 4: e_outer = cos(theta) e_PD + (1 - cos(theta)) e_term, theta between the boundary's
-  // tangent space and X - s.
+  // docs/method.md section 4: e_outer = cos(theta) e_PD + (1 - cos(theta)) e_term, theta between the
+  // boundary's tangent space and X - s.
   double tangential = 0.0;
   for (int k = 0; k < f.tangent_count; ++k)
     tangential += std::pow(f.tangents[static_cast<std::size_t>(k)].dot(offset), 2);
