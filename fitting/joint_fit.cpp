@@ -673,6 +673,42 @@ MinimizerSummary MinimizeAlternating(JointFitProblem& problem, const OptimizerOp
 
 }  // namespace
 
+JointNormalEquations LinearizeJointFit(const ParametricModel& model,
+                                       const std::vector<Eigen::Matrix3Xd>& scans,
+                                       const std::vector<RigidMotion>& model_T_scan, ErrorTerm term) {
+  if (scans.size() != model_T_scan.size()) throw std::invalid_argument("one pose per scan is needed");
+  const int r = model.num_parameters();
+  const Eigen::Index K = static_cast<Eigen::Index>(scans.size());
+  JointNormalEquations out;
+  out.H.setZero(r + 6 * K, r + 6 * K);
+  out.g.setZero(r + 6 * K);
+  PointScratch scratch;
+  Partial acc;
+  for (Eigen::Index k = 0; k < K; ++k) {
+    const Eigen::MatrixXd placed =
+        model_T_scan[static_cast<std::size_t>(k)].apply(scans[static_cast<std::size_t>(k)]);
+    std::vector<FootPoint> feet;
+    ComputeFootPoints(model, placed, feet);
+    acc.Reset(r);
+    for (Eigen::Index j = 0; j < placed.cols(); ++j) {
+      const FootPoint& f = feet[static_cast<std::size_t>(j)];
+      if (f.excluded) continue;
+      model.Evaluate(f.t, 2, scratch.geo);
+      AccumulatePoint(model, placed.col(j), f, term, 1.0, scratch, acc);
+      out.objective += 0.5 * f.distance * f.distance;
+    }
+    // The same sums the solver projects onto its gauge bases (eq. 20): shape block, motion block, coupling.
+    const Eigen::Index o = r + 6 * k;
+    out.H.topLeftCorner(r, r) += acc.h_dd;
+    out.H.block(o, o, 6, 6) = acc.h_bb;
+    out.H.block(0, o, r, 6) = acc.h_bd.transpose();
+    out.H.block(o, 0, 6, r) = acc.h_bd;
+    out.g.head(r) += acc.g_d;
+    out.g.segment(o, 6) = acc.g_b;
+  }
+  return out;
+}
+
 JointFitResult FitJointly(ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
                           std::vector<RigidMotion> model_T_scan, const JointFitOptions& options) {
   const std::size_t K = scans.size();

@@ -1,6 +1,7 @@
 #pragma once
-// Joint registration and fitting (docs/method.md section 6; Liu, Pottmann, Wang, CAD 38(6) 2006, section 5): one
-// rigid motion per scan and the model's shape parameters are solved TOGETHER, one linear solve per iteration.
+// Joint registration and fitting (docs/method.md section 6; Liu, Pottmann, Wang, CAD 38(6) 2006, section 5):
+// one rigid motion per scan and the model's shape parameters are solved TOGETHER, one linear solve per
+// iteration.
 //
 // Per iteration, with frames and error terms frozen at the current foot points, F = sum_k w_k sum_j e^T M e
 // with e = x + cbar_k + c_k x x - s_+ is quadratic in (D, c_1, cbar_1, ..., c_K, cbar_K). Its normal matrix
@@ -52,8 +53,8 @@ struct JointFitOptions {
   OptimizerOptions optimizer = JointFitOptimizerDefaults();
   int shared_motion_iterations = 5;  // stage 1 length (0: start with per-scan motions)
   bool per_scan_motions = true;  // false: stay in stage 1, i.e. fit the initially registered cloud (baseline)
-  // The alternating baseline of docs/method.md section 6: per iteration one registration step (motions only), then
-  // one fitting step (shape only), instead of one joint step. Converges linearly (zig-zag).
+  // The alternating baseline of docs/method.md section 6: per iteration one registration step (motions only),
+  // then one fitting step (shape only), instead of one joint step. Converges linearly (zig-zag).
   bool alternating = false;
   // Remove the gauge directions the model declares (default). Off, the solver runs on the full motions
   // (damping keeps it going) and reports the directions it could not observe, by name.
@@ -111,6 +112,20 @@ struct JointFitResult {
   Eigen::MatrixXd shape_covariance;  // of the shape parameters, input units squared (for derived quantities)
   std::vector<ScanPoseUncertainty> pose_uncertainty;
 };
+
+// The joint fit's normal equations (docs/method.md eqs. 19-20) at the given model and poses, at exact foot
+// points, in input units and full motions: unknowns [D; m_1; ...; m_K] with m_k = (c_k, cbar_k) the velocity
+// of scan k in the model frame (x' = x + cbar + c x x), unit weights, no gauge reduction and no fairness. The
+// matrix H and the gradient g of F = 1/2 sum e^T M e, and F itself (1/2 sum d^2). Exposed for the numeric
+// checks of the assembly (tests/normal_equations_test.cpp) and for diagnostics.
+struct JointNormalEquations {
+  Eigen::MatrixXd H;
+  Eigen::VectorXd g;
+  double objective = 0.0;
+};
+JointNormalEquations LinearizeJointFit(const ParametricModel& model,
+                                       const std::vector<Eigen::Matrix3Xd>& scans,
+                                       const std::vector<RigidMotion>& model_T_scan, ErrorTerm term);
 
 // Fits `model` (updated in place) and the scans' poses together. `scans` are in their own coordinates,
 // `model_T_scan` their initial poses (e.g. device or turntable poses, or a coarse registration).

@@ -15,6 +15,7 @@
 #include "fitting/bspline_models.h"
 #include "fitting/foot_point.h"
 #include "fitting/geometric_fit.h"
+#include "fitting/joint_fit.h"
 #include "fitting/primitive_models.h"
 #include "registration/rigid_step.h"
 
@@ -294,6 +295,90 @@ TEST(GeometricFitNormalEquations, TdmNormalMatrixIsTheObjectivesHessianAtZeroRes
           return HalfSquaredDistances(*trial, points);
         };
         numeric(i, k) = (at(hi, hk) - at(hi, -hk) - at(-hi, hk) + at(-hi, -hk)) / (4 * hi * hk);
+      }
+    }
+    EXPECT_LT((tdm.H - numeric).norm(), 1e-4 * tdm.H.norm()) << c.name << "\n" << tdm.H << "\n\n" << numeric;
+  }
+}
+
+// ---- The joint fit's normal equations (LinearizeJointFit) against the joint objective
+// -------------------------------------------------------------
+
+// F(D, m_1, m_2) = 1/2 sum_k sum_j d^2(x' , C(P + D)), x' the points of scan k moved by the exact motion of
+// its velocity m_k = (c_k, cbar_k): the objective the joint system linearizes (docs/method.md eq. 19).
+double JointObjective(const ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
+                      const Eigen::VectorXd& x) {
+  const int r = model.num_parameters();
+  std::unique_ptr<ParametricModel> trial = model.Clone();
+  trial->set_parameters(model.parameters() + x.head(r));
+  double sum = 0.0;
+  for (std::size_t k = 0; k < scans.size(); ++k) {
+    const Eigen::Index o = r + 6 * static_cast<Eigen::Index>(k);
+    const RigidMotion motion = RigidMotion::FromHelicalVelocity(x.segment<3>(o), x.segment<3>(o + 3));
+    sum += HalfSquaredDistances(*trial, motion.apply(scans[k]));
+  }
+  return sum;
+}
+
+// Two scans of the primitives' points (the first and the second half), at identity poses.
+std::vector<Eigen::Matrix3Xd> TwoScans(const Eigen::Matrix3Xd& points) {
+  const Eigen::Index half = points.cols() / 2;
+  return {points.leftCols(half), points.rightCols(points.cols() - half)};
+}
+
+// TDM's joint gradient (shape block and both motion blocks) is the gradient of the joint objective, by
+// central differences with the feet recomputed; SDM's equals TDM's at exact feet.
+TEST(JointFitNormalEquations, TdmGradientIsTheJointObjectivesGradient) {
+  std::vector<FitCase> cases = FitCases();
+  cases.pop_back();  // the primitives (the spline surface's feet near its open boundary need the end rule)
+  for (const FitCase& c : cases) {
+    std::mt19937 rng(11);
+    const std::unique_ptr<ParametricModel> model = c.make();
+    const std::vector<Eigen::Matrix3Xd> scans = TwoScans(PointsNear(*model, 0.02, rng));
+    const std::vector<RigidMotion> poses(2, RigidMotion());
+    const JointNormalEquations tdm = LinearizeJointFit(*model, scans, poses, ErrorTerm::kTdm);
+    const Eigen::Index n = tdm.g.size();
+    ASSERT_EQ(n, model->num_parameters() + 12) << c.name;
+    EXPECT_NEAR(tdm.objective, JointObjective(*model, scans, Eigen::VectorXd::Zero(n)), 1e-12) << c.name;
+    Eigen::VectorXd numeric(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double h = 1e-5;
+      Eigen::VectorXd plus = Eigen::VectorXd::Zero(n), minus = Eigen::VectorXd::Zero(n);
+      plus[i] = h;
+      minus[i] = -h;
+      numeric[i] = (JointObjective(*model, scans, plus) - JointObjective(*model, scans, minus)) / (2 * h);
+    }
+    EXPECT_LT((tdm.g - numeric).norm(), 1e-6 * (tdm.g.norm() + 1e-3)) << c.name << "\n"
+                                                                      << tdm.g.transpose() << "\n"
+                                                                      << numeric.transpose();
+    const JointNormalEquations sdm = LinearizeJointFit(*model, scans, poses, ErrorTerm::kSdm);
+    EXPECT_LT((sdm.g - tdm.g).norm(), 1e-10 * (tdm.g.norm() + 1e-3)) << c.name;
+  }
+}
+
+// Points on the model: the joint objective's Hessian in shape and motions is TDM's joint matrix, the
+// Gauss-Newton matrix of the orthogonal distances (exact at zero residual), coupling blocks included.
+TEST(JointFitNormalEquations, TdmJointMatrixIsTheGaussNewtonHessianAtZeroResidual) {
+  std::vector<FitCase> cases = FitCases();
+  cases.pop_back();
+  for (const FitCase& c : cases) {
+    std::mt19937 rng(13);
+    const std::unique_ptr<ParametricModel> model = c.make();
+    const std::vector<Eigen::Matrix3Xd> scans = TwoScans(PointsNear(*model, 0.0, rng));
+    const JointNormalEquations tdm =
+        LinearizeJointFit(*model, scans, {RigidMotion(), RigidMotion()}, ErrorTerm::kTdm);
+    const Eigen::Index n = tdm.g.size();
+    Eigen::MatrixXd numeric(n, n);
+    const double h = 1e-4;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      for (Eigen::Index k = 0; k < n; ++k) {
+        auto at = [&](double di, double dk) {
+          Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
+          x[i] += di;
+          x[k] += dk;
+          return JointObjective(*model, scans, x);
+        };
+        numeric(i, k) = (at(h, h) - at(h, -h) - at(-h, h) + at(-h, -h)) / (4 * h * h);
       }
     }
     EXPECT_LT((tdm.H - numeric).norm(), 1e-4 * tdm.H.norm()) << c.name << "\n" << tdm.H << "\n\n" << numeric;
