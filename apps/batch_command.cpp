@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <iostream>
 #include <regex>
+#include <sstream>
 #include <thread>
 
 #include "acquisition/format_error.h"
@@ -103,8 +104,11 @@ int Run(BatchCommandOptions& o) {
       entries = RunBatchObjects(manifest, mine, o.run, counts);
     }
     if (mpi && !o.summary_only) {
-      std::cerr << o.run.progress_prefix << "done: " << mine.size() << " objects (" << counts.computed
-                << " computed, " << counts.skipped << " skipped)\n";
+      // One write: the ranks share standard error, and a line written piecewise interleaves with another's.
+      std::cerr << (o.run.progress_prefix + "done: " + std::to_string(mine.size()) + " objects (" +
+                    std::to_string(counts.computed) + " computed, " + std::to_string(counts.skipped) +
+                    " skipped)\n")
+                << std::flush;
     }
     nlohmann::json pairs = nlohmann::json::array();
     for (std::size_t i = 0; i < mine.size(); ++i) pairs.push_back({mine[i], entries[i]});
@@ -125,11 +129,13 @@ int Run(BatchCommandOptions& o) {
         (status == "ok" ? ok : status == "missing" ? missing : failed) += 1;
       }
       {
-        std::cerr << "[batch] " << all.size() << " objects: " << ok << " ok, " << failed << " failed";
-        if (missing > 0) std::cerr << ", " << missing << " missing";
+        std::ostringstream line;  // one write (the other ranks may still be printing)
+        line << "[batch] " << all.size() << " objects: " << ok << " ok, " << failed << " failed";
+        if (missing > 0) line << ", " << missing << " missing";
         if (!o.summary_only && !mpi)
-          std::cerr << " (" << counts.computed << " computed, " << counts.skipped << " skipped)";
-        std::cerr << "; summary " << (fs::path(o.run.output_dir) / (name + ".csv")).string() << "\n";
+          line << " (" << counts.computed << " computed, " << counts.skipped << " skipped)";
+        line << "; summary " << (fs::path(o.run.output_dir) / (name + ".csv")).string() << "\n";
+        std::cerr << line.str() << std::flush;
       }
       exit_code = failed + missing > 0 ? kFitError : kOk;
     }

@@ -283,8 +283,11 @@ class Progress {
     ++computed_;
     if (!ok) ++failed_;
     if (!ok) {  // errors are printed even without the progress line
-      std::cerr << (tty_ ? "\r\033[K" : "") << options_.progress_prefix << "object " << id
-                << " failed: " << error << "\n";
+      // One write per line: ranks of an MPI batch share the terminal, and a line written piecewise
+      // interleaves.
+      std::cerr << (std::string(tty_ ? "\r\033[K" : "") + options_.progress_prefix + "object " + id +
+                    " failed: " + error + "\n")
+                << std::flush;
     }
     Print(true);
     return computed_;
