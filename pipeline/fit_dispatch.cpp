@@ -133,9 +133,14 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   }
   text << "\n  residuals         RMS " << Format(fit.residuals.rms, 6) << ", max "
        << Format(fit.residuals.max_abs, 6) << ", mean " << Format(fit.residuals.mean, 3) << "\n"
-       << "  solver            " << ToString(options.error_term) << " + Levenberg-Marquardt, " << fit.iterations
-       << " iterations, stopped: " << ToString(fit.stop_reason) << ", " << Format(seconds * 1e3, 3)
-       << " ms\n";
+       << "  solver            " << ToString(options.error_term) << " + Levenberg-Marquardt, "
+       << fit.iterations << " iterations, stopped: " << ToString(fit.stop_reason) << ", "
+       << Format(seconds * 1e3, 3) << " ms\n";
+  if (o.loss.is_robust()) {
+    text << "  loss              " << ToString(o.loss.kind) << ", scale " << Format(fit.loss_scale, 6)
+         << (o.loss.scale_from_data() ? " (from the data)" : "") << ", " << fit.rejected
+         << " points down-weighted (IRLS weight < 0.5)\n";
+  }
   if (o.verbose) text << HistoryTable(fit.history);
   if (deviation) {
     text << "\n  against reference " << o.reference << " (relative to the data's extent " << Format(extent, 6)
