@@ -288,4 +288,10 @@ void ComputeFootPoints(const ParametricModel& model, const Eigen::Ref<const Eige
   }
 }
 
+Eigen::VectorXd FootPointDistances(const std::vector<FootPoint>& feet) {
+  Eigen::VectorXd d(static_cast<Eigen::Index>(feet.size()));
+  for (std::size_t j = 0; j < feet.size(); ++j) d[static_cast<Eigen::Index>(j)] = feet[j].distance;
+  return d;
+}
+
 }  // namespace s2m

@@ -97,4 +97,7 @@ void ComputeFootPoints(const ParametricModel& model, const Eigen::Ref<const Eige
                        std::vector<FootPoint>& feet, const std::vector<FootPoint>* warm = nullptr,
                        WarmStart mode = WarmStart::kVerified);
 
+// The feet's distances |C(t_j) - X_j| as one vector (robust scales, residual statistics).
+Eigen::VectorXd FootPointDistances(const std::vector<FootPoint>& feet);
+
 }  // namespace s2m

@@ -342,12 +342,7 @@ class GeometricFitProblem : public NonlinearProblem {
   ParametricModel& model() { return *model_; }
   std::vector<FootPoint>& feet() { return feet_; }
   const RobustWeighting& weighting() const { return weighting_; }
-  Eigen::VectorXd FinalWeights() const {
-    Eigen::VectorXd w(static_cast<Eigen::Index>(feet_.size()));
-    for (std::size_t j = 0; j < feet_.size(); ++j)
-      w[static_cast<Eigen::Index>(j)] = weighting_.Weight(feet_[j].distance);
-    return w;
-  }
+  Eigen::VectorXd FinalWeights() const { return weighting_.Weights(FootPointDistances(feet_)); }
 
  private:
   // 1/2 sum rho(d_j^2) + P^T K P (docs/method.md eqs. 1, 11 and 43).
@@ -363,11 +358,9 @@ class GeometricFitProblem : public NonlinearProblem {
 
   void UpdateWeights() {
     if (!weighting_.is_robust()) return;
-    Eigen::VectorXd d(static_cast<Eigen::Index>(feet_.size()));
-    for (std::size_t j = 0; j < feet_.size(); ++j) d[static_cast<Eigen::Index>(j)] = feet_[j].distance;
+    const Eigen::VectorXd d = FootPointDistances(feet_);
     weighting_.Update(d);
-    weights_.resize(d.size());
-    for (Eigen::Index j = 0; j < d.size(); ++j) weights_[j] = weighting_.Weight(d[j]);
+    weights_ = weighting_.Weights(d);
   }
 
   std::unique_ptr<ParametricModel> model_, trial_;
@@ -424,12 +417,8 @@ GeometricFitResult FitModel(ParametricModel& model, const Eigen::MatrixXd& point
   fitted.ApplySimilarity(norm.scale, norm.offset);
   model.CopyFrom(fitted);
   std::vector<FootPoint>& feet = problem.feet();
-  Eigen::VectorXd d(static_cast<Eigen::Index>(feet.size()));
-  for (std::size_t j = 0; j < feet.size(); ++j) {
-    feet[j].distance *= norm.scale;
-    d[static_cast<Eigen::Index>(j)] = feet[j].distance;
-  }
-  result.residuals = ComputeResidualStatistics(d);
+  for (FootPoint& f : feet) f.distance *= norm.scale;
+  result.residuals = ComputeResidualStatistics(FootPointDistances(feet));
   result.foot_points = std::move(feet);
   return result;
 }

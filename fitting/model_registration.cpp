@@ -131,7 +131,7 @@ class RegistrationProblem : public NonlinearProblem {
     if (weighting_.loss().scale_from_data() || !equations_valid_) {
       // The scale follows the current distances (eq. 47); the equations are assembled with it at the
       // current feet (warm from themselves: Newton stops at once).
-      if (weighting_.loss().scale_from_data()) weighting_.Update(Distances(feet_));
+      if (weighting_.loss().scale_from_data()) weighting_.Update(FootPointDistances(feet_));
       Pass(current_, true, field_phase_, true, trial_feet_, trial_geometry_, trial_exact_, system_.eq);
       feet_.swap(trial_feet_);
       geometry_.swap(trial_geometry_);
@@ -220,12 +220,6 @@ class RegistrationProblem : public NonlinearProblem {
     // A coefficient-wise product: a 3 x 3 rotation gains nothing from GEMM's packing.
     out.noalias() = pose.rotation().lazyProduct(scan_points_);
     out.colwise() += pose.translation();
-  }
-
-  static Eigen::VectorXd Distances(const std::vector<FootPoint>& feet) {
-    Eigen::VectorXd d(static_cast<Eigen::Index>(feet.size()));
-    for (std::size_t j = 0; j < feet.size(); ++j) d[static_cast<Eigen::Index>(j)] = feet[j].distance;
-    return d;
   }
 
   // 1/2 mean rho(d_j^2) (docs/method.md eqs. 16 and 43).
@@ -370,10 +364,7 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
   result.history = std::move(summary.history);
   result.pose_history = std::move(problem.pose_history());
   result.loss_scale = problem.loss_scale();
-  const std::vector<FootPoint>& feet = problem.feet();
-  Eigen::VectorXd d(static_cast<Eigen::Index>(feet.size()));
-  for (std::size_t j = 0; j < feet.size(); ++j) d[static_cast<Eigen::Index>(j)] = feet[j].distance;
-  result.residuals = ComputeResidualStatistics(d);
+  result.residuals = ComputeResidualStatistics(FootPointDistances(problem.feet()));
   return result;
 }
 

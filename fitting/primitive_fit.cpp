@@ -435,8 +435,7 @@ class PrimitiveFitProblem : public NonlinearProblem {
   void UpdateWeights() {
     if (!weighting_.is_robust()) return;
     weighting_.Update(d_);
-    weights_.resize(d_.size());
-    for (Eigen::Index j = 0; j < d_.size(); ++j) weights_[j] = weighting_.Weight(d_[j]);
+    weights_ = weighting_.Weights(d_);
   }
 
   const Eigen::Matrix3Xd& y_;

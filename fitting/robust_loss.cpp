@@ -148,4 +148,10 @@ double RobustWeighting::Weight(double d) const {
   return EvaluateLoss(loss_.kind, working_scale(), d * d).first;
 }
 
+Eigen::VectorXd RobustWeighting::Weights(const Eigen::Ref<const Eigen::VectorXd>& distances) const {
+  Eigen::VectorXd w(distances.size());
+  for (Eigen::Index j = 0; j < distances.size(); ++j) w[j] = Weight(distances[j]);
+  return w;
+}
+
 }  // namespace s2m

@@ -67,6 +67,8 @@ class RobustWeighting {
   // rho(d^2) and rho'(d^2) for a distance d in working units (1/2 rho summed is the objective).
   double Rho(double d) const;
   double Weight(double d) const;
+  // Weight of every distance (all 1 for plain least squares).
+  Eigen::VectorXd Weights(const Eigen::Ref<const Eigen::VectorXd>& distances) const;
   const RobustLoss& loss() const { return loss_; }
 
  private:
