@@ -74,6 +74,7 @@ class PcdParser {
   Scan Parse() {
     ParseHeader();
     if (points_ == 0) throw FormatError(file_, "header", "empty point set: POINTS is 0");
+    RefuseCountBeyondSize();
     raw_.resize(3, static_cast<Eigen::Index>(points_));
     if (HasNormals()) raw_normals_.resize(3, static_cast<Eigen::Index>(points_));
     if (data_ == "ascii")
@@ -197,6 +198,23 @@ class PcdParser {
   }
 
   // Column (scalar) index of the first element of field f in an ascii line.
+  // A POINTS count the bytes after the header cannot hold is refused before anything is allocated
+  // (docs/reliability.md): ASCII values take at least two bytes each (a digit and a separator), binary
+  // records record_size_ bytes, and LZF expands at most 88-fold (a 3-byte back reference copies at most 264
+  // bytes).
+  void RefuseCountBeyondSize() const {
+    const std::size_t left = bytes_.size() - data_start_;
+    std::size_t columns = 0;
+    for (const Field& f : fields_) columns += f.count;
+    const double min_bytes_per_point = data_ == "ascii"    ? 2.0 * static_cast<double>(columns)
+                                       : data_ == "binary" ? static_cast<double>(record_size_)
+                                                           : static_cast<double>(record_size_) / 88.0;
+    if (static_cast<double>(points_) * min_bytes_per_point > static_cast<double>(left)) {
+      Fail(AtByte(data_start_), "truncated: POINTS is " + std::to_string(points_) + " but only " +
+                                    std::to_string(left) + " bytes of " + data_ + " data follow");
+    }
+  }
+
   std::size_t Column(int f) const {
     std::size_t c = 0;
     for (int i = 0; i < f; ++i) c += fields_[static_cast<std::size_t>(i)].count;

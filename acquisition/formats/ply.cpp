@@ -2,6 +2,7 @@
 // the vertex element is kept; every other element (faces, the Stanford range_grid, ...) is parsed to validate
 // the file and dropped.
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <string>
@@ -200,6 +201,16 @@ class PlyParser {
   }
 
   void ReadAsciiElement(const Element& e, bool is_vertex) {
+    // Refuse a count the rest of the file cannot hold before allocating (docs/reliability.md): every value
+    // of an ASCII record takes at least two bytes, a digit and a separator.
+    const std::size_t min_record = 2 * std::max<std::size_t>(1, e.properties.size());
+    const std::size_t left = bytes_.size() - lines_.position();
+    if (e.count > left / min_record) {
+      Fail(AtLine(lines_.line_number() + 1), "truncated: element '" + e.name + "' declares " +
+                                                 std::to_string(e.count) + " entries (at least " +
+                                                 std::to_string(min_record) + " bytes each) but only " +
+                                                 std::to_string(left) + " bytes follow");
+    }
     if (is_vertex) Allocate(e.count);
     std::vector<std::string_view> tok;
     std::vector<double> values(e.properties.size());

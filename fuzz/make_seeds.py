@@ -1,0 +1,158 @@
+#!/usr/bin/env python3
+"""Writes the fuzz targets' seed corpora (fuzz/corpus/<target>/): small valid inputs of every format a target
+reads, each prefixed by the target's selector byte where the target has one (see the target's source). The seeds
+are generated, not copied from third-party data; run again after changing a target's selector."""
+import json
+import os
+import struct
+import zlib
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+POINTS = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.5), (1.0, 1.0, 0.25), (0.5, 0.5, 2.0)]
+
+
+def write(target, name, data):
+    folder = os.path.join(HERE, "corpus", target)
+    os.makedirs(folder, exist_ok=True)
+    if isinstance(data, str):
+        data = data.encode()
+    with open(os.path.join(folder, name), "wb") as f:
+        f.write(data)
+
+
+def ply_ascii():
+    body = "".join(f"{x} {y} {z}\n" for x, y, z in POINTS)
+    return ("ply\nformat ascii 1.0\ncomment units mm\nelement vertex %d\nproperty double x\nproperty double y\n"
+            "property double z\nend_header\n" % len(POINTS)) + body
+
+
+def ply_binary():
+    header = ("ply\nformat binary_little_endian 1.0\nelement vertex %d\nproperty float x\nproperty float y\n"
+              "property float z\nproperty float nx\nproperty float ny\nproperty float nz\n"
+              "element face 1\nproperty list uchar int vertex_indices\nend_header\n" % len(POINTS)).encode()
+    body = b"".join(struct.pack("<6f", x, y, z, 0.0, 0.0, 1.0) for x, y, z in POINTS)
+    return header + body + struct.pack("<B3i", 3, 0, 1, 2)
+
+
+def pcd(data_kind):
+    header = ("# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgba\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
+              "WIDTH %d\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS %d\nDATA %s\n" % (len(POINTS), len(POINTS), data_kind))
+    nan = float("nan")
+    pts = POINTS + [(nan, nan, nan)]
+    header = header.replace("WIDTH %d" % len(POINTS), "WIDTH %d" % len(pts)).replace(
+        "POINTS %d" % len(POINTS), "POINTS %d" % len(pts))
+    if data_kind == "ascii":
+        return header + "".join(f"{x} {y} {z} 4278190080\n" for x, y, z in pts)
+    if data_kind == "binary":
+        return header.encode() + b"".join(struct.pack("<3fI", x, y, z, 0xFF000000) for x, y, z in pts)
+    # binary_compressed: fields stored column by column, LZF-compressed. A literal-only LZF stream (control bytes
+    # 0..31 = a run of control+1 literal bytes) is valid LZF.
+    raw = b"".join(struct.pack("<%df" % len(pts), *[p[i] for p in pts]) for i in range(3))
+    raw += struct.pack("<%dI" % len(pts), *([0xFF000000] * len(pts)))
+    lzf = bytearray()
+    for start in range(0, len(raw), 32):
+        chunk = raw[start:start + 32]
+        lzf.append(len(chunk) - 1)
+        lzf += chunk
+    return header.encode() + struct.pack("<II", len(lzf), len(raw)) + bytes(lzf)
+
+
+def main():
+    # point_cloud_fuzz: selector = index into {.ply, .ply.gz, .pcd, .xyz, .csv, .ds}.
+    write("point_cloud", "ascii.ply", b"\x00" + ply_ascii().encode())
+    write("point_cloud", "binary.ply", b"\x00" + ply_binary())
+    write("point_cloud", "gzipped.ply.gz", b"\x01" + gzip_bytes(ply_ascii().encode()))
+    write("point_cloud", "ascii.pcd", b"\x02" + pcd("ascii").encode())
+    write("point_cloud", "binary.pcd", b"\x02" + pcd("binary"))
+    write("point_cloud", "compressed.pcd", b"\x02" + pcd("binary_compressed"))
+    write("point_cloud", "points.xyz", b"\x03" + "".join(f"{x} {y} {z}\n" for x, y, z in POINTS).encode())
+    write("point_cloud", "points.csv", b"\x04" + ("x,y,z\n" + "".join(f"{x},{y},{z}\n" for x, y, z in POINTS)).encode())
+    write("point_cloud", "points.ds", b"\x05" + (f"{len(POINTS)}\n" + "".join(f"{x} {y} {z}\n" for x, y, z in POINTS)).encode())
+
+    write("nist_fit", "plane.fit", "0.5 0.5 0.1\n0 0 1\n")
+    write("nist_fit", "sphere.fit", "1 2 3\n10\n")
+    write("nist_fit", "cylinder.fit", "0 0 0\n0 0 1\n20\n")
+    write("nist_fit", "cone.fit", "0 0 0\n0 0 1\n5\n30\n")
+
+    views = {"format": "scan2model.views/1", "units": "mm", "views": [
+        {"file": "view_000.ply", "world_T_scan": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]},
+        {"file": "view_001.ply", "world_T_scan": [[0, -1, 0, 5], [1, 0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]}
+    write("scan_set", "views.json", b"\x00" + json.dumps(views, indent=1).encode())
+    write("scan_set", "bun.conf", b"\x01" + b"camera 0 0 0 0 0 0 1\nbmesh bun000.ply 0 0 0 0 0 0 1\n"
+          b"bmesh bun045.ply -0.0520211 -0.000383981 -0.0109223 0.00548449 -0.294635 -0.0038555 0.955586\n")
+
+    for name in ("counterbored_block.part.json", "freeform_plate.part.json"):
+        with open(os.path.join(HERE, "..", "docs", "examples", name), "rb") as f:
+            write("part_file", name, f.read())
+
+    write("glyph", "o.glif", """<?xml version="1.0" encoding="UTF-8"?>
+<glyph name="o" format="2">
+  <advance width="500"/>
+  <outline>
+    <contour>
+      <point x="250" y="0" type="curve" smooth="yes"/>
+      <point x="400" y="0"/>
+      <point x="500" y="100"/>
+      <point x="500" y="250" type="curve" smooth="yes"/>
+      <point x="500" y="400"/>
+      <point x="400" y="500"/>
+      <point x="250" y="500" type="curve"/>
+      <point x="100" y="500" type="line"/>
+      <point x="0" y="250" type="qcurve"/>
+    </contour>
+  </outline>
+</glyph>
+""")
+
+    payload = b"".join(struct.pack("<3d", *p) for p in POINTS)
+    write("frame_payload", "plain.bin", b"\x00" + payload)
+    write("frame_payload", "zlib.bin", b"\x01" + zlib.compress(payload))
+
+    # A 4x3 16-bit grey TIFF, little endian, one strip, uncompressed.
+    width, height = 4, 3
+    pixels = struct.pack("<%dH" % (width * height), *[1000 + 10 * i for i in range(width * height)])
+    entries = [(256, 3, 1, width), (257, 3, 1, height), (258, 3, 1, 16), (259, 3, 1, 1), (262, 3, 1, 1),
+               (273, 4, 1, 0), (277, 3, 1, 1), (278, 3, 1, height), (279, 4, 1, len(pixels))]
+    ifd_offset = 8
+    data_offset = ifd_offset + 2 + 12 * len(entries) + 4
+    ifd = struct.pack("<H", len(entries))
+    for tag, kind, count, value in entries:
+        if tag == 273:
+            value = data_offset
+        ifd += struct.pack("<HHI", tag, kind, count) + (struct.pack("<HH", value, 0) if kind == 3 else struct.pack("<I", value))
+    tiff = b"II*\x00" + struct.pack("<I", ifd_offset) + ifd + struct.pack("<I", 0) + pixels
+    write("depth_frame", "depth.tiff", b"\x00" + tiff)
+    write("depth_frame", "intrinsics.xml", b"\x01" + b"""<?xml version="1.0"?>
+<depth>
+  <focal_length_x>525</focal_length_x>
+  <focal_length_y>525</focal_length_y>
+  <principal_point_x>320</principal_point_x>
+  <principal_point_y>240</principal_point_y>
+  <z_multiplication_factor>0.001</z_multiplication_factor>
+</depth>
+""")
+
+    batch = {"format": "scan2model.batch/1", "defaults": {"model": "sphere", "max_iterations": 50},
+             "objects": [{"id": "a", "file": "a.ply"}, {"id": "b", "file": "b.xyz", "model": "plane", "loss": "huber"}]}
+    write("batch_manifest", "batch.json", b"\x00" + json.dumps(batch, indent=1).encode())
+    write("batch_manifest", "batch.csv", b"\x01" + b"id,file,model,max_iterations\na,a.ply,sphere,50\nb,b.xyz,plane,20\n")
+
+    calibration = {"horus": {"camera": {"width": 1280, "height": 960, "fx": 1430.0, "fy": 1430.0, "cx": 640.0,
+                                        "cy": 480.0, "distortion": [0.1, -0.2, 0.0, 0.0, 0.0]},
+                             "lasers": [{"normal": [0.7, 0.0, 0.7], "distance": 100.0},
+                                        {"normal": [-0.7, 0.0, 0.7], "distance": 100.0}],
+                             "platform_T_camera": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 300], [0, 0, 0, 1]]}}
+    write("horus_calibration", "calibration.json", json.dumps(calibration, indent=1))
+
+
+def gzip_bytes(data):
+    import gzip
+    import io
+    out = io.BytesIO()
+    with gzip.GzipFile(fileobj=out, mode="wb", mtime=0) as g:
+        g.write(data)
+    return out.getvalue()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# The whole test suite under sanitizers (docs/reliability.md).
+#   scripts/sanitize.sh [address,undefined|thread] [ctest arguments...]
+# Builds into build-<sanitizers>/ (S2M_SANITIZE_BUILD_DIR) without the benchmarks and runs ctest there; any
+# sanitizer report fails the test that triggered it (no recovery).
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+sanitizers="${1:-address,undefined}"
+shift || true
+build="${S2M_SANITIZE_BUILD_DIR:-$root/build-${sanitizers//,/-}}"
+"$root/scripts/install-deps.sh" >/dev/null
+# RelWithDebInfo: optimized as the product is, with line numbers in the reports.
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DS2M_SANITIZE="$sanitizers" \
+  -DS2M_BUILD_BENCH=OFF >/dev/null
+cmake --build "$build" -j"$(nproc)"
+export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1}"
+export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
+export TSAN_OPTIONS="${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}"
+cd "$build"
+ctest --output-on-failure -j"$(nproc)" "$@"
