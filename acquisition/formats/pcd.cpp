@@ -197,12 +197,12 @@ class PcdParser {
     data_start_ = lines_.position();
   }
 
-  // Column (scalar) index of the first element of field f in an ascii line.
-  // A POINTS count the bytes after the header cannot hold is refused before anything is allocated
+  // A large POINTS count the bytes after the header cannot hold is refused before anything is allocated
   // (docs/reliability.md): ASCII values take at least two bytes each (a digit and a separator), binary
   // records record_size_ bytes, and LZF expands at most 88-fold (a 3-byte back reference copies at most 264
-  // bytes).
+  // bytes). Counts up to 2^20 are read and fail where the data end, which names the place more precisely.
   void RefuseCountBeyondSize() const {
+    if (points_ <= (std::size_t{1} << 20)) return;
     const std::size_t left = bytes_.size() - data_start_;
     std::size_t columns = 0;
     for (const Field& f : fields_) columns += f.count;
@@ -215,6 +215,7 @@ class PcdParser {
     }
   }
 
+  // Column (scalar) index of the first element of field f in an ascii line.
   std::size_t Column(int f) const {
     std::size_t c = 0;
     for (int i = 0; i < f; ++i) c += fields_[static_cast<std::size_t>(i)].count;

@@ -72,6 +72,9 @@ VertexLayout LayoutOf(const Element& vertex) {
   return l;
 }
 
+// Declared counts above this are checked against the bytes left before anything is allocated.
+constexpr std::size_t kCountCheckedBeforeReading = std::size_t{1} << 20;
+
 class PlyParser {
  public:
   PlyParser(const std::string& bytes, const std::string& file) : bytes_(bytes), file_(file) {}
@@ -201,11 +204,12 @@ class PlyParser {
   }
 
   void ReadAsciiElement(const Element& e, bool is_vertex) {
-    // Refuse a count the rest of the file cannot hold before allocating (docs/reliability.md): every value
-    // of an ASCII record takes at least two bytes, a digit and a separator.
+    // Refuse a large count the rest of the file cannot hold before allocating (docs/reliability.md): every
+    // value of an ASCII record takes at least two bytes, a digit and a separator. Smaller counts are read and
+    // fail at the line where the data end, which names the place more precisely.
     const std::size_t min_record = 2 * std::max<std::size_t>(1, e.properties.size());
     const std::size_t left = bytes_.size() - lines_.position();
-    if (e.count > left / min_record) {
+    if (e.count > kCountCheckedBeforeReading && e.count > left / min_record) {
       Fail(AtLine(lines_.line_number() + 1), "truncated: element '" + e.name + "' declares " +
                                                  std::to_string(e.count) + " entries (at least " +
                                                  std::to_string(min_record) + " bytes each) but only " +
