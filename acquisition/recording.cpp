@@ -42,6 +42,21 @@ CREATE TABLE poses(frame INTEGER PRIMARY KEY REFERENCES frames(id),
 
 constexpr std::array<const char*, 5> kTables = {"meta", "device", "streams", "frames", "poses"};
 
+// SQLite's message, with the reason of an I/O failure (a full disk, a file-size limit, a device gone): "disk
+// I/O error" alone does not tell the user what to do. SQLite keeps the operating system's error only for some
+// failures (a write that hits a full disk or a file-size limit is reported as a short write, errno 0).
+std::string SqliteProblem(sqlite3* db) {
+  std::string text = sqlite3_errmsg(db);
+  const int system_error = sqlite3_system_errno(db);
+  const int extended = sqlite3_extended_errcode(db);
+  if (system_error != 0 && (extended & 0xff) == SQLITE_IOERR) {
+    text += " (" + std::string(std::strerror(system_error)) + ")";
+  } else if (extended == SQLITE_IOERR_WRITE || extended == SQLITE_IOERR_FSYNC || extended == SQLITE_FULL) {
+    text += " (writing failed: the disk is full, a file-size limit was reached or the device is gone)";
+  }
+  return text;
+}
+
 struct Connection {
   sqlite3* db = nullptr;
   std::string file;
@@ -49,13 +64,15 @@ struct Connection {
     if (db) sqlite3_close_v2(db);
   }
   [[noreturn]] void Fail(const std::string& what) const {
-    throw FormatError(file, "", what + ": " + (db ? sqlite3_errmsg(db) : "out of memory"));
+    throw FormatError(file, "", what + ": " + (db ? SqliteProblem(db) : std::string("out of memory")));
   }
   void Exec(const char* sql) const {
     char* message = nullptr;
     if (sqlite3_exec(db, sql, nullptr, nullptr, &message) != SQLITE_OK) {
-      const std::string text = message ? message : sqlite3_errmsg(db);
+      std::string text = message ? message : sqlite3_errmsg(db);
       sqlite3_free(message);
+      if ((sqlite3_errcode(db) & 0xff) == SQLITE_IOERR || sqlite3_errcode(db) == SQLITE_FULL)
+        text = SqliteProblem(db);
       throw FormatError(file, "", text);
     }
   }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sqlite3.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -218,6 +219,68 @@ TEST(Recording, KilledWriterKeepsEveryCommittedFrame) {
     std::cout << "[ kill     ] after " << committed << " commits: frames reported committed " << seen
               << ", recovered " << recovered << "\n";
   }
+  fs::remove_all(dir);
+}
+
+// A disk that fills up in the middle of a recording (docs/reliability.md), emulated without root by the
+// child's file-size limit (RLIMIT_FSIZE: a write beyond it fails with EFBIG, as on a full disk; SIGXFSZ is
+// ignored so that the write returns the error). The writer's error names the file and says the write failed;
+// every frame it reported committed before is in the file, which passes the integrity check.
+TEST(Recording, FullDiskKeepsEveryCommittedFrameAndSaysSo) {
+  const fs::path dir = TempDir("full_disk");
+  const fs::path file = dir / "full.s2mrec";
+  const ScanSet vase = Vase();
+  int fds[2];
+  ASSERT_EQ(pipe(fds), 0);
+  ChildGuard child{fork()};
+  ASSERT_GE(child.pid, 0);
+  if (child.pid == 0) {
+    close(fds[0]);
+    signal(SIGXFSZ, SIG_IGN);
+    const rlimit limit{1u << 20, 1u << 20};  // 1 MiB: a few dozen frames of the vase
+    if (setrlimit(RLIMIT_FSIZE, &limit) != 0) _exit(10);
+    try {
+      RecordingWriter w = RecordingWriter::Create(file);
+      const std::int64_t stream = w.AddStream("points", "points", kPointsEncoding, "mm");
+      for (int i = 0; i < 100000; ++i) {
+        const Scan& scan = vase.scans[static_cast<std::size_t>(i) % vase.scans.size()];
+        w.AppendFrame(stream, i, EncodePoints(scan.points), scan.world_T_scan, i);
+        const char c = 'f';
+        if (write(fds[1], &c, 1) != 1) _exit(11);
+      }
+      _exit(12);  // never filled the disk
+    } catch (const FormatError& e) {
+      const std::string message = e.what();
+      if (write(fds[1], message.data(), message.size()) < 0) _exit(13);
+      _exit(0);
+    } catch (...) {
+      _exit(14);
+    }
+  }
+  close(fds[1]);
+  std::string from_child;
+  char buffer[256];
+  for (ssize_t n; (n = read(fds[0], buffer, sizeof buffer)) > 0;)
+    from_child.append(buffer, static_cast<std::size_t>(n));
+  close(fds[0]);
+  int status = 0;
+  ASSERT_EQ(waitpid(child.pid, &status, 0), child.pid);
+  child.pid = -1;
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_EQ(WEXITSTATUS(status), 0) << "the writer did not end with a FormatError: " << from_child;
+  const std::size_t committed = from_child.find_first_not_of('f');
+  ASSERT_NE(committed, std::string::npos);
+  const std::string message = from_child.substr(committed);
+  std::cout << "[ full     ] " << committed << " frames committed, then: " << message << "\n";
+  EXPECT_GT(committed, 0u);
+  EXPECT_NE(message.find(file.string()), std::string::npos) << message;
+  EXPECT_NE(message.find("disk is full"), std::string::npos) << message;  // says what to look at
+
+  const ScanSet back = ReadRecording(file);  // integrity check included
+  ASSERT_GE(back.scans.size(), committed);
+  EXPECT_LE(back.scans.size(), committed + 1);  // the frame in flight may have reached the log
+  for (std::size_t i = 0; i < committed; ++i)
+    EXPECT_EQ(back.scans[i].points, vase.scans[i % vase.scans.size()].points) << i;
   fs::remove_all(dir);
 }
 
