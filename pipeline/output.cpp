@@ -1,5 +1,10 @@
 #include "pipeline/output.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -98,15 +103,45 @@ std::string HistoryTable(const std::vector<IterationRecord>& history) {
 }
 
 void WriteTextAtomically(const std::string& path, const std::string& text) {
+  // Written beside the target, flushed to the device (fsync), then renamed over it, and the folder flushed:
+  // after a crash, a full disk or a power cut the file under its final name is either the old one or the
+  // complete new one (docs/reliability.md). A failed write removes its partial file.
   const std::string tmp = path + ".partial";
-  {
-    std::ofstream out(tmp);
-    out << text;
-    if (!out) throw FormatError(path, "", "cannot write");
+  const auto fail = [&](const std::string& what, int error) {
+    ::unlink(tmp.c_str());
+    throw FormatError(path, "", what + ": " + std::strerror(error));
+  };
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    const int error = errno;
+    throw FormatError(path, "", std::string("cannot create the file: ") + std::strerror(error));
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) throw FormatError(path, "", "cannot move the finished file into place: " + ec.message());
+  std::size_t written = 0;
+  while (written < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + written, text.size() - written);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int error = n < 0 ? errno : ENOSPC;
+      ::close(fd);
+      fail("cannot write (" + std::to_string(written) + " of " + std::to_string(text.size()) +
+               " bytes written)",
+           error);
+    }
+    written += static_cast<std::size_t>(n);
+  }
+  if (::fsync(fd) != 0) {
+    const int error = errno;
+    ::close(fd);
+    fail("cannot flush to disk", error);
+  }
+  if (::close(fd) != 0) fail("cannot close", errno);
+  if (::rename(tmp.c_str(), path.c_str()) != 0) fail("cannot move the finished file into place", errno);
+  const std::string folder = std::filesystem::path(path).parent_path().string();
+  const int dir = ::open(folder.empty() ? "." : folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir >= 0) {
+    ::fsync(dir);  // the rename itself durable; a folder that cannot be opened still holds the renamed file
+    ::close(dir);
+  }
 }
 
 int ReportError(const std::string& command, const std::string& message, int exit_code, bool json) {

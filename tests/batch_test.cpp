@@ -173,6 +173,51 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
   fs::remove_all(dir);
 }
 
+// A disk that fills up while a batch writes its results (docs/reliability.md), emulated by the shell's
+// file-size limit (`ulimit -f`; SIGXFSZ ignored so that the write fails with EFBIG instead of killing the
+// process). The batch says which file it could not write and why, leaves no partial or unreadable result
+// under a final name, and a rerun with room on the disk resumes and finishes every object.
+TEST(Batch, FullDiskLeavesNoCorruptResultAndResumes) {
+  const fs::path dir = FreshDir("full_disk");
+  SyntheticBatchOptions small;
+  small.pots = 2;
+  small.sherds = 0;
+  small.shells = 0;
+  small.corrupt = false;
+  small.samples_per_object = 600;
+  const fs::path manifest = WriteSyntheticBatch(dir, small);
+  const fs::path out = dir / "out";
+  const std::string batch = Cli() + " batch " + manifest.string() + " -o " + out.string() + " -j 1 -q";
+
+  // 8 KiB per file: the results folder can be created, the first record (tens of kilobytes) cannot be
+  // written.
+  const Result full = Shell("bash -c \"trap '' XFSZ; ulimit -f 8; exec " + batch + "\"");
+  EXPECT_NE(full.exit_code, 0) << full.out;
+  EXPECT_NE(full.out.find("File too large"), std::string::npos) << full.out;  // the reason, from the system
+  EXPECT_NE(full.out.find(".json"), std::string::npos) << full.out;           // the file it could not write
+  int records = 0;
+  if (fs::exists(out)) {
+    for (const auto& e : fs::recursive_directory_iterator(out)) {
+      EXPECT_EQ(e.path().string().find(".partial"), std::string::npos) << e.path();
+      if (e.path().extension() == ".json") {
+        ++records;
+        EXPECT_NO_THROW(ReadJson(e.path())) << e.path();  // whatever is there is complete
+      }
+    }
+  }
+  std::cout << "[ full     ] " << records
+            << " complete JSON files written before the disk was full; message: "
+            << full.out.substr(0, full.out.find('\n')) << "\n";
+
+  const Result resumed = Shell(batch);
+  EXPECT_EQ(resumed.exit_code, 0) << resumed.out;
+  const nlohmann::json summary = ReadJson(out / "summary.json");
+  ASSERT_TRUE(summary.contains("objects")) << summary.dump(1);
+  ASSERT_EQ(summary["objects"].size(), 2u);
+  for (const auto& o : summary["objects"]) EXPECT_EQ(o["status"], "ok") << o.dump();
+  fs::remove_all(dir);
+}
+
 TEST(Batch, JsonManifestShardsAndSummaryOnly) {
   const fs::path dir = FreshDir("shards");
   SyntheticBatchOptions options;
