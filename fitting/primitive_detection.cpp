@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -80,6 +81,7 @@ PointNormals EstimatePointNormals(const Eigen::Matrix3Xd& points, int neighbours
   PointNormals out;
   out.normals.resize(3, n);
   out.tangential_spread.resize(n);
+  out.plane_residual.resize(n);
   out.nearest_distance.resize(n);
   out.neighbours = neighbours;
   out.neighbour_indices.resize(static_cast<std::size_t>(n * neighbours));
@@ -99,6 +101,8 @@ PointNormals EstimatePointNormals(const Eigen::Matrix3Xd& points, int neighbours
     eig.computeDirect(scatter);
     out.normals.col(i) = eig.eigenvectors().col(0).normalized();
     out.tangential_spread[i] = std::sqrt(std::max(0.0, eig.eigenvalues()[1]));
+    out.plane_residual[i] = std::sqrt(std::max(0.0, eig.eigenvalues()[0]) /
+                                      std::max(1.0, static_cast<double>(near.size()) - 3.0));
     double nearest = std::numeric_limits<double>::infinity();
     for (Eigen::Index j : near)
       if (j != i) nearest = std::min(nearest, (points.col(j) - points.col(i)).norm());
@@ -492,9 +496,13 @@ class Detector {
 
   // Every remaining point passing eq. 52, then the largest connected component (eq. 53).
   std::vector<Eigen::Index> CollectInliers(const DetectedShape& shape) const {
+    return CollectInliers(shape, test_);
+  }
+  std::vector<Eigen::Index> CollectInliers(const DetectedShape& shape, const InlierTest& test) const {
     std::vector<char> pass(remaining_.size(), 0);
 #pragma omp parallel for schedule(static)
-    for (std::size_t r = 0; r < remaining_.size(); ++r) pass[r] = Passes(shape, remaining_[r]) ? 1 : 0;
+    for (std::size_t r = 0; r < remaining_.size(); ++r)
+      pass[r] = test(shape, P(remaining_[r]), N(remaining_[r])) ? 1 : 0;
     std::vector<Eigen::Index> inliers;
     for (std::size_t r = 0; r < remaining_.size(); ++r)
       if (pass[r]) inliers.push_back(remaining_[r]);
@@ -574,6 +582,28 @@ class Detector {
       if (find(static_cast<int>(r)) == largest) out.push_back(inliers[r]);
     for (Eigen::Index i : inliers) position_[static_cast<std::size_t>(i)] = -1;
     return out;
+  }
+
+  // The instance's own epsilon (eq. 56): real scans deviate from a surface at scales the local noise
+  // estimate does not see (a stereo or depth camera's waviness, calibration), so the first refit's shape
+  // takes the MAD sigma of the normal-compatible remaining points within 4 epsilon of it, and the instance
+  // collects within 3 of those sigmas, between epsilon and 4 epsilon.
+  InlierTest InstanceTest(const DetectedShape& shape) const {
+    InlierTest window{4.0 * test_.epsilon, test_.cos_alpha};
+    std::vector<double> d(remaining_.size(), std::numeric_limits<double>::quiet_NaN());
+#pragma omp parallel for schedule(static)
+    for (std::size_t r = 0; r < remaining_.size(); ++r) {
+      if (window(shape, P(remaining_[r]), N(remaining_[r]))) d[r] = Distance(shape, P(remaining_[r]));
+    }
+    std::vector<double> kept;
+    for (double v : d)
+      if (!std::isnan(v)) kept.push_back(v);
+    if (kept.size() < 10) return test_;
+    const double sigma =
+        MadSigma(Eigen::Map<const Eigen::VectorXd>(kept.data(), static_cast<Eigen::Index>(kept.size())));
+    InlierTest adapted = test_;
+    adapted.epsilon = std::clamp(options_.epsilon_noise_factor * sigma, test_.epsilon, 4.0 * test_.epsilon);
+    return adapted;
   }
 
   // Draws candidates until the best one is certain enough (eq. 54), refits it and removes its points.
@@ -658,6 +688,7 @@ class Detector {
     instance.draws = draws;
     instance.miss_probability = miss;
     bool fitted = false;
+    InlierTest instance_test = test_;
     for (int round = 0; round <= options_.refit_rounds; ++round) {
       auto fit = Refit(instance.shape, instance.inliers);
       if (!fit) break;
@@ -665,7 +696,8 @@ class Detector {
       instance.uncertainties = fit->second;
       fitted = true;
       if (round == options_.refit_rounds) break;  // the last fit is on the final inliers
-      std::vector<Eigen::Index> again = CollectInliers(instance.shape);
+      if (round == 0 && options_.adapt_epsilon) instance_test = InstanceTest(instance.shape);
+      std::vector<Eigen::Index> again = CollectInliers(instance.shape, instance_test);
       if (static_cast<Eigen::Index>(again.size()) < result_.min_support) {
         fitted = false;
         break;
@@ -685,6 +717,7 @@ class Detector {
         sum += d * d;
       }
       instance.rms = std::sqrt(sum / static_cast<double>(instance.inliers.size()));
+      instance.epsilon = instance_test.epsilon;
       result_.instances.push_back(std::move(instance));
     }
     return true;

@@ -42,6 +42,9 @@ struct DetectionOptions {
   // estimate (EstimateNoise) (eq. 52).
   double epsilon = 0.0;
   double epsilon_noise_factor = 3.0;
+  // Each instance re-estimates its epsilon from its first refit's residuals, within [epsilon, 4 epsilon]
+  // (eq. 56).
+  bool adapt_epsilon = true;
   // Normal-angle threshold alpha (radians); 0: from the noise and the neighbourhoods' spread (eq. 53),
   // clamped to [min_alpha, max_alpha].
   double alpha = 0.0;
@@ -82,6 +85,7 @@ struct DetectedPrimitive {
   std::vector<ParameterUncertainty> uncertainties;  // from the refit (primitive_fit.h)
   std::vector<Eigen::Index> inliers;                // indices into the input points, ascending
   double rms = 0.0;                                 // RMS orthogonal distance of the inliers
+  double epsilon = 0.0;                             // the instance's inlier distance (eq. 56)
   Eigen::Index support() const { return static_cast<Eigen::Index>(inliers.size()); }
   // The bound of eq. 54 when the instance was accepted, and the draws it took.
   double miss_probability = 1.0;
@@ -116,6 +120,7 @@ DetectionResult DetectPrimitives(const Eigen::Matrix3Xd& points, const Detection
 // lambda_2 the middle eigenvalue of the neighbours' scatter matrix. Sign arbitrary.
 struct PointNormals {
   Eigen::Matrix3Xd normals;
+  Eigen::VectorXd plane_residual;     // sqrt(lambda_0 / (k - 3)): the RMS distance from the PCA plane
   Eigen::VectorXd tangential_spread;  // sqrt(lambda_2) per point
   Eigen::VectorXd nearest_distance;   // distance to the nearest other point
   int neighbours = 0;
