@@ -71,7 +71,7 @@ bool DetectionOptions::IsValid(std::string* why) const {
   return true;
 }
 
-// ---- Normals (eq. 49) -------------------------------------------------------------------------------
+// ---- Normals (eq. 53) -------------------------------------------------------------------------------
 
 PointNormals EstimatePointNormals(const Eigen::Matrix3Xd& points, int neighbours) {
   const Eigen::Index n = points.cols();
@@ -111,7 +111,7 @@ PointNormals EstimatePointNormals(const Eigen::Matrix3Xd& points, int neighbours
   return out;
 }
 
-// ---- Candidates from minimal sets (eqs. 48-51) ----------------------------------------------------------
+// ---- Candidates from minimal sets (eqs. 49-52) ----------------------------------------------------------
 
 std::optional<Plane> PlaneFromPoints(const Eigen::Vector3d& p1, const Eigen::Vector3d& p2,
                                      const Eigen::Vector3d& p3) {
@@ -121,7 +121,7 @@ std::optional<Plane> PlaneFromPoints(const Eigen::Vector3d& p1, const Eigen::Vec
   return Plane{p1, n.normalized()};
 }
 
-// Eq. 49: the centre is the midpoint of the shortest segment between the normal lines p1 + s n1 and
+// Eq. 50: the centre is the midpoint of the shortest segment between the normal lines p1 + s n1 and
 // p2 + t n2; the radius the mean distance of the two points from it.
 std::optional<Sphere> SphereFromPointNormals(const Eigen::Vector3d& p1, const Eigen::Vector3d& n1,
                                              const Eigen::Vector3d& p2, const Eigen::Vector3d& n2) {
@@ -138,7 +138,7 @@ std::optional<Sphere> SphereFromPointNormals(const Eigen::Vector3d& p1, const Ei
   return Sphere{centre, radius};
 }
 
-// Eq. 50: the axis is n1 x n2; in the plane perpendicular to it the normal lines intersect at the axis.
+// Eq. 51: the axis is n1 x n2; in the plane perpendicular to it the normal lines intersect at the axis.
 std::optional<Cylinder> CylinderFromPointNormals(const Eigen::Vector3d& p1, const Eigen::Vector3d& n1,
                                                  const Eigen::Vector3d& p2, const Eigen::Vector3d& n2) {
   Eigen::Vector3d axis = n1.cross(n2);
@@ -159,7 +159,7 @@ std::optional<Cylinder> CylinderFromPointNormals(const Eigen::Vector3d& p1, cons
   return Cylinder{point, axis, radius};
 }
 
-// Eq. 51: the apex is the common point of the three tangent planes n_i.(x - p_i) = 0; the unit vectors from
+// Eq. 52: the apex is the common point of the three tangent planes n_i.(x - p_i) = 0; the unit vectors from
 // it to the p_i end on a circle of the unit sphere whose plane's normal is the axis; the half-angle is their
 // mean angle with the axis.
 std::optional<Cone> ConeFromPointNormals(const Eigen::Vector3d& p1, const Eigen::Vector3d& n1,
@@ -221,7 +221,7 @@ Eigen::Vector3d SurfaceNormal(const DetectedShape& shape, const Eigen::Vector3d&
 
 namespace {
 
-// The inlier test of eq. 52: |d| <= epsilon and the angle between the point's (unsigned) normal and the
+// The inlier test of eq. 54: |d| <= epsilon and the angle between the point's (unsigned) normal and the
 // shape's normal at its foot point at most alpha. Cones also need the point on the nappe the axis opens into
 // (beyond the apex), where Forbes' distance is the orthogonal one.
 struct InlierTest {
@@ -265,8 +265,8 @@ double CoarsenToKeys(double cell, double extent) {
   return std::max(cell, extent / static_cast<double>(kKeyCells - 2));
 }
 
-// Eq. 53's connectivity: the largest 26-connected component of the points' grid cells (Schnabel et al.
-// section 4.4 do it in the shape's parameter plane; the 3-D grid is the same test without a parametrization
+// Eq. 56's connectivity: the largest 26-connected component of the points' grid cells (Schnabel et al.
+// do it in the shape's parameter plane; the 3-D grid is the same test without a parametrization
 // per kind). Ties go to the component with the lowest cell key, so the result does not depend on thread
 // order. Returns indices of `candidates`' points, ascending.
 std::vector<Eigen::Index> LargestComponent(const Eigen::Matrix3Xd& points,
@@ -329,9 +329,9 @@ std::vector<Eigen::Index> LargestComponent(const Eigen::Matrix3Xd& points,
   return out;
 }
 
-// The octree of localized sampling (Schnabel et al. section 4.3), as one sorted cell list per level: level
-// l has cells of side extent / 2^l; a minimal set is the first point plus points drawn from its cell at a
-// level drawn uniformly.
+// The octree of localized sampling (Schnabel et al., localized sampling), as one sorted cell list per level:
+// level l has cells of side extent / 2^l; a minimal set is the first point plus points drawn from its cell at
+// a level drawn uniformly.
 class SamplingLevels {
  public:
   SamplingLevels(const Eigen::Matrix3Xd& points, double spacing) {
@@ -374,7 +374,7 @@ int MinimalSetSize(PrimitiveKind kind) {
   return kind == PrimitiveKind::kSphere || kind == PrimitiveKind::kCylinder ? 2 : 3;
 }
 
-// Eq. 54: the probability that one localized draw finds a shape of n points among N remaining, with d levels
+// Eq. 57: the probability that one localized draw finds a shape of n points among N remaining, with d levels
 // and a minimal set of k points: P(n) = n / (N d 2^(k-1)); after s draws it was missed with (1 - P)^s.
 double MissProbability(double n, double remaining, int levels, int k, double draws) {
   const double p = std::min(1.0, n / (remaining * levels * std::pow(2.0, k - 1)));
@@ -466,7 +466,7 @@ class Detector {
     return true;
   }
 
-  // Candidates of every requested kind from one minimal set, kept when the set's own points pass eq. 52.
+  // Candidates of every requested kind from one minimal set, kept when the set's own points pass eq. 54.
   void AddCandidates(const std::array<Eigen::Index, 3>& set, std::vector<Candidate>& out) const {
     const Eigen::Vector3d p1 = P(set[0]), p2 = P(set[1]), p3 = P(set[2]);
     const Eigen::Vector3d n1 = N(set[0]), n2 = N(set[1]), n3 = N(set[2]);
@@ -494,7 +494,7 @@ class Detector {
     }
   }
 
-  // Every remaining point passing eq. 52, then the largest connected component (eq. 53).
+  // Every remaining point passing eq. 54, then the largest connected component (eq. 56).
   std::vector<Eigen::Index> CollectInliers(const DetectedShape& shape) const {
     return CollectInliers(shape, test_);
   }
@@ -545,7 +545,7 @@ class Detector {
     }
   }
 
-  // The largest connected component of `inliers` (ascending) in the k-nearest-neighbour graph (eq. 53): union
+  // The largest connected component of `inliers` (ascending) in the k-nearest-neighbour graph (eq. 56): union
   // by the lower index, so the components and the tie-break (the component with the lowest point) do not
   // depend on threads.
   std::vector<Eigen::Index> LargestGraphComponent(const std::vector<Eigen::Index>& inliers) const {
@@ -584,7 +584,7 @@ class Detector {
     return out;
   }
 
-  // The instance's own epsilon (eq. 56): real scans deviate from a surface at scales the local noise
+  // The instance's own epsilon (eq. 59): real scans deviate from a surface at scales the local noise
   // estimate does not see (a stereo or depth camera's waviness, calibration), so the first refit's shape
   // takes the MAD sigma of the normal-compatible remaining points within 4 epsilon of it, and the instance
   // collects within 3 of those sigmas, between epsilon and 4 epsilon.
@@ -606,11 +606,11 @@ class Detector {
     return adapted;
   }
 
-  // Draws candidates until the best one is certain enough (eq. 54), refits it and removes its points.
+  // Draws candidates until the best one is certain enough (eq. 57), refits it and removes its points.
   // Returns false when the search is over.
   bool ExtractOne() {
     const auto remaining = static_cast<double>(remaining_.size());
-    // The scoring subset (eq. 55): a random sample of the remaining points.
+    // The scoring subset (eq. 58): a random sample of the remaining points.
     std::vector<Eigen::Index> subset = remaining_;
     const std::size_t m = std::min(subset.size(), static_cast<std::size_t>(options_.score_subset));
     for (std::size_t i = 0; i < m; ++i) {
@@ -647,7 +647,7 @@ class Detector {
                        [&](std::size_t a, std::size_t b) { return estimate[a] > estimate[b]; });
       for (std::size_t r = 0; r < order.size() && r < static_cast<std::size_t>(kFullPerBatch); ++r) {
         const std::size_t c = order[r];
-        // An upper confidence bound of the full score from the subset's count (eq. 55).
+        // An upper confidence bound of the full score from the subset's count (eq. 58).
         const double e = estimate[c];
         const double upper = (e + 2.0 * std::sqrt(e) + 1.0) * expand;
         if (upper < static_cast<double>(result_.min_support)) break;
@@ -680,7 +680,7 @@ class Detector {
     }
     (void)certain;
 
-    // Refit and re-collect (Schnabel et al. section 4.5; here the certified fits with a robust loss).
+    // Refit and re-collect (Schnabel et al.; here the certified fits with a robust loss).
     DetectedPrimitive instance;
     instance.kind = best->candidate.kind;
     instance.shape = best->candidate.shape;
@@ -765,7 +765,7 @@ DetectionResult DetectPrimitives(const Eigen::Matrix3Xd& points, const Detection
   PointNormals estimated = EstimatePointNormals(points, options.normal_neighbours);
   const Eigen::Matrix3Xd& used_normals = normals.cols() == n ? normals : estimated.normals;
 
-  // Thresholds from the data (eqs. 52-53).
+  // Thresholds from the data (eqs. 53-55).
   std::vector<double> nearest(estimated.nearest_distance.data(), estimated.nearest_distance.data() + n);
   result.point_spacing = Quantile(nearest, 0.5);
   ScanSet set;

@@ -1,7 +1,7 @@
 #pragma once
 // Robust extraction of primitives (planes, spheres, cylinders, cones) from raw scans with clutter: efficient
 // RANSAC after Schnabel, Wahl & Klein, "Efficient RANSAC for point-cloud shape detection", Computer Graphics
-// Forum 26(2) 2007 (docs/method.md section "Robust extraction", eqs. 48-55).
+// Forum 26(2) 2007 (docs/method.md section "Robust extraction", eqs. 49-59).
 //
 // Per point a normal from the PCA of its k nearest neighbours; candidates from minimal sets with normals
 // (plane: 3 points, sphere and cylinder: 2 points, cone: 3 points), drawn by localized sampling (a point,
@@ -39,18 +39,18 @@ struct DetectionOptions {
   int min_support = 0;
   std::uint64_t seed = 1;
   // Inlier distance epsilon in input units; 0: epsilon_noise_factor * sigma with sigma the model-free noise
-  // estimate (EstimateNoise) (eq. 52).
+  // estimate (EstimateNoise) (eq. 55).
   double epsilon = 0.0;
   double epsilon_noise_factor = 3.0;
   // Each instance re-estimates its epsilon from its first refit's residuals, within [epsilon, 4 epsilon]
-  // (eq. 56).
+  // (eq. 59).
   bool adapt_epsilon = true;
-  // Normal-angle threshold alpha (radians); 0: from the noise and the neighbourhoods' spread (eq. 53),
+  // Normal-angle threshold alpha (radians); 0: from the noise and the neighbourhoods' spread (eq. 55),
   // clamped to [min_alpha, max_alpha].
   double alpha = 0.0;
   double min_alpha = 0.2;
   double max_alpha = 0.6;
-  // Connectivity (eq. 53). 0: two inliers are connected when one is among the other's normal_neighbours
+  // Connectivity (eq. 56). 0: two inliers are connected when one is among the other's normal_neighbours
   // nearest points of the cloud (the k-nearest-neighbour graph adapts to the spacing, which grows with range
   // and at grazing incidence); > 0: 26-connected cells of a grid of this size (input units).
   double cluster_cell = 0.0;
@@ -59,11 +59,11 @@ struct DetectionOptions {
   // layer are wrong (measured on the mOSD scene test36: the table in eight slices with 12, one plane of
   // 101525 points with 40).
   int normal_neighbours = 40;
-  // The probability of having missed a shape larger than the accepted one (eq. 54).
+  // The probability of having missed a shape larger than the accepted one (eq. 57).
   double miss_probability = 0.01;
   // Draws of minimal sets per instance at most (the bound may not be reached then: reported).
   int max_draws = 60000;
-  // Points of the random subset on which candidates are first scored (eq. 55).
+  // Points of the random subset on which candidates are first scored (eq. 58).
   int score_subset = 3000;
   // Refit-and-recollect rounds on the accepted candidate's inliers.
   int refit_rounds = 2;
@@ -88,9 +88,9 @@ struct DetectedPrimitive {
   std::vector<ParameterUncertainty> uncertainties;  // from the refit (primitive_fit.h)
   std::vector<Eigen::Index> inliers;                // indices into the input points, ascending
   double rms = 0.0;                                 // RMS orthogonal distance of the inliers
-  double epsilon = 0.0;                             // the instance's inlier distance (eq. 56)
+  double epsilon = 0.0;                             // the instance's inlier distance (eq. 59)
   Eigen::Index support() const { return static_cast<Eigen::Index>(inliers.size()); }
-  // The bound of eq. 54 when the instance was accepted, and the draws it took.
+  // The bound of eq. 57 when the instance was accepted, and the draws it took.
   double miss_probability = 1.0;
   int draws = 0;
 };
@@ -106,10 +106,10 @@ struct DetectionResult {
   double cluster_cell = 0.0;  // 0: the k-nearest-neighbour graph
   Eigen::Index min_support = 0;
   int octree_levels = 0;
-  // Why the search stopped: "max-instances", "no-shape-left" (eq. 54 says no shape with min_support points
+  // Why the search stopped: "max-instances", "no-shape-left" (eq. 57 says no shape with min_support points
   // remains), "draw-limit" (the draws ran out before the bound was met) or "too-few-points".
   std::string stop_reason;
-  double final_miss_probability = 1.0;  // eq. 54 for a shape of min_support points at the stop
+  double final_miss_probability = 1.0;  // eq. 57 for a shape of min_support points at the stop
 };
 
 // Detects instances of `options.kinds` among `points` (input units). `normals`: empty, or one unit normal
@@ -119,7 +119,7 @@ DetectionResult DetectPrimitives(const Eigen::Matrix3Xd& points, const Detection
                                  const Eigen::Matrix3Xd& normals = Eigen::Matrix3Xd());
 
 // Unit normals by PCA of each point's k nearest neighbours (the point included), and for every point the
-// standard uncertainty of that normal's direction for a noise sigma (eq. 49): sigma / sqrt(lambda_2) with
+// standard uncertainty of that normal's direction for a noise sigma (eq. 53): sigma / sqrt(lambda_2) with
 // lambda_2 the middle eigenvalue of the neighbours' scatter matrix. Sign arbitrary.
 struct PointNormals {
   Eigen::Matrix3Xd normals;
@@ -131,7 +131,7 @@ struct PointNormals {
 };
 PointNormals EstimatePointNormals(const Eigen::Matrix3Xd& points, int neighbours);
 
-// Candidate constructions from minimal sets with normals (eqs. 48-51); nullopt for degenerate sets.
+// Candidate constructions from minimal sets with normals (eqs. 49-52); nullopt for degenerate sets.
 std::optional<Plane> PlaneFromPoints(const Eigen::Vector3d& p1, const Eigen::Vector3d& p2,
                                      const Eigen::Vector3d& p3);
 std::optional<Sphere> SphereFromPointNormals(const Eigen::Vector3d& p1, const Eigen::Vector3d& n1,
