@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include <omp.h>
+
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
@@ -169,13 +171,18 @@ TEST(PrimitiveDetection, SeveralSpheresAndACylinderOnAFloorAllFoundNoneSpurious)
               result.alpha, static_cast<long>(result.min_support));
 }
 
-TEST(PrimitiveDetection, TheSameSeedGivesTheSameResult) {
+// The same seed, the same result, on one thread and on two (OpenMP only scores candidates already drawn).
+TEST(PrimitiveDetection, TheSameSeedGivesTheSameResultOnAnyNumberOfThreads) {
   const SpheresAndCylinderScene scene = MakeSpheresAndCylinderScene(4);
   DetectionOptions options;
   options.kinds = {PrimitiveKind::kPlane, PrimitiveKind::kSphere, PrimitiveKind::kCylinder};
   options.seed = 11;
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
   const DetectionResult a = DetectPrimitives(scene.cloud.points, options);
+  omp_set_num_threads(2);
   const DetectionResult b = DetectPrimitives(scene.cloud.points, options);
+  omp_set_num_threads(threads);
   ASSERT_EQ(a.instances.size(), b.instances.size());
   for (std::size_t i = 0; i < a.instances.size(); ++i) {
     EXPECT_EQ(a.instances[i].kind, b.instances[i].kind);
