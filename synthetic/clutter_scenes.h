@@ -52,9 +52,9 @@ struct SphereOnStandScene {
 };
 SphereOnStandScene MakeSphereOnStandScene(double range, double noise, std::uint64_t seed);
 
-// Three spheres (radii 30, 40, 50 mm) and a column (radius 40 mm, 1 m tall: its top is out of view) on a floor (z = 0),
-// seen from about 1.7 m with 2.5 mm spacing and 0.3 mm range noise (millimetres). Objects: 0-2 spheres,
-// 3 cylinder, 4 floor.
+// Three spheres (radii 30, 40, 50 mm) and a column (radius 40 mm, 1 m tall: its top is out of view) on a
+// floor (z = 0), seen from about 1.7 m with 2.5 mm spacing and 0.3 mm range noise (millimetres). Objects: 0-2
+// spheres, 3 cylinder, 4 floor.
 struct SpheresAndCylinderScene {
   std::vector<SceneObject> objects;
   LabelledCloud cloud;

@@ -7,7 +7,6 @@
 #include "fitting/primitive_detection.h"
 
 #include <gtest/gtest.h>
-
 #include <omp.h>
 
 #include <Eigen/Geometry>
