@@ -20,6 +20,7 @@ Runner AddFitCommand(CLI::App& app);
 // `scan2model fit`: ComputeFit, then the text or JSON on standard output (notes and errors on standard
 // error); returns the exit code.
 int RunFit(const FitOptions& o);
+Runner AddDetectCommand(CLI::App& app);  // apps/detect_command.cpp, docs/cli.md
 Runner AddRecordCommand(CLI::App& app);  // apps/acquire_commands.cpp
 Runner AddExportCommand(CLI::App& app);
 Runner AddBatchCommand(CLI::App& app);      // apps/batch_command.cpp, docs/batch.md

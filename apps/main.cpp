@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
       "3 bad input, 4 fit failed, 5 device error.");
   const s2m::app::Runner info = s2m::app::AddInfoCommand(app);
   const s2m::app::Runner fit = s2m::app::AddFitCommand(app);
+  const s2m::app::Runner detect = s2m::app::AddDetectCommand(app);
   const s2m::app::Runner record = s2m::app::AddRecordCommand(app);
   const s2m::app::Runner export_views = s2m::app::AddExportCommand(app);
   const s2m::app::Runner batch = s2m::app::AddBatchCommand(app);
@@ -43,6 +44,7 @@ int main(int argc, char** argv) {
   try {
     if (app.got_subcommand("info")) return info();
     if (app.got_subcommand("fit")) return fit();
+    if (app.got_subcommand("detect")) return detect();
     if (app.got_subcommand("record")) return record();
     if (app.got_subcommand("export")) return export_views();
     if (app.got_subcommand("batch")) return batch();

@@ -13,6 +13,7 @@
 #include "acquisition/point_cloud_io.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_fit.h"
+#include "pipeline/detect.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
@@ -158,6 +159,79 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   return outcome;
 }
 
+// `fit --robust`: the dominant instance of the model (detect with one instance), then the usual primitive
+// fit and report on its inliers, started at the detection's refit; the rejected points are counted and, when
+// asked, written.
+FitOutcome ComputeRobustPrimitiveFit(FitOptions o, const Scan& scan, const std::string& format) {
+  const DetectionOptions detection = MakeDetectionOptions({o.model}, 1, 0, o.seed, 0.0, 0.0);
+  DetectionResult found;
+  try {
+    found = DetectPrimitives(scan.points, detection, scan.has_normals() ? scan.normals : Eigen::Matrix3Xd());
+  } catch (const std::invalid_argument& e) {
+    throw FitFailure(kFitError, o.file + ": " + e.what());
+  }
+  if (found.instances.empty()) {
+    throw FitFailure(kFitError, o.file + ": --robust found no " + o.model + " with at least " +
+                                    std::to_string(found.min_support) + " points (" + found.stop_reason +
+                                    ")");
+  }
+  const DetectedPrimitive& instance = found.instances.front();
+  Scan inliers = scan;
+  inliers.points.resize(3, instance.support());
+  inliers.normals.resize(3, 0);
+  inliers.weights.resize(0);
+  inliers.labels.clear();
+  for (Eigen::Index k = 0; k < instance.support(); ++k)
+    inliers.points.col(k) = scan.points.col(instance.inliers[static_cast<std::size_t>(k)]);
+  if (!o.loss.is_robust()) o.loss = detection.refit_loss;
+  FitOutcome outcome;
+  const DetectedShape start = instance.shape;
+  if (o.model == "plane") {
+    outcome = ComputePrimitiveFit<Plane>(o, inliers, format,
+                                         [](const auto& p, const auto& opt) { return FitPlane(p, opt); });
+  } else if (o.model == "sphere") {
+    outcome = ComputePrimitiveFit<Sphere>(o, inliers, format, [&](const auto& p, const auto& opt) {
+      return RefineSphere(p, std::get<Sphere>(start), opt);
+    });
+  } else if (o.model == "cylinder") {
+    outcome = ComputePrimitiveFit<Cylinder>(o, inliers, format, [&](const auto& p, const auto& opt) {
+      return RefineCylinder(p, std::get<Cylinder>(start), opt);
+    });
+  } else {
+    outcome = ComputePrimitiveFit<Cone>(o, inliers, format, [&](const auto& p, const auto& opt) {
+      return RefineCone(p, std::get<Cone>(start), opt);
+    });
+  }
+  outcome.document["input"] = DescribeScan(scan, o.file, format);
+  nlohmann::json robust = DetectionJson(found);
+  robust["inliers"] = instance.support();
+  robust["rejected"] = scan.size() - instance.support();
+  robust["seed"] = o.seed;
+  robust["miss_probability"] = instance.miss_probability;
+  if (!o.rejected_output.empty()) {
+    std::vector<Eigen::Index> rejected;
+    std::vector<char> in(static_cast<std::size_t>(scan.size()), 0);
+    for (Eigen::Index i : instance.inliers) in[static_cast<std::size_t>(i)] = 1;
+    for (Eigen::Index i = 0; i < scan.size(); ++i)
+      if (!in[static_cast<std::size_t>(i)]) rejected.push_back(i);
+    if (!rejected.empty()) {
+      WritePointsPly(o.rejected_output, scan.points, rejected,
+                     std::vector<std::array<int, 3>>(rejected.size(), {128, 128, 128}));
+    }
+    robust["rejected_output"] = o.rejected_output;
+  }
+  outcome.document["robust"] = robust;
+  std::ostringstream text;
+  text << "  robust            " << instance.support() << " inliers of " << scan.size() << " points, "
+       << scan.size() - instance.support() << " rejected (epsilon " << Format(found.epsilon, 3) << ", alpha "
+       << Format(found.alpha, 3) << " rad, seed " << o.seed << ")";
+  if (!o.rejected_output.empty()) text << "; rejected points written to " << o.rejected_output;
+  text << "\n";
+  outcome.text += text.str();
+  outcome.notes = scan.metadata.notes;
+  return outcome;
+}
+
 }  // namespace
 
 FitOutcome ComputeFit(const FitOptions& o) {
@@ -176,6 +250,7 @@ FitOutcome ComputeFit(const FitOptions& o) {
     Scan scan = ReadPointCloud(options.file, format);
     if (!options.units.empty()) scan.units = options.units;
     const std::string f = ToString(format);
+    if (options.robust) return ComputeRobustPrimitiveFit(options, scan, f);
     FitOutcome outcome;
     if (options.model == "plane") {
       outcome = ComputePrimitiveFit<Plane>(options, scan, f,

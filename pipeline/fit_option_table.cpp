@@ -108,6 +108,39 @@ std::vector<FitOptionSpec> MakeTable() {
        1e300,
        [](FitOptions& o, const std::string& v) { o.loss = ParseRobustLoss(v); },
        [](const std::string& v) { ParseRobustLoss(v); }});
+  t.push_back(
+      {"robust",
+       "--robust",
+       K::kFlag,
+       "",
+       "Primitives: detect the dominant instance among clutter first (efficient RANSAC, as `detect`), "
+       "then fit it on its inliers (loss tukey unless --loss is given); the rejected points are counted",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.robust = v == "true"; }});
+  t.push_back(
+      {"seed",
+       "--seed",
+       K::kInteger,
+       "1",
+       "--robust: seed of the sampling (the same seed, the same result)",
+       {},
+       false,
+       0,
+       2147483647,
+       [](FitOptions& o, const std::string& v) { o.seed = static_cast<std::uint64_t>(std::stod(v)); }});
+  t.push_back({"rejected_output",
+               "--rejected-output",
+               K::kPath,
+               "",
+               "--robust: write the rejected points (not in the instance) to this PLY",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.rejected_output = v; }});
   t.push_back({"step_control",
                "--step-control",
                K::kChoice,

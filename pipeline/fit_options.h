@@ -1,6 +1,7 @@
 #pragma once
 // Options of `scan2model fit`, shared by the primitive and the spline paths.
 
+#include <cstdint>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
@@ -32,9 +33,13 @@ struct FitOptions {
   double stretch = 0.0;
   double bending = 1e-3;
   std::string step_control = "lm";
-  RobustLoss loss;      // --loss: the robust loss of every fit (fitting/robust_loss.h)
-  std::string output;   // prefix for PREFIX.json, PREFIX.ply, PREFIX_history.csv
-  int contour = 0;      // .glif inputs: which contour
+  RobustLoss loss;  // --loss: the robust loss of every fit (fitting/robust_loss.h)
+  // Primitives: detect the dominant instance first (pipeline/detect.h), fit its inliers, count the rest.
+  bool robust = false;
+  std::uint64_t seed = 1;
+  std::string rejected_output;  // --robust: the rejected points as a PLY
+  std::string output;           // prefix for PREFIX.json, PREFIX.ply, PREFIX_history.csv
+  int contour = 0;              // .glif inputs: which contour
   std::string initial;  // a scan2model.bspline/1 JSON to start from instead of the automatic initial model
   // Show the iterations on a terminal as they run (splines); `batch` turns it off for its objects.
   bool interactive = true;

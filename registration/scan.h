@@ -2,6 +2,7 @@
 // A scan: one view of a part, in the scanner's own coordinates, with the pose that places it in the world.
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -19,9 +20,11 @@ struct ScanMetadata {
 };
 
 struct Scan {
-  Eigen::Matrix3Xd points;        // double precision, scan coordinates, one point per column
-  Eigen::Matrix3Xd normals;       // empty, or one unit normal per point
-  Eigen::VectorXd weights;        // empty, or one non-negative weight per point
+  Eigen::Matrix3Xd points;   // double precision, scan coordinates, one point per column
+  Eigen::Matrix3Xd normals;  // empty, or one unit normal per point
+  Eigen::VectorXd weights;   // empty, or one non-negative weight per point
+  // Empty, or one integer label per point (PCD's `label` field, e.g. a ground-truth segmentation).
+  std::vector<std::int64_t> labels;
   RigidMotion world_T_scan;       // maps scan coordinates to world coordinates
   std::string units = "unknown";  // "mm", "m", ... as declared by the source; never guessed
   ScanMetadata metadata;

@@ -79,7 +79,7 @@ TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
   EXPECT_EQ(
       ManifestOptionKeys(),
       "bending, closed, contour, control_points, initial, loss, max_iterations, method, order, reference, "
-      "solver, step_control, stretch, units");
+      "rejected_output, robust, seed, solver, step_control, stretch, units");
   for (const FitOptionSpec& spec : FitOptionTable()) {
     EXPECT_TRUE(spec.set) << spec.key << spec.names;
     // Every manifest key but the solver (three flags) is also a command-line option with the dashed name.

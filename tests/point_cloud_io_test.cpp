@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <set>
 #include <string>
 
 #include "acquisition/format_error.h"
@@ -225,6 +226,25 @@ TEST_F(PointCloudIo, PcdInvalidPointsAreDroppedAndCounted) {
   EXPECT_NE(s.metadata.notes[0].find("dropped 2 of 4"), std::string::npos);
   ExpectError(Write("allnan.pcd", head + "nan nan nan\nnan nan nan\nnan nan nan\nnan nan nan\n"),
               {"no valid point"});
+}
+
+TEST_F(PointCloudIo, PcdLabelsFollowTheValidPoints) {
+  const std::string head =
+      "FIELDS label x y z\nSIZE 4 4 4 4\nTYPE U F F F\nWIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n";
+  const Scan s = ReadPointCloud(Write("labels.pcd", head + "20 1 2 3\n0 nan nan nan\n30 4 5 6\n"));
+  ASSERT_EQ(s.size(), 2);
+  EXPECT_EQ(s.labels, (std::vector<std::int64_t>{20, 30}));
+}
+
+// The labelled mOSD scene (binary_compressed, organized 640 x 480 with NaNs): the labels survive the
+// dropping of invalid points.
+TEST_F(PointCloudIo, ReadsTheLabelledClutterScene) {
+  if (!test::HaveSharedData()) GTEST_SKIP() << "../shared/data is absent";
+  const Scan s = ReadPointCloud(test::SharedData("real_clutter_scenes/test36.pcd"));
+  ASSERT_EQ(s.labels.size(), static_cast<std::size_t>(s.size()));
+  EXPECT_LT(s.size(), 640 * 480);
+  std::set<std::int64_t> distinct(s.labels.begin(), s.labels.end());
+  EXPECT_GE(distinct.size(), 4u);  // table and three objects at least
 }
 
 TEST_F(PointCloudIo, BrokenPcdFilesGetClearErrors) {

@@ -1,7 +1,8 @@
 // PCD, the Point Cloud Library's format (v0.5 to v0.7): DATA ascii, binary and binary_compressed (LZF, fields
 // stored one after the other). NaN coordinates are PCD's own marker for "no measurement" (organized clouds,
 // is_dense false): such points are dropped and counted in the scan's notes; a file with no valid point at all
-// is an error.
+// is an error. An integer `label` field (a per-point segmentation, e.g. the mOSD scenes' ground truth) is
+// kept in Scan::labels.
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -77,6 +78,7 @@ class PcdParser {
     RefuseCountBeyondSize();
     raw_.resize(3, static_cast<Eigen::Index>(points_));
     if (HasNormals()) raw_normals_.resize(3, static_cast<Eigen::Index>(points_));
+    if (label_ >= 0) raw_labels_.resize(points_);
     if (data_ == "ascii")
       ReadAscii();
     else if (data_ == "binary")
@@ -194,6 +196,9 @@ class PcdParser {
     x_ = FieldIndex("x"), y_ = FieldIndex("y"), z_ = FieldIndex("z");
     if (x_ < 0 || y_ < 0 || z_ < 0) Fail("header", "FIELDS lacks one of x, y, z");
     nx_ = FieldIndex("normal_x"), ny_ = FieldIndex("normal_y"), nz_ = FieldIndex("normal_z");
+    label_ = FieldIndex("label");
+    if (label_ >= 0 && fields_[static_cast<std::size_t>(label_)].type == 'F')
+      label_ = -1;  // not a segmentation
     data_start_ = lines_.position();
   }
 
@@ -247,6 +252,7 @@ class PcdParser {
       raw_.col(col) << number(cx), number(cy), number(cz);
       if (HasNormals())
         raw_normals_.col(col) << number(Column(nx_)), number(Column(ny_)), number(Column(nz_));
+      if (label_ >= 0) raw_labels_[i] = static_cast<std::int64_t>(number(Column(label_)));
     }
   }
 
@@ -266,6 +272,7 @@ class PcdParser {
       const auto col = static_cast<Eigen::Index>(i);
       raw_.col(col) << value(x_), value(y_), value(z_);
       if (HasNormals()) raw_normals_.col(col) << value(nx_), value(ny_), value(nz_);
+      if (label_ >= 0) raw_labels_[i] = static_cast<std::int64_t>(value(label_));
     }
   }
 
@@ -306,6 +313,7 @@ class PcdParser {
       const auto col = static_cast<Eigen::Index>(i);
       raw_.col(col) << value(x_), value(y_), value(z_);
       if (HasNormals()) raw_normals_.col(col) << value(nx_), value(ny_), value(nz_);
+      if (label_ >= 0) raw_labels_[i] = static_cast<std::int64_t>(value(label_));
     }
   }
 
@@ -334,6 +342,11 @@ class PcdParser {
         scan.metadata.notes.push_back("normals dropped: some valid points have NaN normals");
       }
     }
+    if (label_ >= 0) {
+      scan.labels.resize(keep.size());
+      for (std::size_t k = 0; k < keep.size(); ++k)
+        scan.labels[k] = raw_labels_[static_cast<std::size_t>(keep[k])];
+    }
     if (dropped > 0) {
       scan.metadata.notes.push_back("dropped " + std::to_string(dropped) + " of " + std::to_string(points_) +
                                     " points with NaN coordinates (PCD's invalid-point marker" +
@@ -352,7 +365,8 @@ class PcdParser {
   std::size_t points_ = 0, record_size_ = 0, data_start_ = 0;
   std::string data_;
   bool organized_ = false;
-  int x_ = -1, y_ = -1, z_ = -1, nx_ = -1, ny_ = -1, nz_ = -1;
+  int x_ = -1, y_ = -1, z_ = -1, nx_ = -1, ny_ = -1, nz_ = -1, label_ = -1;
+  std::vector<std::int64_t> raw_labels_;
   RigidMotion viewpoint_;
   Eigen::Matrix3Xd raw_, raw_normals_;
 };

@@ -1,0 +1,206 @@
+// Robust extraction (fitting/primitive_detection.h, docs/method.md "Robust extraction"): the minimal-set
+// constructions on exact data, the issue-22 terrestrial scan of a 50 mm sphere on a stand with a floor and a
+// wall (radius within 0.3 mm and centre within 0.5 mm over 20 seeds with no cropping, where plain least
+// squares is asserted to fail), several spheres and a cylinder on a floor (all found, none spurious), and
+// determinism for a seed.
+
+#include "fitting/primitive_detection.h"
+
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "synthetic/clutter_scenes.h"
+
+namespace s2m {
+namespace {
+
+TEST(PrimitiveDetection, MinimalSetsGiveTheExactShapes) {
+  const Sphere sphere{{1, 2, 3}, 4};
+  const Eigen::Vector3d n1 = Eigen::Vector3d(1, 0.2, -0.3).normalized(),
+                        n2 = Eigen::Vector3d(-0.4, 1, 0.5).normalized();
+  const auto s = SphereFromPointNormals(sphere.center + 4 * n1, n1, sphere.center + 4 * n2, -n2);
+  ASSERT_TRUE(s);
+  EXPECT_LT((s->center - sphere.center).norm(), 1e-12);
+  EXPECT_NEAR(s->radius, 4, 1e-12);
+
+  const Cylinder cylinder{{1, 0, 0}, Eigen::Vector3d(0.3, 0.1, 1).normalized(), 2};
+  const Eigen::Matrix3d f = FrameWithAxis(cylinder.axis_direction);
+  const Eigen::Vector3d r1 = f.col(0), r2 = (f.col(0) + 2 * f.col(1)).normalized();
+  const auto c = CylinderFromPointNormals(cylinder.axis_point + 2 * r1 + 0.5 * f.col(2), r1,
+                                          cylinder.axis_point + 2 * r2 - 1.5 * f.col(2), -r2);
+  ASSERT_TRUE(c);
+  EXPECT_NEAR(std::abs(c->axis_direction.dot(cylinder.axis_direction)), 1, 1e-12);
+  EXPECT_NEAR(c->radius, 2, 1e-12);
+  EXPECT_LT(std::abs(SignedDistance(*c, cylinder.axis_point + 2 * f.col(1))), 1e-12);
+
+  const Cone cone{{0, 0, 1}, Eigen::Vector3d(0.1, -0.2, 1).normalized(), 0.4, 1.5};
+  const Eigen::Matrix3d g = FrameWithAxis(cone.axis_direction);
+  Eigen::Vector3d p[3], n[3];
+  const double angles[3] = {0.1, 2.0, 4.0}, heights[3] = {0.0, 1.0, -0.5};
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d radial = std::cos(angles[k]) * g.col(0) + std::sin(angles[k]) * g.col(1);
+    const double rho = cone.radius + heights[k] * std::tan(cone.half_angle);
+    p[k] = cone.axis_point + heights[k] * cone.axis_direction + rho * radial;
+    n[k] = std::cos(cone.half_angle) * radial - std::sin(cone.half_angle) * cone.axis_direction;
+  }
+  const auto k = ConeFromPointNormals(p[0], n[0], p[1], -n[1], p[2], n[2]);
+  ASSERT_TRUE(k);
+  EXPECT_NEAR(k->axis_direction.dot(cone.axis_direction), 1, 1e-12);
+  EXPECT_NEAR(k->half_angle, cone.half_angle, 1e-12);
+  EXPECT_LT((k->Apex() - cone.Apex()).norm(), 1e-10);
+
+  EXPECT_FALSE(SphereFromPointNormals({0, 0, 0}, {0, 0, 1}, {1, 0, 0}, {0, 0, 1}));  // parallel normals
+  EXPECT_THROW(PrimitiveKindFromString("torus"), std::invalid_argument);
+}
+
+// Issue 22: a 50 mm sphere as a terrestrial scanner sees it (one side, noise 0.1-0.3 mm, range 6-8 m) on a
+// post, with a floor and a wall behind, 40-70 % of the points not on the sphere. The thresholds are the
+// issue's: radius within 0.3 mm, centre within 0.5 mm, every one of 20 seeds, no cropping.
+TEST(PrimitiveDetection, SphereOnAStandWithFloorAndWallOverTwentySeeds) {
+  double worst_radius = 0, worst_centre = 0, best_plain_radius = 1e300;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    const double noise = 0.1 + 0.2 * static_cast<double>(seed - 1) / 19.0;
+    const double range = 6000 + 2000 * static_cast<double>((seed * 7) % 20) / 19.0;
+    const SphereOnStandScene scene = MakeSphereOnStandScene(range, noise, seed);
+    const Eigen::Index n = scene.cloud.points.cols();
+    Eigen::Index on_sphere = 0;
+    for (int label : scene.cloud.labels) on_sphere += label == 0;
+    const double clutter = 1.0 - static_cast<double>(on_sphere) / static_cast<double>(n);
+    ASSERT_GE(clutter, 0.4) << "seed " << seed;
+    ASSERT_LE(clutter, 0.7) << "seed " << seed;
+
+    DetectionOptions options;
+    options.kinds = {PrimitiveKind::kSphere};
+    options.max_instances = 1;
+    options.seed = seed;
+    const DetectionResult result = DetectPrimitives(scene.cloud.points, options);
+    ASSERT_EQ(result.instances.size(), 1u) << "seed " << seed << ": " << result.stop_reason;
+    const Sphere& found = std::get<Sphere>(result.instances[0].shape);
+    const double radius_error = std::abs(found.radius - scene.truth.radius);
+    const double centre_error = (found.center - scene.truth.center).norm();
+    worst_radius = std::max(worst_radius, radius_error);
+    worst_centre = std::max(worst_centre, centre_error);
+    EXPECT_LT(radius_error, 0.3) << "seed " << seed;
+    EXPECT_LT(centre_error, 0.5) << "seed " << seed;
+
+    // Plain least squares on the same points, uncropped: the issue's failure.
+    const PrimitiveFit<Sphere> plain = FitSphere(scene.cloud.points);
+    const double plain_error = std::abs(plain.shape.radius - scene.truth.radius);
+    best_plain_radius = std::min(best_plain_radius, plain_error);
+    EXPECT_GT(plain_error, 0.3) << "seed " << seed;
+    if (seed == 1) {
+      std::printf(
+          "[ sphere scene ] %ld points, %.0f %% clutter, epsilon %.3f mm, alpha %.3f rad, %zu inliers\n",
+          static_cast<long>(n), 100 * clutter, result.epsilon, result.alpha,
+          result.instances[0].inliers.size());
+    }
+  }
+  std::printf(
+      "[ sphere scene ] 20 seeds: worst radius error %.4f mm, worst centre error %.4f mm; "
+      "plain least squares: smallest radius error %.2f mm\n",
+      worst_radius, worst_centre, best_plain_radius);
+}
+
+// Which object an instance is: the truth object of the same kind its parameters match within 1 mm (the
+// scene's noise is 0.3 mm; radius and centre uncertainties of a few hundred points are far below 1 mm).
+std::string Describe(const DetectedShape& shape) {
+  char text[200];
+  if (const auto* s = std::get_if<Sphere>(&shape)) {
+    std::snprintf(text, sizeof text, "centre %.2f %.2f %.2f radius %.2f", s->center.x(), s->center.y(),
+                  s->center.z(), s->radius);
+  } else if (const auto* c = std::get_if<Cylinder>(&shape)) {
+    std::snprintf(text, sizeof text, "axis point %.2f %.2f %.2f direction %.3f %.3f %.3f radius %.2f",
+                  c->axis_point.x(), c->axis_point.y(), c->axis_point.z(), c->axis_direction.x(),
+                  c->axis_direction.y(), c->axis_direction.z(), c->radius);
+  } else {
+    const Plane& p = std::get<Plane>(shape);
+    std::snprintf(text, sizeof text, "plane through %.2f %.2f %.2f normal %.3f %.3f %.3f", p.point.x(),
+                  p.point.y(), p.point.z(), p.normal.x(), p.normal.y(), p.normal.z());
+  }
+  return text;
+}
+
+int MatchObject(const DetectedPrimitive& instance, const std::vector<SceneObject>& objects) {
+  for (std::size_t k = 0; k < objects.size(); ++k) {
+    if (const auto* s = std::get_if<Sphere>(&objects[k]); s && instance.kind == PrimitiveKind::kSphere) {
+      const Sphere& f = std::get<Sphere>(instance.shape);
+      if ((f.center - s->center).norm() < 1 && std::abs(f.radius - s->radius) < 1) return static_cast<int>(k);
+    }
+    if (const auto* c = std::get_if<FiniteCylinder>(&objects[k]);
+        c && instance.kind == PrimitiveKind::kCylinder) {
+      Cylinder f = std::get<Cylinder>(instance.shape);
+      MoveAxisPointNear(f, c->cylinder.axis_point);
+      if ((f.axis_point - c->cylinder.axis_point).norm() < 1 && std::abs(f.radius - c->cylinder.radius) < 1 &&
+          std::abs(f.axis_direction.dot(c->cylinder.axis_direction)) > std::cos(0.01))
+        return static_cast<int>(k);
+    }
+    if (const auto* p = std::get_if<Plane>(&objects[k]); p && instance.kind == PrimitiveKind::kPlane) {
+      const Plane& f = std::get<Plane>(instance.shape);
+      if (std::abs(f.normal.dot(p->normal)) > std::cos(0.01) && std::abs(SignedDistance(*p, f.point)) < 1)
+        return static_cast<int>(k);
+    }
+  }
+  return -1;
+}
+
+TEST(PrimitiveDetection, SeveralSpheresAndACylinderOnAFloorAllFoundNoneSpurious) {
+  const SpheresAndCylinderScene scene = MakeSpheresAndCylinderScene(3);
+  ASSERT_LE(scene.cloud.points.cols(), 50000);
+  DetectionOptions options;
+  options.kinds = {PrimitiveKind::kPlane, PrimitiveKind::kSphere, PrimitiveKind::kCylinder};
+  options.seed = 5;
+  const DetectionResult result = DetectPrimitives(scene.cloud.points, options);
+  std::vector<int> found(scene.objects.size(), 0);
+  for (const DetectedPrimitive& instance : result.instances) {
+    const int k = MatchObject(instance, scene.objects);
+    std::printf("[ scene ] %s: %zu inliers, RMS %.3f mm -> object %d\n", ToString(instance.kind),
+                instance.inliers.size(), instance.rms, k);
+    EXPECT_GE(k, 0) << "a spurious " << ToString(instance.kind) << " of " << instance.inliers.size()
+                    << " points: " << Describe(instance.shape);
+    if (k >= 0) ++found[static_cast<std::size_t>(k)];
+  }
+  for (std::size_t k = 0; k < scene.objects.size(); ++k) EXPECT_EQ(found[k], 1) << "object " << k;
+  std::printf("[ scene ] %ld points, stop: %s, epsilon %.3f, alpha %.3f, min support %ld\n",
+              static_cast<long>(scene.cloud.points.cols()), result.stop_reason.c_str(), result.epsilon,
+              result.alpha, static_cast<long>(result.min_support));
+}
+
+// The same seed, the same result, on one thread and on two (OpenMP only scores candidates already drawn).
+TEST(PrimitiveDetection, TheSameSeedGivesTheSameResultOnAnyNumberOfThreads) {
+  const SpheresAndCylinderScene scene = MakeSpheresAndCylinderScene(4);
+  DetectionOptions options;
+  options.kinds = {PrimitiveKind::kPlane, PrimitiveKind::kSphere, PrimitiveKind::kCylinder};
+  options.seed = 11;
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const DetectionResult a = DetectPrimitives(scene.cloud.points, options);
+  omp_set_num_threads(2);
+  const DetectionResult b = DetectPrimitives(scene.cloud.points, options);
+  omp_set_num_threads(threads);
+  ASSERT_EQ(a.instances.size(), b.instances.size());
+  for (std::size_t i = 0; i < a.instances.size(); ++i) {
+    EXPECT_EQ(a.instances[i].kind, b.instances[i].kind);
+    EXPECT_EQ(a.instances[i].inliers, b.instances[i].inliers);
+    EXPECT_EQ(a.instances[i].rms, b.instances[i].rms);  // bit for bit
+  }
+  EXPECT_EQ(a.rejected, b.rejected);
+}
+
+TEST(PrimitiveDetection, BadInputIsRejectedWithAReason) {
+  DetectionOptions options;
+  EXPECT_FALSE(options.IsValid());  // no kind
+  options.kinds = {PrimitiveKind::kPlane};
+  EXPECT_TRUE(options.IsValid());
+  EXPECT_THROW(DetectPrimitives(Eigen::Matrix3Xd::Random(3, 5), options), std::invalid_argument);
+  Eigen::Matrix3Xd bad = Eigen::Matrix3Xd::Random(3, 100);
+  bad(1, 7) = std::nan("");
+  EXPECT_THROW(DetectPrimitives(bad, options), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace s2m
