@@ -11,6 +11,7 @@
 #include "acquisition/format_error.h"
 #include "acquisition/nist_reference.h"
 #include "acquisition/point_cloud_io.h"
+#include "fitting/noise_estimate.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_fit.h"
 #include "pipeline/domain_measures.h"
@@ -83,6 +84,23 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   if (!o.reference.empty()) deviation = Compare(fit.shape, ReadReference(o.reference, fit.shape));
   if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(fit.history));
 
+  // Adequacy (docs/method.md section 16): the RMS against the cloud's own noise, and the signed residuals'
+  // structure along a Hilbert curve through the points and between nearest neighbours.
+  const Eigen::VectorXd signed_distances = SignedDistances(fit.shape, scan.points);
+  AdequacyEvidence evidence;
+  evidence.family = ModelFamily::kPrimitive;
+  evidence.model = o.model;
+  evidence.fit_rms = fit.residuals.rms;
+  ScanSet single;
+  single.scans.push_back(scan);
+  evidence.noise_estimate = EstimateNoise(single);
+  evidence.residuals = signed_distances;
+  evidence.points = scan.points;
+  evidence.weights = RobustWeightsAt(o.loss, fit.loss_scale, signed_distances);
+  evidence.extent = extent;
+  const Adequacy adequacy = AssessAdequacy(evidence);
+  const std::optional<bool> trusted = adequacy.uncertainty_trusted();
+
   FitOutcome outcome;
   {
     nlohmann::json& j = outcome.document;
@@ -114,7 +132,9 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
                         {"size", deviation->size},
                         {"apex_angle_rad", deviation->angle}};
     }
-    j["deviations"] = DeviationsJson(scan.points, SignedDistances(fit.shape, scan.points));
+    j["deviations"] = DeviationsJson(scan.points, signed_distances, {}, evidence.weights);
+    j["adequacy"] = adequacy.ToJson();
+    MarkUncertainties(j, trusted);
   }
 
   std::ostringstream text;
@@ -122,9 +142,10 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
        << ", units " << scan.units << ")\n\n";
   for (const Row& r : rows) text << "  " << std::left << std::setw(18) << r.name << r.text << "\n";
   if (!fit.uncertainties.empty()) {
-    text << "\n  standard uncertainties (type A, from the residuals)\n";
+    text << "\n  standard uncertainties (type A, from the residuals)\n"
+         << UntrustedUncertaintiesLine(trusted);
     for (const ParameterUncertainty& u : fit.uncertainties) {
-      text << "  " << std::left << std::setw(18) << u.name << Format(u.standard_uncertainty, 3)
+      text << "  " << std::left << std::setw(18) << u.name << UncertaintyText(u.standard_uncertainty, trusted)
            << (u.is_angle ? " rad" : "") << "\n";
     }
   } else {
@@ -141,6 +162,7 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
          << (o.loss.scale_from_data() ? " (from the data)" : "") << ", " << fit.rejected
          << " points down-weighted (IRLS weight < 0.5)\n";
   }
+  text << adequacy.Text();
   if (o.verbose) text << HistoryTable(fit.history);
   if (deviation) {
     text << "\n  against reference " << o.reference << " (relative to the data's extent " << Format(extent, 6)

@@ -14,6 +14,7 @@
 #include "fitting/joint_fit.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/primitive_fit.h"
+#include "fitting/residual_structure.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
@@ -185,8 +186,26 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     for (std::size_t k = 0; k < K; ++k) model_points.push_back(r.model_T_scan[k].apply(scans[k]));
     const Eigen::Matrix3Xd registered = Concatenate(model_points);
     const Eigen::VectorXd deviations = SignedDistancesAroundAxis(*model, registered);
-    j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations);
-    const Adequacy adequacy = AssessAdequacy(r.residuals.rms, EstimateNoise(set));
+    // Adequacy (docs/method.md section 16): the RMS against the views' own noise, and the signed residuals'
+    // structure, for a surface of revolution along the height (the generatrix's parameter up to its
+    // direction), for helical and spiral surfaces along a Hilbert curve through the registered points.
+    AdequacyEvidence evidence;
+    evidence.family = ModelFamily::kMultiView;
+    evidence.model = o.model;
+    evidence.control_points = std::to_string(profile.cols());
+    evidence.fit_rms = r.residuals.rms;
+    evidence.noise_estimate = EstimateNoise(set);
+    evidence.residuals = deviations;
+    evidence.points = registered;
+    if (o.model == "revolution") {
+      evidence.order = OrderByParameter(registered.row(2).transpose());
+      evidence.order_description = "the height along the axis";
+    }
+    evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, deviations);
+    evidence.extent = ComputeBounds(registered).diagonal();
+    const Adequacy adequacy = AssessAdequacy(evidence);
+    const std::optional<bool> trusted = adequacy.uncertainty_trusted();
+    j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations, {}, evidence.weights);
     j["adequacy"] = adequacy.ToJson();
     std::optional<VesselMeasures> vessel;
     if (o.model == "revolution") {
@@ -195,22 +214,25 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
       vessel = MeasureVessel(axis_point, axis_direction, height_radius, radius_uncertainty, units);
       j["vessel"] = vessel->ToJson();
     }
+    MarkUncertainties(j, trusted);
     WriteRequestedFiles(o, j, r);
     if (vessel && !o.output.empty()) WriteProfileFiles(o.output, *vessel);
     std::ostringstream text;
     text << "scan2model fit: " << model->name() << " to " << K << " views (" << set.TotalPoints()
          << " points) of " << o.file << " (units " << units << ")\n\n"
-         << "  solver            " << SolverSummary(options, r, seconds) << "\n"
+         << UntrustedUncertaintiesLine(trusted) << "  solver            "
+         << SolverSummary(options, r, seconds) << "\n"
          << "  axis point        " << Format(axis_point) << "\n"
          << "  axis direction    " << Format(axis_direction) << "\n";
     if (j.contains("pitch")) {
       text << "  pitch             " << Format(j["pitch"]["value"].get<double>(), 8) << " +- "
-           << Format(UncertaintyOf(*model, r, "pitch"), 2) << " per radian (lead "
+           << UncertaintyText(UncertaintyOf(*model, r, "pitch"), trusted, 2) << " per radian (lead "
            << Format(j["pitch"]["lead_per_turn"].get<double>(), 6) << " per turn)\n";
     }
     if (j.contains("growth")) {
       text << "  growth            " << Format(j["growth"]["value"].get<double>(), 8) << " +- "
-           << Format(UncertaintyOf(*model, r, "growth"), 2) << " per radian (whorl expansion rate "
+           << UncertaintyText(UncertaintyOf(*model, r, "growth"), trusted, 2)
+           << " per radian (whorl expansion rate "
            << Format(j["growth"]["whorl_expansion_rate"].get<double>(), 6) << ")\n";
     }
     text << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
@@ -220,11 +242,11 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
       const double u = radius_uncertainty[static_cast<std::size_t>(i)];
       text << "  " << std::setw(14) << Format(samples[static_cast<std::size_t>(i)][0], 6) << std::setw(14)
            << Format(samples[static_cast<std::size_t>(i)][1], 6) << std::setw(12)
-           << (std::isfinite(u) ? Format(u, 2) : std::string("-")) << "\n";
+           << UncertaintyText(u, trusted, 2) << "\n";
     }
     text << ViewsTable(j["views"]) << UnobservableText(r);
     if (o.verbose) text << HistoryTable(r.history);
-    if (vessel) text << vessel->Text();
+    if (vessel) text << vessel->Text(trusted);
     text << adequacy.Text();
     outcome.text = text.str();
     return outcome;

@@ -213,9 +213,23 @@ FitOutcome ComputePartFit(const FitOptions& o) {
     AddSolverJson(j, r, seconds);
     // Signed deviations of the registered points (world = part frame) and the fit's adequacy against the
     // views' own noise (docs/batch.md).
-    j["deviations"] = DeviationsJson(registered, SignedDistancesToFaces(part, registered));
-    const Adequacy adequacy = AssessAdequacy(r.residuals.rms, EstimateNoise(set));
+    // Adequacy (docs/method.md section 16): the RMS against the views' own noise, and the signed residuals'
+    // structure along a Hilbert curve through the registered points and between nearest neighbours.
+    const Eigen::VectorXd deviations = SignedDistancesToFaces(part, registered);
+    AdequacyEvidence evidence;
+    evidence.family = ModelFamily::kPart;
+    evidence.model = o.model;
+    evidence.fit_rms = r.residuals.rms;
+    evidence.noise_estimate = EstimateNoise(set);
+    evidence.residuals = deviations;
+    evidence.points = registered;
+    evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, deviations);
+    evidence.extent = ComputeBounds(registered).diagonal();
+    const Adequacy adequacy = AssessAdequacy(evidence);
+    const std::optional<bool> trusted = adequacy.uncertainty_trusted();
+    j["deviations"] = DeviationsJson(registered, deviations, {}, evidence.weights);
     j["adequacy"] = adequacy.ToJson();
+    MarkUncertainties(j, trusted);
     WriteRequestedFiles(o, j, r);
 
     std::ostringstream text;
@@ -227,12 +241,12 @@ FitOutcome ComputePartFit(const FitOptions& o) {
          << Format(r.residuals.max_abs, 6) << "\n"
          << "  near edges        " << r.excluded_points << " points within " << Format(part.edge_margin(), 3)
          << " " << units << " of a second face left out of the final pass\n\n"
+         << UntrustedUncertaintiesLine(trusted)
          << "  parameter                          value    standard uncertainty       nominal\n";
     for (std::size_t i = 0; i < reported.size(); ++i) {
       const Reported& p = reported[i];
       text << "  " << std::left << std::setw(24) << names[i] << std::right << std::setw(14)
-           << Format(p.value, 8) << std::setw(24)
-           << (std::isfinite(p.uncertainty) ? Format(p.uncertainty, 3) : std::string("-")) << std::setw(14)
+           << Format(p.value, 8) << std::setw(24) << UncertaintyText(p.uncertainty, trusted) << std::setw(14)
            << Format(p.nominal, 8) << "  " << p.unit << "\n";
     }
     for (const PartParameter& p : file.fixed_parameters) {

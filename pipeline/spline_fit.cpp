@@ -15,6 +15,9 @@
 #include "acquisition/point_cloud_io.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
+#include "fitting/noise_estimate.h"
+#include "fitting/residual_structure.h"
+#include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
@@ -204,6 +207,60 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (progress) std::cerr << "\n";
 
+    // Adequacy (docs/method.md section 16): the RMS against the data's own noise (a curve's or a surface's
+    // estimate), and the residuals' structure along the curve parameter (surfaces: along a Hilbert curve over
+    // (u, v)) and between nearest neighbours. Residuals are signed by the model's normal, except for a curve
+    // in space, whose distances have no sign.
+    AdequacyEvidence evidence;
+    evidence.family = ModelFamily::kSpline;
+    evidence.model = o.model;
+    evidence.fit_rms = r.residuals.rms;
+    const Eigen::Index count = data.cols();
+    evidence.residuals.resize(count);
+    evidence.points = Eigen::Matrix3Xd::Zero(3, count);
+    evidence.points.topRows(data.rows()) = data;
+    evidence.signed_residuals = surface || data.rows() == 2;
+    Eigen::MatrixXd feet(surface ? 2 : 1, count);
+    {
+      LocalGeometry g;
+      for (Eigen::Index i = 0; i < count; ++i) {
+        const FootPoint& foot = r.foot_points[static_cast<std::size_t>(i)];
+        model->Evaluate(foot.t, 1, g);
+        const Eigen::VectorXd offset = data.col(i) - Eigen::VectorXd(g.point);
+        double sign = 1.0;
+        if (surface) {
+          const Eigen::Vector3d normal = Eigen::Vector3d(g.d1.col(0)).cross(Eigen::Vector3d(g.d1.col(1)));
+          sign = normal.dot(offset) < 0 ? -1.0 : 1.0;
+        } else if (data.rows() == 2) {
+          sign = -g.d1(1, 0) * offset[0] + g.d1(0, 0) * offset[1] < 0 ? -1.0 : 1.0;  // left of the tangent
+        }
+        evidence.residuals[i] = sign * foot.distance;
+        for (Eigen::Index k = 0; k < feet.rows(); ++k) feet(k, i) = foot.t[static_cast<std::size_t>(k)];
+      }
+    }
+    if (surface) {
+      const auto& s = dynamic_cast<const BSplineSurface&>(*model);
+      evidence.control_points =
+          std::to_string(s.basis_u().num_control()) + "x" + std::to_string(s.basis_v().num_control());
+      evidence.order = HilbertOrder(feet);
+      evidence.order_description = "a Hilbert curve over the surface parameters (u, v)";
+      ScanSet single;
+      single.scans.emplace_back();
+      single.scans.back().points = points;
+      evidence.noise_estimate = EstimateNoise(single);
+    } else {
+      evidence.control_points =
+          std::to_string(dynamic_cast<const BSplineCurve&>(*model).basis().num_control());
+      evidence.order = OrderByParameter(feet.row(0).transpose());
+      evidence.order_description = "the curve parameter";
+      evidence.noise_estimate = EstimateCurveNoise(data);
+      evidence.noise_method =
+          "median over local quadratics of 8 neighbours along the curve (docs/method.md section 16)";
+    }
+    if (o.loss.is_robust()) evidence.weights = r.weights;
+    evidence.extent = ComputeBounds(evidence.points).diagonal();
+    const Adequacy adequacy = AssessAdequacy(evidence);
+
     nlohmann::json& j = outcome.document;
     j["schema"] = "scan2model.bspline/1";
     j["input"] = {{"file", o.file}, {"format", format}, {"points", points.cols()}, {"units", units_out}};
@@ -237,6 +294,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     j["stop_reason"] = ToString(r.stop_reason);
     j["seconds"] = seconds;
     j["history"] = HistoryJson(r.history);
+    j["adequacy"] = adequacy.ToJson();
     std::string history_path = o.history;
     if (!o.output.empty()) {
       WriteTextAtomically(o.output + ".json", j.dump(2) + "\n");
@@ -264,6 +322,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
            << loss["down_weighted"].get<long>() << " points down-weighted, " << loss["rejected"].get<long>()
            << " rejected\n";
     }
+    text << adequacy.Text();
     if (o.verbose) text << HistoryTable(r.history);
     if (!o.output.empty()) {
       text << "  written           " << o.output << ".json, " << o.output << ".ply, " << history_path << "\n";
