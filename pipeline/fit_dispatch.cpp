@@ -67,6 +67,24 @@ Cone ReadReference(const std::string& f, const Cone&) {
   return ReadNistConeFit(f);
 }
 
+// The points moved onto the primitive, x - d grad d with the gradient of the signed distance d by central
+// differences (step 1e-7 of the extent): where each residual sits on the model, free of the residual itself
+// (the structure tests' neighbours and orders, docs/method.md section 16).
+template <class Shape>
+Eigen::Matrix3Xd FootPointsOf(const Shape& shape, const Eigen::Matrix3Xd& points, const Eigen::VectorXd& d,
+                              double extent) {
+  const double h = 1e-7 * std::max(extent, 1e-300);
+  Eigen::Matrix3Xd gradient(3, points.cols());
+  for (int axis = 0; axis < 3; ++axis) {
+    Eigen::Matrix3Xd plus = points, minus = points;
+    plus.row(axis).array() += h;
+    minus.row(axis).array() -= h;
+    gradient.row(axis) =
+        ((SignedDistances(shape, plus) - SignedDistances(shape, minus)) / (2 * h)).transpose();
+  }
+  return points - gradient * d.asDiagonal();
+}
+
 template <class Shape, class FitFn>
 FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std::string& format,
                                FitFn fit_fn) {
@@ -95,7 +113,7 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   single.scans.push_back(scan);
   evidence.noise_estimate = EstimateNoise(single);
   evidence.residuals = signed_distances;
-  evidence.points = scan.points;
+  evidence.points = FootPointsOf(fit.shape, scan.points, signed_distances, extent);
   evidence.weights = RobustWeightsAt(o.loss, fit.loss_scale, signed_distances);
   evidence.extent = extent;
   const Adequacy adequacy = AssessAdequacy(evidence);

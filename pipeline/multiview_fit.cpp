@@ -185,7 +185,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     std::vector<Eigen::Matrix3Xd> model_points;
     for (std::size_t k = 0; k < K; ++k) model_points.push_back(r.model_T_scan[k].apply(scans[k]));
     const Eigen::Matrix3Xd registered = Concatenate(model_points);
-    const Eigen::VectorXd deviations = SignedDistancesAroundAxis(*model, registered);
+    Eigen::Matrix3Xd feet;
+    const Eigen::VectorXd deviations = SignedDistancesAroundAxis(*model, registered, &feet);
     // Adequacy (docs/method.md section 16): the RMS against the views' own noise, and the signed residuals'
     // structure, for a surface of revolution along the height (the generatrix's parameter up to its
     // direction), for helical and spiral surfaces along a Hilbert curve through the registered points.
@@ -196,9 +197,9 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     evidence.fit_rms = r.residuals.rms;
     evidence.noise_estimate = EstimateNoise(set);
     evidence.residuals = deviations;
-    evidence.points = registered;
+    evidence.points = feet;
     if (o.model == "revolution") {
-      evidence.order = OrderByParameter(registered.row(2).transpose());
+      evidence.order = OrderByParameter(feet.row(2).transpose());
       evidence.order_description = "the height along the axis";
     }
     evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, deviations);

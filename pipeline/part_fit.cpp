@@ -215,14 +215,15 @@ FitOutcome ComputePartFit(const FitOptions& o) {
     // views' own noise (docs/batch.md).
     // Adequacy (docs/method.md section 16): the RMS against the views' own noise, and the signed residuals'
     // structure along a Hilbert curve through the registered points and between nearest neighbours.
-    const Eigen::VectorXd deviations = SignedDistancesToFaces(part, registered);
+    Eigen::Matrix3Xd feet;
+    const Eigen::VectorXd deviations = SignedDistancesToFaces(part, registered, &feet);
     AdequacyEvidence evidence;
     evidence.family = ModelFamily::kPart;
     evidence.model = o.model;
     evidence.fit_rms = r.residuals.rms;
     evidence.noise_estimate = EstimateNoise(set);
     evidence.residuals = deviations;
-    evidence.points = registered;
+    evidence.points = feet;
     evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, deviations);
     evidence.extent = ComputeBounds(registered).diagonal();
     const Adequacy adequacy = AssessAdequacy(evidence);

@@ -218,7 +218,6 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     const Eigen::Index count = data.cols();
     evidence.residuals.resize(count);
     evidence.points = Eigen::Matrix3Xd::Zero(3, count);
-    evidence.points.topRows(data.rows()) = data;
     evidence.signed_residuals = surface || data.rows() == 2;
     Eigen::MatrixXd feet(surface ? 2 : 1, count);
     {
@@ -235,6 +234,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
           sign = -g.d1(1, 0) * offset[0] + g.d1(0, 0) * offset[1] < 0 ? -1.0 : 1.0;  // left of the tangent
         }
         evidence.residuals[i] = sign * foot.distance;
+        evidence.points.col(i).head(g.point.size()) = g.point;  // the foot: positions free of the residual
         for (Eigen::Index k = 0; k < feet.rows(); ++k) feet(k, i) = foot.t[static_cast<std::size_t>(k)];
       }
     }
@@ -258,7 +258,11 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
           "median over local quadratics of 8 neighbours along the curve (docs/method.md section 16)";
     }
     if (o.loss.is_robust()) evidence.weights = r.weights;
-    evidence.extent = ComputeBounds(evidence.points).diagonal();
+    {
+      Eigen::Matrix3Xd padded = Eigen::Matrix3Xd::Zero(3, count);
+      padded.topRows(data.rows()) = data;
+      evidence.extent = ComputeBounds(padded).diagonal();
+    }
     const Adequacy adequacy = AssessAdequacy(evidence);
 
     nlohmann::json& j = outcome.document;
