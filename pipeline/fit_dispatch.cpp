@@ -1,6 +1,7 @@
 // ComputeFit: the dispatch of `scan2model fit` and `scan2model batch` to the fits of every model family, and
 // the primitive fits (plane, sphere, cylinder, cone) themselves.
 #include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
@@ -11,13 +12,16 @@
 #include "acquisition/format_error.h"
 #include "acquisition/nist_reference.h"
 #include "acquisition/point_cloud_io.h"
+#include "acquisition/recording.h"
 #include "fitting/noise_estimate.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_fit.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
+#include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
+#include "pipeline/views.h"
 
 namespace s2m::pipeline {
 namespace {
@@ -136,8 +140,8 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
                       {"rms", fit.residuals.rms},
                       {"max_abs", fit.residuals.max_abs},
                       {"mean", fit.residuals.mean}};
-    j["loss"] = LossJson(o.loss, fit.loss_scale, Eigen::VectorXd());
-    if (o.loss.is_robust()) j["loss"]["down_weighted"] = fit.rejected;
+    j["loss"] = LossJson(o.loss, fit.loss_scale, evidence.weights);
+    j["loss"]["reason"] = o.loss_reason;
     j["iterations"] = fit.iterations;
     j["stop_reason"] = ToString(fit.stop_reason);
     j["seconds"] = seconds;
@@ -178,7 +182,9 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   if (o.loss.is_robust()) {
     text << "  loss              " << ToString(o.loss.kind) << ", scale " << Format(fit.loss_scale, 6)
          << (o.loss.scale_from_data() ? " (from the data)" : "") << ", " << fit.rejected
-         << " points down-weighted (IRLS weight < 0.5)\n";
+         << " points down-weighted (IRLS weight < 0.5); " << o.loss_reason << "\n";
+  } else {
+    text << "  loss              none; " << o.loss_reason << "\n";
   }
   text << adequacy.Text();
   if (o.verbose) text << HistoryTable(fit.history);
@@ -212,10 +218,26 @@ FitOutcome ComputeFit(const FitOptions& o) {
     throw FitFailure(kUsage, "--method " + options.method + " applies to splines; primitives use tdm or sdm");
   }
   try {
-    const PointCloudFormat format = DetectFormat(options.file);
-    Scan scan = ReadPointCloud(options.file, format);
+    // A recording or a views manifest: its views merged in the world (a primitive has no poses to fit).
+    const std::string extension = std::filesystem::path(options.file).extension().string();
+    const bool views = extension == kRecordingExtension || extension == ".json" || extension == ".conf";
+    Scan scan;
+    std::string f;
+    if (views) {
+      const ScanSet set = ReadViews(options.file);
+      if (set.scans.empty()) throw FormatError(options.file, "", "no views");
+      scan.points = set.MergedWorldPoints();
+      scan.units = set.scans.front().units;
+      scan.metadata = set.scans.front().metadata;
+      scan.metadata.source = options.file;
+      f = extension == kRecordingExtension ? "recording" : "views";
+    } else {
+      const PointCloudFormat format = DetectFormat(options.file);
+      scan = ReadPointCloud(options.file, format);
+      f = ToString(format);
+    }
     if (!options.units.empty()) scan.units = options.units;
-    const std::string f = ToString(format);
+    ResolveDefaultLoss(options, ClassifyInput(options.file, scan.metadata.device));
     FitOutcome outcome;
     if (options.model == "plane") {
       outcome = ComputePrimitiveFit<Plane>(options, scan, f,

@@ -32,7 +32,11 @@ struct FitOptions {
   double stretch = 0.0;
   double bending = 1e-3;
   std::string step_control = "lm";
-  RobustLoss loss;      // --loss: the robust loss of every fit (fitting/robust_loss.h)
+  RobustLoss loss;  // --loss: the robust loss of every fit (fitting/robust_loss.h)
+  // Whether --loss (or a manifest's "loss") was given; otherwise ComputeFit chooses the default for the
+  // input's kind (ResolveDefaultLoss, fit_option_table.h) and says why in `loss_reason`.
+  bool loss_given = false;
+  std::string loss_reason;
   std::string output;   // prefix for PREFIX.json, PREFIX.ply, PREFIX_history.csv
   int contour = 0;      // .glif inputs: which contour
   std::string initial;  // a scan2model.bspline/1 JSON to start from instead of the automatic initial model

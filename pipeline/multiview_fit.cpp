@@ -17,6 +17,7 @@
 #include "fitting/residual_structure.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
+#include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
 #include "pipeline/views.h"
@@ -51,12 +52,14 @@ nlohmann::json NumberOrNull(double v) {
 
 }  // namespace
 
-FitOutcome ComputeMultiViewFit(const FitOptions& o) {
+FitOutcome ComputeMultiViewFit(const FitOptions& given) {
+  FitOptions o = given;
   try {
     if (o.model != "revolution" && o.model != "helical" && o.model != "spiral")
       throw std::invalid_argument(
           "multi-view fitting supports --model revolution, helical, spiral and part:FILE");
     const ScanSet set = ReadViews(o.file);
+    ResolveDefaultLoss(o, ClassifyInput(o.file, set.scans.empty() ? "" : set.scans.front().metadata.device));
     const std::size_t K = set.scans.size();
     const int n = o.control_points.empty() ? 8 : std::stoi(o.control_points);
     // Model frame: the initial axis (revolution: of the best cylinder; helical: from normals; spiral: from
@@ -132,6 +135,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     j["method"] = ToString(options.error_term);
     j["solver"] = SolverName(options);
     j["loss"] = LossJson(o.loss, r.loss_scale, Eigen::VectorXd());
+    j["loss"]["reason"] = o.loss_reason;
     j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
     const auto* kinematic = dynamic_cast<const KinematicSurface*>(model.get());
     const auto* spiral = dynamic_cast<const SpiralSurface*>(model.get());
@@ -223,6 +227,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
          << " points) of " << o.file << " (units " << units << ")\n\n"
          << UntrustedUncertaintiesLine(trusted) << "  solver            "
          << SolverSummary(options, r, seconds) << "\n"
+         << "  loss              " << ToString(o.loss) << "; " << o.loss_reason << "\n"
          << "  axis point        " << Format(axis_point) << "\n"
          << "  axis direction    " << Format(axis_direction) << "\n";
     if (j.contains("pitch")) {

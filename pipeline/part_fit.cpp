@@ -16,6 +16,7 @@
 #include "fitting/part_model.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
+#include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
 #include "pipeline/views.h"
@@ -96,7 +97,8 @@ std::string CorrelationTable(const std::vector<std::string>& names, const Eigen:
 
 }  // namespace
 
-FitOutcome ComputePartFit(const FitOptions& o) {
+FitOutcome ComputePartFit(const FitOptions& given) {
+  FitOptions o = given;
   const std::string part_path = o.model.substr(std::string("part:").size());
   JointFitOptions options;
   try {
@@ -107,6 +109,8 @@ FitOutcome ComputePartFit(const FitOptions& o) {
   try {
     const PartFile file = ReadPartFile(part_path);
     const ScanSet set = ReadViews(o.file);
+    ResolveDefaultLoss(o, ClassifyInput(o.file, set.scans.empty() ? "" : set.scans.front().metadata.device));
+    options.optimizer.loss = o.loss;
     const std::string units = ResolveUnits(file, part_path, set, o);
     const std::size_t K = set.scans.size();
     // World = part frame: the recorded poses are the initial poses of the views in the part frame.
@@ -164,6 +168,7 @@ FitOutcome ComputePartFit(const FitOptions& o) {
     j["method"] = ToString(options.error_term);
     j["solver"] = SolverName(options);
     j["loss"] = LossJson(o.loss, r.loss_scale, Eigen::VectorXd());
+    j["loss"]["reason"] = o.loss_reason;
     j["parameters"] = nlohmann::json::array();
     std::string verdict;  // over the parameters with tolerances: "pass", "fail", or none
     for (std::size_t i = 0; i < reported.size(); ++i) {
@@ -238,6 +243,7 @@ FitOutcome ComputePartFit(const FitOptions& o) {
          << " faces) to " << K << " views (" << set.TotalPoints() << " points) of " << o.file << " (units "
          << units << ")\n\n"
          << "  solver            " << SolverSummary(options, r, seconds) << "\n"
+         << "  loss              " << ToString(o.loss) << "; " << o.loss_reason << "\n"
          << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
          << Format(r.residuals.max_abs, 6) << "\n"
          << "  near edges        " << r.excluded_points << " points within " << Format(part.edge_margin(), 3)

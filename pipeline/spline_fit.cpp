@@ -19,6 +19,7 @@
 #include "fitting/residual_structure.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
+#include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
 
@@ -54,7 +55,7 @@ StepStrategy ParseStepControl(const std::string& s) {
 
 // Points of the input: a point cloud, or one contour of a .glif glyph (2D).
 Eigen::MatrixXd ReadInput(const FitOptions& o, std::string& format, std::string& units,
-                          std::vector<std::string>& notes) {
+                          std::vector<std::string>& notes, std::string& device) {
   if (std::filesystem::path(o.file).extension() == ".glif") {
     const auto contours = ReadGlifContours(o.file);
     if (o.contour < 0 || o.contour >= static_cast<int>(contours.size())) {
@@ -68,6 +69,7 @@ Eigen::MatrixXd ReadInput(const FitOptions& o, std::string& format, std::string&
   const PointCloudFormat f = DetectFormat(o.file);
   const Scan scan = ReadPointCloud(o.file, f);
   notes = scan.metadata.notes;
+  device = scan.metadata.device;
   format = ToString(f);
   units = scan.units;
   return scan.points;
@@ -163,13 +165,16 @@ Eigen::Matrix3Xd Samples(const ParametricModel& model) {
 
 }  // namespace
 
-FitOutcome ComputeSplineFit(const FitOptions& o) {
+FitOutcome ComputeSplineFit(const FitOptions& given) {
+  FitOptions o = given;
   const bool surface = o.model == "bspline-surface";
   try {
     const auto [n1, n2] = ParseControlPoints(o.control_points, surface);
     std::string format, units;
     FitOutcome outcome;
-    const Eigen::MatrixXd points = ReadInput(o, format, units, outcome.notes);
+    std::string device = "file";
+    const Eigen::MatrixXd points = ReadInput(o, format, units, outcome.notes, device);
+    ResolveDefaultLoss(o, ClassifyInput(o.file, device));
     const std::string units_out = o.units.empty() ? units : o.units;
     if (surface && points.rows() != 3) throw UsageError("a B-spline surface needs 3D points");
     std::unique_ptr<ParametricModel> model;
@@ -272,6 +277,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     j["method"] = ToString(options.error_term);
     j["step_control"] = ToString(options.optimizer.step_strategy);
     j["loss"] = LossJson(o.loss, r.loss_scale, r.weights);
+    j["loss"]["reason"] = o.loss_reason;
     j["fairness"] = {{"stretch", o.stretch}, {"bending", o.bending}};
     if (surface) {
       const auto& s = dynamic_cast<const BSplineSurface&>(*model);
@@ -324,7 +330,9 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
       text << "  loss              " << ToString(o.loss.kind) << ", scale " << Format(r.loss_scale, 6)
            << (o.loss.scale_from_data() ? " (from the data)" : "") << ", "
            << loss["down_weighted"].get<long>() << " points down-weighted, " << loss["rejected"].get<long>()
-           << " rejected\n";
+           << " rejected; " << o.loss_reason << "\n";
+    } else {
+      text << "  loss              none; " << o.loss_reason << "\n";
     }
     text << adequacy.Text();
     if (o.verbose) text << HistoryTable(r.history);

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "pipeline/domain_measures.h"
+#include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "test_paths.h"
 #include "test_support.h"
@@ -153,6 +154,7 @@ TEST(Adequacy, HeavyTailsSuggestARobustLoss) {
   const std::string file = WriteXyz(dir / "plane.xyz", p);
   FitOptions plain = Options(file, "plane");
   plain.loss = ParseRobustLoss("none");
+  plain.loss_given = true;
   const FitOutcome ls = ComputeFit(plain);
   const nlohmann::json& a = ls.document["adequacy"];
   EXPECT_FALSE(a["adequate"].get<bool>());
@@ -162,6 +164,7 @@ TEST(Adequacy, HeavyTailsSuggestARobustLoss) {
 
   FitOptions robust = Options(file, "plane");
   robust.loss = ParseRobustLoss("cauchy");
+  robust.loss_given = true;
   const nlohmann::json r = ComputeFit(robust).document;
   EXPECT_EQ(r["adequacy"]["fit_scale_kind"], "rms of the points with robust weight >= 0.5");
   EXPECT_NEAR(r["adequacy"]["down_weighted_fraction"].get<double>(), 0.1, 0.02);
@@ -175,6 +178,53 @@ TEST(Adequacy, ExactDataAreAdequate) {
   const FitOutcome outcome = ComputeFit(Options(test::TestData("nist/sph9.ds").string(), "sphere"));
   EXPECT_TRUE(outcome.document["adequacy"]["exact"].get<bool>());
   EXPECT_TRUE(outcome.document["adequacy"]["adequate"].get<bool>());
+}
+
+}  // namespace
+}  // namespace s2m::pipeline
+
+namespace s2m::pipeline {
+namespace {
+
+// The default loss per input kind (docs/cli.md "--loss"): robust for recordings, device frames and organized
+// clouds, none for certified NIST data and other point files; a given loss always wins.
+TEST(DefaultLoss, ClassifiesInputsByKind) {
+  EXPECT_EQ(ClassifyInput("sph1.ds", "file"), InputKind::kCertified);
+  EXPECT_EQ(ClassifyInput("pot.s2mrec", "virtual:kinect"), InputKind::kRecording);
+  EXPECT_EQ(ClassifyInput("scene.pcd", "file:organized"), InputKind::kOrganizedCloud);
+  EXPECT_EQ(ClassifyInput("frame.tiff", "file:depth-frame"), InputKind::kDeviceFrame);
+  EXPECT_EQ(ClassifyInput("views.json", "virtual:kinect"), InputKind::kDeviceFrame);
+  EXPECT_EQ(ClassifyInput("bore.ply", "file"), InputKind::kPointFile);
+  EXPECT_EQ(ClassifyInput("bore.ply", ""), InputKind::kPointFile);
+  FitOptions o;
+  ResolveDefaultLoss(o, InputKind::kRecording);
+  EXPECT_EQ(o.loss.kind, LossKind::kCauchy);
+  EXPECT_TRUE(o.loss.scale_from_data());
+  EXPECT_EQ(o.loss_reason, "default for recordings (flying pixels and mixed edges)");
+  ResolveDefaultLoss(o, InputKind::kCertified);
+  EXPECT_EQ(o.loss.kind, LossKind::kNone);
+  FitOptions given;
+  ApplyFitOption(*FindManifestOption("loss"), "none", given);
+  ResolveDefaultLoss(given, InputKind::kRecording);
+  EXPECT_EQ(given.loss.kind, LossKind::kNone);
+  EXPECT_EQ(given.loss_reason, "given");
+  FitOptions automatic;
+  ApplyFitOption(*FindManifestOption("loss"), "auto", automatic);
+  EXPECT_FALSE(automatic.loss_given);
+}
+
+// Through ComputeFit: a recording gets the robust default and says so; NIST data get plain least squares
+// (their certification stays exact: tests/nist_reference_test.cpp).
+TEST(DefaultLoss, RecordingGetsTheRobustDefaultAndNistGetsNone) {
+  const FitOutcome recording =
+      ComputeFit(Options(std::string(S2M_SOURCE_DIR) + "/recordings/pot.s2mrec", "cylinder"));
+  EXPECT_EQ(recording.document["loss"]["kind"], "cauchy");
+  EXPECT_EQ(recording.document["loss"]["reason"], "default for recordings (flying pixels and mixed edges)");
+  EXPECT_NE(recording.text.find("default for recordings"), std::string::npos);
+  const FitOutcome nist = ComputeFit(Options(test::TestData("nist/cyl1.ds").string(), "cylinder"));
+  EXPECT_EQ(nist.document["loss"]["kind"], "none");
+  EXPECT_EQ(nist.document["loss"]["reason"],
+            "default for certified reference data (plain least squares, as certified)");
 }
 
 }  // namespace
