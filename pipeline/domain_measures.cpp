@@ -213,7 +213,12 @@ Adequacy AssessAdequacy(const AdequacyEvidence& e) {
   }
   // Exact data: residuals at rounding level (certified reference sets, synthetic exact points).
   a.exact = e.extent > 0 && a.fit_scale <= 1e-9 * e.extent;
-  if (std::isfinite(e.noise_estimate) && e.noise_estimate > 0)
+  // A noise estimate at rounding level on data that are not exact means the neighbourhoods fit exactly: depth
+  // quantized into steps (the real Kinect frames: 4e-19 m, on 1 mm raw units), or resampled points. It
+  // says nothing about the noise: unknown, and the verdict rests on the structure.
+  a.noise_at_rounding_level =
+      !a.exact && e.extent > 0 && std::isfinite(e.noise_estimate) && e.noise_estimate <= 1e-9 * e.extent;
+  if (std::isfinite(e.noise_estimate) && e.noise_estimate > 0 && !a.noise_at_rounding_level)
     a.rms_to_noise = a.fit_scale / e.noise_estimate;
   if (a.exact) {
     a.rms_within_band = true;
@@ -297,6 +302,7 @@ nlohmann::json Adequacy::ToJson() const {
                       {"threshold", threshold},
                       {"rms_within_band", optional_bool(rms_within_band)},
                       {"exact", exact},
+                      {"noise_at_rounding_level", noise_at_rounding_level},
                       {"adequate", optional_bool(adequate)},
                       {"uncertainty_trusted", optional_bool(uncertainty_trusted())},
                       {"suggestions", suggestions},
@@ -322,6 +328,9 @@ std::string Adequacy::Text() const {
   t << "  RMS / noise       ";
   if (exact) {
     t << "exact data (RMS " << Format(fit_scale, 3) << " at rounding level)\n";
+  } else if (noise_at_rounding_level) {
+    t << "unknown (the noise estimate " << Format(noise_estimate, 2)
+      << " is at rounding level: quantized depth or resampled points)\n";
   } else if (!std::isfinite(rms_to_noise)) {
     t << "unknown (too few points to estimate their noise)\n";
   } else {

@@ -102,6 +102,8 @@ struct Adequacy {
   double threshold = kAdequacyThreshold;
   std::optional<bool> rms_within_band;  // empty when the noise is unknown
   bool exact = false;                   // the residuals are at rounding level (exact data)
+  // The noise estimate is at rounding level on inexact data (quantized depth, resampled points): unusable.
+  bool noise_at_rounding_level = false;
   // Residual structure; absent when not assessed (the old RMS-only form, or too few points).
   std::optional<RunsTest> runs;
   std::string runs_order;

@@ -12,6 +12,7 @@
 #include "pipeline/domain_measures.h"
 #include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
+#include "pipeline/report.h"
 #include "test_paths.h"
 #include "test_support.h"
 
@@ -74,6 +75,12 @@ TEST(Adequacy, CylinderOnAConeIsInadequateWithUntrustedUncertainties) {
             std::string::npos);
   EXPECT_NE(outcome.text.find("NOT adequate"), std::string::npos);
   EXPECT_NE(outcome.text.find("radius            ["), std::string::npos) << outcome.text;
+  // The HTML report shows the verdict, the structure tests, the untrusted uncertainties and the suggestion.
+  const std::string html = ReportHtml(outcome.document);
+  EXPECT_NE(html.find("The model is NOT adequate"), std::string::npos);
+  EXPECT_NE(html.find("Moran's I over 8 nearest neighbours"), std::string::npos);
+  EXPECT_NE(html.find("Uncertainties are NOT trustworthy"), std::string::npos);
+  EXPECT_NE(html.find("try another model: cone"), std::string::npos);
   // The right model on the same points is adequate, and its uncertainties are trusted.
   const FitOutcome cone = ComputeFit(Options(file, "cone"));
   EXPECT_TRUE(cone.document["adequacy"]["adequate"].get<bool>()) << cone.text;
@@ -171,6 +178,8 @@ TEST(Adequacy, HeavyTailsSuggestARobustLoss) {
   EXPECT_TRUE(r["adequacy"]["rms_within_band"].get<bool>());
   EXPECT_EQ(r["deviations"]["sample"]["columns"].back(), "weight");
   EXPECT_NEAR(r["deviations"]["down_weighted"].get<double>(), 300, 30);
+  // The report's deviation map draws the down-weighted points as crosses, with their legend.
+  EXPECT_NE(ReportHtml(r).find("down-weighted (robust weight &lt; 0.5)"), std::string::npos);
 }
 
 // Certified data are exact to rounding: the verdict says so instead of dividing by a zero noise.

@@ -164,10 +164,10 @@ TEST(DomainMeasures, AdequacyJsonAndVerdict) {
   const nlohmann::json j = good.ToJson();
   for (const char* key :
        {"fit_rms", "fit_scale", "fit_scale_kind", "noise_estimate", "rms_to_noise", "threshold",
-        "rms_within_band", "exact", "structure", "tails", "down_weighted_fraction", "adequate",
-        "uncertainty_trusted", "suggestions", "noise_method"})
+        "rms_within_band", "exact", "noise_at_rounding_level", "structure", "tails", "down_weighted_fraction",
+        "adequate", "uncertainty_trusted", "suggestions", "noise_method"})
     EXPECT_TRUE(j.contains(key)) << key;
-  EXPECT_EQ(j.size(), 15u);
+  EXPECT_EQ(j.size(), 16u);
   EXPECT_TRUE(j["structure"].is_null());  // the RMS-only form assesses no structure
   EXPECT_FALSE(*AssessAdequacy(0.05, 0.02).adequate);
   const Adequacy unknown = AssessAdequacy(0.05, std::nan(""));
