@@ -287,6 +287,7 @@ Adequacy AssessAdequacy(const AdequacyEvidence& e) {
   if (a.rms_within_band) a.adequate = *a.rms_within_band && !a.structure;
   if (!a.rms_within_band && a.structure) a.adequate = false;  // unknown noise, but structure is enough
   a.suggestions = Suggestions(e, a);
+  a.reports_uncertainties = e.reports_uncertainties;
   return a;
 }
 
@@ -360,7 +361,7 @@ std::string Adequacy::Text() const {
     t << "  down-weighted     " << Format(100 * down_weighted_fraction, 3)
       << " % of the points (robust weight < 0.5)\n";
   }
-  t << UntrustedUncertaintiesLine(uncertainty_trusted());
+  if (reports_uncertainties) t << UntrustedUncertaintiesLine(uncertainty_trusted());
   for (std::size_t i = 0; i < suggestions.size(); ++i)
     t << (i == 0 ? "  try               " : "                    ") << suggestions[i] << "\n";
   return t.str();

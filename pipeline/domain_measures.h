@@ -88,6 +88,7 @@ struct AdequacyEvidence {
   std::string order_description;
   // Robust fits: each point's final IRLS weight (empty: plain least squares).
   Eigen::VectorXd weights;
+  bool reports_uncertainties = true;  // the fit reports uncertainties (not the splines)
   double extent = 0.0;  // the data's bounding-box diagonal: RMS below 1e-9 x extent is exact data
 };
 
@@ -118,6 +119,7 @@ struct Adequacy {
   std::optional<bool> adequate;  // RMS within the band and no structure; empty when the noise is unknown
   std::vector<std::string> suggestions;  // what to try when not adequate
   std::string noise_method;
+  bool reports_uncertainties = true;  // false for fits without uncertainties (splines): no warning line
 
   // Whether the reported uncertainties (type A, from the residuals under an adequate model) can be trusted:
   // `adequate` (empty: unknown).

@@ -218,6 +218,7 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
     // in space, whose distances have no sign.
     AdequacyEvidence evidence;
     evidence.family = ModelFamily::kSpline;
+    evidence.reports_uncertainties = false;
     evidence.model = o.model;
     evidence.fit_rms = r.residuals.rms;
     const Eigen::Index count = data.cols();
