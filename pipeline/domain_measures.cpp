@@ -132,7 +132,9 @@ std::vector<std::string> Suggestions(const AdequacyEvidence& e, const Adequacy& 
         if (e.model == "sphere") other = "revolution or bspline-surface";
         if (e.model == "plane") other = "bspline-surface (the surface is not flat)";
         out.push_back("residuals structured " + where + ": the surface is not a " + e.model +
-                      "; try another model: " + other);
+                      "; try another model: " + other +
+                      "; or, when the scan also holds other objects or a background, fit --robust (the "
+                      "dominant instance) or detect");
         break;
       }
       case ModelFamily::kMultiView:
