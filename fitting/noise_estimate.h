@@ -22,7 +22,7 @@ double EstimateNoise(const ScanSet& set);
 // coordinate fitted by a quadratic in the tangential one; SS / dof scaled to have the noise variance as its
 // median (as EstimateNoise). Returned on the scale of an orthogonal distance: sqrt(codim) sigma, codim = 1
 // for a plane curve and 2 for a space curve (the distance spans the normal plane), i.e. the RMS a perfect
-// model leaves (docs/method.md section 16). NaN when fewer than 10 neighbourhoods could be fitted.
+// model leaves (docs/method.md section 17). NaN when fewer than 10 neighbourhoods could be fitted.
 double EstimateCurveNoise(const Eigen::Ref<const Eigen::MatrixXd>& points);
 
 }  // namespace s2m

@@ -13,7 +13,7 @@ namespace s2m {
 // helical, spiral): positive on the side away from the axis (outside a pot's wall, the convention of
 // SampleAroundAxis).
 // With `feet`, also the foot points (3 x n): where the residuals sit on the model (the residual structure's
-// neighbours and orders, docs/method.md section 16).
+// neighbours and orders, docs/method.md section 17).
 Eigen::VectorXd SignedDistancesAroundAxis(const ParametricModel& model, const Eigen::Matrix3Xd& points,
                                           Eigen::Matrix3Xd* feet = nullptr);
 // Signed distances of points (part frame) to their nearest faces: positive along the face's normal C_u x C_v

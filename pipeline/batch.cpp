@@ -567,7 +567,7 @@ nlohmann::json SummaryEntry(const BatchObject& object, const nlohmann::json* rec
     const nlohmann::json& a = d["adequacy"];
     e["rms_to_noise"] = a["rms_to_noise"];
     e["adequate"] = a["adequate"];
-    // The verdict's evidence (docs/method.md section 16): structure, and whether the uncertainties hold.
+    // The verdict's evidence (docs/method.md section 17): structure, and whether the uncertainties hold.
     e["uncertainty_trusted"] = a.value("uncertainty_trusted", a["adequate"]);
     const nlohmann::json& s = a.value("structure", nlohmann::json(nullptr));
     e["structure"] = s.is_object() ? s["significant"] : nlohmann::json(nullptr);

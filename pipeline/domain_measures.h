@@ -50,7 +50,7 @@ struct Measure {
   std::string unit;
 };
 
-// Adequacy of a model (docs/method.md section 16): the fit's RMS against the data's noise estimated without
+// Adequacy of a model (docs/method.md section 17): the fit's RMS against the data's noise estimated without
 // the model (ratio at most kAdequacyThreshold), AND no significant structure in the signed residuals (the
 // runs test along an order and Moran's I over nearest neighbours, fitting/residual_structure.h): structure
 // is significant when a test's z-score passes kStructureZ in the direction of clustering AND its effect size

@@ -73,7 +73,7 @@ Cone ReadReference(const std::string& f, const Cone&) {
 
 // The points moved onto the primitive, x - d grad d with the gradient of the signed distance d by central
 // differences (step 1e-7 of the extent): where each residual sits on the model, free of the residual itself
-// (the structure tests' neighbours and orders, docs/method.md section 16).
+// (the structure tests' neighbours and orders, docs/method.md section 17).
 template <class Shape>
 Eigen::Matrix3Xd FootPointsOf(const Shape& shape, const Eigen::Matrix3Xd& points, const Eigen::VectorXd& d,
                               double extent) {
@@ -106,7 +106,7 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   if (!o.reference.empty()) deviation = Compare(fit.shape, ReadReference(o.reference, fit.shape));
   if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(fit.history));
 
-  // Adequacy (docs/method.md section 16): the RMS against the cloud's own noise, and the signed residuals'
+  // Adequacy (docs/method.md section 17): the RMS against the cloud's own noise, and the signed residuals'
   // structure along a Hilbert curve through the points and between nearest neighbours.
   const Eigen::VectorXd signed_distances = SignedDistances(fit.shape, scan.points);
   AdequacyEvidence evidence;

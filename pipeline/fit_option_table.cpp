@@ -345,7 +345,7 @@ void ResolveDefaultLoss(FitOptions& o, InputKind kind) {
     case InputKind::kOrganizedCloud:
       // Depth cameras' flying pixels (between a foreground and a background edge) and mixed edges are
       // gross outliers on one side of the surface: Cauchy's influence decays as 1/d (docs/method.md
-      // section 16, measured on the real Kinect frames there).
+      // section 17, measured on the real Kinect frames there).
       o.loss = ParseRobustLoss("cauchy");
       o.loss_reason = std::string("default for ") + ToString(kind) + " (flying pixels and mixed edges)";
       return;

@@ -52,7 +52,7 @@ std::string ParseFitOption(const FitOptionSpec& option, const std::string& text)
 void ApplyFitOption(const FitOptionSpec& option, const std::string& text, FitOptions& options);
 
 // What kind of input a fit reads, for the default robust loss (docs/cli.md "--loss", docs/method.md
-// section 16): recordings, device frames and organized depth clouds carry flying pixels and mixed edges;
+// section 17): recordings, device frames and organized depth clouds carry flying pixels and mixed edges;
 // certified reference data must be fitted by plain least squares, as certified.
 enum class InputKind {
   kCertified,       // NIST .ds reference data

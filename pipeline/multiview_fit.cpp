@@ -191,7 +191,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     const Eigen::Matrix3Xd registered = Concatenate(model_points);
     Eigen::Matrix3Xd feet;
     const Eigen::VectorXd deviations = SignedDistancesAroundAxis(*model, registered, &feet);
-    // Adequacy (docs/method.md section 16): the RMS against the views' own noise, and the signed residuals'
+    // Adequacy (docs/method.md section 17): the RMS against the views' own noise, and the signed residuals'
     // structure, for a surface of revolution along the height (the generatrix's parameter up to its
     // direction), for helical and spiral surfaces along a Hilbert curve through the registered points.
     AdequacyEvidence evidence;

@@ -218,7 +218,7 @@ FitOutcome ComputePartFit(const FitOptions& given) {
     AddSolverJson(j, r, seconds);
     // Signed deviations of the registered points (world = part frame) and the fit's adequacy against the
     // views' own noise (docs/batch.md).
-    // Adequacy (docs/method.md section 16): the RMS against the views' own noise, and the signed residuals'
+    // Adequacy (docs/method.md section 17): the RMS against the views' own noise, and the signed residuals'
     // structure along a Hilbert curve through the registered points and between nearest neighbours.
     Eigen::Matrix3Xd feet;
     const Eigen::VectorXd deviations = SignedDistancesToFaces(part, registered, &feet);

@@ -150,7 +150,7 @@ std::string AdequacySection(const nlohmann::json& a) {
     }
     s << "</table>\n<p class=\"note\">Significant: z beyond " << Number(st["z_threshold"])
       << " towards clustering and effect above " << Number(st["effect_threshold"])
-      << " (docs/method.md section 16).</p>\n";
+      << " (docs/method.md section 17).</p>\n";
   }
   if (a.value("uncertainty_trusted", nlohmann::json(nullptr)) == false)
     s << "<p class=\"fail\">The uncertainties are NOT trustworthy: the model is inadequate (shown in "

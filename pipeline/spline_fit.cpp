@@ -212,7 +212,7 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (progress) std::cerr << "\n";
 
-    // Adequacy (docs/method.md section 16): the RMS against the data's own noise (a curve's or a surface's
+    // Adequacy (docs/method.md section 17): the RMS against the data's own noise (a curve's or a surface's
     // estimate), and the residuals' structure along the curve parameter (surfaces: along a Hilbert curve over
     // (u, v)) and between nearest neighbours. Residuals are signed by the model's normal, except for a curve
     // in space, whose distances have no sign.
@@ -261,7 +261,7 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
       evidence.order_description = "the curve parameter";
       evidence.noise_estimate = EstimateCurveNoise(data);
       evidence.noise_method =
-          "median over local quadratics of 8 neighbours along the curve (docs/method.md section 16)";
+          "median over local quadratics of 8 neighbours along the curve (docs/method.md section 17)";
     }
     if (o.loss.is_robust()) evidence.weights = r.weights;
     {

@@ -1,4 +1,4 @@
-// Adequacy on every fit (docs/method.md section 16, docs/cli.md "adequacy"): the RMS against the model-free
+// Adequacy on every fit (docs/method.md section 17, docs/cli.md "adequacy"): the RMS against the model-free
 // noise estimate AND no significant residual structure, through ComputeFit as `fit` and `batch` run it. An
 // inadequate fit is reported so, with its uncertainties flagged and a suggestion; an adequate one is not
 // flagged over seeds.

@@ -123,7 +123,7 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
       EXPECT_LT(e["rms_to_noise"].get<double>(), 1.2) << e["id"];  // measured: 0.88 - 1.05
       // The RMS is at the noise, but the default 8 generatrix control points leave a small real misfit on
       // some pots (Moran's I of the residuals 0.02-0.10 over the ten pots; pot_07: 0.101, and 0.012 with 12
-      // control points, docs/method.md section 16): an object judged inadequate must say it is the structure
+      // control points, docs/method.md section 17): an object judged inadequate must say it is the structure
       // and suggest more control points.
       if (e["adequate"] != true) {
         EXPECT_EQ(e["structure"], true) << e["id"];

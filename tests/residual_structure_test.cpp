@@ -1,4 +1,4 @@
-// The statistics of residual structure (fitting/residual_structure.h, docs/method.md section 16): the runs
+// The statistics of residual structure (fitting/residual_structure.h, docs/method.md section 17): the runs
 // test and Moran's I against exact values (all permutations of small samples), against sequences of known
 // structure, and their z-scores under the null over seeds.
 #include "fitting/residual_structure.h"
@@ -86,7 +86,7 @@ TEST(RunsTest, ZIsStandardNormalForIidNoise) {
   EXPECT_NEAR(std::sqrt(var), 1.0, 0.15);
 }
 
-// E[I] and Var[I] under randomization (eqs. 53-54) are the exact first two moments of I over all
+// E[I] and Var[I] under randomization (eqs. 64-65) are the exact first two moments of I over all
 // permutations of the values on a fixed neighbour graph: check on 7 values (5040 permutations) with a graph
 // that has one-way and mutual pairs and unequal degrees, and skewed, heavy-tailed values (b2 matters).
 TEST(MoransI, ExpectationAndVarianceAreExactOverAllPermutations) {
@@ -128,7 +128,7 @@ TEST(MoransI, AlternationAndBlocksOnALine) {
 }
 
 // A smooth field over a surface plus noise: I grows with the share of the smooth part in the variance (the
-// effect size of docs/method.md section 16) and its z-score flags it.
+// effect size of docs/method.md section 17) and its z-score flags it.
 TEST(MoransI, SmoothFieldIsClustered) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
