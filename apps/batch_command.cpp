@@ -123,15 +123,17 @@ int Run(BatchCommandOptions& o) {
                                                 : "summary_shard_" + std::to_string(shard_index) + "_of_" +
                                                       std::to_string(shard_count);
       WriteBatchSummary(o.run.output_dir, name, manifest, all);
-      int ok = 0, failed = 0, missing = 0;
+      int ok = 0, failed = 0, missing = 0, inadequate = 0;
       for (const nlohmann::json& e : all) {
         const std::string status = e["status"].get<std::string>();
         (status == "ok" ? ok : status == "missing" ? missing : failed) += 1;
+        inadequate += e.value("adequate", nlohmann::json(nullptr)) == false;
       }
       {
         std::ostringstream line;  // one write (the other ranks may still be printing)
         line << "[batch] " << all.size() << " objects: " << ok << " ok, " << failed << " failed";
         if (missing > 0) line << ", " << missing << " missing";
+        if (inadequate > 0) line << ", " << inadequate << " NOT adequate (uncertainties not trustworthy)";
         if (!o.summary_only && !mpi)
           line << " (" << counts.computed << " computed, " << counts.skipped << " skipped)";
         line << "; summary " << (fs::path(o.run.output_dir) / (name + ".csv")).string() << "\n";

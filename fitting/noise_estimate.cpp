@@ -1,5 +1,7 @@
 #include "fitting/noise_estimate.h"
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -59,6 +61,48 @@ double EstimateNoise(const ScanSet& set) {
   auto middle = scaled_variances.begin() + static_cast<std::ptrdiff_t>(scaled_variances.size() / 2);
   std::nth_element(scaled_variances.begin(), middle, scaled_variances.end());
   return std::sqrt(*middle);
+}
+
+double EstimateCurveNoise(const Eigen::Ref<const Eigen::MatrixXd>& points) {
+  constexpr int kNeighbours = 8;  // as EstimateNoise: small patches keep the curve's cubic terms out
+  constexpr Eigen::Index kCentres = 500;
+  const Eigen::Index rows = points.rows(), n = points.cols();
+  if ((rows != 2 && rows != 3) || n < 2 * kNeighbours) return std::numeric_limits<double>::quiet_NaN();
+  Eigen::Matrix3Xd padded = Eigen::Matrix3Xd::Zero(3, n);
+  padded.topRows(rows) = points;
+  const NearestIndex index(padded);
+  const Eigen::Index codim = rows - 1;
+  const int dof = static_cast<int>(codim) * (kNeighbours - 3);  // 3 coefficients per normal coordinate
+  const double median = ChiSquareMedian(dof);
+  const Eigen::Index stride = std::max<Eigen::Index>(1, n / kCentres);
+  std::vector<double> scaled_variances;
+  Eigen::MatrixXd local(rows, kNeighbours);
+  for (Eigen::Index c = 0; c < n; c += stride) {
+    const std::vector<Eigen::Index> near = index.KNearest(padded.col(c), kNeighbours);
+    if (static_cast<int>(near.size()) < kNeighbours) continue;
+    for (int k = 0; k < kNeighbours; ++k) local.col(k) = points.col(near[static_cast<std::size_t>(k)]);
+    const Eigen::VectorXd mean = local.rowwise().mean();
+    local.colwise() -= mean;
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(local * local.transpose());
+    const Eigen::VectorXd tangent = eig.eigenvectors().col(rows - 1);
+    const Eigen::VectorXd s = tangent.transpose() * local;
+    Eigen::MatrixXd design(kNeighbours, 3);
+    design.col(0).setOnes();
+    design.col(1) = s;
+    design.col(2) = s.array().square();
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(design);
+    if (qr.rank() < 3) continue;  // coincident points: no information
+    double sum_squares = 0.0;
+    for (Eigen::Index e = 0; e < rows - 1; ++e) {
+      const Eigen::VectorXd h = eig.eigenvectors().col(e).transpose() * local;
+      sum_squares += (design * qr.solve(h) - h).squaredNorm();
+    }
+    scaled_variances.push_back(sum_squares / median);
+  }
+  if (scaled_variances.size() < 10) return std::numeric_limits<double>::quiet_NaN();
+  auto middle = scaled_variances.begin() + static_cast<std::ptrdiff_t>(scaled_variances.size() / 2);
+  std::nth_element(scaled_variances.begin(), middle, scaled_variances.end());
+  return std::sqrt(static_cast<double>(codim) * *middle);
 }
 
 }  // namespace s2m

@@ -17,4 +17,12 @@ double ChiSquareMedian(int dof);
 // fewer than 10 neighbourhoods could be fitted.
 double EstimateNoise(const ScanSet& set);
 
+// The noise of points along a curve (2 or 3 rows), without a model: around up to 500 points spread over the
+// data, the 8 nearest neighbours in the frame of their principal direction (the tangent), each normal
+// coordinate fitted by a quadratic in the tangential one; SS / dof scaled to have the noise variance as its
+// median (as EstimateNoise). Returned on the scale of an orthogonal distance: sqrt(codim) sigma, codim = 1
+// for a plane curve and 2 for a space curve (the distance spans the normal plane), i.e. the RMS a perfect
+// model leaves (docs/method.md section 17). NaN when fewer than 10 neighbourhoods could be fitted.
+double EstimateCurveNoise(const Eigen::Ref<const Eigen::MatrixXd>& points);
+
 }  // namespace s2m

@@ -11,15 +11,17 @@ namespace {
 // Signed distances with the sign of (x - foot) . n, n = C_u x C_v at the foot point, optionally turned away
 // from the z axis.
 Eigen::VectorXd SignedDistances(const ParametricModel& model, const Eigen::Matrix3Xd& points,
-                                bool away_from_axis) {
+                                bool away_from_axis, Eigen::Matrix3Xd* foot_points) {
   std::vector<FootPoint> feet;
   ComputeFootPoints(model, Eigen::MatrixXd(points), feet);
   Eigen::VectorXd out(points.cols());
+  if (foot_points) foot_points->resize(3, points.cols());
   LocalGeometry g;
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     const FootPoint& foot = feet[static_cast<std::size_t>(i)];
     model.Evaluate(foot.t, 1, g);
     const Eigen::Vector3d c = To3(g.point);
+    if (foot_points) foot_points->col(i) = c;
     Eigen::Vector3d n = To3(g.d1.col(0)).cross(To3(g.d1.col(1)));
     if (away_from_axis && n.dot(Eigen::Vector3d(c.x(), c.y(), 0.0)) < 0) n = -n;
     const double side = (Eigen::Vector3d(points.col(i)) - c).dot(n);
@@ -30,12 +32,14 @@ Eigen::VectorXd SignedDistances(const ParametricModel& model, const Eigen::Matri
 
 }  // namespace
 
-Eigen::VectorXd SignedDistancesAroundAxis(const ParametricModel& model, const Eigen::Matrix3Xd& points) {
-  return SignedDistances(model, points, true);
+Eigen::VectorXd SignedDistancesAroundAxis(const ParametricModel& model, const Eigen::Matrix3Xd& points,
+                                          Eigen::Matrix3Xd* feet) {
+  return SignedDistances(model, points, true, feet);
 }
 
-Eigen::VectorXd SignedDistancesToFaces(const PartModel& part, const Eigen::Matrix3Xd& points) {
-  return SignedDistances(part, points, false);
+Eigen::VectorXd SignedDistancesToFaces(const PartModel& part, const Eigen::Matrix3Xd& points,
+                                       Eigen::Matrix3Xd* feet) {
+  return SignedDistances(part, points, false, feet);
 }
 
 }  // namespace s2m

@@ -12,9 +12,13 @@ namespace s2m {
 // Signed orthogonal distances of points (model frame) to a model around the z axis (surface of revolution,
 // helical, spiral): positive on the side away from the axis (outside a pot's wall, the convention of
 // SampleAroundAxis).
-Eigen::VectorXd SignedDistancesAroundAxis(const ParametricModel& model, const Eigen::Matrix3Xd& points);
+// With `feet`, also the foot points (3 x n): where the residuals sit on the model (the residual structure's
+// neighbours and orders, docs/method.md section 17).
+Eigen::VectorXd SignedDistancesAroundAxis(const ParametricModel& model, const Eigen::Matrix3Xd& points,
+                                          Eigen::Matrix3Xd* feet = nullptr);
 // Signed distances of points (part frame) to their nearest faces: positive along the face's normal C_u x C_v
 // at the foot point (planes: their normal; cylinders: away from the axis).
-Eigen::VectorXd SignedDistancesToFaces(const PartModel& part, const Eigen::Matrix3Xd& points);
+Eigen::VectorXd SignedDistancesToFaces(const PartModel& part, const Eigen::Matrix3Xd& points,
+                                       Eigen::Matrix3Xd* feet = nullptr);
 
 }  // namespace s2m

@@ -393,6 +393,12 @@ std::string CsvNumber(const nlohmann::json& v) {
   }
   if (v.is_boolean()) return v.get<bool>() ? "true" : "false";
   if (v.is_string()) return CsvField(v.get<std::string>());
+  if (v.is_array()) {  // a list of texts (suggestions): one field, items separated by " | "
+    std::string joined;
+    for (const nlohmann::json& item : v)
+      joined += (joined.empty() ? "" : " | ") + (item.is_string() ? item.get<std::string>() : item.dump());
+    return CsvField(joined);
+  }
   return "";
 }
 
@@ -556,9 +562,19 @@ nlohmann::json SummaryEntry(const BatchObject& object, const nlohmann::json* rec
   e["stop_reason"] = d["stop_reason"];
   e["seconds"] = d["seconds"];
   if (d.contains("adequacy")) {
-    e["rms_to_noise"] = d["adequacy"]["rms_to_noise"];
-    e["adequate"] = d["adequacy"]["adequate"];
+    const nlohmann::json& a = d["adequacy"];
+    e["rms_to_noise"] = a["rms_to_noise"];
+    e["adequate"] = a["adequate"];
+    // The verdict's evidence (docs/method.md section 17): structure, and whether the uncertainties hold.
+    e["uncertainty_trusted"] = a.value("uncertainty_trusted", a["adequate"]);
+    const nlohmann::json& s = a.value("structure", nlohmann::json(nullptr));
+    e["structure"] = s.is_object() ? s["significant"] : nlohmann::json(nullptr);
+    e["runs_z"] = s.is_object() && s["runs"].is_object() ? s["runs"]["z"] : nlohmann::json(nullptr);
+    e["moran_i"] =
+        s.is_object() && s["moran"].is_object() ? s["moran"]["statistic"] : nlohmann::json(nullptr);
+    e["suggestions"] = a.value("suggestions", nlohmann::json::array());
   }
+  if (d.contains("loss")) e["loss"] = d["loss"].value("kind", "none");
   e["parameters"] = FlatParameters(d);
   if (d.contains("verdict")) e["verdict"] = d["verdict"];
   return e;
@@ -570,11 +586,14 @@ void WriteBatchSummary(const std::string& output_dir, const std::string& name, c
   nlohmann::json j = {
       {"schema", "scan2model.batch_summary/1"}, {"manifest", manifest.path}, {"objects", entries}};
   std::map<std::string, int> counts;
-  for (const nlohmann::json& e : entries) counts[e["status"].get<std::string>()] += 1;
-  j["counts"] = {{"objects", entries.size()},
-                 {"ok", counts["ok"]},
-                 {"error", counts["error"]},
-                 {"missing", counts["missing"]}};
+  int adequate = 0, inadequate = 0;
+  for (const nlohmann::json& e : entries) {
+    counts[e["status"].get<std::string>()] += 1;
+    const nlohmann::json& a = e.value("adequate", nlohmann::json(nullptr));
+    if (a.is_boolean()) (a.get<bool>() ? adequate : inadequate) += 1;
+  }
+  j["counts"] = {{"objects", entries.size()},    {"ok", counts["ok"]},   {"error", counts["error"]},
+                 {"missing", counts["missing"]}, {"adequate", adequate}, {"inadequate", inadequate}};
   WriteTextAtomically((fs::path(output_dir) / (name + ".json")).string(), j.dump(1) + "\n");
 
   // CSV: fixed columns, then value and uncertainty of every parameter any object has (first appearance
@@ -588,8 +607,11 @@ void WriteBatchSummary(const std::string& output_dir, const std::string& name, c
     }
   }
   static const std::vector<std::string> kColumns = {
-      "id",  "status",  "exit_code",  "model",        "input",    "units",   "views",   "points",
-      "rms", "max_abs", "iterations", "rms_to_noise", "adequate", "verdict", "seconds", "error"};
+      "id",         "status",       "exit_code", "model",   "input",
+      "units",      "views",        "points",    "rms",     "max_abs",
+      "iterations", "rms_to_noise", "adequate",  "verdict", "seconds",
+      "error",      "structure",    "runs_z",    "moran_i", "uncertainty_trusted",
+      "loss",       "suggestions"};
   std::ostringstream csv;
   for (std::size_t c = 0; c < kColumns.size(); ++c) csv << (c ? "," : "") << kColumns[c];
   for (const std::string& n : names) csv << "," << CsvField(n) << "," << CsvField(n + "_uncertainty");

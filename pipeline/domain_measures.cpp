@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "fitting/robust_loss.h"
 #include "pipeline/output.h"
 #include "pipeline/svg.h"
 
@@ -37,7 +38,7 @@ Eigen::Matrix3Xd Concatenate(const std::vector<Eigen::Matrix3Xd>& parts) {
 }
 
 nlohmann::json DeviationsJson(const Eigen::Matrix3Xd& world_points, const Eigen::VectorXd& d,
-                              const DeviationOptions& o) {
+                              const DeviationOptions& o, const Eigen::VectorXd& weights) {
   nlohmann::json j;
   const Eigen::Index n = d.size();
   j["count"] = n;
@@ -67,42 +68,342 @@ nlohmann::json DeviationsJson(const Eigen::Matrix3Xd& world_points, const Eigen:
   j["histogram"] = {{"edges", edges}, {"counts", counts}, {"below", below}, {"above", above}};
   const Eigen::Index stride = std::max<Eigen::Index>(1, (n + o.max_sample - 1) / std::max(o.max_sample, 1));
   nlohmann::json sample = nlohmann::json::array();
+  const bool weighted = weights.size() == n;
   for (Eigen::Index i = 0; i < n; i += stride) {
-    sample.push_back({world_points(0, i), world_points(1, i), world_points(2, i), d[i]});
+    nlohmann::json row = {world_points(0, i), world_points(1, i), world_points(2, i), d[i]};
+    if (weighted) row.push_back(weights[i]);
+    sample.push_back(std::move(row));
   }
-  j["sample"] = {{"stride", stride}, {"columns", {"x", "y", "z", "deviation"}}, {"points", sample}};
+  nlohmann::json columns = {"x", "y", "z", "deviation"};
+  if (weighted) {
+    columns.push_back("weight");
+    j["down_weighted"] = (weights.array() < 0.5).count();
+    j["rejected"] = (weights.array() == 0.0).count();
+  }
+  j["sample"] = {{"stride", stride}, {"columns", columns}, {"points", sample}};
   return j;
 }
+
+namespace {
+
+constexpr const char* kNoiseMethod =
+    "median over local quadrics of 8 neighbours within each view (docs/batch.md)";
+// Moran's I on at most this many points (every k-th): the k-d tree's neighbours of 2e4 points take tens of
+// milliseconds; its standard error there (about 0.003) is far below the effect threshold.
+constexpr Eigen::Index kMoranMaxPoints = 20000;
+constexpr int kMoranNeighbours = 8;
+
+std::string Percent(double fraction) {
+  return Format(100 * fraction, 2) + " %";
+}
+
+std::string SplineCountHint(const std::string& control_points) {
+  return control_points.empty() ? "" : " than the " + control_points + " used";
+}
+
+// What to try, from the evidence (docs/cli.md, "adequacy").
+std::vector<std::string> Suggestions(const AdequacyEvidence& e, const Adequacy& a) {
+  std::vector<std::string> out;
+  if (a.adequate.value_or(true)) return out;
+  const bool robust = e.weights.size() > 0;
+  if (a.heavy_tails && !robust) {
+    out.push_back("heavy-tailed residuals (" + Percent(a.beyond_3_sigma) +
+                  " of the points beyond 3 sigma): a robust loss (--loss cauchy), or fit --robust when other "
+                  "objects, a stand or a floor are in the data");
+  }
+  if (robust && a.down_weighted_fraction > kManyDownWeighted) {
+    out.push_back(Percent(a.down_weighted_fraction) +
+                  " of the points are down-weighted: the data hold more than this model (clutter, a second "
+                  "object, a stand): fit --robust (the dominant instance) or detect");
+  }
+  if (a.structure) {
+    std::string where = a.runs_significant ? "along " + a.runs_order : "between neighbouring points";
+    switch (e.family) {
+      case ModelFamily::kSpline:
+        out.push_back("residuals structured " + where +
+                      ": more control points (--control-points auto, or a " + "larger count" +
+                      SplineCountHint(e.control_points) + ")");
+        break;
+      case ModelFamily::kPrimitive: {
+        std::string other = "bspline-surface";
+        if (e.model == "cylinder")
+          other = "cone (a taper), revolution (a varying profile) or bspline-surface";
+        if (e.model == "cone") other = "revolution (a curved profile) or bspline-surface";
+        if (e.model == "sphere") other = "revolution or bspline-surface";
+        if (e.model == "plane") other = "bspline-surface (the surface is not flat)";
+        out.push_back("residuals structured " + where + ": the surface is not a " + e.model +
+                      "; try another model: " + other +
+                      "; or, when the scan also holds other objects or a background, fit --robust (the "
+                      "dominant instance) or detect");
+        break;
+      }
+      case ModelFamily::kMultiView:
+        out.push_back("residuals structured " + where + ": more control points for the generatrix " +
+                      "(--control-points auto, or a larger count" + SplineCountHint(e.control_points) +
+                      "), or another model (revolution, helical, spiral)");
+        break;
+      case ModelFamily::kPart:
+        out.push_back("residuals structured " + where +
+                      ": the part differs from its file (free a fixed parameter, add a missing face) or a " +
+                      "view is mis-registered");
+        break;
+    }
+  }
+  if (out.empty() && a.rms_within_band == false) {
+    const bool spline = e.family == ModelFamily::kSpline || e.family == ModelFamily::kMultiView;
+    out.push_back(std::string("RMS above the noise estimate without a structure the tests detect: ") +
+                  (spline ? "more control points (--control-points auto), or " : "") +
+                  "the misfit is finer than the neighbourhoods, or the noise estimate is low (quantized or "
+                  "resampled data)");
+  }
+  return out;
+}
+
+nlohmann::json RunsJson(const RunsTest& t, const std::string& order, bool significant) {
+  return {{"order", order},
+          {"positives", t.positives},
+          {"negatives", t.negatives},
+          {"runs", t.runs},
+          {"expected_runs", NumberOrNull(t.expected_runs)},
+          {"z", NumberOrNull(t.z)},
+          {"sign_correlation", NumberOrNull(t.sign_correlation)},
+          {"significant", significant}};
+}
+
+nlohmann::json MoranJson(const MoranTest& t, bool significant) {
+  return {{"points", t.count},
+          {"neighbours", t.neighbours},
+          {"statistic", NumberOrNull(t.statistic)},
+          {"expected", NumberOrNull(t.expected)},
+          {"z", NumberOrNull(t.z)},
+          {"significant", significant}};
+}
+
+}  // namespace
 
 Adequacy AssessAdequacy(double fit_rms, double noise) {
   Adequacy a;
   a.fit_rms = fit_rms;
+  a.fit_scale = fit_rms;
   a.noise_estimate = noise;
   if (std::isfinite(noise) && noise > 0) a.rms_to_noise = fit_rms / noise;
-  if (std::isfinite(a.rms_to_noise)) a.adequate = a.rms_to_noise <= a.threshold;
-  a.noise_method = "median over local quadrics of 8 neighbours within each view (docs/batch.md)";
+  if (std::isfinite(a.rms_to_noise)) a.rms_within_band = a.rms_to_noise <= a.threshold;
+  a.adequate = a.rms_within_band;
+  a.noise_method = kNoiseMethod;
+  return a;
+}
+
+Adequacy AssessAdequacy(const AdequacyEvidence& e) {
+  Adequacy a;
+  a.fit_rms = e.fit_rms;
+  a.noise_estimate = e.noise_estimate;
+  a.noise_method = e.noise_method.empty() ? kNoiseMethod : e.noise_method;
+  const Eigen::Index n = e.residuals.size();
+  const bool robust = e.weights.size() == n && n > 0;
+  // The points the structure tests and the scale use: all, or a robust fit's inliers (weight >= 0.5).
+  std::vector<Eigen::Index> kept;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (!robust || e.weights[i] >= 0.5) kept.push_back(i);
+  }
+  a.fit_scale = e.fit_rms;
+  if (robust) {
+    double sum = 0;
+    for (const Eigen::Index i : kept) sum += e.residuals[i] * e.residuals[i];
+    a.fit_scale = kept.empty() ? e.fit_rms : std::sqrt(sum / static_cast<double>(kept.size()));
+    a.fit_scale_kind = "rms of the points with robust weight >= 0.5";
+    a.down_weighted_fraction = 1.0 - static_cast<double>(kept.size()) / static_cast<double>(n);
+  }
+  // Exact data: residuals at rounding level (certified reference sets, synthetic exact points).
+  a.exact = e.extent > 0 && a.fit_scale <= 1e-9 * e.extent;
+  // A noise estimate at rounding level on data that are not exact means the neighbourhoods fit exactly: depth
+  // quantized into steps (the real Kinect frames: 4e-19 m, on 1 mm raw units), or resampled points. It
+  // says nothing about the noise: unknown, and the verdict rests on the structure.
+  a.noise_at_rounding_level =
+      !a.exact && e.extent > 0 && std::isfinite(e.noise_estimate) && e.noise_estimate <= 1e-9 * e.extent;
+  if (std::isfinite(e.noise_estimate) && e.noise_estimate > 0 && !a.noise_at_rounding_level)
+    a.rms_to_noise = a.fit_scale / e.noise_estimate;
+  if (a.exact) {
+    a.rms_within_band = true;
+  } else if (std::isfinite(a.rms_to_noise)) {
+    a.rms_within_band = a.rms_to_noise <= a.threshold;
+  }
+
+  // Tails (all points): a normal sample has 0.27 % beyond 3 sigma.
+  if (n > 0) {
+    a.mad_sigma = MadSigma(e.residuals);
+    if (a.mad_sigma > 0) {
+      a.beyond_3_sigma =
+          static_cast<double>((e.residuals.array().abs() > 3 * a.mad_sigma).count()) / static_cast<double>(n);
+      a.heavy_tails = e.signed_residuals && a.beyond_3_sigma > kHeavyTailFraction;
+    }
+  }
+
+  // Structure, on the kept points: values signed, or (space curves) distances about their median.
+  if (!a.exact && kept.size() >= 20 && e.points.cols() == n) {
+    Eigen::VectorXd values(static_cast<Eigen::Index>(kept.size()));
+    Eigen::Matrix3Xd where(3, values.size());
+    for (Eigen::Index k = 0; k < values.size(); ++k) {
+      values[k] = e.residuals[kept[static_cast<std::size_t>(k)]];
+      where.col(k) = e.points.col(kept[static_cast<std::size_t>(k)]);
+    }
+    if (!e.signed_residuals) {
+      Eigen::VectorXd sorted = values;
+      std::nth_element(sorted.data(), sorted.data() + sorted.size() / 2, sorted.data() + sorted.size());
+      values.array() -= sorted[sorted.size() / 2];
+    }
+    // The runs order restricted to the kept points.
+    std::vector<Eigen::Index> position(static_cast<std::size_t>(n), -1);
+    for (std::size_t k = 0; k < kept.size(); ++k)
+      position[static_cast<std::size_t>(kept[k])] = static_cast<Eigen::Index>(k);
+    std::vector<Eigen::Index> order;
+    if (static_cast<Eigen::Index>(e.order.size()) == n) {
+      for (const Eigen::Index i : e.order) {
+        if (position[static_cast<std::size_t>(i)] >= 0)
+          order.push_back(position[static_cast<std::size_t>(i)]);
+      }
+      a.runs_order = e.order_description;
+    } else {
+      order = HilbertOrder(where);
+      a.runs_order = "a Hilbert curve through the points";
+    }
+    Eigen::VectorXd ordered(values.size());
+    for (Eigen::Index k = 0; k < values.size(); ++k) ordered[k] = values[order[static_cast<std::size_t>(k)]];
+    a.runs = SignRunsTest(ordered);
+    const Eigen::Index stride =
+        std::max<Eigen::Index>(1, (values.size() + kMoranMaxPoints - 1) / kMoranMaxPoints);
+    const Eigen::Index m = (values.size() + stride - 1) / stride;
+    Eigen::Matrix3Xd sample_points(3, m);
+    Eigen::VectorXd sample_values(m);
+    for (Eigen::Index k = 0; k < m; ++k) {
+      sample_points.col(k) = where.col(k * stride);
+      sample_values[k] = values[k * stride];
+    }
+    a.moran = MoransI(sample_points, sample_values, kMoranNeighbours);
+    // One-sided: a model's misfit makes neighbours alike (fewer runs, positive I); alternation is no misfit.
+    a.runs_significant =
+        std::isfinite(a.runs->z) && -a.runs->z > kStructureZ && a.runs->sign_correlation > kStructureEffect;
+    a.moran_significant =
+        std::isfinite(a.moran->z) && a.moran->z > kStructureZ && a.moran->statistic > kStructureEffect;
+    a.structure = a.runs_significant || a.moran_significant;
+  }
+  if (a.rms_within_band) a.adequate = *a.rms_within_band && !a.structure;
+  if (!a.rms_within_band && a.structure) a.adequate = false;  // unknown noise, but structure is enough
+  a.suggestions = Suggestions(e, a);
+  a.reports_uncertainties = e.reports_uncertainties;
   return a;
 }
 
 nlohmann::json Adequacy::ToJson() const {
-  return {{"fit_rms", fit_rms},
-          {"noise_estimate", NumberOrNull(noise_estimate)},
-          {"rms_to_noise", NumberOrNull(rms_to_noise)},
-          {"threshold", threshold},
-          {"adequate", adequate ? nlohmann::json(*adequate) : nlohmann::json(nullptr)},
-          {"noise_method", noise_method}};
+  const auto optional_bool = [](const std::optional<bool>& b) {
+    return b ? nlohmann::json(*b) : nlohmann::json(nullptr);
+  };
+  nlohmann::json j = {{"fit_rms", fit_rms},
+                      {"fit_scale", fit_scale},
+                      {"fit_scale_kind", fit_scale_kind},
+                      {"noise_estimate", NumberOrNull(noise_estimate)},
+                      {"rms_to_noise", NumberOrNull(rms_to_noise)},
+                      {"threshold", threshold},
+                      {"rms_within_band", optional_bool(rms_within_band)},
+                      {"exact", exact},
+                      {"noise_at_rounding_level", noise_at_rounding_level},
+                      {"adequate", optional_bool(adequate)},
+                      {"uncertainty_trusted", optional_bool(uncertainty_trusted())},
+                      {"suggestions", suggestions},
+                      {"noise_method", noise_method}};
+  if (runs || moran) {
+    nlohmann::json& s = j["structure"];
+    s = {{"significant", structure}, {"z_threshold", kStructureZ}, {"effect_threshold", kStructureEffect}};
+    s["runs"] = runs ? RunsJson(*runs, runs_order, runs_significant) : nlohmann::json(nullptr);
+    s["moran"] = moran ? MoranJson(*moran, moran_significant) : nlohmann::json(nullptr);
+  } else {
+    j["structure"] = nullptr;
+  }
+  j["tails"] = {{"mad_sigma", NumberOrNull(mad_sigma)},
+                {"beyond_3_sigma", NumberOrNull(beyond_3_sigma)},
+                {"heavy", heavy_tails}};
+  j["down_weighted_fraction"] = NumberOrNull(down_weighted_fraction);
+  return j;
 }
 
 std::string Adequacy::Text() const {
   std::ostringstream t;
-  t << "\n  model adequacy    ";
-  if (!std::isfinite(rms_to_noise) || !adequate) {
-    t << "unknown (too few points per view to estimate their noise)\n";
+  t << "\n  model adequacy    " << (!adequate ? "unknown" : *adequate ? "adequate" : "NOT adequate") << "\n";
+  t << "  RMS / noise       ";
+  if (exact) {
+    t << "exact data (RMS " << Format(fit_scale, 3) << " at rounding level)\n";
+  } else if (noise_at_rounding_level) {
+    t << "unknown (the noise estimate " << Format(noise_estimate, 2)
+      << " is at rounding level: quantized depth or resampled points)\n";
+  } else if (!std::isfinite(rms_to_noise)) {
+    t << "unknown (too few points to estimate their noise)\n";
   } else {
-    t << "RMS / noise " << Format(rms_to_noise, 3) << " (noise estimate " << Format(noise_estimate, 3)
-      << "): " << (*adequate ? "adequate" : "NOT adequate") << " (threshold " << threshold << ")\n";
+    t << Format(rms_to_noise, 3) << " (" << (fit_scale_kind == "rms" ? "RMS " : "inlier RMS ")
+      << Format(fit_scale, 3) << ", noise estimate " << Format(noise_estimate, 3)
+      << "): " << (*rms_within_band ? "within" : "above") << " the band (<= " << threshold << ")\n";
   }
+  if (runs || moran) {
+    t << "  structure         ";
+    if (runs && std::isfinite(runs->z)) {
+      t << "runs along " << runs_order << " z " << Format(runs->z, 3) << " (sign correlation "
+        << Format(runs->sign_correlation, 2) << ")";
+    } else {
+      t << "runs test: too few signs";
+    }
+    if (moran && std::isfinite(moran->z)) {
+      t << ", Moran's I " << Format(moran->statistic, 2) << " (z " << Format(moran->z, 3) << ", "
+        << moran->neighbours << " neighbours)";
+    }
+    t << ": " << (structure ? "significant" : "none") << " (z beyond " << kStructureZ << " and effect above "
+      << kStructureEffect << ")\n";
+  }
+  if (heavy_tails)
+    t << "  tails             " << Format(100 * beyond_3_sigma, 2)
+      << " % of the points beyond 3 sigma (heavy)\n";
+  if (std::isfinite(down_weighted_fraction)) {
+    t << "  down-weighted     " << Format(100 * down_weighted_fraction, 3)
+      << " % of the points (robust weight < 0.5)\n";
+  }
+  if (reports_uncertainties) t << UntrustedUncertaintiesLine(uncertainty_trusted());
+  for (std::size_t i = 0; i < suggestions.size(); ++i)
+    t << (i == 0 ? "  try               " : "                    ") << suggestions[i] << "\n";
   return t.str();
+}
+
+Eigen::VectorXd RobustWeightsAt(const RobustLoss& loss, double scale, const Eigen::VectorXd& distances) {
+  if (!loss.is_robust()) return {};
+  RobustLoss at = loss;
+  at.scale = scale > 0 ? scale : loss.scale;
+  if (!(at.scale > 0)) return {};
+  return RobustWeighting(at).Weights(distances);
+}
+
+void MarkUncertainties(nlohmann::json& d, std::optional<bool> trusted) {
+  const nlohmann::json flag = trusted ? nlohmann::json(*trusted) : nlohmann::json(nullptr);
+  d["uncertainty_trusted"] = flag;
+  for (const char* block : {"pitch", "growth", "vessel", "profile"}) {
+    if (d.contains(block) && d[block].is_object()) d[block]["uncertainty_trusted"] = flag;
+  }
+  if (d.contains("views") && d["views"].is_array()) {
+    for (nlohmann::json& v : d["views"]) {
+      if (v.contains("pose_uncertainty")) v["uncertainty_trusted"] = flag;
+    }
+  }
+  if (d.contains("parameters") && d["parameters"].is_array()) {
+    for (nlohmann::json& p : d["parameters"]) {
+      if (p.is_object()) p["uncertainty_trusted"] = flag;
+    }
+  }
+}
+
+std::string UncertaintyText(double u, std::optional<bool> trusted, int digits) {
+  if (!std::isfinite(u)) return "-";
+  return trusted == false ? "[" + Format(u, digits) + "]" : Format(u, digits);
+}
+
+std::string UntrustedUncertaintiesLine(std::optional<bool> trusted) {
+  return trusted == false ? "  uncertainties are NOT trustworthy: the model is inadequate (uncertainties "
+                            "shown in brackets)\n"
+                          : "";
 }
 
 VesselMeasures MeasureVessel(const Eigen::Vector3d& axis_point, const Eigen::Vector3d& axis_direction,
@@ -184,10 +485,11 @@ VesselMeasures VesselMeasures::FromJson(const nlohmann::json& j) {
   return v;
 }
 
-std::string VesselMeasures::Text() const {
-  auto with_u = [](const Measure& m) {
-    return Format(m.value, 6) +
-           (std::isfinite(m.uncertainty) ? " +- " + Format(m.uncertainty, 2) : std::string());
+std::string VesselMeasures::Text(std::optional<bool> trusted) const {
+  auto with_u = [&](const Measure& m) {
+    return Format(m.value, 6) + (std::isfinite(m.uncertainty)
+                                     ? " +- " + UncertaintyText(m.uncertainty, trusted, 2)
+                                     : std::string());
   };
   std::ostringstream t;
   t << "\n  vessel (axis towards the world's +z: base below, rim above)\n"

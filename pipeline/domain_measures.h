@@ -17,6 +17,8 @@
 #include <vector>
 
 #include "fitting/noise_estimate.h"
+#include "fitting/residual_structure.h"
+#include "fitting/robust_loss.h"
 #include "fitting/signed_distance.h"
 #include "registration/scan.h"
 
@@ -34,9 +36,11 @@ struct DeviationOptions {
 };
 // {count, rms, mean, min, max, histogram: {edges, counts, below, above}, sample: {stride, columns,
 // points: [[x, y, z, deviation], ...]}}; `world_points` are the points the distances belong to, in the
-// result's world.
+// result's world. With robust `weights` (one per point) the sample has a fifth column, `weight` (the IRLS
+// weight: below 0.5 down-weighted, 0 rejected), and the document `down_weighted` and `rejected` counts.
 nlohmann::json DeviationsJson(const Eigen::Matrix3Xd& world_points, const Eigen::VectorXd& signed_distances,
-                              const DeviationOptions& options = {});
+                              const DeviationOptions& options = {},
+                              const Eigen::VectorXd& weights = Eigen::VectorXd());
 
 // A measured quantity with its standard uncertainty (GUM, type A; NaN when unknown) and its unit, carried
 // explicitly: the unit string comes from the input (the views' or the part file's), never from a name.
@@ -46,24 +50,104 @@ struct Measure {
   std::string unit;
 };
 
-// Adequacy of a model: ratio = fit RMS / noise estimate; adequate when the ratio is at most
-// kAdequacyThreshold (unknown when the noise is).
+// Adequacy of a model (docs/method.md section 17): the fit's RMS against the data's noise estimated without
+// the model (ratio at most kAdequacyThreshold), AND no significant structure in the signed residuals (the
+// runs test along an order and Moran's I over nearest neighbours, fitting/residual_structure.h): structure
+// is significant when a test's z-score passes kStructureZ in the direction of clustering AND its effect size
+// (sign correlation, Moran's I) passes kStructureEffect.
 constexpr double kAdequacyThreshold = 1.5;
+// One-sided z > 3: a false alarm rate of 1.35e-3 per test, 2.7e-3 per fit with both tests (Bonferroni).
+constexpr double kStructureZ = 3.0;
+// Effect size: Moran's I is about the share of the residual variance that is smooth over neighbours; 0.1
+// means an RMS at least 5 % above the noise from the misfit. Without it, a large cloud (n = 1e5: standard
+// error of I about 0.001) flags irrelevant structure.
+constexpr double kStructureEffect = 0.1;
+// Heavy tails: more than 1 % of the points beyond 3 MAD sigmas (a normal sample has 0.27 %).
+constexpr double kHeavyTailFraction = 0.01;
+// Clutter: more than 20 % of the points down-weighted by a robust loss.
+constexpr double kManyDownWeighted = 0.2;
+
+enum class ModelFamily { kPrimitive, kSpline, kMultiView, kPart };
+
+// What AssessAdequacy needs from a fit.
+struct AdequacyEvidence {
+  ModelFamily family = ModelFamily::kPrimitive;
+  std::string model;           // e.g. "cylinder", "bspline-curve", "revolution", "part:block.json"
+  std::string control_points;  // splines and generatrices: the count used, e.g. "12", "8x8" (suggestions)
+  double fit_rms = 0.0;        // over all points
+  double noise_estimate = std::numeric_limits<double>::quiet_NaN();
+  std::string noise_method;
+  // One residual per point, signed (outside positive); for a space curve, where an orthogonal distance has
+  // no sign, the distances (`signed_residuals` false: the tests use them about their median).
+  Eigen::VectorXd residuals;
+  bool signed_residuals = true;
+  Eigen::Matrix3Xd points;  // the points the residuals belong to (neighbours for Moran's I)
+  // The order of the runs test (a permutation of the points) and what it follows; empty: a Hilbert curve
+  // through the points.
+  std::vector<Eigen::Index> order;
+  std::string order_description;
+  // Robust fits: each point's final IRLS weight (empty: plain least squares).
+  Eigen::VectorXd weights;
+  bool reports_uncertainties = true;  // the fit reports uncertainties (not the splines)
+  double extent = 0.0;  // the data's bounding-box diagonal: RMS below 1e-9 x extent is exact data
+};
+
 struct Adequacy {
   double fit_rms = 0.0;
+  // What is compared with the noise: the RMS, or for a robust fit the RMS of the points with weight >= 0.5.
+  double fit_scale = 0.0;
+  std::string fit_scale_kind = "rms";
   double noise_estimate =
       std::numeric_limits<double>::quiet_NaN();  // EstimateNoise (fitting/noise_estimate.h)
   double rms_to_noise = std::numeric_limits<double>::quiet_NaN();
   double threshold = kAdequacyThreshold;
-  std::optional<bool> adequate;  // empty when the noise is unknown
+  std::optional<bool> rms_within_band;  // empty when the noise is unknown
+  bool exact = false;                   // the residuals are at rounding level (exact data)
+  // The noise estimate is at rounding level on inexact data (quantized depth, resampled points): unusable.
+  bool noise_at_rounding_level = false;
+  // Residual structure; absent when not assessed (the old RMS-only form, or too few points).
+  std::optional<RunsTest> runs;
+  std::string runs_order;
+  std::optional<MoranTest> moran;
+  bool runs_significant = false, moran_significant = false;
+  bool structure = false;  // either is significant
+  // Tails of the residuals: sigma = 1.4826 MAD and the fraction beyond 3 sigma.
+  double mad_sigma = std::numeric_limits<double>::quiet_NaN();
+  double beyond_3_sigma = std::numeric_limits<double>::quiet_NaN();
+  bool heavy_tails = false;
+  double down_weighted_fraction = std::numeric_limits<double>::quiet_NaN();  // robust fits
+  std::optional<bool> adequate;  // RMS within the band and no structure; empty when the noise is unknown
+  std::vector<std::string> suggestions;  // what to try when not adequate
   std::string noise_method;
+  bool reports_uncertainties = true;  // false for fits without uncertainties (splines): no warning line
 
-  // {fit_rms, noise_estimate, rms_to_noise, threshold, adequate, noise_method}; unknown values as null.
+  // Whether the reported uncertainties (type A, from the residuals under an adequate model) can be trusted:
+  // `adequate` (empty: unknown).
+  std::optional<bool> uncertainty_trusted() const { return adequate; }
+  // {fit_rms, fit_scale, fit_scale_kind, noise_estimate, rms_to_noise, threshold, rms_within_band, exact,
+  // structure: {...}, tails: {...}, down_weighted_fraction, adequate, uncertainty_trusted, suggestions,
+  // noise_method} (docs/cli.md); unknown values as null.
   nlohmann::json ToJson() const;
-  // The "model adequacy" line of the text output.
+  // The "model adequacy" block of the text output.
   std::string Text() const;
 };
+// The RMS against the noise only (no residual structure): what fits without per-point residuals use.
 Adequacy AssessAdequacy(double fit_rms, double noise_estimate);
+// The full verdict: RMS band, structure, tails, suggestions.
+Adequacy AssessAdequacy(const AdequacyEvidence& evidence);
+
+// Each point's IRLS weight rho'(d^2) at the fit's final loss scale (input units), for the fits that report
+// only the scale; empty for plain least squares.
+Eigen::VectorXd RobustWeightsAt(const RobustLoss& loss, double scale, const Eigen::VectorXd& distances);
+
+// Marks every uncertainty block of a result document with `uncertainty_trusted` (true, false or null):
+// the document itself (beside `uncertainties`), `pitch`, `growth`, `vessel`, `profile`, each view with a
+// `pose_uncertainty`, and each entry of an array `parameters` (parts).
+void MarkUncertainties(nlohmann::json& document, std::optional<bool> trusted);
+// An uncertainty for the text output: "-" when unknown, in brackets when not trustworthy.
+std::string UncertaintyText(double uncertainty, std::optional<bool> trusted, int digits = 3);
+// The line every text output prints above untrustworthy uncertainties ("" when they are trusted).
+std::string UntrustedUncertaintiesLine(std::optional<bool> trusted);
 
 // One sample of a vessel's profile: height above the base and radius, in the vessel's units.
 struct ProfileSample {
@@ -88,8 +172,8 @@ struct VesselMeasures {
   // Reads that member back (a batch record, a report's input). Throws nlohmann::json::exception when members
   // are missing or of the wrong type.
   static VesselMeasures FromJson(const nlohmann::json& vessel);
-  // The "vessel" block of the text output.
-  std::string Text() const;
+  // The "vessel" block of the text output; untrusted uncertainties in brackets (MarkUncertainties).
+  std::string Text(std::optional<bool> uncertainty_trusted = std::nullopt) const;
 };
 // From the fitted axis (a point and a direction, world frame) and the profile sampled as (height along the
 // axis from the axis point, radius) with the radius' standard uncertainty per sample (NaN: unknown). Throws

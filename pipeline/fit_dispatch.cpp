@@ -1,6 +1,7 @@
 // ComputeFit: the dispatch of `scan2model fit` and `scan2model batch` to the fits of every model family, and
 // the primitive fits (plane, sphere, cylinder, cone) themselves.
 #include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
@@ -11,13 +12,17 @@
 #include "acquisition/format_error.h"
 #include "acquisition/nist_reference.h"
 #include "acquisition/point_cloud_io.h"
+#include "acquisition/recording.h"
+#include "fitting/noise_estimate.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_fit.h"
 #include "pipeline/detect.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
+#include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
+#include "pipeline/views.h"
 
 namespace s2m::pipeline {
 namespace {
@@ -67,6 +72,24 @@ Cone ReadReference(const std::string& f, const Cone&) {
   return ReadNistConeFit(f);
 }
 
+// The points moved onto the primitive, x - d grad d with the gradient of the signed distance d by central
+// differences (step 1e-7 of the extent): where each residual sits on the model, free of the residual itself
+// (the structure tests' neighbours and orders, docs/method.md section 17).
+template <class Shape>
+Eigen::Matrix3Xd FootPointsOf(const Shape& shape, const Eigen::Matrix3Xd& points, const Eigen::VectorXd& d,
+                              double extent) {
+  const double h = 1e-7 * std::max(extent, 1e-300);
+  Eigen::Matrix3Xd gradient(3, points.cols());
+  for (int axis = 0; axis < 3; ++axis) {
+    Eigen::Matrix3Xd plus = points, minus = points;
+    plus.row(axis).array() += h;
+    minus.row(axis).array() -= h;
+    gradient.row(axis) =
+        ((SignedDistances(shape, plus) - SignedDistances(shape, minus)) / (2 * h)).transpose();
+  }
+  return points - gradient * d.asDiagonal();
+}
+
 template <class Shape, class FitFn>
 FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std::string& format,
                                FitFn fit_fn) {
@@ -83,6 +106,23 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   std::optional<PrimitiveDeviation> deviation;
   if (!o.reference.empty()) deviation = Compare(fit.shape, ReadReference(o.reference, fit.shape));
   if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(fit.history));
+
+  // Adequacy (docs/method.md section 17): the RMS against the cloud's own noise, and the signed residuals'
+  // structure along a Hilbert curve through the points and between nearest neighbours.
+  const Eigen::VectorXd signed_distances = SignedDistances(fit.shape, scan.points);
+  AdequacyEvidence evidence;
+  evidence.family = ModelFamily::kPrimitive;
+  evidence.model = o.model;
+  evidence.fit_rms = fit.residuals.rms;
+  ScanSet single;
+  single.scans.push_back(scan);
+  evidence.noise_estimate = EstimateNoise(single);
+  evidence.residuals = signed_distances;
+  evidence.points = FootPointsOf(fit.shape, scan.points, signed_distances, extent);
+  evidence.weights = RobustWeightsAt(o.loss, fit.loss_scale, signed_distances);
+  evidence.extent = extent;
+  const Adequacy adequacy = AssessAdequacy(evidence);
+  const std::optional<bool> trusted = adequacy.uncertainty_trusted();
 
   FitOutcome outcome;
   {
@@ -101,8 +141,8 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
                       {"rms", fit.residuals.rms},
                       {"max_abs", fit.residuals.max_abs},
                       {"mean", fit.residuals.mean}};
-    j["loss"] = LossJson(o.loss, fit.loss_scale, Eigen::VectorXd());
-    if (o.loss.is_robust()) j["loss"]["down_weighted"] = fit.rejected;
+    j["loss"] = LossJson(o.loss, fit.loss_scale, evidence.weights);
+    j["loss"]["reason"] = o.loss_reason;
     j["iterations"] = fit.iterations;
     j["stop_reason"] = ToString(fit.stop_reason);
     j["seconds"] = seconds;
@@ -115,7 +155,9 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
                         {"size", deviation->size},
                         {"apex_angle_rad", deviation->angle}};
     }
-    j["deviations"] = DeviationsJson(scan.points, SignedDistances(fit.shape, scan.points));
+    j["deviations"] = DeviationsJson(scan.points, signed_distances, {}, evidence.weights);
+    j["adequacy"] = adequacy.ToJson();
+    MarkUncertainties(j, trusted);
   }
 
   std::ostringstream text;
@@ -123,9 +165,10 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
        << ", units " << scan.units << ")\n\n";
   for (const Row& r : rows) text << "  " << std::left << std::setw(18) << r.name << r.text << "\n";
   if (!fit.uncertainties.empty()) {
-    text << "\n  standard uncertainties (type A, from the residuals)\n";
+    text << "\n  standard uncertainties (type A, from the residuals)\n"
+         << UntrustedUncertaintiesLine(trusted);
     for (const ParameterUncertainty& u : fit.uncertainties) {
-      text << "  " << std::left << std::setw(18) << u.name << Format(u.standard_uncertainty, 3)
+      text << "  " << std::left << std::setw(18) << u.name << UncertaintyText(u.standard_uncertainty, trusted)
            << (u.is_angle ? " rad" : "") << "\n";
     }
   } else {
@@ -140,8 +183,11 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   if (o.loss.is_robust()) {
     text << "  loss              " << ToString(o.loss.kind) << ", scale " << Format(fit.loss_scale, 6)
          << (o.loss.scale_from_data() ? " (from the data)" : "") << ", " << fit.rejected
-         << " points down-weighted (IRLS weight < 0.5)\n";
+         << " points down-weighted (IRLS weight < 0.5); " << o.loss_reason << "\n";
+  } else {
+    text << "  loss              none; " << o.loss_reason << "\n";
   }
+  text << adequacy.Text();
   if (o.verbose) text << HistoryTable(fit.history);
   if (deviation) {
     text << "\n  against reference " << o.reference << " (relative to the data's extent " << Format(extent, 6)
@@ -183,7 +229,10 @@ FitOutcome ComputeRobustPrimitiveFit(FitOptions o, const Scan& scan, const std::
   inliers.labels.clear();
   for (Eigen::Index k = 0; k < instance.support(); ++k)
     inliers.points.col(k) = scan.points.col(instance.inliers[static_cast<std::size_t>(k)]);
-  if (!o.loss.is_robust()) o.loss = detection.refit_loss;
+  if (!o.loss.is_robust()) {
+    o.loss = detection.refit_loss;
+    o.loss_reason = "the refit of --robust (its inliers may still hold a few outliers)";
+  }
   FitOutcome outcome;
   const DetectedShape start = instance.shape;
   if (o.model == "plane") {
@@ -246,10 +295,26 @@ FitOutcome ComputeFit(const FitOptions& o) {
     throw FitFailure(kUsage, "--method " + options.method + " applies to splines; primitives use tdm or sdm");
   }
   try {
-    const PointCloudFormat format = DetectFormat(options.file);
-    Scan scan = ReadPointCloud(options.file, format);
+    // A recording or a views manifest: its views merged in the world (a primitive has no poses to fit).
+    const std::string extension = std::filesystem::path(options.file).extension().string();
+    const bool views = extension == kRecordingExtension || extension == ".json" || extension == ".conf";
+    Scan scan;
+    std::string f;
+    if (views) {
+      const ScanSet set = ReadViews(options.file);
+      if (set.scans.empty()) throw FormatError(options.file, "", "no views");
+      scan.points = set.MergedWorldPoints();
+      scan.units = set.scans.front().units;
+      scan.metadata = set.scans.front().metadata;
+      scan.metadata.source = options.file;
+      f = extension == kRecordingExtension ? "recording" : "views";
+    } else {
+      const PointCloudFormat format = DetectFormat(options.file);
+      scan = ReadPointCloud(options.file, format);
+      f = ToString(format);
+    }
     if (!options.units.empty()) scan.units = options.units;
-    const std::string f = ToString(format);
+    ResolveDefaultLoss(options, ClassifyInput(options.file, scan.metadata.device));
     if (options.robust) return ComputeRobustPrimitiveFit(options, scan, f);
     FitOutcome outcome;
     if (options.model == "plane") {

@@ -1,6 +1,7 @@
 #include "pipeline/fit_option_table.h"
 
 #include <cmath>
+#include <filesystem>
 #include <set>
 #include <stdexcept>
 
@@ -98,16 +99,22 @@ std::vector<FitOptionSpec> MakeTable() {
       {"loss",
        "--loss",
        K::kText,
-       "none",
-       "Robust loss of every fit: none, huber[:scale], cauchy[:scale] or tukey[:scale] (scale: a distance in "
-       "input units; omitted: 2.4-4.7 x the MAD noise estimate, re-estimated every iteration; docs/method.md "
-       "section 15)",
+       "auto",
+       "Robust loss of every fit: auto, none, huber[:scale], cauchy[:scale] or tukey[:scale] (scale: a "
+       "distance in input units; omitted: 2.4-4.7 x the MAD noise estimate, re-estimated every iteration; "
+       "docs/method.md section 15). auto: cauchy for recordings, device frames and organized depth clouds "
+       "(flying pixels, mixed edges), none for NIST .ds and other point files (docs/cli.md)",
        {},
        false,
        -1e300,
        1e300,
-       [](FitOptions& o, const std::string& v) { o.loss = ParseRobustLoss(v); },
-       [](const std::string& v) { ParseRobustLoss(v); }});
+       [](FitOptions& o, const std::string& v) {
+         o.loss_given = v != "auto";
+         o.loss = o.loss_given ? ParseRobustLoss(v) : RobustLoss{};
+       },
+       [](const std::string& v) {
+         if (v != "auto") ParseRobustLoss(v);
+       }});
   t.push_back(
       {"robust",
        "--robust",
@@ -331,6 +338,59 @@ std::string ParseFitOption(const FitOptionSpec& o, const std::string& text) {
 
 void ApplyFitOption(const FitOptionSpec& option, const std::string& text, FitOptions& options) {
   option.set(options, ParseFitOption(option, text));
+}
+
+const char* ToString(InputKind kind) {
+  switch (kind) {
+    case InputKind::kCertified:
+      return "certified reference data";
+    case InputKind::kRecording:
+      return "recordings";
+    case InputKind::kDeviceFrame:
+      return "device frames";
+    case InputKind::kOrganizedCloud:
+      return "organized depth clouds";
+    case InputKind::kPointFile:
+      return "point files";
+  }
+  return "point files";
+}
+
+InputKind ClassifyInput(const std::string& file, const std::string& device) {
+  const std::string ext = std::filesystem::path(file).extension().string();
+  if (ext == ".ds") return InputKind::kCertified;
+  if (ext == ".s2mrec") return InputKind::kRecording;
+  if (device == "file:organized") return InputKind::kOrganizedCloud;
+  if (device == "file:depth-frame") return InputKind::kDeviceFrame;
+  // Scans straight from a device (a live source or a device-named scan set) rather than a file.
+  if (!device.empty() && device.rfind("file", 0) != 0) return InputKind::kDeviceFrame;
+  return InputKind::kPointFile;
+}
+
+void ResolveDefaultLoss(FitOptions& o, InputKind kind) {
+  if (o.loss_given) {
+    o.loss_reason = "given";
+    return;
+  }
+  switch (kind) {
+    case InputKind::kRecording:
+    case InputKind::kDeviceFrame:
+    case InputKind::kOrganizedCloud:
+      // Depth cameras' flying pixels (between a foreground and a background edge) and mixed edges are
+      // gross outliers on one side of the surface: Cauchy's influence decays as 1/d (docs/method.md
+      // section 17, measured on the real Kinect frames there).
+      o.loss = ParseRobustLoss("cauchy");
+      o.loss_reason = std::string("default for ") + ToString(kind) + " (flying pixels and mixed edges)";
+      return;
+    case InputKind::kCertified:
+      o.loss = RobustLoss{};
+      o.loss_reason = "default for certified reference data (plain least squares, as certified)";
+      return;
+    case InputKind::kPointFile:
+      o.loss = RobustLoss{};
+      o.loss_reason = "default for point files (plain least squares)";
+      return;
+  }
 }
 
 std::string ModelError(const std::string& model) {

@@ -51,6 +51,25 @@ std::string ParseFitOption(const FitOptionSpec& option, const std::string& text)
 // ParseFitOption, then the row's setter.
 void ApplyFitOption(const FitOptionSpec& option, const std::string& text, FitOptions& options);
 
+// What kind of input a fit reads, for the default robust loss (docs/cli.md "--loss", docs/method.md
+// section 17): recordings, device frames and organized depth clouds carry flying pixels and mixed edges;
+// certified reference data must be fitted by plain least squares, as certified.
+enum class InputKind {
+  kCertified,       // NIST .ds reference data
+  kRecording,       // a .s2mrec recording (device frames replayed)
+  kDeviceFrame,     // a depth image back-projected (file:depth-frame) or a live device's frames
+  kOrganizedCloud,  // an organized point cloud (a PCD with HEIGHT > 1: a depth camera's pixel grid)
+  kPointFile,       // any other point file or views manifest
+};
+const char* ToString(InputKind kind);
+// From the file's name and the device its first scan names (Scan::metadata.device: "file",
+// "file:organized", "file:depth-frame", "virtual:...", a recording's device).
+InputKind ClassifyInput(const std::string& file, const std::string& device);
+// The loss a fit uses: the given one, or the default for the input's kind: Cauchy with the MAD scale for
+// recordings, device frames and organized clouds; none for certified data and other point files. Sets
+// `options.loss` and `options.loss_reason` (e.g. "default for recordings (flying pixels and mixed edges)").
+void ResolveDefaultLoss(FitOptions& options, InputKind kind);
+
 // The models of `scan2model fit`; returns an empty string for a model it knows, else why not.
 std::string ModelError(const std::string& model);
 

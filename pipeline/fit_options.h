@@ -34,6 +34,10 @@ struct FitOptions {
   double bending = 1e-3;
   std::string step_control = "lm";
   RobustLoss loss;  // --loss: the robust loss of every fit (fitting/robust_loss.h)
+  // Whether --loss (or a manifest's "loss") was given; otherwise ComputeFit chooses the default for the
+  // input's kind (ResolveDefaultLoss, fit_option_table.h) and says why in `loss_reason`.
+  bool loss_given = false;
+  std::string loss_reason;
   // Primitives: detect the dominant instance first (pipeline/detect.h), fit its inliers, count the rest.
   bool robust = false;
   std::uint64_t seed = 1;

@@ -14,8 +14,10 @@
 #include "fitting/joint_fit.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/primitive_fit.h"
+#include "fitting/residual_structure.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
+#include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
 #include "pipeline/views.h"
@@ -50,12 +52,14 @@ nlohmann::json NumberOrNull(double v) {
 
 }  // namespace
 
-FitOutcome ComputeMultiViewFit(const FitOptions& o) {
+FitOutcome ComputeMultiViewFit(const FitOptions& given) {
+  FitOptions o = given;
   try {
     if (o.model != "revolution" && o.model != "helical" && o.model != "spiral")
       throw std::invalid_argument(
           "multi-view fitting supports --model revolution, helical, spiral and part:FILE");
     const ScanSet set = ReadViews(o.file);
+    ResolveDefaultLoss(o, ClassifyInput(o.file, set.scans.empty() ? "" : set.scans.front().metadata.device));
     const std::size_t K = set.scans.size();
     const int n = o.control_points.empty() ? 8 : std::stoi(o.control_points);
     // Model frame: the initial axis (revolution: of the best cylinder; helical: from normals; spiral: from
@@ -131,6 +135,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     j["method"] = ToString(options.error_term);
     j["solver"] = SolverName(options);
     j["loss"] = LossJson(o.loss, r.loss_scale, Eigen::VectorXd());
+    j["loss"]["reason"] = o.loss_reason;
     j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
     const auto* kinematic = dynamic_cast<const KinematicSurface*>(model.get());
     const auto* spiral = dynamic_cast<const SpiralSurface*>(model.get());
@@ -184,9 +189,28 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     std::vector<Eigen::Matrix3Xd> model_points;
     for (std::size_t k = 0; k < K; ++k) model_points.push_back(r.model_T_scan[k].apply(scans[k]));
     const Eigen::Matrix3Xd registered = Concatenate(model_points);
-    const Eigen::VectorXd deviations = SignedDistancesAroundAxis(*model, registered);
-    j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations);
-    const Adequacy adequacy = AssessAdequacy(r.residuals.rms, EstimateNoise(set));
+    Eigen::Matrix3Xd feet;
+    const Eigen::VectorXd deviations = SignedDistancesAroundAxis(*model, registered, &feet);
+    // Adequacy (docs/method.md section 17): the RMS against the views' own noise, and the signed residuals'
+    // structure, for a surface of revolution along the height (the generatrix's parameter up to its
+    // direction), for helical and spiral surfaces along a Hilbert curve through the registered points.
+    AdequacyEvidence evidence;
+    evidence.family = ModelFamily::kMultiView;
+    evidence.model = o.model;
+    evidence.control_points = std::to_string(profile.cols());
+    evidence.fit_rms = r.residuals.rms;
+    evidence.noise_estimate = EstimateNoise(set);
+    evidence.residuals = deviations;
+    evidence.points = feet;
+    if (o.model == "revolution") {
+      evidence.order = OrderByParameter(feet.row(2).transpose());
+      evidence.order_description = "the height along the axis";
+    }
+    evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, deviations);
+    evidence.extent = ComputeBounds(registered).diagonal();
+    const Adequacy adequacy = AssessAdequacy(evidence);
+    const std::optional<bool> trusted = adequacy.uncertainty_trusted();
+    j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations, {}, evidence.weights);
     j["adequacy"] = adequacy.ToJson();
     std::optional<VesselMeasures> vessel;
     if (o.model == "revolution") {
@@ -195,22 +219,26 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
       vessel = MeasureVessel(axis_point, axis_direction, height_radius, radius_uncertainty, units);
       j["vessel"] = vessel->ToJson();
     }
+    MarkUncertainties(j, trusted);
     WriteRequestedFiles(o, j, r);
     if (vessel && !o.output.empty()) WriteProfileFiles(o.output, *vessel);
     std::ostringstream text;
     text << "scan2model fit: " << model->name() << " to " << K << " views (" << set.TotalPoints()
          << " points) of " << o.file << " (units " << units << ")\n\n"
-         << "  solver            " << SolverSummary(options, r, seconds) << "\n"
+         << UntrustedUncertaintiesLine(trusted) << "  solver            "
+         << SolverSummary(options, r, seconds) << "\n"
+         << "  loss              " << ToString(o.loss) << "; " << o.loss_reason << "\n"
          << "  axis point        " << Format(axis_point) << "\n"
          << "  axis direction    " << Format(axis_direction) << "\n";
     if (j.contains("pitch")) {
       text << "  pitch             " << Format(j["pitch"]["value"].get<double>(), 8) << " +- "
-           << Format(UncertaintyOf(*model, r, "pitch"), 2) << " per radian (lead "
+           << UncertaintyText(UncertaintyOf(*model, r, "pitch"), trusted, 2) << " per radian (lead "
            << Format(j["pitch"]["lead_per_turn"].get<double>(), 6) << " per turn)\n";
     }
     if (j.contains("growth")) {
       text << "  growth            " << Format(j["growth"]["value"].get<double>(), 8) << " +- "
-           << Format(UncertaintyOf(*model, r, "growth"), 2) << " per radian (whorl expansion rate "
+           << UncertaintyText(UncertaintyOf(*model, r, "growth"), trusted, 2)
+           << " per radian (whorl expansion rate "
            << Format(j["growth"]["whorl_expansion_rate"].get<double>(), 6) << ")\n";
     }
     text << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
@@ -220,11 +248,11 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
       const double u = radius_uncertainty[static_cast<std::size_t>(i)];
       text << "  " << std::setw(14) << Format(samples[static_cast<std::size_t>(i)][0], 6) << std::setw(14)
            << Format(samples[static_cast<std::size_t>(i)][1], 6) << std::setw(12)
-           << (std::isfinite(u) ? Format(u, 2) : std::string("-")) << "\n";
+           << UncertaintyText(u, trusted, 2) << "\n";
     }
     text << ViewsTable(j["views"]) << UnobservableText(r);
     if (o.verbose) text << HistoryTable(r.history);
-    if (vessel) text << vessel->Text();
+    if (vessel) text << vessel->Text(trusted);
     text << adequacy.Text();
     outcome.text = text.str();
     return outcome;

@@ -16,6 +16,7 @@
 #include "fitting/part_model.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
+#include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
 #include "pipeline/views.h"
@@ -96,7 +97,8 @@ std::string CorrelationTable(const std::vector<std::string>& names, const Eigen:
 
 }  // namespace
 
-FitOutcome ComputePartFit(const FitOptions& o) {
+FitOutcome ComputePartFit(const FitOptions& given) {
+  FitOptions o = given;
   const std::string part_path = o.model.substr(std::string("part:").size());
   JointFitOptions options;
   try {
@@ -107,6 +109,8 @@ FitOutcome ComputePartFit(const FitOptions& o) {
   try {
     const PartFile file = ReadPartFile(part_path);
     const ScanSet set = ReadViews(o.file);
+    ResolveDefaultLoss(o, ClassifyInput(o.file, set.scans.empty() ? "" : set.scans.front().metadata.device));
+    options.optimizer.loss = o.loss;
     const std::string units = ResolveUnits(file, part_path, set, o);
     const std::size_t K = set.scans.size();
     // World = part frame: the recorded poses are the initial poses of the views in the part frame.
@@ -164,6 +168,7 @@ FitOutcome ComputePartFit(const FitOptions& o) {
     j["method"] = ToString(options.error_term);
     j["solver"] = SolverName(options);
     j["loss"] = LossJson(o.loss, r.loss_scale, Eigen::VectorXd());
+    j["loss"]["reason"] = o.loss_reason;
     j["parameters"] = nlohmann::json::array();
     std::string verdict;  // over the parameters with tolerances: "pass", "fail", or none
     for (std::size_t i = 0; i < reported.size(); ++i) {
@@ -213,9 +218,24 @@ FitOutcome ComputePartFit(const FitOptions& o) {
     AddSolverJson(j, r, seconds);
     // Signed deviations of the registered points (world = part frame) and the fit's adequacy against the
     // views' own noise (docs/batch.md).
-    j["deviations"] = DeviationsJson(registered, SignedDistancesToFaces(part, registered));
-    const Adequacy adequacy = AssessAdequacy(r.residuals.rms, EstimateNoise(set));
+    // Adequacy (docs/method.md section 17): the RMS against the views' own noise, and the signed residuals'
+    // structure along a Hilbert curve through the registered points and between nearest neighbours.
+    Eigen::Matrix3Xd feet;
+    const Eigen::VectorXd deviations = SignedDistancesToFaces(part, registered, &feet);
+    AdequacyEvidence evidence;
+    evidence.family = ModelFamily::kPart;
+    evidence.model = o.model;
+    evidence.fit_rms = r.residuals.rms;
+    evidence.noise_estimate = EstimateNoise(set);
+    evidence.residuals = deviations;
+    evidence.points = feet;
+    evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, deviations);
+    evidence.extent = ComputeBounds(registered).diagonal();
+    const Adequacy adequacy = AssessAdequacy(evidence);
+    const std::optional<bool> trusted = adequacy.uncertainty_trusted();
+    j["deviations"] = DeviationsJson(registered, deviations, {}, evidence.weights);
     j["adequacy"] = adequacy.ToJson();
+    MarkUncertainties(j, trusted);
     WriteRequestedFiles(o, j, r);
 
     std::ostringstream text;
@@ -223,16 +243,17 @@ FitOutcome ComputePartFit(const FitOptions& o) {
          << " faces) to " << K << " views (" << set.TotalPoints() << " points) of " << o.file << " (units "
          << units << ")\n\n"
          << "  solver            " << SolverSummary(options, r, seconds) << "\n"
+         << "  loss              " << ToString(o.loss) << "; " << o.loss_reason << "\n"
          << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
          << Format(r.residuals.max_abs, 6) << "\n"
          << "  near edges        " << r.excluded_points << " points within " << Format(part.edge_margin(), 3)
          << " " << units << " of a second face left out of the final pass\n\n"
+         << UntrustedUncertaintiesLine(trusted)
          << "  parameter                          value    standard uncertainty       nominal\n";
     for (std::size_t i = 0; i < reported.size(); ++i) {
       const Reported& p = reported[i];
       text << "  " << std::left << std::setw(24) << names[i] << std::right << std::setw(14)
-           << Format(p.value, 8) << std::setw(24)
-           << (std::isfinite(p.uncertainty) ? Format(p.uncertainty, 3) : std::string("-")) << std::setw(14)
+           << Format(p.value, 8) << std::setw(24) << UncertaintyText(p.uncertainty, trusted) << std::setw(14)
            << Format(p.nominal, 8) << "  " << p.unit << "\n";
     }
     for (const PartParameter& p : file.fixed_parameters) {

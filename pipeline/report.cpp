@@ -63,15 +63,21 @@ std::string ParameterTable(const nlohmann::json& d) {
     nominal |= p.contains("nominal");
     tolerance |= p.contains("tolerance");
   }
+  const bool untrusted = d.value("uncertainty_trusted", nlohmann::json(nullptr)) == false;
   std::ostringstream s;
+  if (untrusted)
+    s << "<p class=\"fail\">Uncertainties are NOT trustworthy: the model is inadequate (shown in "
+         "brackets; see Model adequacy).</p>\n";
   s << "<table>\n";
   std::vector<std::string> header = {"parameter", "value", "standard uncertainty", "unit"};
   if (nominal) header.push_back("nominal");
   if (tolerance) header.insert(header.end(), {"tolerance", "verdict"});
   s << Row(header, true);
   for (const nlohmann::json& p : params) {
+    const std::string u = Number(p["uncertainty"], 3);
     std::vector<std::string> cells = {Escape(p["name"].get<std::string>()), Number(p["value"], 10),
-                                      Number(p["uncertainty"], 3), Escape(p.value("unit", ""))};
+                                      untrusted && p["uncertainty"].is_number() ? "[" + u + "]" : u,
+                                      Escape(p.value("unit", ""))};
     if (nominal) cells.push_back(Number(p.value("nominal", nlohmann::json(nullptr)), 10));
     if (tolerance) {
       cells.push_back(p.contains("tolerance") ? "&#177;" + Number(p["tolerance"], 6) : "&#8211;");
@@ -110,18 +116,52 @@ std::string Summary(const nlohmann::json& d) {
 
 std::string AdequacySection(const nlohmann::json& a) {
   std::ostringstream s;
-  s << "<h2>Model adequacy</h2>\n<p>RMS of the fit " << Number(a["fit_rms"], 4)
-    << ", noise of the views estimated "
-    << "without the model " << Number(a["noise_estimate"], 4) << ": ratio <b>" << Number(a["rms_to_noise"], 3)
-    << "</b>. ";
+  s << "<h2>Model adequacy</h2>\n<p>";
   if (a["adequate"].is_boolean()) {
     s << (a["adequate"].get<bool>() ? "<span class=\"pass\">The model is adequate</span>"
                                     : "<span class=\"fail\">The model is NOT adequate</span>")
-      << " (threshold " << Number(a["threshold"]) << ").";
+      << ": ";
   } else {
-    s << "Unknown (too few points per view to estimate their noise).";
+    s << "Adequacy unknown: ";
   }
-  s << "</p>\n<p class=\"note\">" << Escape(a.value("noise_method", "")) << "</p>\n";
+  s << "RMS of the fit " << Number(a.value("fit_scale", a["fit_rms"]), 4) << " ("
+    << Escape(a.value("fit_scale_kind", "rms")) << "), noise estimated without the model "
+    << Number(a["noise_estimate"], 4) << ": ratio <b>" << Number(a["rms_to_noise"], 3)
+    << "</b> (band &#8804; " << Number(a["threshold"]) << ")";
+  if (a.value("exact", false)) s << "; exact data (residuals at rounding level)";
+  if (a.value("noise_at_rounding_level", false))
+    s << "; the noise estimate is at rounding level (quantized depth or resampled points): unknown";
+  s << ".</p>\n";
+  const nlohmann::json& st = a.value("structure", nlohmann::json(nullptr));
+  if (st.is_object()) {
+    s << "<table>\n" << Row({"structure test", "statistic", "z", "effect", "significant"}, true);
+    if (st["runs"].is_object()) {
+      const nlohmann::json& r = st["runs"];
+      s << Row({"runs of signs along " + Escape(r.value("order", "")),
+                Number(r["runs"]) + " runs (expected " + Number(r["expected_runs"], 6) + ")",
+                Number(r["z"], 3), "sign correlation " + Number(r["sign_correlation"], 3),
+                Number(r["significant"])});
+    }
+    if (st["moran"].is_object()) {
+      const nlohmann::json& m = st["moran"];
+      s << Row({"Moran's I over " + Number(m["neighbours"]) + " nearest neighbours (" + Number(m["points"]) +
+                    " points)",
+                "I = " + Number(m["statistic"], 3), Number(m["z"], 3), "I", Number(m["significant"])});
+    }
+    s << "</table>\n<p class=\"note\">Significant: z beyond " << Number(st["z_threshold"])
+      << " towards clustering and effect above " << Number(st["effect_threshold"])
+      << " (docs/method.md section 17).</p>\n";
+  }
+  if (a.value("uncertainty_trusted", nlohmann::json(nullptr)) == false)
+    s << "<p class=\"fail\">The uncertainties are NOT trustworthy: the model is inadequate (shown in "
+         "brackets).</p>\n";
+  const nlohmann::json& suggestions = a.value("suggestions", nlohmann::json::array());
+  if (!suggestions.empty()) {
+    s << "<p>What to try:</p>\n<ul>\n";
+    for (const nlohmann::json& t : suggestions) s << "<li>" << Escape(t.get<std::string>()) << "</li>\n";
+    s << "</ul>\n";
+  }
+  s << "<p class=\"note\">" << Escape(a.value("noise_method", "")) << "</p>\n";
   return s.str();
 }
 
@@ -179,11 +219,12 @@ std::string Deviations(const nlohmann::json& d) {
   const Eigen::Index n = static_cast<Eigen::Index>(sample.size());
   if (n == 0) return s.str();
   Eigen::Matrix3Xd p(3, n);
-  std::vector<double> values;
+  std::vector<double> values, weights;
   for (Eigen::Index i = 0; i < n; ++i) {
     const nlohmann::json& row = sample[static_cast<std::size_t>(i)];
     p.col(i) << row[0].get<double>(), row[1].get<double>(), row[2].get<double>();
     values.push_back(row[3].get<double>());
+    if (row.size() > 4) weights.push_back(row[4].get<double>());  // a robust fit's IRLS weight
   }
   const Eigen::Vector3d centre = p.rowwise().mean();
   const Eigen::Matrix3d scatter = (p.colwise() - centre) * (p.colwise() - centre).transpose();
@@ -210,18 +251,23 @@ std::string Deviations(const nlohmann::json& d) {
     return towards_viewer.dot(p.col(a)) < towards_viewer.dot(p.col(b));
   });
   std::vector<Eigen::Vector2d> projected;
-  std::vector<double> ordered_values;
+  std::vector<double> ordered_values, ordered_weights;
   for (const Eigen::Index i : order) {
     const Eigen::Vector3d q = p.col(i) - centre;
     projected.emplace_back(across.dot(q), up.dot(q));
     ordered_values.push_back(values[static_cast<std::size_t>(i)]);
+    if (!weights.empty()) ordered_weights.push_back(weights[static_cast<std::size_t>(i)]);
   }
   const double range = 3 * dev["rms"].get<double>();
   s << "<h2>Deviation from the model</h2>\n<figure>"
     << svg::ColouredScatter("Points coloured by signed deviation (every " +
                                 std::to_string(dev["sample"]["stride"].get<long long>()) + ". point)",
-                            projected, ordered_values, range, units, {640, 480})
+                            projected, ordered_values, range, units, {640, 480}, ordered_weights)
     << "<figcaption class=\"note\">Colour scale &#177;3 RMS; red outside the model, blue inside. "
+    << (ordered_weights.empty()
+            ? ""
+            : "Crosses: points the robust loss down-weighted (" + Number(dev.value("down_weighted", 0)) +
+                  " of all points) or rejected (" + Number(dev.value("rejected", 0)) + "). ")
     << (d.contains("growth") ? "View down the spiral's axis."
         : d.contains("axis") ? "Side view, axis up."
                              : "View along the points' least principal direction.")

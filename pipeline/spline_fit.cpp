@@ -15,7 +15,11 @@
 #include "acquisition/point_cloud_io.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
+#include "fitting/noise_estimate.h"
+#include "fitting/residual_structure.h"
+#include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
+#include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
 
@@ -51,7 +55,7 @@ StepStrategy ParseStepControl(const std::string& s) {
 
 // Points of the input: a point cloud, or one contour of a .glif glyph (2D).
 Eigen::MatrixXd ReadInput(const FitOptions& o, std::string& format, std::string& units,
-                          std::vector<std::string>& notes) {
+                          std::vector<std::string>& notes, std::string& device) {
   if (std::filesystem::path(o.file).extension() == ".glif") {
     const auto contours = ReadGlifContours(o.file);
     if (o.contour < 0 || o.contour >= static_cast<int>(contours.size())) {
@@ -65,6 +69,7 @@ Eigen::MatrixXd ReadInput(const FitOptions& o, std::string& format, std::string&
   const PointCloudFormat f = DetectFormat(o.file);
   const Scan scan = ReadPointCloud(o.file, f);
   notes = scan.metadata.notes;
+  device = scan.metadata.device;
   format = ToString(f);
   units = scan.units;
   return scan.points;
@@ -160,13 +165,16 @@ Eigen::Matrix3Xd Samples(const ParametricModel& model) {
 
 }  // namespace
 
-FitOutcome ComputeSplineFit(const FitOptions& o) {
+FitOutcome ComputeSplineFit(const FitOptions& given) {
+  FitOptions o = given;
   const bool surface = o.model == "bspline-surface";
   try {
     const auto [n1, n2] = ParseControlPoints(o.control_points, surface);
     std::string format, units;
     FitOutcome outcome;
-    const Eigen::MatrixXd points = ReadInput(o, format, units, outcome.notes);
+    std::string device = "file";
+    const Eigen::MatrixXd points = ReadInput(o, format, units, outcome.notes, device);
+    ResolveDefaultLoss(o, ClassifyInput(o.file, device));
     const std::string units_out = o.units.empty() ? units : o.units;
     if (surface && points.rows() != 3) throw UsageError("a B-spline surface needs 3D points");
     std::unique_ptr<ParametricModel> model;
@@ -204,6 +212,65 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (progress) std::cerr << "\n";
 
+    // Adequacy (docs/method.md section 17): the RMS against the data's own noise (a curve's or a surface's
+    // estimate), and the residuals' structure along the curve parameter (surfaces: along a Hilbert curve over
+    // (u, v)) and between nearest neighbours. Residuals are signed by the model's normal, except for a curve
+    // in space, whose distances have no sign.
+    AdequacyEvidence evidence;
+    evidence.family = ModelFamily::kSpline;
+    evidence.reports_uncertainties = false;
+    evidence.model = o.model;
+    evidence.fit_rms = r.residuals.rms;
+    const Eigen::Index count = data.cols();
+    evidence.residuals.resize(count);
+    evidence.points = Eigen::Matrix3Xd::Zero(3, count);
+    evidence.signed_residuals = surface || data.rows() == 2;
+    Eigen::MatrixXd feet(surface ? 2 : 1, count);
+    {
+      LocalGeometry g;
+      for (Eigen::Index i = 0; i < count; ++i) {
+        const FootPoint& foot = r.foot_points[static_cast<std::size_t>(i)];
+        model->Evaluate(foot.t, 1, g);
+        const Eigen::VectorXd offset = data.col(i) - Eigen::VectorXd(g.point);
+        double sign = 1.0;
+        if (surface) {
+          const Eigen::Vector3d normal = Eigen::Vector3d(g.d1.col(0)).cross(Eigen::Vector3d(g.d1.col(1)));
+          sign = normal.dot(offset) < 0 ? -1.0 : 1.0;
+        } else if (data.rows() == 2) {
+          sign = -g.d1(1, 0) * offset[0] + g.d1(0, 0) * offset[1] < 0 ? -1.0 : 1.0;  // left of the tangent
+        }
+        evidence.residuals[i] = sign * foot.distance;
+        evidence.points.col(i).head(g.point.size()) = g.point;  // the foot: positions free of the residual
+        for (Eigen::Index k = 0; k < feet.rows(); ++k) feet(k, i) = foot.t[static_cast<std::size_t>(k)];
+      }
+    }
+    if (surface) {
+      const auto& s = dynamic_cast<const BSplineSurface&>(*model);
+      evidence.control_points =
+          std::to_string(s.basis_u().num_control()) + "x" + std::to_string(s.basis_v().num_control());
+      evidence.order = HilbertOrder(feet);
+      evidence.order_description = "a Hilbert curve over the surface parameters (u, v)";
+      ScanSet single;
+      single.scans.emplace_back();
+      single.scans.back().points = points;
+      evidence.noise_estimate = EstimateNoise(single);
+    } else {
+      evidence.control_points =
+          std::to_string(dynamic_cast<const BSplineCurve&>(*model).basis().num_control());
+      evidence.order = OrderByParameter(feet.row(0).transpose());
+      evidence.order_description = "the curve parameter";
+      evidence.noise_estimate = EstimateCurveNoise(data);
+      evidence.noise_method =
+          "median over local quadratics of 8 neighbours along the curve (docs/method.md section 17)";
+    }
+    if (o.loss.is_robust()) evidence.weights = r.weights;
+    {
+      Eigen::Matrix3Xd padded = Eigen::Matrix3Xd::Zero(3, count);
+      padded.topRows(data.rows()) = data;
+      evidence.extent = ComputeBounds(padded).diagonal();
+    }
+    const Adequacy adequacy = AssessAdequacy(evidence);
+
     nlohmann::json& j = outcome.document;
     j["schema"] = "scan2model.bspline/1";
     j["input"] = {{"file", o.file}, {"format", format}, {"points", points.cols()}, {"units", units_out}};
@@ -211,6 +278,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     j["method"] = ToString(options.error_term);
     j["step_control"] = ToString(options.optimizer.step_strategy);
     j["loss"] = LossJson(o.loss, r.loss_scale, r.weights);
+    j["loss"]["reason"] = o.loss_reason;
     j["fairness"] = {{"stretch", o.stretch}, {"bending", o.bending}};
     if (surface) {
       const auto& s = dynamic_cast<const BSplineSurface&>(*model);
@@ -237,6 +305,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     j["stop_reason"] = ToString(r.stop_reason);
     j["seconds"] = seconds;
     j["history"] = HistoryJson(r.history);
+    j["adequacy"] = adequacy.ToJson();
     std::string history_path = o.history;
     if (!o.output.empty()) {
       WriteTextAtomically(o.output + ".json", j.dump(2) + "\n");
@@ -262,8 +331,11 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
       text << "  loss              " << ToString(o.loss.kind) << ", scale " << Format(r.loss_scale, 6)
            << (o.loss.scale_from_data() ? " (from the data)" : "") << ", "
            << loss["down_weighted"].get<long>() << " points down-weighted, " << loss["rejected"].get<long>()
-           << " rejected\n";
+           << " rejected; " << o.loss_reason << "\n";
+    } else {
+      text << "  loss              none; " << o.loss_reason << "\n";
     }
+    text << adequacy.Text();
     if (o.verbose) text << HistoryTable(r.history);
     if (!o.output.empty()) {
       text << "  written           " << o.output << ".json, " << o.output << ".ply, " << history_path << "\n";

@@ -277,7 +277,7 @@ std::string BarChart(const std::string& title, const std::string& y_label,
 
 std::string ColouredScatter(const std::string& title, const std::vector<Eigen::Vector2d>& points,
                             const std::vector<double>& values, double range, const std::string& unit,
-                            Size size) {
+                            Size size, const std::vector<double>& weights) {
   constexpr int kBar = 90;  // room for the colour bar on the right
   std::ostringstream s;
   s << Open(size) << Text(size.width / 2.0, 20, title, "middle", " font-size=\"14\" font-weight=\"bold\"");
@@ -297,8 +297,22 @@ std::string ColouredScatter(const std::string& title, const std::vector<Eigen::V
     const double px = ox + scale * (points[i].x() - lo.x());
     const double py = oy + scale * (hi.y() - points[i].y());  // y up
     const double v = i < values.size() ? values[i] : 0.0;
+    const double weight = i < weights.size() ? weights[i] : 1.0;
+    if (weight < 0.5) {  // down-weighted (green) or rejected (black) by the robust loss: a cross
+      const char* colour = weight == 0.0 ? "#000000" : "#1a9641";
+      s << "<path d=\"M" << Num(px - 2.2) << " " << Num(py - 2.2) << "l4.4 4.4M" << Num(px - 2.2) << " "
+        << Num(py + 2.2) << "l4.4 -4.4\" stroke=\"" << colour << "\" stroke-width=\"0.9\"/>\n";
+      continue;
+    }
     s << "<circle cx=\"" << Num(px) << "\" cy=\"" << Num(py) << "\" r=\"1.8\" fill=\""
       << DivergingColour(v / range) << "\"/>\n";
+  }
+  if (!weights.empty()) {
+    s << "<path d=\"M14 " << Num(size.height - 14.0) << "l5 5M14 " << Num(size.height - 9.0)
+      << "l5 -5\" stroke=\"#1a9641\"/>\n"
+      << Text(24, size.height - 8.0, "down-weighted (robust weight < 0.5)", "start") << "<path d=\"M260 "
+      << Num(size.height - 14.0) << "l5 5M260 " << Num(size.height - 9.0) << "l5 -5\" stroke=\"#000000\"/>\n"
+      << Text(270, size.height - 8.0, "rejected (weight 0)", "start");
   }
   // Colour bar: +range at the top, -range at the bottom.
   const double bx = size.width - kBar + 20.0, by = 40.0, bh = size.height - 80.0;

@@ -39,9 +39,11 @@ std::string BarChart(const std::string& title, const std::string& y_label,
                      const std::vector<std::string>& labels, const std::vector<double>& values,
                      Size size = {});
 // Points (already projected to 2D, equal scale on both axes) coloured by value in [-range, range], with a
-// colour bar labelled in `unit`.
+// colour bar labelled in `unit`. With `weights` (a robust fit's IRLS weights, one per point), points with
+// weight below 0.5 are drawn as green crosses (down-weighted) and weight 0 as black crosses (rejected),
+// with a legend.
 std::string ColouredScatter(const std::string& title, const std::vector<Eigen::Vector2d>& points,
                             const std::vector<double>& values, double range, const std::string& unit,
-                            Size size = {});
+                            Size size = {}, const std::vector<double>& weights = {});
 
 }  // namespace s2m::pipeline::svg

@@ -124,8 +124,17 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
     } else {
       EXPECT_EQ(e["status"], "ok") << e["id"];
       EXPECT_LT(e["rms"].get<double>(), 0.03) << e["id"];  // noise 0.02
-      EXPECT_EQ(e["adequate"], true) << e["id"];
       EXPECT_LT(e["rms_to_noise"].get<double>(), 1.2) << e["id"];  // measured: 0.88 - 1.05
+      // The RMS is at the noise, but the default 8 generatrix control points leave a small real misfit on
+      // some pots (Moran's I of the residuals 0.02-0.10 over the ten pots; pot_07: 0.101, and 0.012 with 12
+      // control points, docs/method.md section 17): an object judged inadequate must say it is the structure
+      // and suggest more control points.
+      if (e["adequate"] != true) {
+        EXPECT_EQ(e["structure"], true) << e["id"];
+        ASSERT_FALSE(e["suggestions"].empty()) << e["id"];
+        EXPECT_NE(e["suggestions"][0].get<std::string>().find("more control points"), std::string::npos);
+        EXPECT_EQ(e["uncertainty_trusted"], false) << e["id"];
+      }
     }
   }
   // The CSV: a header and one line per object.

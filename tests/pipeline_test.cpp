@@ -163,9 +163,12 @@ TEST(DomainMeasures, AdequacyJsonAndVerdict) {
   EXPECT_TRUE(*good.adequate);  // at the threshold
   const nlohmann::json j = good.ToJson();
   for (const char* key :
-       {"fit_rms", "noise_estimate", "rms_to_noise", "threshold", "adequate", "noise_method"})
+       {"fit_rms", "fit_scale", "fit_scale_kind", "noise_estimate", "rms_to_noise", "threshold",
+        "rms_within_band", "exact", "noise_at_rounding_level", "structure", "tails", "down_weighted_fraction",
+        "adequate", "uncertainty_trusted", "suggestions", "noise_method"})
     EXPECT_TRUE(j.contains(key)) << key;
-  EXPECT_EQ(j.size(), 6u);
+  EXPECT_EQ(j.size(), 16u);
+  EXPECT_TRUE(j["structure"].is_null());  // the RMS-only form assesses no structure
   EXPECT_FALSE(*AssessAdequacy(0.05, 0.02).adequate);
   const Adequacy unknown = AssessAdequacy(0.05, std::nan(""));
   EXPECT_FALSE(unknown.adequate.has_value());

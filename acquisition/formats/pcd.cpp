@@ -353,7 +353,9 @@ class PcdParser {
                                     std::string(organized_ ? ", organized cloud" : "") + ")");
     }
     scan.world_T_scan = viewpoint_;
-    scan.metadata.device = "file";
+    // An organized cloud is a depth camera's pixel grid: its kind chooses the fit's default loss
+    // (pipeline/fit_option_table.h, ClassifyInput).
+    scan.metadata.device = organized_ ? "file:organized" : "file";
     scan.metadata.source = file_;
     return scan;
   }
