@@ -14,6 +14,8 @@
 #include "fitting/joint_fit.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/primitive_fit.h"
+#include "fitting/model_complexity.h"
+#include "pipeline/complexity.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
@@ -57,7 +59,11 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
           "multi-view fitting supports --model revolution, helical, spiral and part:FILE");
     const ScanSet set = ReadViews(o.file);
     const std::size_t K = set.scans.size();
-    const int n = o.control_points.empty() ? 8 : std::stoi(o.control_points);
+    // Automatic complexity (the default) starts coarse: one span more than a single cubic piece
+    // (docs/method.md section 16).
+    const ControlPointRequest request = ParseControlPoints(o.control_points, false);
+    const int n = request.automatic ? o.order + 1 : request.first;
+    const int max_control_points = request.max > 0 ? request.max : 40;
     // Model frame: the initial axis (revolution: of the best cylinder; helical: from normals; spiral: from
     // normals, origin at the centre). Scans start at their given world poses, expressed in that frame.
     std::unique_ptr<ParametricModel> model;
@@ -97,7 +103,14 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     // docs/multiview-cases.md): per-view motions from the start.
     if (o.model != "revolution") options.shared_motion_iterations = 0;
     const auto start = std::chrono::steady_clock::now();
-    const JointFitResult r = FitJointly(*model, scans, initial, options);
+    const NoiseEstimate noise = EstimateNoiseWithDof(set);
+    ComplexityOptions complexity_options;
+    complexity_options.noise = noise.sigma;
+    complexity_options.noise_dof = noise.dof;
+    RefinableGeneratrixFit refinable(*model, scans, initial, options, max_control_points);
+    const ComplexityChoice complexity = request.automatic ? ChooseComplexity(refinable, complexity_options)
+                                                          : FitFixedComplexity(refinable, complexity_options);
+    const JointFitResult& r = refinable.result();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
     // Report in the data's world. The fit fixes the views only relative to each other and to the model; place
@@ -186,7 +199,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     const Eigen::Matrix3Xd registered = Concatenate(model_points);
     const Eigen::VectorXd deviations = SignedDistancesAroundAxis(*model, registered);
     j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations);
-    const Adequacy adequacy = AssessAdequacy(r.residuals.rms, EstimateNoise(set));
+    const Adequacy adequacy = AssessAdequacy(r.residuals.rms, noise.sigma);
+    j["complexity"] = ComplexityJson(complexity, complexity_options);
     j["adequacy"] = adequacy.ToJson();
     std::optional<VesselMeasures> vessel;
     if (o.model == "revolution") {
@@ -213,6 +227,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
            << Format(UncertaintyOf(*model, r, "growth"), 2) << " per radian (whorl expansion rate "
            << Format(j["growth"]["whorl_expansion_rate"].get<double>(), 6) << ")\n";
     }
+    text << ComplexityText(complexity);
     text << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
          << Format(r.residuals.max_abs, 6)
          << "\n\n  profile (height along the axis, radius, standard uncertainty of the radius)\n";
