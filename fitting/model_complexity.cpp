@@ -3,6 +3,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 
 #include "fitting/bspline_models.h"
@@ -389,7 +391,7 @@ void RefinableGeneratrixFit::ComputeFeet() {
   }
 }
 
-void RefinableGeneratrixFit::InsertKnotAtLargestResidual() {
+Eigen::MatrixXd RefinableGeneratrixFit::InsertKnotAtLargestResidual() {
   const BSplineBasis& basis = *GeneratrixBasis(model_);
   const SpanResiduals s = ResidualsPerSpan(basis, feet_u_, feet_d2_);
   int best = -1;
@@ -401,9 +403,10 @@ void RefinableGeneratrixFit::InsertKnotAtLargestResidual() {
   const BasisRefinement r = RefineBasis(basis, {0.5 * (s.breakpoints[b] + s.breakpoints[b + 1])});
   model_.CopyFrom(*WithGeneratrix(model_, r.basis, *GeneratrixProfile(model_) * r.transform.transpose()));
   for (double& u : feet_u_) u = r.Map(u);
+  return r.transform;
 }
 
-bool RefinableGeneratrixFit::ApplyEndRule() {
+bool RefinableGeneratrixFit::ApplyEndRule(Eigen::MatrixXd* transform, double tolerance_in_rms) {
   // Eq. 52: keep the generatrix on [u_lo, u_hi], the parameters of the data's feet, and within that span
   // cut it where it turns back along its principal direction by more than 3 RMS (a fold: the end span
   // doubling back along the surface, or curling off it as a lip), unless that would drop more than a
@@ -434,7 +437,7 @@ bool RefinableGeneratrixFit::ApplyEndRule() {
   const Eigen::VectorXd s = d.transpose() * c;
   const int mid = static_cast<int>(std::lround((median - lo) / std::max(hi - lo, 1e-300) * samples));
   const double sign = s[samples] >= s[0] ? 1.0 : -1.0;
-  const double tolerance = 3.0 * std::max(result_.residuals.rms, 1e-12);
+  const double tolerance = tolerance_in_rms * std::max(result_.residuals.rms, 1e-12);
   // Walking outwards from the median foot: the first sample after which the curve falls back by more than
   // the tolerance below the running extreme.
   auto find_fold = [&](int from, int step) {
@@ -463,6 +466,9 @@ bool RefinableGeneratrixFit::ApplyEndRule() {
   // Trim only what is more than a hundredth of a span off (feet reach the ends of a well-fitted model).
   const double span = (basis.hi() - basis.lo()) / std::max(1, basis.num_control() - basis.order() + 1);
   const bool trim_lo = lo > basis.lo() + 1e-2 * span, trim_hi = hi < basis.hi() - 1e-2 * span;
+  if (std::getenv("S2M_DEBUG_END_RULE"))
+    std::fprintf(stderr, "end rule: domain [%g, %g] feet [%g, %g] folds %d %d cut [%g, %g] s range %g..%g\n", basis.lo(),
+                 basis.hi(), sorted.front(), sorted.back(), fold_lo, fold_hi, lo, hi, s.minCoeff(), s.maxCoeff());
   if (!trim_lo && !trim_hi) return false;
   const int count = basis.num_control();
   const BasisRefinement r =
@@ -470,8 +476,10 @@ bool RefinableGeneratrixFit::ApplyEndRule() {
   model_.CopyFrom(*WithGeneratrix(model_, r.basis, profile * r.transform.transpose()));
   for (double& u : feet_u_) u = std::clamp(r.Map(u), r.basis.lo(), r.basis.hi());
   ++end_rule_cuts_;
+  Eigen::MatrixXd total = r.transform;
   // Keep the count: a trimmed-off span's control point goes back where the residuals are largest.
-  while (GeneratrixBasis(model_)->num_control() < count) InsertKnotAtLargestResidual();
+  while (GeneratrixBasis(model_)->num_control() < count) total = InsertKnotAtLargestResidual() * total;
+  if (transform) *transform = total;
   return true;
 }
 
@@ -483,12 +491,19 @@ RefinableFit::Outcome RefinableGeneratrixFit::Fit() {
   total_iterations_ += result_.iterations;
   int iterations = result_.iterations;
   ComputeFeet();
-  for (int pass = 0; pass < 2 && ApplyEndRule(); ++pass) {
+  if (ApplyEndRule()) {
     result_ = FitJointly(model_, scans_, model_T_scan_, options_);
     model_T_scan_ = result_.model_T_scan;
     total_iterations_ += result_.iterations;
     iterations += result_.iterations;
     ComputeFeet();
+    // Noisy data can make a free end fold back again in the refit (two sheets fit the noise band better
+    // than one): then the fold is cut and the fit kept as it is on the main branch.
+    Eigen::MatrixXd transform;
+    if (ApplyEndRule(&transform)) {
+      ComputeFeet();
+      UpdateResultAfterCut(transform);
+    }
   }
   Outcome r;
   for (double d2 : feet_d2_) r.sum_squares += d2;
@@ -497,6 +512,39 @@ RefinableFit::Outcome RefinableGeneratrixFit::Fit() {
   r.other_parameters = 6 * static_cast<int>(scans_.size());
   r.iterations = iterations;
   return r;
+}
+
+void RefinableGeneratrixFit::UpdateResultAfterCut(const Eigen::MatrixXd& transform) {
+  // Residuals of the feet on the cut generatrix, overall and per scan.
+  std::size_t at = 0;
+  double total = 0.0, largest = 0.0;
+  for (std::size_t k = 0; k < scans_.size(); ++k) {
+    double sum = 0.0, max_abs = 0.0;
+    const auto n = static_cast<std::size_t>(scans_[k].cols());
+    for (std::size_t j = 0; j < n; ++j, ++at) {
+      sum += feet_d2_[at];
+      max_abs = std::max(max_abs, std::sqrt(feet_d2_[at]));
+    }
+    if (k < result_.per_scan.size()) {
+      result_.per_scan[k].rms = std::sqrt(sum / std::max<double>(1.0, static_cast<double>(n)));
+      result_.per_scan[k].max_abs = max_abs;
+    }
+    total += sum;
+    largest = std::max(largest, max_abs);
+  }
+  result_.residuals.rms = std::sqrt(total / std::max<double>(1.0, static_cast<double>(at)));
+  result_.residuals.max_abs = largest;
+  // The covariance of the profile's coordinates (r_k, z_k interleaved) maps by the same transform per
+  // coordinate; a trailing pitch or growth stays.
+  if (result_.shape_covariance.size() == 0) return;
+  const Eigen::Index old_profile = 2 * transform.cols(), extra = result_.shape_covariance.rows() - old_profile;
+  Eigen::MatrixXd map = Eigen::MatrixXd::Zero(2 * transform.rows() + extra, old_profile + extra);
+  for (Eigen::Index i = 0; i < transform.rows(); ++i)
+    for (Eigen::Index k = 0; k < transform.cols(); ++k)
+      for (int c = 0; c < 2; ++c) map(2 * i + c, 2 * k + c) = transform(i, k);
+  map.bottomRightCorner(extra, extra).setIdentity();
+  result_.shape_covariance = map * result_.shape_covariance * map.transpose();
+  result_.shape_uncertainty = result_.shape_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
 }
 
 std::string RefinableGeneratrixFit::ControlPoints() const {

@@ -171,8 +171,12 @@ class RefinableGeneratrixFit final : public RefinableFit {
 
  private:
   void ComputeFeet();  // feet_u_, feet_d2_ of the registered points on the current model
-  bool ApplyEndRule();  // true when the generatrix changed
-  void InsertKnotAtLargestResidual();
+  // True when the generatrix changed; `transform` (n_new x n_old) then maps the old profile's control
+  // points to the new ones (columns: new = old * transform^T).
+  bool ApplyEndRule(Eigen::MatrixXd* transform = nullptr, double tolerance_in_rms = 0.01);
+  Eigen::MatrixXd InsertKnotAtLargestResidual();  // returns the transform
+  // After a cut without a refit: residual statistics of the feet, the covariance mapped by `transform`.
+  void UpdateResultAfterCut(const Eigen::MatrixXd& transform);
 
   ParametricModel& model_;
   const std::vector<Eigen::Matrix3Xd>& scans_;
