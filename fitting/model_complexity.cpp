@@ -158,6 +158,7 @@ ComplexityStep MakeStep(const RefinableFit::Outcome& r, const RefinableFit& fit,
   s.rms = std::sqrt(r.sum_squares / std::max(r.points, 1.0));
   s.bic = InformationCriterion(r.sum_squares, r.points, r.shape_parameters);
   s.iterations = r.iterations;
+  s.valid = r.valid;
   const double dof = r.points - r.shape_parameters - r.other_parameters;
   if (std::isfinite(o.noise) && o.noise > 0 && dof > 0) {
     // Eq. 50: s^2 = SS / (n - p) against sigma^2 F_(1-alpha)(n - p, nu); as an RMS over all n points.
@@ -179,7 +180,7 @@ ComplexityChoice ChooseComplexity(RefinableFit& fit, const ComplexityOptions& o)
     fit.Keep(out.steps.size());
     out.steps.push_back(MakeStep(r, fit, o));
     const ComplexityStep& step = out.steps.back();
-    if (step.bic < best) {
+    if (step.valid && step.bic < best) {
       best = step.bic;
       without_gain = 0;
     } else {
@@ -198,11 +199,15 @@ ComplexityChoice ChooseComplexity(RefinableFit& fit, const ComplexityOptions& o)
     }
   }
   // The lowest criterion among the adequate steps, else among all.
-  bool any_adequate = false;
-  for (const ComplexityStep& s : out.steps) any_adequate |= s.adequate.value_or(false);
+  bool any_adequate = false, any_valid = false;
+  for (const ComplexityStep& s : out.steps) {
+    any_adequate |= s.valid && s.adequate.value_or(false);
+    any_valid |= s.valid;
+  }
   double lowest = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < out.steps.size(); ++i) {
     const ComplexityStep& s = out.steps[i];
+    if (any_valid && !s.valid) continue;
     if (any_adequate && !s.adequate.value_or(false)) continue;
     if (s.bic < lowest) {
       lowest = s.bic;
@@ -213,9 +218,14 @@ ComplexityChoice ChooseComplexity(RefinableFit& fit, const ComplexityOptions& o)
   return out;
 }
 
-ComplexityChoice FitFixedComplexity(RefinableFit& fit, const ComplexityOptions& o) {
+ComplexityChoice FitFixedComplexity(RefinableFit& fit, const ComplexityOptions& o, int refine_to) {
   ComplexityChoice out;
   out.mode = "fixed";
+  if (refine_to > 0 && std::stoi(fit.ControlPoints()) < refine_to) {
+    fit.Fit();
+    while (std::stoi(fit.ControlPoints()) < refine_to && fit.Refine()) {
+    }
+  }
   out.steps.push_back(MakeStep(fit.Fit(), fit, o));
   out.stop_reason = "control points given";
   return out;
@@ -511,6 +521,7 @@ RefinableFit::Outcome RefinableGeneratrixFit::Fit() {
   r.shape_parameters = model_.num_parameters();
   r.other_parameters = 6 * static_cast<int>(scans_.size());
   r.iterations = iterations;
+  r.valid = !Folded();
   return r;
 }
 
@@ -545,6 +556,31 @@ void RefinableGeneratrixFit::UpdateResultAfterCut(const Eigen::MatrixXd& transfo
   map.bottomRightCorner(extra, extra).setIdentity();
   result_.shape_covariance = map * result_.shape_covariance * map.transpose();
   result_.shape_uncertainty = result_.shape_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+}
+
+bool RefinableGeneratrixFit::Folded() const {
+  const BSplineBasis& basis = *GeneratrixBasis(model_);
+  const Eigen::Matrix2Xd& profile = *GeneratrixProfile(model_);
+  const int samples = 400;
+  Eigen::Matrix2Xd c(2, samples + 1);
+  BSplineBasis::Values v;
+  for (int i = 0; i <= samples; ++i) {
+    basis.Evaluate(basis.lo() + (basis.hi() - basis.lo()) * i / samples, 0, v);
+    c.col(i).setZero();
+    for (int k = 0; k < basis.order(); ++k)
+      c.col(i) += v.values[0][static_cast<std::size_t>(k)] * profile.col(basis.ControlIndex(v.first, k));
+  }
+  const Eigen::Matrix2Xd centred = c.colwise() - Eigen::Vector2d(c.rowwise().mean());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(centred * centred.transpose());
+  const Eigen::VectorXd s = eig.eigenvectors().col(1).transpose() * c;
+  const double sign = s[samples] >= s[0] ? 1.0 : -1.0;
+  const double tolerance = 0.1 * std::max(result_.residuals.rms, 1e-12);
+  double extreme = sign * s[0];
+  for (int i = 1; i <= samples; ++i) {
+    extreme = std::max(extreme, sign * s[i]);
+    if (extreme - sign * s[i] > tolerance) return true;
+  }
+  return false;
 }
 
 std::string RefinableGeneratrixFit::ControlPoints() const {

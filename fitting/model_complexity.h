@@ -86,6 +86,7 @@ struct ComplexityStep {
   double band_rms = std::numeric_limits<double>::quiet_NaN();  // the largest adequate RMS (eq. 50)
   std::optional<bool> adequate;                              // empty when the noise is unknown
   int iterations = 0;
+  bool valid = true;  // RefinableFit::Outcome::valid; invalid steps are never chosen
 };
 
 struct ComplexityChoice {
@@ -106,6 +107,9 @@ class RefinableFit {
     int shape_parameters = 0;
     int other_parameters = 0;  // fitted alongside (poses), for the degrees of freedom n - p
     int iterations = 0;
+    // False when the fitted model is not a usable answer (a generatrix that folds back along itself: two
+    // sheets fit the noise band of rough data better than one, so the criterion would reward the fold).
+    bool valid = true;
   };
   // Fits at the current complexity, warm-started from the current state.
   virtual Outcome Fit() = 0;
@@ -120,8 +124,12 @@ class RefinableFit {
 
 // The strategy of docs/method.md section 16: fit, record, stop or refine, then restore the chosen step.
 ComplexityChoice ChooseComplexity(RefinableFit& fit, const ComplexityOptions& options);
-// One fit at the given complexity, recorded like a step of ChooseComplexity (mode "fixed").
-ComplexityChoice FitFixedComplexity(RefinableFit& fit, const ComplexityOptions& options);
+// One fit at the given complexity, recorded like a step of ChooseComplexity (mode "fixed"). With
+// `refine_to` > 0 (curves and generatrices) the fit starts at the model's coarser count and inserts knots
+// where the residuals are largest up to that count, then fits again: a fresh fit with many control points
+// from a rough start can snake along the surface (measured on the synthetic vase at 16: the generatrix
+// doubles back three times), the coarse fit cannot.
+ComplexityChoice FitFixedComplexity(RefinableFit& fit, const ComplexityOptions& options, int refine_to = 0);
 
 // B-spline curves (open or closed, 2D or 3D) and surfaces fitted by FitModel.
 class RefinableSplineFit final : public RefinableFit {
@@ -177,6 +185,8 @@ class RefinableGeneratrixFit final : public RefinableFit {
   Eigen::MatrixXd InsertKnotAtLargestResidual();  // returns the transform
   // After a cut without a refit: residual statistics of the feet, the covariance mapped by `transform`.
   void UpdateResultAfterCut(const Eigen::MatrixXd& transform);
+  // True when the generatrix turns back along its principal direction by more than a tenth of the RMS.
+  bool Folded() const;
 
   ParametricModel& model_;
   const std::vector<Eigen::Matrix3Xd>& scans_;

@@ -61,7 +61,8 @@ nlohmann::json ComplexityJson(const ComplexityChoice& c, const ComplexityOptions
                      {"bic", s.bic},
                      {"band_rms", NumberOrNull(s.band_rms)},
                      {"adequate", s.adequate ? nlohmann::json(*s.adequate) : nlohmann::json(nullptr)},
-                     {"iterations", s.iterations}});
+                     {"iterations", s.iterations},
+                     {"valid", s.valid}});
   }
   return {{"mode", c.mode},
           {"chosen", c.steps.at(c.chosen).control_points},
@@ -85,7 +86,7 @@ std::string ComplexityText(const ComplexityChoice& c) {
       t << "    " << std::setw(10) << s.control_points << std::setw(14) << Format(s.rms, 6) << std::setw(14)
         << (std::isfinite(s.band_rms) ? Format(s.band_rms, 6) : std::string("-")) << std::setw(16)
         << Format(s.bic, 8) << "  " << (s.adequate ? (*s.adequate ? "yes" : "no") : "-")
-        << (i == c.chosen ? "  <- chosen" : "") << "\n";
+        << (s.valid ? "" : "  (folded: not used)") << (i == c.chosen ? "  <- chosen" : "") << "\n";
     }
   }
   return t.str();

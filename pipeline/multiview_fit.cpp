@@ -57,13 +57,14 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     if (o.model != "revolution" && o.model != "helical" && o.model != "spiral")
       throw std::invalid_argument(
           "multi-view fitting supports --model revolution, helical, spiral and part:FILE");
-    const ScanSet set = ReadViews(o.file);
-    const std::size_t K = set.scans.size();
     // Automatic complexity (the default) starts coarse: one span more than a single cubic piece
     // (docs/method.md section 16).
     const ControlPointRequest request = ParseControlPoints(o.control_points, false);
-    const int n = request.automatic ? o.order + 1 : request.first;
-    const int max_control_points = request.max > 0 ? request.max : 40;
+    const ScanSet set = ReadViews(o.file);
+    const std::size_t K = set.scans.size();
+    // A given count is reached from a coarse fit by knot insertion too (FitFixedComplexity).
+    const int n = request.automatic ? o.order + 1 : std::min(request.first, o.order + 2);
+    const int max_control_points = request.max > 0 ? request.max : std::max(40, request.first);
     // Model frame: the initial axis (revolution: of the best cylinder; helical: from normals; spiral: from
     // normals, origin at the centre). Scans start at their given world poses, expressed in that frame.
     std::unique_ptr<ParametricModel> model;
@@ -109,7 +110,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     complexity_options.noise_dof = noise.dof;
     RefinableGeneratrixFit refinable(*model, scans, initial, options, max_control_points);
     const ComplexityChoice complexity = request.automatic ? ChooseComplexity(refinable, complexity_options)
-                                                          : FitFixedComplexity(refinable, complexity_options);
+                                                          : FitFixedComplexity(refinable, complexity_options,
+                                                                               request.first);
     const JointFitResult& r = refinable.result();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
