@@ -3,8 +3,6 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <stdexcept>
 
 #include "fitting/bspline_models.h"
@@ -174,6 +172,7 @@ ComplexityStep MakeStep(const RefinableFit::Outcome& r, const RefinableFit& fit,
 ComplexityChoice ChooseComplexity(RefinableFit& fit, const ComplexityOptions& o) {
   ComplexityChoice out;
   double best = std::numeric_limits<double>::infinity();
+  std::optional<bool> best_adequate;  // of the valid step with the lowest criterion so far
   int without_gain = 0;
   for (;;) {
     const RefinableFit::Outcome r = fit.Fit();
@@ -182,13 +181,15 @@ ComplexityChoice ChooseComplexity(RefinableFit& fit, const ComplexityOptions& o)
     const ComplexityStep& step = out.steps.back();
     if (step.valid && step.bic < best) {
       best = step.bic;
+      best_adequate = step.adequate;
       without_gain = 0;
     } else {
       ++without_gain;
     }
-    const bool adequate = step.adequate.value_or(true);
+    // The patience depends on whether the best model so far is adequate (or the noise unknown).
+    const bool adequate = best_adequate.value_or(true);
     if (without_gain >= (adequate ? o.patience_adequate : o.patience_inadequate)) {
-      out.stop_reason = adequate ? (step.adequate ? "adequate, and further knots do not lower the criterion"
+      out.stop_reason = adequate ? (best_adequate ? "adequate, and further knots do not lower the criterion"
                                                   : "further knots do not lower the criterion")
                                  : "not adequate, and further knots do not lower the criterion";
       break;
@@ -476,9 +477,6 @@ bool RefinableGeneratrixFit::ApplyEndRule(Eigen::MatrixXd* transform, double tol
   // Trim only what is more than a hundredth of a span off (feet reach the ends of a well-fitted model).
   const double span = (basis.hi() - basis.lo()) / std::max(1, basis.num_control() - basis.order() + 1);
   const bool trim_lo = lo > basis.lo() + 1e-2 * span, trim_hi = hi < basis.hi() - 1e-2 * span;
-  if (std::getenv("S2M_DEBUG_END_RULE"))
-    std::fprintf(stderr, "end rule: domain [%g, %g] feet [%g, %g] folds %d %d cut [%g, %g] s range %g..%g\n", basis.lo(),
-                 basis.hi(), sorted.front(), sorted.back(), fold_lo, fold_hi, lo, hi, s.minCoeff(), s.maxCoeff());
   if (!trim_lo && !trim_hi) return false;
   const int count = basis.num_control();
   const BasisRefinement r =

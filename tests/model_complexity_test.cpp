@@ -219,12 +219,6 @@ ProfileFit FitProfile(const SyntheticCase& c, const std::vector<Eigen::Matrix3Xd
   const auto& fitted = dynamic_cast<const KinematicSurface&>(*model);
   const Motion6 e = Components(fit.result().model_T_scan[0] * c.views.model_T_scan_true[0].inverse());
   const double shift = e[5] - fitted.pitch() * e[2];
-  if (std::getenv("S2M_DEBUG_END_RULE")) {
-    for (int i = 0; i <= 30; ++i) {
-      const double u = fitted.basis().lo() + (fitted.basis().hi() - fitted.basis().lo()) * i / 30;
-      std::printf("  u %.3f  r %.3f  z %.3f\n", u, fitted.ProfilePoint(u).x(), fitted.ProfilePoint(u).y());
-    }
-  }
   ProfileFit out;
   double sum = 0;
   const int samples = 60;
@@ -283,15 +277,6 @@ void CompareAutomaticWithSweep(const std::string& name, int keep_every, double h
   const double points = static_cast<double>(set.TotalPoints());
   const double dof = points - 2 * automatic.count - 6 * static_cast<double>(scans.size());
   EXPECT_LE(automatic.rms, noise.sigma * std::sqrt(FQuantile(0.01, dof, noise.dof) * dof / points));
-}
-
-TEST(AutomaticComplexity, DebugVase) {
-  const SyntheticCase c = MakeSyntheticCase("vase");
-  const std::vector<Eigen::Matrix3Xd> scans =
-      Thinned(c.views.scans, std::atoi(std::getenv("S2M_THIN") ? std::getenv("S2M_THIN") : "4"));
-  const int count = std::atoi(std::getenv("S2M_COUNT") ? std::getenv("S2M_COUNT") : "12");
-  const ProfileFit f = FitProfile(c, scans, count, 0.02, 1000, 5, 145);
-  std::printf("count %d error %.5f rms %.5f monotone %d\n", count, f.error, f.rms, f.monotone);
 }
 
 TEST(AutomaticComplexity, VaseProfileWithinOneAndAHalfTimesTheBestFixedCount) {
