@@ -25,8 +25,16 @@ Eigen::RowVectorXd BasisRow(const BSplineBasis& b, double t) {
   BSplineBasis::Values v;
   b.Evaluate(t, 0, v);
   Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(b.num_control());
-  for (int i = 0; i < b.order(); ++i) row[b.ControlIndex(v.first, i)] += v.values[0][static_cast<std::size_t>(i)];
+  for (int i = 0; i < b.order(); ++i)
+    row[b.ControlIndex(v.first, i)] += v.values[0][static_cast<std::size_t>(i)];
   return row;
+}
+
+// The direction a generatrix runs in, from its first sample to its last (a vessel's profile: height; a
+// thread's arch-shaped flank profile: along the axis, where the curve's principal axis may lie across).
+Eigen::Vector2d PrincipalDirection(const Eigen::Matrix2Xd& samples) {
+  const Eigen::Vector2d chord = samples.col(samples.cols() - 1) - samples.col(0);
+  return chord.norm() > 0 ? Eigen::Vector2d(chord.normalized()) : Eigen::Vector2d::UnitY();
 }
 
 }  // namespace
@@ -97,7 +105,8 @@ SpanResiduals ResidualsPerSpan(const BSplineBasis& basis, const std::vector<doub
   for (std::size_t j = 0; j < parameters.size(); ++j) {
     const double t = basis.Normalize(parameters[j]);
     auto it = std::upper_bound(out.breakpoints.begin(), out.breakpoints.end(), t);
-    std::size_t s = it == out.breakpoints.begin() ? 0 : static_cast<std::size_t>(it - out.breakpoints.begin()) - 1;
+    std::size_t s =
+        it == out.breakpoints.begin() ? 0 : static_cast<std::size_t>(it - out.breakpoints.begin()) - 1;
     s = std::min(s, spans - 1);
     out.sum_squares[s] += squared_residuals[j];
     ++out.points[s];
@@ -111,10 +120,10 @@ double InformationCriterion(double sum_squares, double points, int parameters) {
 
 double NormalQuantile(double p) {
   // Acklam's algorithm: rational approximations in the centre and the tails.
-  static const double a[] = {-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
+  static const double a[] = {-3.969683028665376e+01, 2.209460984245205e+02,  -2.759285104469687e+02,
                              1.383577518672690e+02,  -3.066479806614716e+01, 2.506628277459239e+00};
   static const double b[] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
-                             6.680131188771972e+01,  -1.328068155288572e+01};
+                             6.680131188771972e+01, -1.328068155288572e+01};
   static const double c[] = {-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
                              -2.549732539343734e+00, 4.374664141464968e+00,  2.938163982698783e+00};
   static const double d[] = {7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
@@ -146,8 +155,9 @@ double FQuantile(double alpha, double d1, double d2) {
 
 namespace {
 
-ComplexityStep MakeStep(const RefinableFit::Outcome& r, const RefinableFit& fit,
-                        const ComplexityOptions& o) {
+constexpr double kCriterionTie = 2.0;
+
+ComplexityStep MakeStep(const RefinableFit::Outcome& r, const RefinableFit& fit, const ComplexityOptions& o) {
   ComplexityStep s;
   s.control_points = fit.ControlPoints();
   s.parameters = r.shape_parameters;
@@ -189,9 +199,7 @@ ComplexityChoice ChooseComplexity(RefinableFit& fit, const ComplexityOptions& o)
     // The patience depends on whether the best model so far is adequate (or the noise unknown).
     const bool adequate = best_adequate.value_or(true);
     if (without_gain >= (adequate ? o.patience_adequate : o.patience_inadequate)) {
-      out.stop_reason = adequate ? (best_adequate ? "adequate, and further knots do not lower the criterion"
-                                                  : "further knots do not lower the criterion")
-                                 : "not adequate, and further knots do not lower the criterion";
+      out.stop_reason = "patience";  // worded below, from the chosen step
       break;
     }
     if (!fit.Refine()) {
@@ -205,15 +213,21 @@ ComplexityChoice ChooseComplexity(RefinableFit& fit, const ComplexityOptions& o)
     any_adequate |= s.valid && s.adequate.value_or(false);
     any_valid |= s.valid;
   }
+  auto eligible = [&](const ComplexityStep& s) {
+    return (!any_valid || s.valid) && (!any_adequate || s.adequate.value_or(false));
+  };
   double lowest = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < out.steps.size(); ++i) {
-    const ComplexityStep& s = out.steps[i];
-    if (any_valid && !s.valid) continue;
-    if (any_adequate && !s.adequate.value_or(false)) continue;
-    if (s.bic < lowest) {
-      lowest = s.bic;
-      out.chosen = i;
-    }
+  for (const ComplexityStep& s : out.steps)
+    if (eligible(s)) lowest = std::min(lowest, s.bic);
+  // Criteria within 2 of the lowest are a tie (Kass & Raftery 1995: "not worth more than a bare mention"):
+  // the larger count, the smaller bias, wins it. Steps are in increasing count.
+  for (std::size_t i = 0; i < out.steps.size(); ++i)
+    if (eligible(out.steps[i]) && out.steps[i].bic <= lowest + kCriterionTie) out.chosen = i;
+  if (out.stop_reason == "patience") {
+    const std::optional<bool>& a = out.steps[out.chosen].adequate;
+    out.stop_reason = !a   ? "further knots do not lower the criterion"
+                      : *a ? "adequate, and further knots do not lower the criterion"
+                           : "not adequate, and further knots do not lower the criterion";
   }
   fit.Restore(out.chosen);
   return out;
@@ -268,7 +282,8 @@ RefinableFit::Outcome RefinableSplineFit::Fit() {
 }
 
 std::string RefinableSplineFit::ControlPoints() const {
-  if (const auto* c = dynamic_cast<const BSplineCurve*>(&model_)) return std::to_string(c->basis().num_control());
+  if (const auto* c = dynamic_cast<const BSplineCurve*>(&model_))
+    return std::to_string(c->basis().num_control());
   const auto& s = dynamic_cast<const BSplineSurface&>(model_);
   return std::to_string(s.basis_u().num_control()) + "x" + std::to_string(s.basis_v().num_control());
 }
@@ -360,19 +375,22 @@ std::unique_ptr<ParametricModel> WithGeneratrix(const ParametricModel& model, BS
                                                 Eigen::Matrix2Xd profile) {
   if (const auto* k = dynamic_cast<const KinematicSurface*>(&model)) {
     if (!k->helical())
-      return std::make_unique<KinematicSurface>(KinematicSurface::Revolution(std::move(basis), std::move(profile)));
+      return std::make_unique<KinematicSurface>(
+          KinematicSurface::Revolution(std::move(basis), std::move(profile)));
     const double turns = k->domain().hi[1] / M_PI;
     return std::make_unique<KinematicSurface>(
         KinematicSurface::Helical(std::move(basis), std::move(profile), k->pitch(), turns));
   }
   if (const auto* s = dynamic_cast<const SpiralSurface*>(&model)) {
     const ParameterDomain d = s->domain();
-    return std::make_unique<SpiralSurface>(std::move(basis), std::move(profile), s->growth(), d.lo[1], d.hi[1]);
+    return std::make_unique<SpiralSurface>(std::move(basis), std::move(profile), s->growth(), d.lo[1],
+                                           d.hi[1]);
   }
   throw std::invalid_argument("not a surface with a generatrix: " + model.name());
 }
 
-RefinableGeneratrixFit::RefinableGeneratrixFit(ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
+RefinableGeneratrixFit::RefinableGeneratrixFit(ParametricModel& model,
+                                               const std::vector<Eigen::Matrix3Xd>& scans,
                                                std::vector<RigidMotion> model_T_scan, JointFitOptions options,
                                                int max_control_points)
     : model_(model),
@@ -380,7 +398,8 @@ RefinableGeneratrixFit::RefinableGeneratrixFit(ParametricModel& model, const std
       model_T_scan_(std::move(model_T_scan)),
       options_(std::move(options)),
       max_control_points_(max_control_points) {
-  if (!GeneratrixBasis(model)) throw std::invalid_argument("not a surface with a generatrix: " + model.name());
+  if (!GeneratrixBasis(model))
+    throw std::invalid_argument("not a surface with a generatrix: " + model.name());
 }
 
 void RefinableGeneratrixFit::ComputeFeet() {
@@ -441,10 +460,7 @@ bool RefinableGeneratrixFit::ApplyEndRule(Eigen::MatrixXd* transform, double tol
       p += v.values[0][static_cast<std::size_t>(k)] * profile.col(basis.ControlIndex(v.first, k));
     c.col(i) = p;
   }
-  const Eigen::Vector2d mean = c.rowwise().mean();
-  const Eigen::Matrix2Xd centred = c.colwise() - mean;
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(centred * centred.transpose());
-  const Eigen::Vector2d d = eig.eigenvectors().col(1);
+  const Eigen::Vector2d d = PrincipalDirection(c);
   const Eigen::VectorXd s = d.transpose() * c;
   const int mid = static_cast<int>(std::lround((median - lo) / std::max(hi - lo, 1e-300) * samples));
   const double sign = s[samples] >= s[0] ? 1.0 : -1.0;
@@ -479,8 +495,7 @@ bool RefinableGeneratrixFit::ApplyEndRule(Eigen::MatrixXd* transform, double tol
   const bool trim_lo = lo > basis.lo() + 1e-2 * span, trim_hi = hi < basis.hi() - 1e-2 * span;
   if (!trim_lo && !trim_hi) return false;
   const int count = basis.num_control();
-  const BasisRefinement r =
-      RefineBasis(basis, {}, trim_lo ? lo : basis.lo(), trim_hi ? hi : basis.hi());
+  const BasisRefinement r = RefineBasis(basis, {}, trim_lo ? lo : basis.lo(), trim_hi ? hi : basis.hi());
   model_.CopyFrom(*WithGeneratrix(model_, r.basis, profile * r.transform.transpose()));
   for (double& u : feet_u_) u = std::clamp(r.Map(u), r.basis.lo(), r.basis.hi());
   ++end_rule_cuts_;
@@ -546,7 +561,8 @@ void RefinableGeneratrixFit::UpdateResultAfterCut(const Eigen::MatrixXd& transfo
   // The covariance of the profile's coordinates (r_k, z_k interleaved) maps by the same transform per
   // coordinate; a trailing pitch or growth stays.
   if (result_.shape_covariance.size() == 0) return;
-  const Eigen::Index old_profile = 2 * transform.cols(), extra = result_.shape_covariance.rows() - old_profile;
+  const Eigen::Index old_profile = 2 * transform.cols(),
+                     extra = result_.shape_covariance.rows() - old_profile;
   Eigen::MatrixXd map = Eigen::MatrixXd::Zero(2 * transform.rows() + extra, old_profile + extra);
   for (Eigen::Index i = 0; i < transform.rows(); ++i)
     for (Eigen::Index k = 0; k < transform.cols(); ++k)
@@ -568,9 +584,7 @@ bool RefinableGeneratrixFit::Folded() const {
     for (int k = 0; k < basis.order(); ++k)
       c.col(i) += v.values[0][static_cast<std::size_t>(k)] * profile.col(basis.ControlIndex(v.first, k));
   }
-  const Eigen::Matrix2Xd centred = c.colwise() - Eigen::Vector2d(c.rowwise().mean());
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(centred * centred.transpose());
-  const Eigen::VectorXd s = eig.eigenvectors().col(1).transpose() * c;
+  const Eigen::VectorXd s = PrincipalDirection(c).transpose() * c;
   const double sign = s[samples] >= s[0] ? 1.0 : -1.0;
   const double tolerance = 0.1 * std::max(result_.residuals.rms, 1e-12);
   double extreme = sign * s[0];

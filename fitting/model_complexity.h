@@ -5,8 +5,8 @@
 // insertion keeps the shape exactly, Boehm 1980), and stop when the fit is adequate (its residual variance
 // within the band the noise estimate allows, eq. 50) and further knots no longer pay by the Bayesian
 // information criterion (Schwarz 1978, eq. 49). One strategy (ChooseComplexity) for every kind of spline fit;
-// each kind supplies a RefinableFit: B-spline curves and surfaces (RefinableSplineFit) and the generatrices of
-// surfaces of revolution, helical and spiral surfaces fitted jointly with their views' poses
+// each kind supplies a RefinableFit: B-spline curves and surfaces (RefinableSplineFit) and the generatrices
+// of surfaces of revolution, helical and spiral surfaces fitted jointly with their views' poses
 // (RefinableGeneratrixFit, which also applies the generatrix end rule of eq. 52).
 
 #include <Eigen/Core>
@@ -82,9 +82,9 @@ struct ComplexityStep {
   double points = 0;           // n (robust fits: the sum of the IRLS weights)
   double sum_squares = 0.0;
   double rms = 0.0;
-  double bic = 0.0;                                          // eq. 49
+  double bic = 0.0;                                            // eq. 49
   double band_rms = std::numeric_limits<double>::quiet_NaN();  // the largest adequate RMS (eq. 50)
-  std::optional<bool> adequate;                              // empty when the noise is unknown
+  std::optional<bool> adequate;                                // empty when the noise is unknown
   int iterations = 0;
   bool valid = true;  // RefinableFit::Outcome::valid; invalid steps are never chosen
 };

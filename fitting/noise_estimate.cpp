@@ -81,7 +81,6 @@ NoiseEstimate EstimateNoiseWithDof(const ScanSet& set) {
   return out;
 }
 
-
 NoiseEstimate EstimatePlaneCurveNoise(const Eigen::MatrixXd& points) {
   NoiseEstimate out;
   out.sigma = std::numeric_limits<double>::quiet_NaN();

@@ -19,7 +19,8 @@ int PositiveCount(const std::string& text, const std::string& whole) {
     used = 0;
   }
   if (used == 0 || used != text.size() || n < 2)
-    throw std::invalid_argument("--control-points '" + whole + "': '" + text + "' is not a count of at least 2");
+    throw std::invalid_argument("--control-points '" + whole + "': '" + text +
+                                "' is not a count of at least 2");
   return n;
 }
 
@@ -80,7 +81,8 @@ std::string ComplexityText(const ComplexityChoice& c) {
   t << "  control points    " << chosen.control_points << " (" << c.mode << ": " << c.stop_reason << ")\n";
   if (c.steps.size() > 1) {
     t << "    " << std::setw(10) << "count" << std::setw(14) << "RMS" << std::setw(14) << "band RMS"
-      << std::setw(16) << "BIC" << "  adequate\n";
+      << std::setw(16) << "BIC"
+      << "  adequate\n";
     for (std::size_t i = 0; i < c.steps.size(); ++i) {
       const ComplexityStep& s = c.steps[i];
       t << "    " << std::setw(10) << s.control_points << std::setw(14) << Format(s.rms, 6) << std::setw(14)

@@ -13,8 +13,8 @@
 #include "fitting/initial_models.h"
 #include "fitting/joint_fit.h"
 #include "fitting/kinematic_surfaces.h"
-#include "fitting/primitive_fit.h"
 #include "fitting/model_complexity.h"
+#include "fitting/primitive_fit.h"
 #include "pipeline/complexity.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
@@ -109,9 +109,9 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     complexity_options.noise = noise.sigma;
     complexity_options.noise_dof = noise.dof;
     RefinableGeneratrixFit refinable(*model, scans, initial, options, max_control_points);
-    const ComplexityChoice complexity = request.automatic ? ChooseComplexity(refinable, complexity_options)
-                                                          : FitFixedComplexity(refinable, complexity_options,
-                                                                               request.first);
+    const ComplexityChoice complexity =
+        request.automatic ? ChooseComplexity(refinable, complexity_options)
+                          : FitFixedComplexity(refinable, complexity_options, request.first);
     const JointFitResult& r = refinable.result();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 

@@ -274,8 +274,8 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
          << "  method            " << ToString(options.error_term) << " + "
          << ToString(options.optimizer.step_strategy) << ", fairness stretch " << o.stretch << " bending "
          << o.bending << "\n"
-         << ComplexityText(complexity) << "  residuals         RMS " << Format(r.residuals.rms, 6)
-         << ", max " << Format(r.residuals.max_abs, 6) << "\n"
+         << ComplexityText(complexity) << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
+         << Format(r.residuals.max_abs, 6) << "\n"
          << "  solver            " << r.iterations << " iterations, stopped: " << ToString(r.stop_reason)
          << ", " << Format(seconds * 1e3, 4) << " ms\n";
     if (o.loss.is_robust()) {
