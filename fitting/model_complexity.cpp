@@ -300,7 +300,7 @@ bool RefinableSplineFit::Refine() {
     u[j] = f.t[0];
     v[j] = f.t[1];
   }
-  // The span with the largest sum of squared residuals gets a knot at its middle (eq. 51); a surface compares
+  // The span with the largest sum of squared residuals gets a knot at its middle (eq. 69); a surface compares
   // the strips of u- and v-spans by that sum per control point the insertion adds.
   auto best_span = [&](const BSplineBasis& b, const std::vector<double>& t, double& value) {
     const SpanResiduals s = ResidualsPerSpan(b, t, d2);

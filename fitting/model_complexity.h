@@ -1,13 +1,13 @@
 #pragma once
-// Automatic model complexity for every spline and generatrix (docs/method.md section 16): start coarse,
+// Automatic model complexity for every spline and generatrix (docs/method.md section 18): start coarse,
 // insert a knot where the residuals are largest (Wang, Pottmann, Liu, ACM TOG 25(2) 2006, section 6: control
 // points are added where the fitting error is large), refit warm-started from the refined model (knot
 // insertion keeps the shape exactly, Boehm 1980), and stop when the fit is adequate (its residual variance
-// within the band the noise estimate allows, eq. 50) and further knots no longer pay by the Bayesian
-// information criterion (Schwarz 1978, eq. 49). One strategy (ChooseComplexity) for every kind of spline fit;
+// within the band the noise estimate allows, eq. 68) and further knots no longer pay by the Bayesian
+// information criterion (Schwarz 1978, eq. 67). One strategy (ChooseComplexity) for every kind of spline fit;
 // each kind supplies a RefinableFit: B-spline curves and surfaces (RefinableSplineFit) and the generatrices
 // of surfaces of revolution, helical and spiral surfaces fitted jointly with their views' poses
-// (RefinableGeneratrixFit, which also applies the generatrix end rule of eq. 52).
+// (RefinableGeneratrixFit, which also applies the generatrix end rule of eq. 70).
 
 #include <Eigen/Core>
 #include <limits>
@@ -25,7 +25,7 @@
 namespace s2m {
 
 // A refined B-spline basis that represents the old spline exactly: knots inserted (Boehm's insertion keeps
-// the shape, docs/method.md eq. 51), a clamped basis optionally trimmed to [lo, hi] (each end then a knot of
+// the shape, docs/method.md eq. 69), a clamped basis optionally trimmed to [lo, hi] (each end then a knot of
 // full multiplicity), and the domain mapped affinely onto unit mean knot spacing, w = (u - lo) scale, so that
 // the fairness weights keep the meaning they have for UnitSpacedClamped/UnitSpacedPeriodic.
 struct BasisRefinement {
@@ -44,7 +44,7 @@ BasisRefinement RefineBasis(const BSplineBasis& basis, const std::vector<double>
                             double hi = std::numeric_limits<double>::quiet_NaN());
 
 // The knot spans of `basis` (distinct breakpoints) and the sum of the squared residuals of the points whose
-// foot parameter lies in each (the insertion rule of eq. 51).
+// foot parameter lies in each (the insertion rule of eq. 69).
 struct SpanResiduals {
   std::vector<double> breakpoints;  // spans [breakpoints[i], breakpoints[i + 1]]
   std::vector<double> sum_squares;  // one per span
@@ -54,10 +54,10 @@ SpanResiduals ResidualsPerSpan(const BSplineBasis& basis, const std::vector<doub
                                const std::vector<double>& squared_residuals);
 
 // The Bayesian information criterion of a least-squares fit with Gaussian errors of unknown variance:
-// n ln(SS / n) + p ln n (eq. 49).
+// n ln(SS / n) + p ln n (eq. 67).
 double InformationCriterion(double sum_squares, double points, int parameters);
 // The upper (1 - alpha) quantile of the F distribution with (d1, d2) degrees of freedom, by Paulson's
-// normal approximation of the cube roots (eq. 50; exact to about 1e-3 for d1, d2 >= 30).
+// normal approximation of the cube roots (eq. 68; exact to about 1e-3 for d1, d2 >= 30).
 double FQuantile(double alpha, double d1, double d2);
 // The upper quantile z_(1-alpha) of the standard normal distribution (Acklam's rational approximation,
 // relative error below 1.2e-9).
@@ -68,7 +68,7 @@ struct ComplexityOptions {
   // degrees of freedom (NoiseEstimate::dof); NaN noise: unknown, only the information criterion decides.
   double noise = std::numeric_limits<double>::quiet_NaN();
   double noise_dof = std::numeric_limits<double>::infinity();
-  double significance = 0.01;  // alpha of the adequacy band (eq. 50)
+  double significance = 0.01;  // alpha of the adequacy band (eq. 68)
   // Insertions in a row without a new lowest criterion before the search stops: when the fit is adequate
   // (or the noise unknown), and when it is not (more knots keep being tried while the fit is not adequate).
   int patience_adequate = 2;
@@ -82,8 +82,8 @@ struct ComplexityStep {
   double points = 0;           // n (robust fits: the sum of the IRLS weights)
   double sum_squares = 0.0;
   double rms = 0.0;
-  double bic = 0.0;                                            // eq. 49
-  double band_rms = std::numeric_limits<double>::quiet_NaN();  // the largest adequate RMS (eq. 50)
+  double bic = 0.0;                                            // eq. 67
+  double band_rms = std::numeric_limits<double>::quiet_NaN();  // the largest adequate RMS (eq. 68)
   std::optional<bool> adequate;                                // empty when the noise is unknown
   int iterations = 0;
   bool valid = true;  // RefinableFit::Outcome::valid; invalid steps are never chosen
@@ -122,7 +122,7 @@ class RefinableFit {
   virtual void Restore(std::size_t index) = 0;
 };
 
-// The strategy of docs/method.md section 16: fit, record, stop or refine, then restore the chosen step.
+// The strategy of docs/method.md section 18: fit, record, stop or refine, then restore the chosen step.
 ComplexityChoice ChooseComplexity(RefinableFit& fit, const ComplexityOptions& options);
 // One fit at the given complexity, recorded like a step of ChooseComplexity (mode "fixed"). With
 // `refine_to` > 0 (curves and generatrices) the fit starts at the model's coarser count and inserts knots
@@ -159,7 +159,7 @@ class RefinableSplineFit final : public RefinableFit {
 
 // The generatrix of a surface of revolution or helical surface (KinematicSurface) or of a spiral surface
 // (SpiralSurface), fitted jointly with the views' poses (FitJointly). Every Fit applies the generatrix end
-// rule (eq. 52): the generatrix is trimmed to the parameter span its data's feet support and cut where it
+// rule (eq. 70): the generatrix is trimmed to the parameter span its data's feet support and cut where it
 // folds back along its principal direction, then refitted; knots are re-inserted if trimming dropped a span,
 // so the count is kept.
 class RefinableGeneratrixFit final : public RefinableFit {

@@ -23,7 +23,7 @@ double EstimateNoise(const ScanSet& set);
 // the equivalent degrees of freedom of sigma^2, nu = 8 m (x f(x))^2 at the median x of the neighbourhoods'
 // chi-square (f its density; 0.96 m for 2 degrees of freedom): the variance of a sample median is
 // 1 / (4 m f^2) (Cramer 1946, section 28.5), and 2 / nu is that of sigma^2 / sigma^2 for a chi-square
-// estimate with nu degrees of freedom (docs/method.md eq. 50).
+// estimate with nu degrees of freedom (docs/method.md eq. 68).
 struct NoiseEstimate {
   double sigma = 0.0;  // NaN when unknown
   int neighbourhoods = 0;

@@ -1,6 +1,6 @@
 #pragma once
 // `--control-points auto|auto:MAX|N|NUxNV` (docs/cli.md) and the report of the automatic model complexity
-// (fitting/model_complexity.h, docs/method.md section 16): the `complexity` member of the spline and
+// (fitting/model_complexity.h, docs/method.md section 18): the `complexity` member of the spline and
 // multi-view results and its text block.
 
 #include <nlohmann/json.hpp>

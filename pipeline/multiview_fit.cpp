@@ -58,7 +58,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
       throw std::invalid_argument(
           "multi-view fitting supports --model revolution, helical, spiral and part:FILE");
     // Automatic complexity (the default) starts coarse: one span more than a single cubic piece
-    // (docs/method.md section 16).
+    // (docs/method.md section 18).
     const ControlPointRequest request = ParseControlPoints(o.control_points, false);
     const ScanSet set = ReadViews(o.file);
     const std::size_t K = set.scans.size();

@@ -159,7 +159,7 @@ FitOutcome ComputeSplineFit(const FitOptions& o) {
     }
     // A user-given initial model keeps its count unless auto is asked for explicitly.
     if (!o.initial.empty() && o.control_points.empty()) request.automatic = false;
-    // Automatic complexity (the default) starts coarse (docs/method.md section 16): one span more than a
+    // Automatic complexity (the default) starts coarse (docs/method.md section 18): one span more than a
     // single polynomial piece, a closed curve with two more control points than its order.
     const int coarse = o.order + (o.closed && !surface ? 2 : 1);
     const int n1 = request.automatic ? coarse : request.first;

@@ -1,4 +1,4 @@
-// Automatic model complexity (docs/method.md section 16): shape-preserving knot refinement, the criteria, and
+// Automatic model complexity (docs/method.md section 18): shape-preserving knot refinement, the criteria, and
 // the strategy on a plane curve, a surface, the synthetic vase and the synthetic screw, against the best
 // fixed count of a sweep made here.
 
@@ -277,7 +277,7 @@ void CompareAutomaticWithSweep(const std::string& name, int keep_every, double h
   // The requirement: within 1.5 times the error of the best fixed count.
   EXPECT_LE(automatic.error, 1.5 * best);
   EXPECT_TRUE(automatic.monotone);
-  // Adequate at the chosen count: within the band of eq. 50 (recomputed here from the fit's numbers).
+  // Adequate at the chosen count: within the band of eq. 68 (recomputed here from the fit's numbers).
   const double points = static_cast<double>(set.TotalPoints());
   const double dof = points - 2 * automatic.count - 6 * static_cast<double>(scans.size());
   EXPECT_LE(automatic.rms, noise.sigma * std::sqrt(FQuantile(0.01, dof, noise.dof) * dof / points));

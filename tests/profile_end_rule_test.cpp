@@ -1,4 +1,4 @@
-// The generatrix end rule (docs/method.md section 16, eq. 52) through the command's own path (ComputeFit):
+// The generatrix end rule (docs/method.md section 18, eq. 70) through the command's own path (ComputeFit):
 // the vessel profile (MeasureVessel's samples, `vessel.profile`) of the synthetic vase is monotone in height
 // at fixed counts and at the automatic one, and the `complexity` member reports the choice.
 
