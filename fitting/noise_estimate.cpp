@@ -1,7 +1,6 @@
 #include "fitting/noise_estimate.h"
 
-#include <Eigen/Eigenvalues>
-#include <Eigen/QR>
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -19,7 +18,19 @@ double ChiSquareMedian(int dof) {
   return k * std::pow(1 - 2 / (9 * k), 3);
 }
 
-double EstimateNoise(const ScanSet& set) {
+namespace {
+
+// Eq. 50's degrees of freedom of a median of m chi-square(k) / median estimates: 8 m (x f(x))^2 at the median
+// x, f the chi-square density (k = 2: x f = ln 2 / 2; k = 4: f(x) = x exp(-x / 2) / 4).
+double MedianEstimateDof(int m, int k) {
+  const double x = ChiSquareMedian(k);
+  const double f = k == 2 ? std::exp(-x / 2) / 2 : x * std::exp(-x / 2) / 4;
+  return 8.0 * m * (x * f) * (x * f);
+}
+
+}  // namespace
+
+NoiseEstimate EstimateNoiseWithDof(const ScanSet& set) {
   // 8 neighbours (2 degrees of freedom each, hundreds of neighbourhoods per view): larger patches bias the
   // estimate upwards where the surface's third-order terms show (measured on the synthetic pots of
   // acquisition/synthetic_batch.h, noise 0.02, about 4 mm point spacing: 0.0226 with 8 neighbours, 0.0267
@@ -57,10 +68,64 @@ double EstimateNoise(const ScanSet& set) {
       }
     }
   }
-  if (scaled_variances.size() < 10) return std::numeric_limits<double>::quiet_NaN();
+  NoiseEstimate out;
+  out.neighbourhoods = static_cast<int>(scaled_variances.size());
+  if (scaled_variances.size() < 10) {
+    out.sigma = std::numeric_limits<double>::quiet_NaN();
+    return out;
+  }
   auto middle = scaled_variances.begin() + static_cast<std::ptrdiff_t>(scaled_variances.size() / 2);
   std::nth_element(scaled_variances.begin(), middle, scaled_variances.end());
-  return std::sqrt(*middle);
+  out.sigma = std::sqrt(*middle);
+  out.dof = MedianEstimateDof(out.neighbourhoods, 2);  // most neighbourhoods are quadrics: 2 dof
+  return out;
+}
+
+NoiseEstimate EstimatePlaneCurveNoise(const Eigen::MatrixXd& points) {
+  NoiseEstimate out;
+  out.sigma = std::numeric_limits<double>::quiet_NaN();
+  if (points.rows() != 2) return out;
+  constexpr int kNeighbours = 7;
+  constexpr int kDof = kNeighbours - 3;
+  const Eigen::Index n = points.cols();
+  if (n < 2 * kNeighbours) return out;
+  Eigen::Matrix3Xd lifted = Eigen::Matrix3Xd::Zero(3, n);
+  lifted.topRows(2) = points;
+  const NearestIndex index(lifted);
+  const Eigen::Index stride = std::max<Eigen::Index>(1, n / 1000);
+  std::vector<double> scaled;
+  for (Eigen::Index c = 0; c < n; c += stride) {
+    const std::vector<Eigen::Index> near = index.KNearest(lifted.col(c), kNeighbours);
+    if (static_cast<int>(near.size()) < kNeighbours) continue;
+    Eigen::Matrix2Xd q(2, kNeighbours);
+    for (int k = 0; k < kNeighbours; ++k) q.col(k) = points.col(near[static_cast<std::size_t>(k)]);
+    const Eigen::Vector2d mean = q.rowwise().mean();
+    q.colwise() -= mean;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(q * q.transpose());
+    const Eigen::Vector2d along = eig.eigenvectors().col(1), across = eig.eigenvectors().col(0);
+    Eigen::Matrix<double, kNeighbours, 3> a;
+    Eigen::Matrix<double, kNeighbours, 1> y;
+    for (int k = 0; k < kNeighbours; ++k) {
+      const double x = along.dot(q.col(k));
+      a.row(k) << x * x, x, 1.0;
+      y[k] = across.dot(q.col(k));
+    }
+    const Eigen::ColPivHouseholderQR<Eigen::Matrix<double, kNeighbours, 3>> qr(a);
+    if (qr.rank() < 3) continue;  // coincident points
+    const Eigen::Vector3d coefficients = qr.solve(y);
+    scaled.push_back((a * coefficients - y).squaredNorm() / ChiSquareMedian(kDof));
+  }
+  out.neighbourhoods = static_cast<int>(scaled.size());
+  if (scaled.size() < 10) return out;
+  auto middle = scaled.begin() + static_cast<std::ptrdiff_t>(scaled.size() / 2);
+  std::nth_element(scaled.begin(), middle, scaled.end());
+  out.sigma = std::sqrt(*middle);
+  out.dof = MedianEstimateDof(out.neighbourhoods, kDof);
+  return out;
+}
+
+double EstimateNoise(const ScanSet& set) {
+  return EstimateNoiseWithDof(set).sigma;
 }
 
 double EstimateCurveNoise(const Eigen::Ref<const Eigen::MatrixXd>& points) {

@@ -2,6 +2,8 @@
 // The scanner noise of a set of views estimated without a model, to judge a fit's adequacy (its RMS relative
 // to the noise, docs/batch.md).
 
+#include <Eigen/Core>
+
 #include "registration/scan.h"
 
 namespace s2m {
@@ -24,5 +26,21 @@ double EstimateNoise(const ScanSet& set);
 // for a plane curve and 2 for a space curve (the distance spans the normal plane), i.e. the RMS a perfect
 // model leaves (docs/method.md section 17). NaN when fewer than 10 neighbourhoods could be fitted.
 double EstimateCurveNoise(const Eigen::Ref<const Eigen::MatrixXd>& points);
+// EstimateNoise with what its precision depends on: the number of neighbourhoods m whose median it is, and
+// the equivalent degrees of freedom of sigma^2, nu = 8 m (x f(x))^2 at the median x of the neighbourhoods'
+// chi-square (f its density; 0.96 m for 2 degrees of freedom): the variance of a sample median is
+// 1 / (4 m f^2) (Cramer 1946, section 28.5), and 2 / nu is that of sigma^2 / sigma^2 for a chi-square
+// estimate with nu degrees of freedom (docs/method.md eq. 68).
+struct NoiseEstimate {
+  double sigma = 0.0;  // NaN when unknown
+  int neighbourhoods = 0;
+  double dof = 0.0;
+};
+NoiseEstimate EstimateNoiseWithDof(const ScanSet& set);
+
+// The same for points sampled along a plane curve (2 x n): a parabola y = a x^2 + b x + c over each of up to
+// 1000 points' 7 nearest neighbours in the frame of their principal direction (4 degrees of freedom each),
+// SS / median(chi-square_4), the square root of the median. NaN when fewer than 10 neighbourhoods fit.
+NoiseEstimate EstimatePlaneCurveNoise(const Eigen::MatrixXd& points);
 
 }  // namespace s2m

@@ -47,8 +47,10 @@ std::vector<FitOptionSpec> MakeTable() {
   t.push_back({"control_points",
                "--control-points",
                K::kText,
-               "",
-               "Splines: control points, N for a curve, NUxNV for a surface (default 12 / 8x8)",
+               "auto",
+               "Splines and generatrices: control points, auto (chosen by knot insertion until the fit is "
+               "adequate and the information criterion stops improving), auto:MAX, N for a curve or a "
+               "generatrix, NUxNV for a surface",
                {},
                false,
                -1e300,

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <sstream>
 
 #include "acquisition/format_error.h"
@@ -15,8 +16,10 @@
 #include "acquisition/point_cloud_io.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
+#include "fitting/model_complexity.h"
 #include "fitting/noise_estimate.h"
 #include "fitting/residual_structure.h"
+#include "pipeline/complexity.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_option_table.h"
@@ -30,22 +33,6 @@ class UsageError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
-
-std::pair<int, int> ParseControlPoints(const std::string& text, bool surface) {
-  if (text.empty()) return surface ? std::pair{8, 8} : std::pair{12, 0};
-  try {
-    const std::size_t x = text.find('x');
-    if (surface) {
-      if (x == std::string::npos) throw UsageError("");
-      return {std::stoi(text.substr(0, x)), std::stoi(text.substr(x + 1))};
-    }
-    if (x != std::string::npos) throw UsageError("");
-    return {std::stoi(text), 0};
-  } catch (const std::exception&) {
-    throw UsageError("--control-points '" + text + "': expected " +
-                     (surface ? "NUxNV (e.g. 8x6)" : "a count (e.g. 12)"));
-  }
-}
 
 StepStrategy ParseStepControl(const std::string& s) {
   if (s == "none") return StepStrategy::kFullStep;
@@ -169,7 +156,19 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
   FitOptions o = given;
   const bool surface = o.model == "bspline-surface";
   try {
-    const auto [n1, n2] = ParseControlPoints(o.control_points, surface);
+    ControlPointRequest request;
+    try {
+      request = ParseControlPoints(o.control_points, surface);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+    // A user-given initial model keeps its count unless auto is asked for explicitly.
+    if (!o.initial.empty() && o.control_points.empty()) request.automatic = false;
+    // Automatic complexity (the default) starts coarse (docs/method.md section 18): one span more than a
+    // single polynomial piece, a closed curve with two more control points than its order.
+    const int coarse = o.order + (o.closed && !surface ? 2 : 1);
+    const int n1 = request.automatic ? coarse : request.first;
+    const int n2 = request.automatic ? coarse : request.second;
     std::string format, units;
     FitOutcome outcome;
     std::string device = "file";
@@ -208,7 +207,29 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
       };
     }
     const auto start = std::chrono::steady_clock::now();
-    const GeometricFitResult r = FitModel(*model, data, options);
+    // The model-free noise that the automatic complexity's adequacy band needs: local quadrics for surfaces,
+    // local parabolas for plane curves (fitting/noise_estimate.h); unknown for curves in space.
+    ComplexityOptions complexity_options;
+    NoiseEstimate noise;
+    if (surface) {
+      ScanSet one;
+      one.scans.emplace_back();
+      one.scans.back().points = data;
+      noise = EstimateNoiseWithDof(one);
+    } else if (data.rows() == 2) {
+      noise = EstimatePlaneCurveNoise(data);
+    } else {
+      noise.sigma = std::numeric_limits<double>::quiet_NaN();
+    }
+    complexity_options.noise = noise.sigma;
+    complexity_options.noise_dof = noise.dof;
+    const int max_control_points =
+        request.max > 0 ? request.max
+                        : (surface ? 30 : static_cast<int>(std::min<Eigen::Index>(100, data.cols() / 4)));
+    RefinableSplineFit refinable(*model, data, options, std::max(max_control_points, n1));
+    const ComplexityChoice complexity = request.automatic ? ChooseComplexity(refinable, complexity_options)
+                                                          : FitFixedComplexity(refinable, complexity_options);
+    const GeometricFitResult& r = refinable.result();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (progress) std::cerr << "\n";
 
@@ -299,6 +320,7 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
       }
       j["control_points"] = cp;
     }
+    j["complexity"] = ComplexityJson(complexity, complexity_options);
     j["residuals"] = {
         {"count", r.residuals.count}, {"rms", r.residuals.rms}, {"max_abs", r.residuals.max_abs}};
     j["iterations"] = r.iterations;
@@ -322,7 +344,7 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
          << "  method            " << ToString(options.error_term) << " + "
          << ToString(options.optimizer.step_strategy) << ", fairness stretch " << o.stretch << " bending "
          << o.bending << "\n"
-         << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
+         << ComplexityText(complexity) << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
          << Format(r.residuals.max_abs, 6) << "\n"
          << "  solver            " << r.iterations << " iterations, stopped: " << ToString(r.stop_reason)
          << ", " << Format(seconds * 1e3, 4) << " ms\n";
