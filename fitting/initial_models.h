@@ -77,5 +77,9 @@ struct KinematicAxis {
 // Throws std::invalid_argument for fewer than 8 points, mismatched sizes or normals spanning less than 3D.
 KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                                        KinematicKind kind);
+// The same with a non-negative weight per point in the sums of (26) (the IRLS step of the robust axis,
+// fitting/kinematic_starts.h); weight 0 leaves a point out.
+KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                                       KinematicKind kind, const Eigen::VectorXd& weights);
 
 }  // namespace s2m
