@@ -160,12 +160,13 @@ BSplineSurface InitialSurfaceByProjection(const Eigen::Matrix3Xd& points, int nu
   return BSplineSurface(bu, bv, control.transpose());
 }
 
-KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& p, int num_control, int order) {
+KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& p, int num_control, int order, double margin) {
   if (p.cols() < num_control) throw std::invalid_argument("fewer points than profile control points");
   const BSplineBasis basis = UnitSpacedClamped(order, num_control);
   const Eigen::VectorXd z = p.row(2).transpose();
-  const double lo = z.minCoeff(), hi = z.maxCoeff();
-  if (!(hi > lo)) throw std::invalid_argument("the points have no extent along the axis");
+  const double data_lo = z.minCoeff(), data_hi = z.maxCoeff();
+  if (!(data_hi > data_lo)) throw std::invalid_argument("the points have no extent along the axis");
+  const double lo = data_lo - margin * (data_hi - data_lo), hi = data_hi + margin * (data_hi - data_lo);
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(num_control, num_control);
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(num_control, 2);
   BSplineBasis::Values v;

@@ -48,14 +48,18 @@ struct KinematicStartOptions {
   // with ratio `grid_ratio` between neighbours (eq. 52).
   double search_factor = 30.0;
   double grid_ratio = 1.01;
-  int max_starts = 3;    // starts returned (and joint fits run by FitJointlyFromStarts)
-  int max_sample = 4000;  // points the searches use (a deterministic stride through the data)
+  // The pitch or growth to centre the grid on instead of the normals' estimate (0: the normals'), e.g. a
+  // nominal value the user knows.
+  double estimate = 0.0;
+  int max_starts = 3;           // starts returned (and joint fits run by FitJointlyFromStarts)
+  int max_sample = 4000;        // points the searches use (a deterministic stride through the data)
   int direction_samples = 600;  // revolution: directions on a hemisphere scored by (54)
   RobustLoss axis_loss{LossKind::kTukey};  // of the axis from normals (eq. 49)
   // A point is off the surface when its distance exceeds `off_distance` robust standard deviations of all
   // distances (eq. 47; 4.6851 is Tukey's rejection point) or its normal makes more than `off_angle_deg`
   // with the surface's (eq. 55).
   double off_distance = 4.6851;
+  double profile_margin = 0.05;  // revolution: InitialRevolution's margin
   double off_angle_deg = 45.0;
 };
 
@@ -101,18 +105,19 @@ std::vector<AxisCandidate> RevolutionAxisCandidates(const Eigen::Matrix3Xd& poin
 struct KinematicStart {
   RigidMotion world_T_model;  // the model frame: z along the axis, origin on it (a spiral's centre)
   std::shared_ptr<ParametricModel> model;  // the initial surface in that frame
-  double score = 0.0;  // robust scale (eq. 47) of the initial surface's distances to the points
-  std::string source;  // how the axis and pitch or growth were found
-  double searched_value = 0.0;  // the pitch or growth the search found (0 for revolution)
-  double normals_value = 0.0;   // the normals' estimate of it
+  double score = 0.0;             // robust scale (eq. 47) of the initial surface's distances to the points
+  std::string source;             // how the axis and pitch or growth were found
+  double searched_value = 0.0;    // the pitch or growth the search found (0 for revolution)
+  double normals_value = 0.0;     // the normals' estimate of it
   std::vector<bool> off_surface;  // per input point (eq. 55) at the initial surface
 };
 
 // The best few starts (at most options.max_starts, best score first) of a surface of revolution, helical
 // or spiral surface for `points` (world) with unit `normals` (sign arbitrary). Throws std::invalid_argument
 // when the points cannot carry an axis (too few, normals spanning less than 3D).
-std::vector<KinematicStart> FindKinematicStarts(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
-                                                KinematicKind kind, const KinematicStartOptions& options = {});
+std::vector<KinematicStart> FindKinematicStarts(const Eigen::Matrix3Xd& points,
+                                                const Eigen::Matrix3Xd& normals, KinematicKind kind,
+                                                const KinematicStartOptions& options = {});
 
 // Points off a fitted surface (eq. 55): farther than `distance_in_sigma` robust standard deviations (eq. 47,
 // over all points) or with their normal more than `max_angle_deg` from the surface normal at their foot.
@@ -127,9 +132,9 @@ struct StartedJointFit {
   std::shared_ptr<ParametricModel> model;  // fitted
   RigidMotion world_T_model;               // of the chosen start (the fit's model frame)
   JointFitResult result;
-  std::size_t chosen = 0;                  // index into the starts
-  std::vector<double> final_scores;        // per start tried: robust scale of all points' distances
-  Eigen::Index left_out = 0;               // points left out as off the surface in the final fit
+  std::size_t chosen = 0;            // index into the starts
+  std::vector<double> final_scores;  // per start tried: robust scale of all points' distances
+  Eigen::Index left_out = 0;         // points left out as off the surface in the final fit
 };
 
 // The joint fit (FitJointly) from each start: poses model_T_world * world_T_scan, the start's off-surface

@@ -580,9 +580,9 @@ void PlaceCloud(KinematicCloud& c, const SurfaceSample& s, double noise, std::mt
   std::normal_distribution<double> gauss(0.0, 1.0);
   Eigen::Matrix3Xd p = s.points;
   for (Eigen::Index j = 0; j < p.cols(); ++j) p.col(j) += noise * gauss(rng) * s.normals.col(j);
-  c.world_T_model = RigidMotion(
-      Eigen::AngleAxisd(35 * kDegree, Eigen::Vector3d(1, 2, 0).normalized()).toRotationMatrix(),
-      Eigen::Vector3d(12, -7, 40));
+  c.world_T_model =
+      RigidMotion(Eigen::AngleAxisd(35 * kDegree, Eigen::Vector3d(1, 2, 0).normalized()).toRotationMatrix(),
+                  Eigen::Vector3d(12, -7, 40));
   c.points = c.world_T_model.apply(p);
   c.axis_point = c.world_T_model.translation();
   c.axis_direction = c.world_T_model.rotation().col(2);
@@ -612,20 +612,20 @@ KinematicCloud ShallowThreadCloud(double relief, double noise, int count, std::u
   return c;
 }
 
-KinematicCloud ConicalShellCloud(double noise, int count, std::uint64_t seed) {
+KinematicCloud ConicalShellCloud(double ripple_amplitude, double noise, int count, std::uint64_t seed) {
   const double growth = 0.05, period = 2 * M_PI * growth, slope = -60 * kDegree;
   const int m = 10;
   Eigen::Matrix2Xd profile(2, m);
   for (int k = 0; k < m; ++k) {
     const double t = static_cast<double>(k) / (m - 1);  // one whorl: sizes 20 to 20 e^{2 pi g}
-    const double size = 20.0 * std::exp(period * t), ripple = 0.3 * std::sin(2 * M_PI * t);
+    const double size = 20.0 * std::exp(period * t), ripple = ripple_amplitude * std::sin(2 * M_PI * t);
     profile.col(k) << size * std::cos(slope) - ripple * std::sin(slope),
         size * std::sin(slope) + ripple * std::cos(slope);
   }
   auto truth = std::make_unique<SpiralSurface>(UnitSpacedClamped(4, m), profile, growth, -2.2 * 2 * M_PI,
                                                2.2 * 2 * M_PI);
-  const SurfaceSample s = SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -4 * M_PI,
-                                           4 * M_PI, count, seed);
+  const SurfaceSample s =
+      SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -4 * M_PI, 4 * M_PI, count, seed);
   KinematicCloud c;
   std::mt19937_64 rng(seed + 1);
   PlaceCloud(c, s, noise, rng);
@@ -635,12 +635,14 @@ KinematicCloud ConicalShellCloud(double noise, int count, std::uint64_t seed) {
   return c;
 }
 
-KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise, int count, std::uint64_t seed) {
+KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise, int count,
+                          std::uint64_t seed) {
   if (!(arc_fraction > 0 && arc_fraction <= 1)) throw std::invalid_argument("an arc fraction in (0, 1]");
   Eigen::Matrix2Xd vase(2, 8);
   vase << 30, 42, 58, 66, 55, 38, 34, 41,  //
       0, 20, 45, 70, 95, 120, 135, 150;
-  auto truth = std::make_unique<KinematicSurface>(KinematicSurface::Revolution(UnitSpacedClamped(4, 8), vase));
+  auto truth =
+      std::make_unique<KinematicSurface>(KinematicSurface::Revolution(UnitSpacedClamped(4, 8), vase));
   const double span = arc_fraction * 2 * M_PI, thickness = 6.0;
   const double u0 = 1.0, u1 = 3.4;  // profile parameter (heights about 30 to 110 mm)
   // The side breaks slant: theta from side_lo(u) to side_hi(u).
@@ -670,11 +672,18 @@ KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise
     struct Edge {
       std::function<ParamT(double)> at;  // t in [0, 1] along the edge
     };
-    const std::vector<Edge> edges = {
-        {[&](double t) { return ParamT{u0, side_lo(u0) + t * (side_hi(u0) - side_lo(u0)), 0.0}; }},
-        {[&](double t) { return ParamT{u1, side_lo(u1) + t * (side_hi(u1) - side_lo(u1)), 0.0}; }},
-        {[&](double t) { return ParamT{u0 + t * (u1 - u0), side_lo(u0 + t * (u1 - u0)), 0.0}; }},
-        {[&](double t) { return ParamT{u0 + t * (u1 - u0), side_hi(u0 + t * (u1 - u0)), 0.0}; }}};
+    const std::vector<Edge> edges = {{[&](double t) {
+                                       return ParamT{u0, side_lo(u0) + t * (side_hi(u0) - side_lo(u0)), 0.0};
+                                     }},
+                                     {[&](double t) {
+                                       return ParamT{u1, side_lo(u1) + t * (side_hi(u1) - side_lo(u1)), 0.0};
+                                     }},
+                                     {[&](double t) {
+                                       return ParamT{u0 + t * (u1 - u0), side_lo(u0 + t * (u1 - u0)), 0.0};
+                                     }},
+                                     {[&](double t) {
+                                       return ParamT{u0 + t * (u1 - u0), side_hi(u0 + t * (u1 - u0)), 0.0};
+                                     }}};
     // Lengths of the edges and the area of the surface (a grid sum of |S_u x S_v|).
     std::vector<double> lengths;
     for (const Edge& e : edges) {

@@ -104,8 +104,8 @@ struct KinematicCloud {
   Eigen::Index surface_points = 0;
   Eigen::Vector3d axis_point = Eigen::Vector3d::Zero();  // truth, world (a spiral's centre)
   Eigen::Vector3d axis_direction = Eigen::Vector3d::UnitZ();
-  double pitch = 0.0;   // truth (helical)
-  double growth = 0.0;  // truth (spiral)
+  double pitch = 0.0;                      // truth (helical)
+  double growth = 0.0;                     // truth (spiral)
   std::unique_ptr<ParametricModel> truth;  // in the axis frame
   RigidMotion world_T_model;
 };
@@ -118,13 +118,14 @@ KinematicCloud ShallowThreadCloud(double relief, double noise, int count, std::u
 // A conical shell: a spiral surface (growth 0.05/rad) whose generatrix is a ray from the centre at 60
 // degrees below the horizontal with a shallow ripple of 0.3 mm over one whorl, four whorls: the cone is
 // invariant under every spiral motion about its apex, so (26) hardly determines the growth.
-KinematicCloud ConicalShellCloud(double noise, int count, std::uint64_t seed);
+KinematicCloud ConicalShellCloud(double ripple, double noise, int count, std::uint64_t seed);
 
 // A sherd: `arc_fraction` of the circumference of the demo vase's surface of revolution (150 mm tall,
 // radius 30-66 mm) between heights of about 30 and 110 mm, one surface (the outside), its side breaks
 // slanted; with `fracture_faces`, points also on the breaks of a 6 mm thick wall (planar-ish faces
 // perpendicular to the surface along the sherd's outline, as dense as the surface).
-KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise, int count, std::uint64_t seed);
+KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise, int count,
+                          std::uint64_t seed);
 
 // The bumpy 100 x 100 mm free-form patch of the registration benchmark (bench/compare.cpp, section 1) and of
 // the foot point and squared distance field tests: a bicubic B-spline (clamped, unit-spaced knots) with
