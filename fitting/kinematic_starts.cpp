@@ -662,7 +662,10 @@ StartedJointFit FitJointlyFromStarts(const std::vector<KinematicStart>& starts,
     std::vector<std::vector<bool>> masks;
     Eigen::VectorXd distances;
     judge(r, masks, distances);
-    if (masks != o.left_out) {
+    // A start already far behind the best final fit is not refined further (a second pass moves the robust
+    // scale by a few percent, not by half).
+    const bool behind = MadSigma(distances) > 1.5 * best_score;
+    if (masks != o.left_out && !behind) {
       o.left_out = masks;
       JointFitResult again = FitJointly(*model, scans, r.model_T_scan, o);
       again.iterations += r.iterations;

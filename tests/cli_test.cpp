@@ -282,7 +282,11 @@ TEST(Cli, GlobalStartsForASherdAndAShallowThread) {
   {
     const KinematicCloud c = SherdCloud(0.15, true, 0.05, 8000, 11);
     const std::string file = WriteCloud("s2m_cli_sherd.xyz", c);
-    const Result r = RunCli("fit --model revolution --json " + file, false);
+    // --bending 0: the default bending weight (1e-3) of the generatrix pulls along the small arc's weakly
+    // determined tilt of the axis within the meridian plane (measured on this cloud: 3.97 degrees and 0.53 mm
+    // off with it, 0.026 degrees without). The iteration cap: the fit reaches the noise in about 20
+    // iterations, then creeps along the generatrix's re-parametrization (docs/method.md section 16).
+    const Result r = RunCli("fit --model revolution --bending 0 --max-iterations 60 --json " + file, false);
     ASSERT_EQ(r.exit_code, 0) << r.out;
     const auto doc = nlohmann::json::parse(r.out);
     const Eigen::Vector3d point = Vector(doc["axis"]["point"]), direction = Vector(doc["axis"]["direction"]);
@@ -302,7 +306,7 @@ TEST(Cli, GlobalStartsForASherdAndAShallowThread) {
   {
     const KinematicCloud c = ShallowThreadCloud(0.1, 0.02, 3000, 5);
     const std::string file = WriteCloud("s2m_cli_thread.xyz", c);
-    const Result r = RunCli("fit --model helical --json " + file, false);
+    const Result r = RunCli("fit --model helical --max-iterations 60 --json " + file, false);
     ASSERT_EQ(r.exit_code, 0) << r.out;
     const auto doc = nlohmann::json::parse(r.out);
     const double value = doc["pitch"]["value"].get<double>(), u = doc["pitch"]["uncertainty"].get<double>();
