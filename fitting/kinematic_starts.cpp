@@ -190,6 +190,30 @@ Eigen::VectorXd MeridianResiduals(const Eigen::Matrix3Xd& p, const Eigen::Vector
   return d;
 }
 
+// Weights 1 for the points whose normal lies within 45 degrees of the meridian plane through them (where a
+// surface of revolution about (a, c) has its normal, eq. 55), 0 for the others: a sherd's side breaks face
+// along the circumference. All 1 without normals.
+Eigen::VectorXd MeridianNormalWeights(const Eigen::Matrix3Xd& p, const Eigen::Matrix3Xd& n,
+                                      const Eigen::Vector3d& a, const Eigen::Vector3d& c) {
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(p.cols());
+  if (n.cols() != p.cols()) return w;
+  const double limit = std::sin(45 * kDegree);
+  for (Eigen::Index j = 0; j < p.cols(); ++j) {
+    const Eigen::Vector3d around = c.cross(Eigen::Vector3d(p.col(j) - a));
+    const double norm = around.norm() * n.col(j).norm();
+    if (norm > 0 && std::abs(around.dot(n.col(j))) > limit * norm) w[j] = 0.0;
+  }
+  return w;
+}
+
+// The entries of d where mask is positive.
+Eigen::VectorXd Masked(const Eigen::VectorXd& d, const Eigen::VectorXd& mask) {
+  std::vector<double> kept;
+  for (Eigen::Index j = 0; j < d.size(); ++j)
+    if (mask[j] > 0) kept.push_back(d[j]);
+  return Eigen::Map<const Eigen::VectorXd>(kept.data(), static_cast<Eigen::Index>(kept.size()));
+}
+
 // Does the profile span more height than radius about this axis (then rho is fitted as a function of z)?
 bool SpansMoreHeight(const Eigen::Matrix3Xd& p, const Eigen::Vector3d& a, const Eigen::Vector3d& c) {
   std::vector<double> z, rho;
@@ -222,11 +246,24 @@ Eigen::Vector3d RevolutionAxisPoint(const Eigen::Matrix3Xd& x, const Eigen::Matr
   return a;
 }
 
+// The robust scale (47) of (53) about (a, c): the profile fitted to the points the normal test keeps, then
+// once more with Tukey weights of its residuals.
+double RobustCollapseScore(const Eigen::Matrix3Xd& p, const Eigen::Matrix3Xd& n, const Eigen::Vector3d& a,
+                           const Eigen::Vector3d& c, int num_control, bool along_height) {
+  const Eigen::VectorXd mask = MeridianNormalWeights(p, n, a, c);
+  if (mask.sum() < 2 * num_control) return INFINITY;
+  const Eigen::VectorXd d = MeridianResiduals(p, mask, a, c, num_control, along_height);
+  RobustWeighting weighting(RobustLoss{LossKind::kTukey});
+  weighting.Update(Masked(d, mask));
+  return MadSigma(Masked(
+      MeridianResiduals(p, weighting.Weights(d).cwiseProduct(mask), a, c, num_control, along_height), mask));
+}
+
 // Local refinement of (53) over the axis direction (two tilts) and point (two shifts across it) from
 // (a0, c0) by least squares (fitting/least_squares.h, forward-difference Jacobian), in three IRLS rounds
 // with Tukey weights of the residuals (scale from their MAD, eq. 47).
-AxisCandidate RefineAxisByProfile(const Eigen::Matrix3Xd& p, Eigen::Vector3d a0, Eigen::Vector3d c0,
-                                  int num_control, double length) {
+AxisCandidate RefineAxisByProfile(const Eigen::Matrix3Xd& p, const Eigen::Matrix3Xd& n, Eigen::Vector3d a0,
+                                  Eigen::Vector3d c0, int num_control, double length) {
   const bool along_height = SpansMoreHeight(p, a0, c0);
   Eigen::VectorXd w = Eigen::VectorXd::Ones(p.cols());
   RobustWeighting weighting(RobustLoss{LossKind::kTukey});
@@ -236,8 +273,10 @@ AxisCandidate RefineAxisByProfile(const Eigen::Matrix3Xd& p, Eigen::Vector3d a0,
       c = (c0 + x[0] * frame.col(0) + x[1] * frame.col(1)).normalized();
       a = a0 + length * (x[2] * frame.col(0) + x[3] * frame.col(1));
     };
-    weighting.Update(MeridianResiduals(p, w, a0, c0, num_control, along_height));
-    w = weighting.Weights(MeridianResiduals(p, w, a0, c0, num_control, along_height));
+    const Eigen::VectorXd mask = MeridianNormalWeights(p, n, a0, c0);
+    const Eigen::VectorXd d0 = MeridianResiduals(p, w.cwiseProduct(mask), a0, c0, num_control, along_height);
+    weighting.Update(Masked(d0, mask));
+    w = weighting.Weights(d0).cwiseProduct(mask);
     const Eigen::VectorXd sqrt_w = w.cwiseSqrt();
     LeastSquaresProblem problem;
     problem.num_residuals = static_cast<int>(p.cols());
@@ -261,7 +300,7 @@ AxisCandidate RefineAxisByProfile(const Eigen::Matrix3Xd& p, Eigen::Vector3d a0,
       return r.allFinite();
     };
     LeastSquaresOptions ls;
-    ls.max_iterations = 30;
+    ls.max_iterations = 100;
     ls.function_tolerance = 1e-10;
     ls.step_tolerance = 1e-10;
     ls.gradient_tolerance = 1e-12;
@@ -272,7 +311,7 @@ AxisCandidate RefineAxisByProfile(const Eigen::Matrix3Xd& p, Eigen::Vector3d a0,
   AxisCandidate out;
   out.point = a0;
   out.direction = c0;
-  out.score = MadSigma(MeridianResiduals(p, w, a0, c0, num_control, along_height));
+  out.score = RobustCollapseScore(p, n, a0, c0, num_control, along_height);
   return out;
 }
 
@@ -412,17 +451,22 @@ std::vector<AxisCandidate> RevolutionAxisCandidates(const Eigen::Matrix3Xd& poin
   const KinematicAxis from_normals =
       RobustKinematicAxisFromNormals(p, n, KinematicKind::kRevolution, options.axis_loss);
   seeds.push_back({from_normals.point, from_normals.direction,
-                   ProfileCollapseScore(pc, from_normals.point, from_normals.direction, m), "normals"});
+                   RobustCollapseScore(pc, nc, from_normals.point, from_normals.direction, m,
+                                       SpansMoreHeight(pc, from_normals.point, from_normals.direction)),
+                   "normals"});
   try {
     const Cylinder cyl = FitCylinder(p).shape;
     seeds.push_back({cyl.axis_point, cyl.axis_direction,
-                     ProfileCollapseScore(pc, cyl.axis_point, cyl.axis_direction, m), "cylinder"});
+                     RobustCollapseScore(pc, nc, cyl.axis_point, cyl.axis_direction, m,
+                                         SpansMoreHeight(pc, cyl.axis_point, cyl.axis_direction)),
+                     "cylinder"});
   } catch (const std::exception&) {  // no cylinder: the other seeds stand
   }
   std::vector<AxisCandidate> lattice;
   for (const Eigen::Vector3d& c : FibonacciHemisphere(options.direction_samples)) {
     const Eigen::Vector3d a = RevolutionAxisPoint(pc, nc, c, centroid, RobustLoss{LossKind::kTukey});
-    lattice.push_back({a, c, ProfileCollapseScore(pc, a, c, m), "direction search"});
+    lattice.push_back(
+        {a, c, RobustCollapseScore(pc, nc, a, c, m, SpansMoreHeight(pc, a, c)), "direction search"});
   }
   std::sort(lattice.begin(), lattice.end(),
             [](const AxisCandidate& a, const AxisCandidate& b) { return a.score < b.score; });
@@ -440,7 +484,7 @@ std::vector<AxisCandidate> RevolutionAxisCandidates(const Eigen::Matrix3Xd& poin
   }
   std::vector<AxisCandidate> refined;
   for (const AxisCandidate& s : seeds) {
-    AxisCandidate r = RefineAxisByProfile(p, s.point, s.direction, m, length);
+    AxisCandidate r = RefineAxisByProfile(p, n, s.point, s.direction, m, length);
     r.source = s.source;
     r.point = AtMeanHeight(r.point, r.direction, centroid);
     bool distinct = std::isfinite(r.score);

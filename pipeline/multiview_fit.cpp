@@ -50,6 +50,9 @@ nlohmann::json StartJson(const std::vector<KinematicStart>& starts, const Starte
   nlohmann::json tried = nlohmann::json::array();
   for (std::size_t i = 0; i < starts.size(); ++i) {
     tried.push_back({{"source", starts[i].source},
+                     {"axis",
+                      {{"point", ToJson(starts[i].world_T_model.translation())},
+                       {"direction", ToJson(Eigen::Vector3d(starts[i].world_T_model.rotation().col(2)))}}},
                      {"value", starts[i].searched_value},
                      {"start_scale", starts[i].score},
                      {"final_scale", i < fit.final_scores.size() ? fit.final_scores[i] : 0.0}});
