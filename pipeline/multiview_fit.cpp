@@ -12,8 +12,8 @@
 #include "acquisition/format_error.h"
 #include "fitting/initial_models.h"
 #include "fitting/joint_fit.h"
-#include "fitting/kinematic_starts.h"
 #include "fitting/kinematic_surfaces.h"
+#include "fitting/primitive_fit.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
@@ -24,18 +24,17 @@
 namespace s2m::pipeline {
 namespace {
 
-// Unit normals of each view in its own coordinates (local plane fits over 12 neighbours), for deciding which
-// points lie off the fitted surface; a view too small for them gets none (distance test only).
-std::vector<Eigen::Matrix3Xd> ViewNormals(const ScanSet& set) {
-  std::vector<Eigen::Matrix3Xd> normals;
-  for (const Scan& s : set.scans) {
-    try {
-      normals.push_back(EstimateNormals(s.points, 12));
-    } catch (const std::invalid_argument&) {
-      normals.emplace_back();
-    }
-  }
-  return normals;
+// The frame of the initial axis: z along the axis of the cylinder best fitting all views merged in the world.
+RigidMotion InitialAxisFrame(const ScanSet& set) {
+  const Cylinder c = FitCylinder(set.MergedWorldPoints()).shape;
+  return RigidMotion(FrameWithAxis(c.axis_direction), c.axis_point);
+}
+
+// Helical and spiral surfaces: the axis (and pitch or growth, and the spiral's centre) from normals by line
+// geometry (docs/method.md section 8), normals from local plane fits over 12 neighbours of the merged views.
+KinematicAxis InitialKinematicAxis(const ScanSet& set, KinematicKind kind) {
+  const Eigen::Matrix3Xd merged = set.MergedWorldPoints();
+  return KinematicAxisFromNormals(merged, EstimateNormals(merged, 12), kind);
 }
 
 double UncertaintyOf(const ParametricModel& m, const JointFitResult& r, const std::string& name) {
@@ -43,38 +42,6 @@ double UncertaintyOf(const ParametricModel& m, const JointFitResult& r, const st
     if (m.parameter_name(i) == name && i < r.shape_uncertainty.size()) return r.shape_uncertainty[i];
   }
   return std::numeric_limits<double>::quiet_NaN();
-}
-
-// The starts tried and the one kept (docs/cli.md, "start").
-nlohmann::json StartJson(const std::vector<KinematicStart>& starts, const StartedJointFit& fit) {
-  nlohmann::json tried = nlohmann::json::array();
-  for (std::size_t i = 0; i < starts.size(); ++i) {
-    tried.push_back({{"source", starts[i].source},
-                     {"axis",
-                      {{"point", ToJson(starts[i].world_T_model.translation())},
-                       {"direction", ToJson(Eigen::Vector3d(starts[i].world_T_model.rotation().col(2)))}}},
-                     {"value", starts[i].searched_value},
-                     {"start_scale", starts[i].score},
-                     {"final_scale", i < fit.final_scores.size() ? fit.final_scores[i] : 0.0}});
-  }
-  const KinematicStart& chosen = starts[fit.chosen];
-  return {{"source", chosen.source},
-          {"normals_value", chosen.normals_value},
-          {"searched_value", chosen.searched_value},
-          {"chosen", fit.chosen},
-          {"tried", tried},
-          {"left_out_points", fit.left_out}};
-}
-
-std::string StartText(const std::vector<KinematicStart>& starts, const StartedJointFit& fit) {
-  const KinematicStart& chosen = starts[fit.chosen];
-  std::ostringstream t;
-  t << chosen.source;
-  if (chosen.source != "normals" && chosen.source != "cylinder" && chosen.source != "direction search")
-    t << " " << Format(chosen.searched_value, 6) << " (normals " << Format(chosen.normals_value, 4) << ")";
-  t << ", start " << fit.chosen + 1 << " of " << starts.size() << " tried, " << fit.left_out
-    << " points left out as off the surface";
-  return t.str();
 }
 
 nlohmann::json NumberOrNull(double v) {
@@ -91,23 +58,37 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     const ScanSet set = ReadViews(o.file);
     const std::size_t K = set.scans.size();
     const int n = o.control_points.empty() ? 8 : std::stoi(o.control_points);
-    // Global starts (docs/method.md section 16): axis, pitch or growth and generatrix from the views merged
-    // at their given poses, normals from local plane fits over 12 neighbours; the joint fit runs from the
-    // best few and keeps the lowest final robust objective.
-    const KinematicKind kind = o.model == "revolution" ? KinematicKind::kRevolution
-                               : o.model == "helical"  ? KinematicKind::kHelical
-                                                       : KinematicKind::kSpiral;
-    const Eigen::Matrix3Xd merged = set.MergedWorldPoints();
-    KinematicStartOptions start_options;
-    start_options.num_control = n;
-    start_options.order = o.order;
-    const std::vector<KinematicStart> starts =
-        FindKinematicStarts(merged, EstimateNormals(merged, 12), kind, start_options);
+    // Model frame: the initial axis (revolution: of the best cylinder; helical: from normals; spiral: from
+    // normals, origin at the centre). Scans start at their given world poses, expressed in that frame.
+    std::unique_ptr<ParametricModel> model;
+    RigidMotion world_T_model;
+    if (o.model == "revolution") {
+      world_T_model = InitialAxisFrame(set);
+      model = std::make_unique<KinematicSurface>(
+          InitialRevolution(world_T_model.inverse().apply(set.MergedWorldPoints()), n, o.order));
+    } else {
+      KinematicAxis axis =
+          InitialKinematicAxis(set, o.model == "helical" ? KinematicKind::kHelical : KinematicKind::kSpiral);
+      if (axis.growth < 0) {  // the same motion reversed: report growing whorls about the opposite direction
+        axis.growth = -axis.growth;
+        axis.direction = -axis.direction;
+      }
+      world_T_model = RigidMotion(FrameWithAxis(axis.direction), axis.point);
+      const Eigen::Matrix3Xd local = world_T_model.inverse().apply(set.MergedWorldPoints());
+      if (o.model == "helical") {
+        model =
+            std::make_unique<KinematicSurface>(InitialHelicalWithPitchSearch(local, axis.pitch, n, o.order));
+      } else {
+        model =
+            std::make_unique<SpiralSurface>(InitialSpiralWithGrowthSearch(local, axis.growth, n, o.order));
+      }
+    }
+    const RigidMotion model_T_world = world_T_model.inverse();
     std::vector<Eigen::Matrix3Xd> scans;
-    std::vector<RigidMotion> world_T_scan;
+    std::vector<RigidMotion> initial;
     for (const Scan& s : set.scans) {
       scans.push_back(s.points);
-      world_T_scan.push_back(s.world_T_scan);
+      initial.push_back(model_T_world * s.world_T_scan);
     }
     JointFitOptions options = JointOptions(o);  // TDM by default (apps/views.cpp)
     options.fairness = {o.stretch, o.bending};
@@ -116,10 +97,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     // docs/multiview-cases.md): per-view motions from the start.
     if (o.model != "revolution") options.shared_motion_iterations = 0;
     const auto start = std::chrono::steady_clock::now();
-    const StartedJointFit started =
-        FitJointlyFromStarts(starts, scans, world_T_scan, ViewNormals(set), options, start_options);
-    const std::shared_ptr<ParametricModel> model = started.model;
-    const JointFitResult& r = started.result;
+    const JointFitResult r = FitJointly(*model, scans, initial, options);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
     // Report in the data's world. The fit fixes the views only relative to each other and to the model; place
@@ -154,7 +132,6 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     j["solver"] = SolverName(options);
     j["loss"] = LossJson(o.loss, r.loss_scale, Eigen::VectorXd());
     j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
-    j["start"] = StartJson(starts, started);
     const auto* kinematic = dynamic_cast<const KinematicSurface*>(model.get());
     const auto* spiral = dynamic_cast<const SpiralSurface*>(model.get());
     const BSplineBasis& basis = kinematic ? kinematic->basis() : spiral->basis();
@@ -224,7 +201,6 @@ FitOutcome ComputeMultiViewFit(const FitOptions& o) {
     text << "scan2model fit: " << model->name() << " to " << K << " views (" << set.TotalPoints()
          << " points) of " << o.file << " (units " << units << ")\n\n"
          << "  solver            " << SolverSummary(options, r, seconds) << "\n"
-         << "  start             " << StartText(starts, started) << "\n"
          << "  axis point        " << Format(axis_point) << "\n"
          << "  axis direction    " << Format(axis_direction) << "\n";
     if (j.contains("pitch")) {

@@ -264,59 +264,6 @@ TEST(Cli, HelicalAndSpiralFitsFromRecordedViews) {
   std::filesystem::remove_all(dir);
 }
 
-std::string WriteCloud(const std::string& name, const KinematicCloud& c) {
-  std::vector<std::array<double, 3>> pts;
-  for (Eigen::Index j = 0; j < c.points.cols(); ++j)
-    pts.push_back({c.points(0, j), c.points(1, j), c.points(2, j)});
-  return WriteXyz(name, pts);
-}
-
-Eigen::Vector3d Vector(const nlohmann::json& v) {
-  return {v[0].get<double>(), v[1].get<double>(), v[2].get<double>()};
-}
-
-// Global starts through the command on single clouds (docs/method.md section 16): a sherd (15 % of a pot's
-// circumference, with points on its fracture faces; the best cylinder puts the axis 87 degrees off) and a
-// shallow thread whose normals give the pitch a factor 14 too small.
-TEST(Cli, GlobalStartsForASherdAndAShallowThread) {
-  {
-    const KinematicCloud c = SherdCloud(0.15, true, 0.05, 8000, 11);
-    const std::string file = WriteCloud("s2m_cli_sherd.xyz", c);
-    // --bending 0: the default bending weight (1e-3) of the generatrix pulls along the small arc's weakly
-    // determined tilt of the axis within the meridian plane (measured on this cloud: 3.97 degrees and 0.53 mm
-    // off with it, 0.026 degrees without). The iteration cap: the fit reaches the noise in about 20
-    // iterations, then creeps along the generatrix's re-parametrization (docs/method.md section 16).
-    const Result r = RunCli("fit --model revolution --bending 0 --max-iterations 60 --json " + file, false);
-    ASSERT_EQ(r.exit_code, 0) << r.out;
-    const auto doc = nlohmann::json::parse(r.out);
-    const Eigen::Vector3d point = Vector(doc["axis"]["point"]), direction = Vector(doc["axis"]["direction"]);
-    const Eigen::Vector3d centroid = c.points.leftCols(c.surface_points).rowwise().mean();
-    const Eigen::Vector3d t = c.axis_direction;
-    const Eigen::Vector3d offset = c.axis_point + t * t.dot(centroid - c.axis_point) - point;
-    const double angle = std::acos(std::min(1.0, std::abs(direction.normalized().dot(t)))) * 180 / M_PI;
-    const double distance = (offset - direction * direction.dot(offset)).norm();
-    std::printf("sherd: axis %.3f deg, %.3f mm off, %lld points left out (%lld on breaks), RMS %.4f\n", angle,
-                distance, doc["start"]["left_out_points"].get<long long>(),
-                static_cast<long long>(c.points.cols() - c.surface_points),
-                doc["residuals"]["rms"].get<double>());
-    EXPECT_LT(angle, 0.5);  // issue 22's tolerances
-    EXPECT_LT(distance, 0.3);
-    std::filesystem::remove(file);
-  }
-  {
-    const KinematicCloud c = ShallowThreadCloud(0.1, 0.02, 3000, 5);
-    const std::string file = WriteCloud("s2m_cli_thread.xyz", c);
-    const Result r = RunCli("fit --model helical --max-iterations 60 --json " + file, false);
-    ASSERT_EQ(r.exit_code, 0) << r.out;
-    const auto doc = nlohmann::json::parse(r.out);
-    const double value = doc["pitch"]["value"].get<double>(), u = doc["pitch"]["uncertainty"].get<double>();
-    std::printf("thread: pitch %.5f +- %.2g (truth %g; normals %.4f), RMS %.4f\n", value, u, c.pitch,
-                doc["start"]["normals_value"].get<double>(), doc["residuals"]["rms"].get<double>());
-    EXPECT_LT(std::abs(value - c.pitch), 3 * u);
-    std::filesystem::remove(file);
-  }
-}
-
 std::string SourcePath(const std::string& relative) {
   return std::string(S2M_SOURCE_DIR) + "/" + relative;
 }
