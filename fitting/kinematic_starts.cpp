@@ -43,7 +43,7 @@ double Quantile(std::vector<double> values, double q) {
   return values[k];
 }
 
-// Entropy of the occupancy (eq. 52) of points with profile coordinates `a` and phases `phase` (modulo 1):
+// Entropy of the occupancy (eq. 74) of points with profile coordinates `a` and phases `phase` (modulo 1):
 // `a` mapped onto [0, 1] between its 1 % and 99 % quantiles (a few stray points must not squeeze the
 // profile into one bin), each point spread bilinearly over its four nearest cells (periodic in phase), so
 // that the entropy changes continuously with the candidate.
@@ -131,7 +131,7 @@ class SpiralCentreFromNormals {
   Eigen::Vector3d b0_ = Eigen::Vector3d::Zero(), b1_ = Eigen::Vector3d::Zero(), b2_ = Eigen::Vector3d::Zero();
 };
 
-// The meridian profile residuals (eq. 53) of points about the axis (a, c): (rho_j, z_j) in the meridian
+// The meridian profile residuals (eq. 75) of points about the axis (a, c): (rho_j, z_j) in the meridian
 // half-plane, y = f(t) a cubic B-spline function with `num_control` coefficients fitted by weighted linear
 // least squares with a small bending term (as InitialRevolution), t = z and y = rho (`along_height`), or
 // the reverse; d_j = (y_j - f(t_j)) / sqrt(1 + f'(t_j)^2), the distance to the profile to first order.
@@ -191,7 +191,7 @@ Eigen::VectorXd MeridianResiduals(const Eigen::Matrix3Xd& p, const Eigen::Vector
 }
 
 // Weights 1 for the points whose normal lies within 45 degrees of the meridian plane through them (where a
-// surface of revolution about (a, c) has its normal, eq. 55), 0 for the others: a sherd's side breaks face
+// surface of revolution about (a, c) has its normal, eq. 77), 0 for the others: a sherd's side breaks face
 // along the circumference. All 1 without normals.
 Eigen::VectorXd MeridianNormalWeights(const Eigen::Matrix3Xd& p, const Eigen::Matrix3Xd& n,
                                       const Eigen::Vector3d& a, const Eigen::Vector3d& c) {
@@ -377,7 +377,7 @@ double HelicalPhaseEntropy(const Eigen::Matrix3Xd& p, double pitch, int bins) {
   for (Eigen::Index j = 0; j < p.cols(); ++j) {
     const auto i = static_cast<std::size_t>(j);
     radius[i] = std::hypot(p(0, j), p(1, j));
-    phase[i] = (p(2, j) - pitch * std::atan2(p(1, j), p(0, j))) / lead;  // eq. 50
+    phase[i] = (p(2, j) - pitch * std::atan2(p(1, j), p(0, j))) / lead;  // eq. 72
   }
   return OccupancyEntropy(radius, phase, bins);
 }
@@ -390,7 +390,7 @@ double SpiralPhaseEntropy(const Eigen::Matrix3Xd& p, double growth, int bins) {
     const double rho = std::hypot(p(0, j), p(1, j)), size = p.col(j).norm();
     if (!(size > 0)) continue;
     meridian.push_back(std::atan2(p(2, j), rho));
-    phase.push_back((std::log(size) - growth * std::atan2(p(1, j), p(0, j))) / period);  // eq. 51
+    phase.push_back((std::log(size) - growth * std::atan2(p(1, j), p(0, j))) / period);  // eq. 73
   }
   return OccupancyEntropy(meridian, phase, bins);
 }
@@ -443,7 +443,7 @@ std::vector<AxisCandidate> RevolutionAxisCandidates(const Eigen::Matrix3Xd& poin
   const Eigen::Vector3d centroid = p.rowwise().mean();
   const double length = DataSize(p);
   const int m = options.num_control;
-  // A coarser sample scores the hemisphere (eq. 54); the refinement uses the whole sample.
+  // A coarser sample scores the hemisphere (eq. 76); the refinement uses the whole sample.
   const std::vector<Eigen::Index> coarse_idx = SampleIndices(p.cols(), 1500);
   const Eigen::Matrix3Xd pc = Columns(p, coarse_idx), nc = Columns(n, coarse_idx);
 
@@ -594,7 +594,7 @@ std::vector<KinematicStart> FindKinematicStarts(const Eigen::Matrix3Xd& points,
     const Eigen::Matrix3Xd local_normals = model_T_world.rotation() * n,
                            all_normals = model_T_world.rotation() * normals;
     // The pitch or growth refined on the sample (the +-20 % search by the initial surface's RMS), from all
-    // sample points, then again from those on the surface (eq. 55): a fracture face or a stand must not
+    // sample points, then again from those on the surface (eq. 77): a fracture face or a stand must not
     // bend the initial profile. The initial surface itself from all points on the surface (measured on the
     // synthetic shell: a generatrix from 4000 of its 25000 points let the joint fit stop at 1.14 x the
     // noise).
@@ -641,7 +641,7 @@ std::vector<KinematicStart> FindKinematicStarts(const Eigen::Matrix3Xd& points,
   std::stable_sort(starts.begin(), starts.end(),
                    [](const KinematicStart& a, const KinematicStart& b) { return a.score < b.score; });
   // The best few, and only those within 1.5 times the best robust scale: each costs a joint fit (in the
-  // synthetic cases of docs/method.md section 16 the start that won was always the best-scored or within
+  // synthetic cases of docs/method.md section 19 the start that won was always the best-scored or within
   // that factor of it; the factor is a cost bound, not a tuned threshold).
   const double best = starts.front().score;
   std::vector<KinematicStart> kept;

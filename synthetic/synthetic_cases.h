@@ -97,7 +97,7 @@ std::vector<Motion6> ObservablePoseErrors(const ParametricModel& model,
                                           const std::vector<RigidMotion>& fitted,
                                           const std::vector<RigidMotion>& truth);
 
-// A single cloud of a kinematic surface with known axis (docs/method.md section 16): points with Gaussian
+// A single cloud of a kinematic surface with known axis (docs/method.md section 19): points with Gaussian
 // noise along the surface normal, placed in a world frame where the axis is tilted and off the origin.
 struct KinematicCloud {
   Eigen::Matrix3Xd points;  // world; the first `surface_points` on the surface, the rest on fracture faces

@@ -1,4 +1,4 @@
-// Global starts for kinematic surfaces (fitting/kinematic_starts.h, docs/method.md section 16): a pitch and a
+// Global starts for kinematic surfaces (fitting/kinematic_starts.h, docs/method.md section 19): a pitch and a
 // growth far from what the normals say, and sherds (small arcs of a surface of revolution, with and without
 // points on their fracture faces), each fitted from scratch as `scan2model fit` does, and compared with the
 // truth; the old start (normals' pitch or growth searched +-20 %, the best cylinder's axis) is run on the
@@ -42,7 +42,7 @@ JointFitOptions SingleCloudOptions() {
   o.error_term = ErrorTerm::kTdm;
   o.shared_motion_iterations = 0;
   // These fits reach the noise in 10-25 iterations and then creep along the generatrix's re-parametrization
-  // (docs/method.md sections 12 and 16) to the cap of 100 per pass; 60 per pass keeps the test's time in
+  // (docs/method.md sections 12 and 19) to the cap of 100 per pass; 60 per pass keeps the test's time in
   // bounds without changing the measured quantities beyond their uncertainty (the command's own cap is
   // exercised in tests/cli_test.cpp).
   o.optimizer.max_iterations = 60;
