@@ -160,12 +160,13 @@ BSplineSurface InitialSurfaceByProjection(const Eigen::Matrix3Xd& points, int nu
   return BSplineSurface(bu, bv, control.transpose());
 }
 
-KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& p, int num_control, int order) {
+KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& p, int num_control, int order, double margin) {
   if (p.cols() < num_control) throw std::invalid_argument("fewer points than profile control points");
   const BSplineBasis basis = UnitSpacedClamped(order, num_control);
   const Eigen::VectorXd z = p.row(2).transpose();
-  const double lo = z.minCoeff(), hi = z.maxCoeff();
-  if (!(hi > lo)) throw std::invalid_argument("the points have no extent along the axis");
+  const double data_lo = z.minCoeff(), data_hi = z.maxCoeff();
+  if (!(data_hi > data_lo)) throw std::invalid_argument("the points have no extent along the axis");
+  const double lo = data_lo - margin * (data_hi - data_lo), hi = data_hi + margin * (data_hi - data_lo);
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(num_control, num_control);
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(num_control, 2);
   BSplineBasis::Values v;
@@ -193,7 +194,14 @@ KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& p, int num_control, i
 
 KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                                        KinematicKind kind) {
+  return KinematicAxisFromNormals(points, normals, kind, Eigen::VectorXd());
+}
+
+KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                                       KinematicKind kind, const Eigen::VectorXd& weights) {
   if (points.cols() != normals.cols()) throw std::invalid_argument("one normal per point is needed");
+  if (weights.size() != 0 && weights.size() != points.cols())
+    throw std::invalid_argument("one weight per point is needed");
   if (points.cols() < 8) throw std::invalid_argument("too few points for an axis from normals");
   if (!points.allFinite() || !normals.allFinite())
     throw std::invalid_argument("non-finite points or normals");
@@ -203,17 +211,22 @@ KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eig
   const int q = spiral ? 4 : 3;  // eliminated unknowns: cbar (and gamma)
   Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
   Eigen::MatrixXd B = Eigen::MatrixXd::Zero(3, q), C = Eigen::MatrixXd::Zero(q, q);
+  double total_weight = 0.0;
   for (Eigen::Index j = 0; j < points.cols(); ++j) {
+    const double w = weights.size() != 0 ? weights[j] : 1.0;
+    if (!(w > 0.0)) continue;
+    total_weight += w;
     const Eigen::Vector3d x = points.col(j) - centre;
     const Eigen::Vector3d n = normals.col(j).normalized();
     const Eigen::Vector3d m = x.cross(n);
     Eigen::VectorXd e(q);
     e.head<3>() = n;
     if (spiral) e[3] = n.dot(x);
-    A += m * m.transpose();
-    B += m * e.transpose();
-    C += e * e.transpose();
+    A += w * m * m.transpose();
+    B += w * m * e.transpose();
+    C += w * e * e.transpose();
   }
+  if (!(total_weight > 0.0)) throw std::invalid_argument("no point carries weight for an axis from normals");
   const Eigen::LDLT<Eigen::MatrixXd> c_ldlt(C);
   if (c_ldlt.info() != Eigen::Success || !(C.eigenvalues().real().minCoeff() > 1e-9 * C.trace()))
     throw std::invalid_argument("the normals do not span all directions: no axis can be found from them");
@@ -224,7 +237,7 @@ KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eig
   const Eigen::Vector3d cbar = rest.head<3>();
   KinematicAxis axis;
   axis.direction = c;
-  axis.residual = std::sqrt(std::max(eig.eigenvalues()[0], 0.0) / static_cast<double>(points.cols()));
+  axis.residual = std::sqrt(std::max(eig.eigenvalues()[0], 0.0) / total_weight);
   if (spiral) {
     axis.growth = rest[3];
     // The centre: v(x0) = cbar + c x x0 + gamma x0 = 0, i.e. (gamma I + [c]x) x0 = -cbar.

@@ -31,7 +31,11 @@ BSplineSurface InitialSurfaceByProjection(const Eigen::Matrix3Xd& points, int nu
 // by linear least squares over u proportional to height, with a small bending term (an initial model for the
 // joint fit).
 class KinematicSurface;
-KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& points_in_axis_frame, int num_control, int order);
+// `margin`: the generatrix reaches that fraction of the points' height range beyond them at each end (its
+// end spans then follow from the bending term), so that a small tilt of the axis in the joint fit does not
+// carry points past its ends.
+KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& points_in_axis_frame, int num_control, int order,
+                                   double margin = 0.0);
 
 // A helical surface about the z axis of the frame the points are given in, with the given pitch: every point
 // is screwed back onto the half-plane v = 0; its turn is chosen by cutting the heights z - pitch * theta,
@@ -77,5 +81,9 @@ struct KinematicAxis {
 // Throws std::invalid_argument for fewer than 8 points, mismatched sizes or normals spanning less than 3D.
 KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                                        KinematicKind kind);
+// The same with a non-negative weight per point in the sums of (26) (the IRLS step of the robust axis,
+// fitting/kinematic_starts.h); weight 0 leaves a point out.
+KinematicAxis KinematicAxisFromNormals(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
+                                       KinematicKind kind, const Eigen::VectorXd& weights);
 
 }  // namespace s2m

@@ -485,13 +485,7 @@ Eigen::Matrix3Xd Subsample(const Eigen::Matrix3Xd& y, int max_points) {
 
 // Candidate axis directions: a Fibonacci lattice on the upper hemisphere plus the principal axes of the data.
 std::vector<Eigen::Vector3d> CandidateDirections(const Eigen::Matrix3Xd& y, int samples) {
-  std::vector<Eigen::Vector3d> dirs;
-  const double golden = M_PI * (3.0 - std::sqrt(5.0));
-  for (int i = 0; i < samples; ++i) {
-    const double z = 1.0 - (i + 0.5) / samples;
-    const double r = std::sqrt(1.0 - z * z);
-    dirs.emplace_back(r * std::cos(golden * i), r * std::sin(golden * i), z);
-  }
+  std::vector<Eigen::Vector3d> dirs = FibonacciHemisphere(samples);
   const Eigen::Matrix3d cov = y * y.transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
   for (int k = 0; k < 3; ++k) dirs.push_back(eig.eigenvectors().col(k));

@@ -71,4 +71,15 @@ Eigen::Matrix3d FrameWithAxis(const Eigen::Vector3d& axis) {
   return frame;
 }
 
+std::vector<Eigen::Vector3d> FibonacciHemisphere(int samples) {
+  std::vector<Eigen::Vector3d> dirs;
+  const double golden = M_PI * (3.0 - std::sqrt(5.0));
+  for (int i = 0; i < samples; ++i) {
+    const double z = 1.0 - (i + 0.5) / samples;
+    const double r = std::sqrt(1.0 - z * z);
+    dirs.emplace_back(r * std::cos(golden * i), r * std::sin(golden * i), z);
+  }
+  return dirs;
+}
+
 }  // namespace s2m

@@ -2,6 +2,7 @@
 // Primitive surfaces with closed-form signed distances (outside positive).
 
 #include <Eigen/Core>
+#include <vector>
 
 namespace s2m {
 
@@ -61,5 +62,9 @@ void MoveAxisPointNear(Cone& cone, const Eigen::Vector3d& reference);
 
 // An orthonormal basis (e1, e2, axis) with the given unit axis as third column.
 Eigen::Matrix3d FrameWithAxis(const Eigen::Vector3d& axis);
+
+// `samples` unit directions of a Fibonacci lattice on the upper hemisphere (z > 0), about evenly spaced
+// (neighbours about sqrt(2 pi / samples) radians apart): candidate axis directions.
+std::vector<Eigen::Vector3d> FibonacciHemisphere(int samples);
 
 }  // namespace s2m

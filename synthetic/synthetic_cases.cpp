@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <random>
 #include <stdexcept>
 
@@ -568,6 +569,167 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
     throw std::invalid_argument("unknown synthetic case '" + name +
                                 "' (vase, helical, spiral, part, freeform)");
   }
+  return c;
+}
+
+namespace {
+
+// Gaussian noise along the normals, then the axis frame placed in the world: tilted by 35 degrees about
+// (1, 2, 0) and moved to (12, -7, 40).
+void PlaceCloud(KinematicCloud& c, const SurfaceSample& s, double noise, std::mt19937_64& rng) {
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  Eigen::Matrix3Xd p = s.points;
+  for (Eigen::Index j = 0; j < p.cols(); ++j) p.col(j) += noise * gauss(rng) * s.normals.col(j);
+  c.world_T_model =
+      RigidMotion(Eigen::AngleAxisd(35 * kDegree, Eigen::Vector3d(1, 2, 0).normalized()).toRotationMatrix(),
+                  Eigen::Vector3d(12, -7, 40));
+  c.points = c.world_T_model.apply(p);
+  c.axis_point = c.world_T_model.translation();
+  c.axis_direction = c.world_T_model.rotation().col(2);
+}
+
+}  // namespace
+
+KinematicCloud ShallowThreadCloud(double relief, double noise, int count, std::uint64_t seed) {
+  const double pitch = 4.0, lead = 2 * M_PI * pitch;
+  const int m = 12;
+  Eigen::Matrix2Xd profile(2, m);
+  for (int k = 0; k < m; ++k) {
+    const double z = -0.5 * lead + lead * k / (m - 1);
+    profile.col(k) << 28.0 + 0.5 * relief * std::cos(2 * M_PI * z / lead), z;
+  }
+  auto truth = std::make_unique<KinematicSurface>(
+      KinematicSurface::Helical(UnitSpacedClamped(4, m), profile, pitch, 3.5));
+  // Three turns of data, inside the model's 3.5 (a gauge shift must not push data off its ends).
+  const SurfaceSample s =
+      SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -3 * M_PI, 3 * M_PI, count, seed);
+  KinematicCloud c;
+  std::mt19937_64 rng(seed + 1);
+  PlaceCloud(c, s, noise, rng);
+  c.surface_points = c.points.cols();
+  c.pitch = pitch;
+  c.truth = std::move(truth);
+  return c;
+}
+
+KinematicCloud ConicalShellCloud(double ripple_amplitude, double noise, int count, std::uint64_t seed) {
+  const double growth = 0.05, period = 2 * M_PI * growth, slope = -60 * kDegree;
+  const int m = 10;
+  Eigen::Matrix2Xd profile(2, m);
+  for (int k = 0; k < m; ++k) {
+    const double t = static_cast<double>(k) / (m - 1);  // one whorl: sizes 20 to 20 e^{2 pi g}
+    const double size = 20.0 * std::exp(period * t), ripple = ripple_amplitude * std::sin(2 * M_PI * t);
+    profile.col(k) << size * std::cos(slope) - ripple * std::sin(slope),
+        size * std::sin(slope) + ripple * std::cos(slope);
+  }
+  auto truth = std::make_unique<SpiralSurface>(UnitSpacedClamped(4, m), profile, growth, -2.2 * 2 * M_PI,
+                                               2.2 * 2 * M_PI);
+  const SurfaceSample s =
+      SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -4 * M_PI, 4 * M_PI, count, seed);
+  KinematicCloud c;
+  std::mt19937_64 rng(seed + 1);
+  PlaceCloud(c, s, noise, rng);
+  c.surface_points = c.points.cols();
+  c.growth = growth;
+  c.truth = std::move(truth);
+  return c;
+}
+
+KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise, int count,
+                          std::uint64_t seed) {
+  if (!(arc_fraction > 0 && arc_fraction <= 1)) throw std::invalid_argument("an arc fraction in (0, 1]");
+  Eigen::Matrix2Xd vase(2, 8);
+  vase << 30, 42, 58, 66, 55, 38, 34, 41,  //
+      0, 20, 45, 70, 95, 120, 135, 150;
+  auto truth =
+      std::make_unique<KinematicSurface>(KinematicSurface::Revolution(UnitSpacedClamped(4, 8), vase));
+  const double span = arc_fraction * 2 * M_PI, thickness = 6.0;
+  const double u0 = 1.0, u1 = 3.4;  // profile parameter (heights about 30 to 110 mm)
+  // The side breaks slant: theta from side_lo(u) to side_hi(u).
+  auto side_lo = [&](double u) { return 0.08 * span * (u - u0) / (u1 - u0); };
+  auto side_hi = [&](double u) { return span - 0.06 * span * (u1 - u) / (u1 - u0); };
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<Eigen::Vector3d> pts, nrm;
+  LocalGeometry g;
+  auto outward = [&](const LocalGeometry& geo) {
+    Eigen::Vector3d n = To3(geo.d1.col(0)).cross(To3(geo.d1.col(1))).normalized();
+    if (n.x() * geo.point.x() + n.y() * geo.point.y() < 0) n = -n;
+    return n;
+  };
+  while (static_cast<int>(pts.size()) < count) {
+    const double u = u0 + (u1 - u0) * uniform(rng), v = span * uniform(rng);
+    if (v < side_lo(u) || v > side_hi(u)) continue;
+    truth->Evaluate({u, v, 0.0}, 1, g);
+    pts.push_back(To3(g.point));
+    nrm.push_back(outward(g));
+  }
+  const auto on_surface = static_cast<Eigen::Index>(pts.size());
+  if (fracture_faces) {
+    // Points on the breaks: along the outline (arc length measured on the surface), then inwards along the
+    // surface normal by up to the wall's thickness; the face's normal is across the outline and the
+    // surface normal. As dense per area as the surface: estimate the surface's area by its samples' cells.
+    struct Edge {
+      std::function<ParamT(double)> at;  // t in [0, 1] along the edge
+    };
+    const std::vector<Edge> edges = {{[&](double t) {
+                                       return ParamT{u0, side_lo(u0) + t * (side_hi(u0) - side_lo(u0)), 0.0};
+                                     }},
+                                     {[&](double t) {
+                                       return ParamT{u1, side_lo(u1) + t * (side_hi(u1) - side_lo(u1)), 0.0};
+                                     }},
+                                     {[&](double t) {
+                                       return ParamT{u0 + t * (u1 - u0), side_lo(u0 + t * (u1 - u0)), 0.0};
+                                     }},
+                                     {[&](double t) {
+                                       return ParamT{u0 + t * (u1 - u0), side_hi(u0 + t * (u1 - u0)), 0.0};
+                                     }}};
+    // Lengths of the edges and the area of the surface (a grid sum of |S_u x S_v|).
+    std::vector<double> lengths;
+    for (const Edge& e : edges) {
+      double len = 0.0;
+      Eigen::Vector3d prev;
+      for (int i = 0; i <= 200; ++i) {
+        truth->Evaluate(e.at(i / 200.0), 0, g);
+        if (i > 0) len += (To3(g.point) - prev).norm();
+        prev = To3(g.point);
+      }
+      lengths.push_back(len);
+    }
+    double area = 0.0;
+    for (int i = 0; i < 100; ++i) {
+      const double u = u0 + (u1 - u0) * (i + 0.5) / 100;
+      truth->Evaluate({u, 0.5 * span, 0.0}, 1, g);
+      const double width = side_hi(u) - side_lo(u);
+      area += To3(g.d1.col(0)).cross(To3(g.d1.col(1))).norm() * width * (u1 - u0) / 100;
+    }
+    const double total_length = std::accumulate(lengths.begin(), lengths.end(), 0.0);
+    const auto fracture_count = static_cast<int>(count * total_length * thickness / area);
+    std::discrete_distribution<int> pick(lengths.begin(), lengths.end());
+    for (int i = 0; i < fracture_count; ++i) {
+      const Edge& e = edges[static_cast<std::size_t>(pick(rng))];
+      const double t = uniform(rng), h = 1e-4;
+      truth->Evaluate(e.at(t), 1, g);
+      const Eigen::Vector3d n = outward(g), p = To3(g.point);
+      truth->Evaluate(e.at(std::min(t + h, 1.0)), 0, g);
+      const Eigen::Vector3d ahead = To3(g.point);
+      truth->Evaluate(e.at(std::max(t - h, 0.0)), 0, g);
+      const Eigen::Vector3d tangent = (ahead - To3(g.point)).normalized();
+      pts.push_back(p - thickness * uniform(rng) * n);
+      nrm.push_back(tangent.cross(n).normalized());
+    }
+  }
+  SurfaceSample s{Eigen::Matrix3Xd(3, static_cast<Eigen::Index>(pts.size())),
+                  Eigen::Matrix3Xd(3, static_cast<Eigen::Index>(pts.size()))};
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    s.points.col(static_cast<Eigen::Index>(i)) = pts[i];
+    s.normals.col(static_cast<Eigen::Index>(i)) = nrm[i];
+  }
+  KinematicCloud c;
+  std::mt19937_64 noise_rng(seed + 1);
+  PlaceCloud(c, s, noise, noise_rng);
+  c.surface_points = on_surface;
+  c.truth = std::move(truth);
   return c;
 }
 

@@ -97,6 +97,36 @@ std::vector<Motion6> ObservablePoseErrors(const ParametricModel& model,
                                           const std::vector<RigidMotion>& fitted,
                                           const std::vector<RigidMotion>& truth);
 
+// A single cloud of a kinematic surface with known axis (docs/method.md section 19): points with Gaussian
+// noise along the surface normal, placed in a world frame where the axis is tilted and off the origin.
+struct KinematicCloud {
+  Eigen::Matrix3Xd points;  // world; the first `surface_points` on the surface, the rest on fracture faces
+  Eigen::Index surface_points = 0;
+  Eigen::Vector3d axis_point = Eigen::Vector3d::Zero();  // truth, world (a spiral's centre)
+  Eigen::Vector3d axis_direction = Eigen::Vector3d::UnitZ();
+  double pitch = 0.0;                      // truth (helical)
+  double growth = 0.0;                     // truth (spiral)
+  std::unique_ptr<ParametricModel> truth;  // in the axis frame
+  RigidMotion world_T_model;
+};
+
+// A shallow thread: a helical surface of radius 28 mm whose generatrix rises and falls by 0.4 mm over one
+// lead (pitch 4 mm/rad, lead 25.1 mm), three turns, seen all round: its normals are nearly radial, so the
+// axis from normals (26) determines the axis well and the pitch poorly.
+KinematicCloud ShallowThreadCloud(double relief, double noise, int count, std::uint64_t seed);
+
+// A conical shell: a spiral surface (growth 0.05/rad) whose generatrix is a ray from the centre at 60
+// degrees below the horizontal with a shallow ripple of 0.3 mm over one whorl, four whorls: the cone is
+// invariant under every spiral motion about its apex, so (26) hardly determines the growth.
+KinematicCloud ConicalShellCloud(double ripple, double noise, int count, std::uint64_t seed);
+
+// A sherd: `arc_fraction` of the circumference of the demo vase's surface of revolution (150 mm tall,
+// radius 30-66 mm) between heights of about 30 and 110 mm, one surface (the outside), its side breaks
+// slanted; with `fracture_faces`, points also on the breaks of a 6 mm thick wall (planar-ish faces
+// perpendicular to the surface along the sherd's outline, as dense as the surface).
+KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise, int count,
+                          std::uint64_t seed);
+
 // The bumpy 100 x 100 mm free-form patch of the registration benchmark (bench/compare.cpp, section 1) and of
 // the foot point and squared distance field tests: a bicubic B-spline (clamped, unit-spaced knots) with
 // 10 x 10 control points over [-50, 50]^2 at heights
