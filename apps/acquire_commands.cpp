@@ -56,7 +56,7 @@ FrameProgress ProgressBar(const std::string& what, bool quiet) {
 }
 
 std::unique_ptr<FrameSource> OpenSource(const std::string& device, const std::vector<std::string>& inputs,
-                                        bool original_timing) {
+                                        bool original_timing, double max_gap_s = 60.0) {
   if (!device.empty()) {
     if (!inputs.empty()) throw std::invalid_argument("give either --device or input files, not both");
 #ifdef S2M_HAVE_VIRTUAL_SCANNER
@@ -71,6 +71,7 @@ std::unique_ptr<FrameSource> OpenSource(const std::string& device, const std::ve
   std::vector<fs::path> paths(inputs.begin(), inputs.end());
   ReplayOptions replay;
   replay.original_timing = original_timing;
+  replay.max_gap_s = max_gap_s;
   return OpenFrameSource(paths, replay);
 }
 
@@ -81,6 +82,7 @@ Runner AddRecordCommand(CLI::App& app) {
     std::string device, out;
     std::vector<std::string> inputs;
     bool original_timing = false, quiet = false, compress = false;
+    double max_gap_s = 60.0;
   };
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
@@ -95,18 +97,34 @@ Runner AddRecordCommand(CLI::App& app) {
       ->required();
   cmd->add_flag("--original-timing", options->original_timing,
                 "Replaying a recording: deliver its frames with their original timing");
+  cmd->add_option("--max-gap", options->max_gap_s,
+                  "With --original-timing: a gap between frames' timestamps longer than this (seconds), or a "
+                  "timestamp going back, is a clock jump: that frame comes at once and the timing restarts")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_flag("--compress", options->compress,
                 "Store each frame zlib-compressed (depth images shrink several-fold)");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");
   return [options]() {
     try {
       std::unique_ptr<FrameSource> source =
-          OpenSource(options->device, options->inputs, options->original_timing);
+          OpenSource(options->device, options->inputs, options->original_timing, options->max_gap_s);
       const std::int64_t frames =
           RecordSource(*source, options->out, ProgressBar("recording", options->quiet),
                        options->compress ? kZlibCompression : kNoCompression);
       const RecordingSummary s = RecordingReader::Open(options->out).Summary();
       std::cout << options->out << ": " << frames << " frames\n";
+      const FrameSource::TimingReport timing = source->timing_report();
+      if (timing.recording_clock_jumps > 0) {
+        std::cout << "  replay: " << timing.recording_clock_jumps
+                  << " clock jump(s) in the input's timestamps (back, or forward by more than --max-gap "
+                  << options->max_gap_s << " s): those frames came at once and the timing restarted there\n";
+      }
+      if (timing.replay_late_restarts > 0) {
+        std::cout << "  replay: fell behind the original timing by more than --max-gap "
+                  << timing.replay_late_restarts << " time(s) (the clock jumped or reading stalled): the "
+                  << "timing restarted there instead of delivering the frames after it in a burst\n";
+      }
       for (std::size_t k = 0; k < s.streams.size(); ++k) {
         std::cout << "  stream '" << s.streams[k].name << "' (" << s.streams[k].kind << ", "
                   << s.streams[k].units << "): " << s.frames_per_stream[k] << " frames, "
