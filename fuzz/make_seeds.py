@@ -144,6 +144,18 @@ def main():
                              "platform_T_camera": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 300], [0, 0, 0, 1]]}}
     write("horus_calibration", "calibration.json", json.dumps(calibration, indent=1))
 
+    # e57_fuzz: the hand-made E57 files of the tests (tests/data/e57/make_e57_files.py builds them byte by byte):
+    # spherical and cartesian scans, every field kind, data, empty and index packets, plus a four-point file that
+    # mutates fast.
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        "make_e57_files", os.path.join(HERE, "..", "tests", "data", "e57", "make_e57_files.py"))
+    e57 = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(e57)
+    write("e57", "spherical_grid.e57", e57.e57_file(e57.spherical_grid))
+    write("e57", "cartesian_mixed.e57", e57.e57_file(e57.cartesian_mixed))
+    write("e57", "tiny.e57", e57.e57_file(e57.with_points()))
+
 
 def gzip_bytes(data):
     import gzip

@@ -33,6 +33,9 @@ done
 cmake --build "$build" -j"$(nproc)" --target $(for t in $targets; do printf '%s_fuzz ' "$t"; done) >/dev/null
 
 found=0
+# The targets write every input to a scratch file (fuzz/fuzz_input.h): in memory where the system has it, since
+# rewriting a file on a disk mounted with `discard` costs milliseconds each (measured 3.6 ms against 0.03 ms).
+if [ -z "${TMPDIR:-}" ] && [ -d /dev/shm ] && [ -w /dev/shm ]; then export TMPDIR=/dev/shm; fi
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=0}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 for t in $targets; do
