@@ -114,7 +114,8 @@ int DescribeE57(const std::string& file, bool json) {
   }
   const Bounds b = ComputeBounds(cloud.points);
   std::cout << file << "\n"
-            << "  format    e57 (" << data.scans.size() << " scans, " << data.images << " images"
+            << "  format    e57 (" << data.scans.size() << (data.scans.size() == 1 ? " scan, " : " scans, ")
+            << data.images << (data.images == 1 ? " image" : " images")
             << (data.library_version.empty() ? "" : ", written by " + data.library_version) << ")\n"
             << "  points    " << cloud.size() << " (all scans in the file's world frame)\n"
             << "  units     " << cloud.units << "\n"

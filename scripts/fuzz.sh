@@ -25,7 +25,7 @@ fi
 
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
   -DS2M_FUZZ=ON -DS2M_SANITIZE=address,undefined -DS2M_BUILD_TESTS=OFF -DS2M_BUILD_BENCH=OFF >/dev/null
-all_targets=$(sed -n 's/^ *s2m_add_fuzz_target(\([a-z_]*\) .*/\1/p' "$root/fuzz/CMakeLists.txt")
+all_targets=$(sed -n 's/^ *s2m_add_fuzz_target(\([a-z0-9_]*\) .*/\1/p' "$root/fuzz/CMakeLists.txt")
 if [ "$target" = all ]; then targets=$all_targets; else targets=$target; fi
 for t in $targets; do
   grep -qx "$t" <<<"$all_targets" || { echo "[fuzz] unknown target '$t' (targets: $(echo $all_targets))" >&2; exit 2; }

@@ -541,6 +541,15 @@ TEST_F(E57Io, CommandExportsAndBatchesE57Files) {
   const E57Data back = ReadE57(dir_ / "again.e57");
   ASSERT_EQ(back.scans.size(), 2u);
   EXPECT_EQ(back.scans[1].scan.points, scans[1].scan.points);
+  // record: the scans as frames of a recording, one view each, with their poses.
+  const test::ShellResult rec =
+      RunCli("record -q " + (dir_ / "ball.e57").string() + " -o " + (dir_ / "ball.s2mrec").string(), true);
+  ASSERT_EQ(rec.exit_code, 0) << rec.out;
+  const nlohmann::json recorded =
+      nlohmann::json::parse(RunCli("info --json " + (dir_ / "ball.s2mrec").string()).out);
+  EXPECT_EQ(recorded["views"], 2);
+  EXPECT_EQ(recorded["points"], 3000);
+  EXPECT_EQ(recorded["posed_frames"], 2);
   // batch: a manifest entry naming an E57 file.
   std::ofstream(dir_ / "objects.csv") << "id,input,model\nball,ball.e57,sphere\n";
   const test::ShellResult batch =
