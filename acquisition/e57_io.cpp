@@ -345,6 +345,15 @@ E57Scan ReadScan(e57::PagedReader& reader, const XmlContext& x, const pugi::xml_
                               : Eigen::Vector3d(c[*red][r], c[*green][r], c[*blue][r]);
     }
     if (grid) {
+      // Integer fields in valid files; a Float field could hold anything, so the conversion is checked.
+      for (const std::size_t f : {*row, *column}) {
+        const double v = c[f][r];
+        if (!(std::abs(v) < 9.2e18) || v != std::floor(v)) {
+          throw FormatError(
+              x.file, where,
+              "record " + std::to_string(r) + ": " + fields[f].name + " is not an integer index");
+        }
+      }
       out.row_index.push_back(static_cast<std::int64_t>(c[*row][r]));
       out.column_index.push_back(static_cast<std::int64_t>(c[*column][r]));
     }
@@ -462,8 +471,12 @@ FieldColumn MakeColumn(const char* name, const std::vector<double>& values, cons
   FieldColumn f{name, {}, {}};
   if (!scaled_integer) {
     f.codec.type = single ? e57::FieldType::kFloat32 : e57::FieldType::kFloat64;
-    for (std::size_t i = 0; i < values.size(); ++i)
-      f.bits.Put(e57::EncodeFloat(f.codec, written[i] ? values[i] : 0.0), f.codec.BitWidth());
+    for (std::size_t i = 0; i < values.size(); ++i) {
+      const double v = written[i] ? values[i] : 0.0;
+      if (single && !(std::abs(v) <= std::numeric_limits<float>::max()))
+        throw FormatError(file, "", std::string(name) + " " + NumberText(v) + " is beyond single precision");
+      f.bits.Put(e57::EncodeFloat(f.codec, v), f.codec.BitWidth());
+    }
     return f;
   }
   f.codec.type = e57::FieldType::kScaledInteger;
