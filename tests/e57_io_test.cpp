@@ -533,6 +533,34 @@ TEST_F(E57Io, CommandFitsASphereFromAnE57FileWithTwoPosedScans) {
   EXPECT_EQ(i["points"], 3000);
 }
 
+// The demo vase's four views (mm) exported to one E57 file (metres) and fitted jointly from there: the scans
+// are the views and their poses the starting poses, so the fit is the one of the manifest, scaled to metres.
+// Both fits normalize the data into the unit box, so they agree to rounding (1e-6 relative after 3
+// iterations).
+TEST_F(E57Io, CommandFitsAJointModelToTheScansOfAnE57File) {
+  const std::string manifest = std::string(S2M_SOURCE_DIR) + "/recordings/demo_vase/views.json";
+  const test::ShellResult out = RunCli("export -q " + manifest + " -o " + (dir_ / "vase.e57").string(), true);
+  ASSERT_EQ(out.exit_code, 0) << out.out;
+  const std::string options = " --json --model revolution --control-points 8 --max-iterations 3";
+  const test::ShellResult a = RunCli("fit" + options + " " + manifest);
+  const test::ShellResult b = RunCli("fit" + options + " " + (dir_ / "vase.e57").string());
+  ASSERT_EQ(a.exit_code, 0) << a.out;
+  ASSERT_EQ(b.exit_code, 0) << b.out;
+  const nlohmann::json ja = nlohmann::json::parse(a.out), jb = nlohmann::json::parse(b.out);
+  EXPECT_EQ(jb["input"]["views"], 4);
+  EXPECT_EQ(jb["input"]["units"], "m");
+  EXPECT_EQ(jb["input"]["points"], ja["input"]["points"]);
+  const double rms_mm = ja["residuals"]["rms"].get<double>(), rms_m = jb["residuals"]["rms"].get<double>();
+  EXPECT_NEAR(rms_m, rms_mm * 1e-3, 1e-6 * rms_mm * 1e-3);
+  for (std::size_t k = 0; k < 4; ++k) {
+    for (int r = 0; r < 3; ++r) {
+      EXPECT_NEAR(jb["views"][k]["world_T_scan"][r][3].get<double>(),
+                  ja["views"][k]["world_T_scan"][r][3].get<double>() * 1e-3, 1e-6)
+          << "view " << k;
+    }
+  }
+}
+
 TEST_F(E57Io, CommandExportsAndBatchesE57Files) {
   WriteE57(dir_ / "ball.e57", SphereScans());
   // export: the scans as views with their poses, and back to an E57 file.
