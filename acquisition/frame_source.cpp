@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "acquisition/e57_io.h"
 #include "acquisition/format_error.h"
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
@@ -376,6 +377,8 @@ std::unique_ptr<FrameSource> OpenFileSource(const std::vector<fs::path>& files) 
   ScanSet set;
   if (ext == ".json" || ext == ".conf") {
     set = ReadScanSet(file);
+  } else if (IsE57File(file)) {
+    set = ReadE57ScanSet(file);  // each data3D scan a view, with its pose
   } else {
     set.scans.push_back(ReadPointCloud(file));  // one view in world coordinates
     set.name = file.stem().string();

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "acquisition/e57_io.h"
 #include "acquisition/format_error.h"
 #include "acquisition/frame_source.h"
 #include "acquisition/recording.h"
@@ -88,8 +89,8 @@ Runner AddRecordCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "record", "Record a device's frames (the virtual scanner) or input files into a recording (.s2mrec)");
   cmd->add_option("inputs", options->inputs,
-                  "Instead of --device: a views manifest (.json), Stanford .conf, point cloud, recording, or "
-                  "Kinect depth frames (frame_<time>_depth.tiff beside frame_<time>.xml)");
+                  "Instead of --device: a views manifest (.json), Stanford .conf, E57 file, point cloud, "
+                  "recording, or Kinect depth frames (frame_<time>_depth.tiff beside frame_<time>.xml)");
   cmd->add_option("--device", options->device,
                   "virtual:<vase|helical|spiral|part|mesh.ply>[,key=value...] (docs/acquisition.md)");
   cmd->add_option("-o,--output,--out", options->out,
@@ -156,15 +157,17 @@ Runner AddExportCommand(CLI::App& app) {
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
       "export",
-      "Write a recording's (or any input's) views as one PLY per view plus a scan2model.views/1 manifest");
+      "Write a recording's (or any input's) views as one PLY per view plus a scan2model.views/1 manifest, or "
+      "as one E57 file");
   cmd->add_option(
          "inputs", options->inputs,
-         "A recording (.s2mrec), views manifest (.json), Stanford .conf, point cloud, or Kinect depth "
-         "frames")
+         "A recording (.s2mrec), views manifest (.json), Stanford .conf, E57 file, point cloud, or Kinect "
+         "depth frames")
       ->required();
-  cmd->add_option("-o,--output,--out", options->out,
-                  "Output folder (created; views.json and view_NNN.ply inside) (--out: the old spelling, an "
-                  "alias for one release)")
+  cmd->add_option(
+         "-o,--output,--out", options->out,
+         "Output folder (created; views.json and view_NNN.ply inside), or an .e57 file (every view a "
+         "scan with its pose, in metres) (--out: the old spelling, an alias for one release)")
       ->required();
   cmd->add_option("--view", options->views, "Only these views (the recording's view numbers); repeatable");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");
@@ -269,6 +272,15 @@ Runner AddExportCommand(CLI::App& app) {
         }
       }
 #endif
+      if (IsE57File(options->out)) {
+        // One E57 file: every view a data3D scan with its pose, coordinates as float64 in metres.
+        if (fs::path(options->out).has_parent_path())
+          fs::create_directories(fs::path(options->out).parent_path());
+        WriteE57(options->out, set);
+        std::cout << options->out << ": " << set.scans.size() << " views, " << set.TotalPoints()
+                  << " points (E57, metres)\n";
+        return int{kOk};
+      }
       fs::create_directories(options->out);
       const fs::path manifest = fs::path(options->out) / "views.json";
       WriteScanSet(manifest, set);
