@@ -53,6 +53,7 @@ void Run(const fs::path& dir, const char* prefix, ErrorTerm method, Fit fit_fn, 
 
 struct FormSummary {
   double min_ratio = 1e300, max_ratio = 0;  // minimum zone / least-squares zone
+  int interpolated = 0;  // sets whose zones are at the rounding level (as many points as parameters)
   int iterations = 0, max_iterations = 0, sets = 0, converged = 0;
   std::size_t min_contacts = 1000, max_contacts = 0;
   double lsq_seconds = 0, zone_seconds = 0;
@@ -70,9 +71,13 @@ void RunForm(const fs::path& dir, const char* prefix, Fit fit_fn, FormSummary& s
     s.lsq_seconds += std::chrono::duration<double>(t1 - t0).count();
     s.zone_seconds += std::chrono::duration<double>(t2 - t1).count();
     const double lsq = ZoneAbout(scan.points, fit.shape).zone_width;
-    const double ratio = lsq > 0 ? zone.zone_width / lsq : 1.0;
-    s.min_ratio = std::min(s.min_ratio, ratio);
-    s.max_ratio = std::max(s.max_ratio, ratio);
+    if (lsq > 1e-12 * ComputeBounds(scan.points).diagonal()) {
+      const double ratio = zone.zone_width / lsq;
+      s.min_ratio = std::min(s.min_ratio, ratio);
+      s.max_ratio = std::max(s.max_ratio, ratio);
+    } else {
+      ++s.interpolated;  // both zones are rounding noise: no ratio
+    }
     s.iterations += zone.iterations;
     s.max_iterations = std::max(s.max_iterations, zone.iterations);
     s.min_contacts = std::min(s.min_contacts, zone.contacts.size());
@@ -116,10 +121,10 @@ int main(int argc, char** argv) {
                   static_cast<double>(s.iterations) / s.sets, s.max_iterations, s.seconds * 1e3);
     }
   }
-  std::cout << "\n| form error | minimum zone / least-squares zone (min - max) | converged | mean / max "
-               "iterations | "
-               "contacts | least-squares fits (ms) | minimum-zone fits (ms) |\n"
-            << "|---|---|---|---|---|---|---|\n";
+  std::cout
+      << "\n| form error | minimum zone / least-squares zone, min - max (sets at the rounding level) | "
+         "converged | mean / max iterations | contacts | least-squares fits (ms) | minimum-zone fits (ms) |\n"
+      << "|---|---|---|---|---|---|---|\n";
   FormSummary flatness, sphericity, cylindricity, conicity;
   RunForm(
       root / "Plane", "pla", [](auto& p, auto o) { return FitPlane(p, o); }, flatness);
@@ -133,9 +138,10 @@ int main(int argc, char** argv) {
                                 {"sphericity", sphericity},
                                 {"cylindricity", cylindricity},
                                 {"conicity", conicity}}) {
-    std::printf("| %s | %.3f - %.3f | %d / %d | %.1f / %d | %zu - %zu | %.1f | %.1f |\n", name, s.min_ratio,
-                s.max_ratio, s.converged, s.sets, static_cast<double>(s.iterations) / s.sets,
-                s.max_iterations, s.min_contacts, s.max_contacts, s.lsq_seconds * 1e3, s.zone_seconds * 1e3);
+    std::printf("| %s | %.3f - %.3f (%d) | %d / %d | %.1f / %d | %zu - %zu | %.1f | %.1f |\n", name,
+                s.min_ratio, s.max_ratio, s.interpolated, s.converged, s.sets,
+                static_cast<double>(s.iterations) / s.sets, s.max_iterations, s.min_contacts, s.max_contacts,
+                s.lsq_seconds * 1e3, s.zone_seconds * 1e3);
   }
   return 0;
 }
