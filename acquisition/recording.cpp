@@ -1,6 +1,7 @@
 #include "acquisition/recording.h"
 
 #include <sqlite3.h>
+#include <unistd.h>
 #include <zlib.h>
 
 #include <array>
@@ -49,7 +50,7 @@ std::string SqliteProblem(sqlite3* db) {
   std::string text = sqlite3_errmsg(db);
   const int system_error = sqlite3_system_errno(db);
   const int extended = sqlite3_extended_errcode(db);
-  if (system_error != 0 && (extended & 0xff) == SQLITE_IOERR) {
+  if (system_error != 0 && ((extended & 0xff) == SQLITE_IOERR || (extended & 0xff) == SQLITE_CANTOPEN)) {
     text += " (" + std::string(std::strerror(system_error)) + ")";
   } else if (extended == SQLITE_IOERR_WRITE || extended == SQLITE_IOERR_FSYNC || extended == SQLITE_FULL) {
     text += " (writing failed: the disk is full, a file-size limit was reached or the device is gone)";
@@ -174,6 +175,14 @@ RecordingWriter RecordingWriter::Create(const fs::path& path) {
   db->file = file;
   if (sqlite3_open_v2(file.c_str(), &db->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr) !=
       SQLITE_OK) {
+    // SQLite's own errno is that of its last attempt (a read-only open: "No such file"); the folder says why.
+    const fs::path folder = path.has_parent_path() ? path.parent_path() : fs::path(".");
+    if (::access(folder.c_str(), W_OK | X_OK) != 0) {
+      const int error = errno;
+      throw FormatError(file, "",
+                        "cannot create the recording: the folder " + folder.string() + " is not writable (" +
+                            std::strerror(error) + ")");
+    }
     db->Fail("cannot create the recording");
   }
   // WAL: a commit appends the frame to the log, the database file is untouched until a checkpoint, so a

@@ -466,9 +466,10 @@ FitOutcome ComputeFit(const FitOptions& o) {
     }
     if (!options.units.empty()) scan.units = options.units;
     ResolveDefaultLoss(options, ClassifyInput(options.file, scan.metadata.device));
-    if (options.robust) return ComputeRobustPrimitiveFit(options, scan, f);
     FitOutcome outcome;
-    if (options.model == "plane") {
+    if (options.robust) {
+      outcome = ComputeRobustPrimitiveFit(options, scan, f);
+    } else if (options.model == "plane") {
       outcome = ComputePrimitiveFit<Plane>(options, scan, f,
                                            [](const auto& p, const auto& opt) { return FitPlane(p, opt); });
     } else if (options.model == "sphere") {
@@ -491,6 +492,8 @@ FitOutcome ComputeFit(const FitOptions& o) {
                                           [](const auto& p, const auto& opt) { return FitCone(p, opt); });
     }
     outcome.notes = scan.metadata.notes;
+    if (!options.output.empty())
+      WriteTextAtomically(options.output + ".json", outcome.document.dump(2) + "\n");
     return outcome;
   } catch (const FormatError& e) {
     throw FitFailure(kInputError, e.what());

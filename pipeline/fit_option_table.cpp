@@ -177,8 +177,7 @@ std::vector<FitOptionSpec> MakeTable() {
        "--output,-o",
        K::kText,
        "",
-       "Splines: write PREFIX.json (control points, knots), PREFIX.ply (samples), PREFIX_history.csv; "
-       "multi-view fits: PREFIX.json",
+       "Write PREFIX.json (the --json document); splines also PREFIX.ply (samples) and PREFIX_history.csv",
        {},
        false,
        -1e300,
