@@ -103,7 +103,7 @@ void SphereOnStand() {
     const nlohmann::json& p = r.doc["parameters"];
     const Eigen::Vector3d c(p["center"][0].get<double>(), p["center"][1].get<double>(),
                             p["center"][2].get<double>());
-    return Text("radius error %.3f mm, centre %.3f mm off; %s", std::abs(p["radius"].get<double>() - 25.0),
+    return Text("radius error %.3f mm, centre %.3f mm off; ", std::abs(p["radius"].get<double>() - 25.0),
                 (c - scene.truth.center).norm()) +
            Verdict(r.doc);
   };

@@ -126,6 +126,9 @@ TEST(KinematicStartCommand, SherdAxesWithoutHandTuning) {
       // The covered turn (eq. 79): an arc straddles up to two partly covered 5-degree sectors, each counted
       // whole, and the slanted side breaks reach a little beyond the surface's arc.
       EXPECT_NEAR(doc["start"]["turn_fraction"].get<double>(), fraction, 2.0 / 72);
+      // The bending weight per whole turn (the default 0.001) times the square of the covered turn.
+      const double turn = doc["start"]["turn_fraction"].get<double>();
+      EXPECT_NEAR(doc["start"]["fairness"]["bending"].get<double>(), 1e-3 * turn * turn, 1e-15);
       std::filesystem::remove(file);
     }
   }
