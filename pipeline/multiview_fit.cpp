@@ -72,6 +72,7 @@ struct StartReport {
   double normals_final_objective = std::numeric_limits<double>::quiet_NaN();
   double searched_final_objective = std::numeric_limits<double>::quiet_NaN();
   Eigen::Index left_out = 0;
+  std::vector<std::vector<bool>> left_out_masks;  // of the reported fit, per view (empty: none)
   double search_seconds = 0.0;
   double turn = 1.0;
   FairnessWeights fairness;
@@ -340,6 +341,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
         }
         report.left_out = 0;
         for (const auto& mask : masks) report.left_out += std::count(mask.begin(), mask.end(), true);
+        report.left_out_masks = masks;
         // The normals' whole search stands against the searched start's (eq. 78 over all points, at one
         // scale): the global search must not lose what the normals' start had.
         if (from_normals) {
@@ -352,6 +354,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
             fitted = std::move(*from_normals);
             report.kept_normals = true;
             report.left_out = 0;
+            report.left_out_masks.clear();
           }
         }
       }
@@ -457,23 +460,41 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     // Adequacy (docs/method.md section 17): the RMS against the views' own noise, and the signed residuals'
     // structure, for a surface of revolution along the height (the generatrix's parameter up to its
     // direction), for helical and spiral surfaces along a Hilbert curve through the registered points.
+    // The points left out as off the surface (eq. 77) are not the fit's residuals: the verdict is over the
+    // others.
+    Eigen::VectorXd judged = deviations;
+    Eigen::Matrix3Xd judged_feet = feet;
+    if (!report.left_out_masks.empty()) {
+      std::vector<Eigen::Index> kept;
+      Eigen::Index at = 0;
+      for (std::size_t k = 0; k < K; ++k)
+        for (Eigen::Index p = 0; p < scans[k].cols(); ++p, ++at)
+          if (!report.left_out_masks[k][static_cast<std::size_t>(p)]) kept.push_back(at);
+      judged.resize(static_cast<Eigen::Index>(kept.size()));
+      judged_feet.resize(3, judged.size());
+      for (std::size_t i = 0; i < kept.size(); ++i) {
+        judged[static_cast<Eigen::Index>(i)] = deviations[kept[i]];
+        judged_feet.col(static_cast<Eigen::Index>(i)) = feet.col(kept[i]);
+      }
+    }
     AdequacyEvidence evidence;
     evidence.family = ModelFamily::kMultiView;
     evidence.model = o.model;
     evidence.control_points = std::to_string(profile.cols());
     evidence.fit_rms = r.residuals.rms;
     evidence.noise_estimate = noise.sigma;
-    evidence.residuals = deviations;
-    evidence.points = feet;
+    evidence.residuals = judged;
+    evidence.points = judged_feet;
     if (o.model == "revolution") {
-      evidence.order = OrderByParameter(feet.row(2).transpose());
+      evidence.order = OrderByParameter(judged_feet.row(2).transpose());
       evidence.order_description = "the height along the axis";
     }
-    evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, deviations);
+    evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, judged);
     evidence.extent = ComputeBounds(registered).diagonal();
     const Adequacy adequacy = AssessAdequacy(evidence);
     const std::optional<bool> trusted = adequacy.uncertainty_trusted();
-    j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations, {}, evidence.weights);
+    j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations, {},
+                                     RobustWeightsAt(o.loss, r.loss_scale, deviations));
     j["complexity"] = ComplexityJson(complexity, complexity_options);
     j["adequacy"] = adequacy.ToJson();
     std::optional<VesselMeasures> vessel;

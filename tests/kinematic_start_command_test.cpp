@@ -121,6 +121,8 @@ TEST(KinematicStartCommand, SherdAxesWithoutHandTuning) {
           static_cast<long long>(c.points.cols() - c.surface_points),
           doc["start"]["turn_fraction"].get<double>(), doc["start"]["fairness"]["bending"].get<double>(),
           doc["complexity"]["chosen"].get<std::string>().c_str(), doc["residuals"]["rms"].get<double>());
+      // The verdict is over the points on the surface: the breaks' points left out are not residuals.
+      EXPECT_TRUE(doc["adequacy"]["adequate"].get<bool>()) << doc["adequacy"].dump();
       EXPECT_LT(angle, 0.5) << fraction << (breaks ? " with breaks" : "");
       EXPECT_LT(distance, 0.3) << fraction << (breaks ? " with breaks" : "");
       // The covered turn (eq. 79): an arc straddles up to two partly covered 5-degree sectors, each counted
