@@ -216,8 +216,8 @@ void BSplineCurve::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Jaco
 Eigen::MatrixXd BSplineCurve::FairnessMatrix(const FairnessWeights& w) const {
   if (w.stretch == 0.0 && w.bending == 0.0) return {};
   Eigen::MatrixXd k = Eigen::MatrixXd::Zero(basis_.num_control(), basis_.num_control());
-  // F_1 = integral |C'|^2 = P^T (G1 (x) I) P and F_2 likewise (docs/method.md section 3; Wang et al. 2006, section
-  // 5).
+  // F_1 = integral |C'|^2 = P^T (G1 (x) I) P and F_2 likewise (docs/method.md section 3; Wang et al. 2006,
+  // section 5).
   if (w.stretch != 0.0) k += w.stretch * Gram(basis_, 1);
   if (w.bending != 0.0 && basis_.order() > 2) k += w.bending * Gram(basis_, 2);
   return KroneckerIdentity(k, ambient_dimension());
@@ -620,6 +620,25 @@ std::vector<ParamT> Ellipse3D::SampleParameters() const {
   std::vector<ParamT> out;
   for (int i = 0; i < 256; ++i) out.push_back({2.0 * M_PI * i / 256, 0.0});
   return out;
+}
+
+bool Ellipse3D::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
+  double distance;
+  bool on_boundary, ambiguous;
+  return ClosedFormFoot(x, t, distance, on_boundary, ambiguous);
+}
+
+bool Ellipse3D::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                               bool& ambiguous) const {
+  if (!circle_) return false;
+  const Eigen::Vector3d q = rotation_.transpose() * (Eigen::Vector3d(x) - center_);
+  const double rho = std::sqrt(q.x() * q.x() + q.y() * q.y());
+  t = {std::atan2(q.y(), q.x()), 0.0, 0.0};
+  t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi)
+  distance = std::hypot(q.z(), rho - a_);
+  on_boundary = false;  // closed curve
+  ambiguous = rho == 0;
+  return true;
 }
 
 }  // namespace s2m

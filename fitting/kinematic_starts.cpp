@@ -660,7 +660,7 @@ double AllPointsObjective(const Eigen::Ref<const Eigen::VectorXd>& distances, do
   const double cap = c * c / 3.0;  // rho beyond c (eq. 44)
   double sum = 0.0;
   for (Eigen::Index j = 0; j < distances.size(); ++j)
-    sum += EvaluateLoss(LossKind::kTukey, c, distances[j] * distances[j]).rho / cap;  // eq. 78
+    sum += EvaluateLoss(LossKind::kTukey, c, distances[j] * distances[j]).rho / cap;  // eq. 79
   return sum / static_cast<double>(distances.size());
 }
 

@@ -129,7 +129,7 @@ std::vector<bool> PointsOffTheSurface(const ParametricModel& model, const Eigen:
                                       double max_angle_deg, double* sigma = nullptr,
                                       Eigen::VectorXd* distances = nullptr);
 
-// The all-points objective of a fit (eq. 78): the mean over ALL points, those left out as off the surface
+// The all-points objective of a fit (eq. 79): the mean over ALL points, those left out as off the surface
 // included, of Tukey's rho (eq. 44) of their distances at the common scale c = 4.6851 s, divided by its
 // value beyond c, so that it lies in [0, 1]: about 0.05 for a fit at the noise (s the noise), and each point
 // farther than c counts 1 whichever start left it behind. Unlike a robust scale (47), which ignores up to
@@ -140,7 +140,7 @@ double AllPointsObjective(const Eigen::Ref<const Eigen::VectorXd>& distances, do
 Eigen::VectorXd PlacedDistances(const ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
                                 const std::vector<RigidMotion>& model_T_scan);
 
-// The fraction of a full turn about the axis (point, unit direction) the points cover (eq. 79): the
+// The fraction of a full turn about the axis (point, unit direction) the points cover (eq. 80): the
 // occupied share of 72 sectors of 5 degrees, a sector counting when it holds at least a tenth of the mean
 // count of the occupied ones (stray points do not widen a sherd). 1 for a whole object.
 double CoveredTurnFraction(const Eigen::Matrix3Xd& points, const Eigen::Vector3d& axis_point,
@@ -152,9 +152,9 @@ struct StartedJointFit {
   JointFitResult result;
   std::size_t chosen = 0;                // index into the starts
   std::vector<double> final_scores;      // per start tried: robust scale (47) of all points' distances
-  std::vector<double> final_objectives;  // per start tried: AllPointsObjective (eq. 78)
+  std::vector<double> final_objectives;  // per start tried: AllPointsObjective (eq. 79)
   std::vector<Eigen::Index> left_out_per_start;
-  double objective_scale = 0.0;                   // s of eq. 78
+  double objective_scale = 0.0;                   // s of eq. 79
   Eigen::Index left_out = 0;                      // points left out as off the surface in the chosen fit
   std::vector<std::vector<bool>> left_out_masks;  // per scan, of the chosen fit
 };
@@ -162,7 +162,7 @@ struct StartedJointFit {
 // The joint fit (FitJointly) from each start: poses model_T_world * world_T_scan, the start's off-surface
 // points left out; at its solution the off-surface points are decided again against the fitted surface
 // (per-scan normals `scan_normals`, in scan coordinates; may be empty) and, when they changed, the fit is
-// run once more from there. The start whose final fit has the lowest all-points objective (eq. 78) at the
+// run once more from there. The start whose final fit has the lowest all-points objective (eq. 79) at the
 // common scale `noise` wins (a start cannot win by leaving points out); `noise` NaN or not positive: the
 // smallest robust scale (47) among the final fits. Throws what FitJointly throws.
 StartedJointFit FitJointlyFromStarts(const std::vector<KinematicStart>& starts,

@@ -143,7 +143,7 @@ std::string StartText(const StartReport& s, KinematicKind kind) {
   }
   if (s.turn < 1.0)
     t << "\n                    covers " << Format(100 * s.turn, 3) << " % of a turn: bending weight "
-      << Format(s.fairness.bending, 3) << " (eq. 79)";
+      << Format(s.fairness.bending, 3) << " (eq. 80)";
   return t.str();
 }
 
@@ -231,7 +231,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     complexity_options.noise = noise.sigma;
     complexity_options.noise_dof = noise.dof;
     // The fairness weights hold for a whole turn; a part of a turn (a sherd) gets them scaled by the square
-    // of the turn fraction it covers (docs/method.md eq. 79), measured about the start's axis.
+    // of the turn fraction it covers (docs/method.md eq. 80), measured about the start's axis.
     auto fairness_for = [&](const RigidMotion& world_T_model, double* turn) {
       *turn = CoveredTurnFraction(merged, world_T_model.translation(), world_T_model.rotation().col(2));
       return FairnessWeights{o.stretch * *turn * *turn, o.bending * *turn * *turn};
@@ -342,7 +342,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
         report.left_out = 0;
         for (const auto& mask : masks) report.left_out += std::count(mask.begin(), mask.end(), true);
         report.left_out_masks = masks;
-        // The normals' whole search stands against the searched start's (eq. 78 over all points, at one
+        // The normals' whole search stands against the searched start's (eq. 79 over all points, at one
         // scale): the global search must not lose what the normals' start had.
         if (from_normals) {
           const double scale = started.objective_scale;

@@ -125,7 +125,7 @@ TEST(KinematicStartCommand, SherdAxesWithoutHandTuning) {
       EXPECT_TRUE(doc["adequacy"]["adequate"].get<bool>()) << doc["adequacy"].dump();
       EXPECT_LT(angle, 0.5) << fraction << (breaks ? " with breaks" : "");
       EXPECT_LT(distance, 0.3) << fraction << (breaks ? " with breaks" : "");
-      // The covered turn (eq. 79): an arc straddles up to two partly covered 5-degree sectors, each counted
+      // The covered turn (eq. 80): an arc straddles up to two partly covered 5-degree sectors, each counted
       // whole, and the slanted side breaks reach a little beyond the surface's arc.
       EXPECT_NEAR(doc["start"]["turn_fraction"].get<double>(), fraction, 2.0 / 72);
       // The bending weight per whole turn (the default 0.001) times the square of the covered turn.

@@ -61,10 +61,10 @@ std::pair<int, std::string> FailureOf(const FitOptions& o) {
 TEST(FitDispatch, FailuresCarryTheirExitCodes) {
   FitOptions o;
   o.file = Nist("cyl1.ds");
-  o.model = "torus";
+  o.model = "ellipsoid";
   const auto [unknown_code, unknown] = FailureOf(o);
   EXPECT_EQ(unknown_code, kUsage);
-  EXPECT_NE(unknown.find("torus is not a model"), std::string::npos) << unknown;
+  EXPECT_NE(unknown.find("ellipsoid is not a model"), std::string::npos) << unknown;
   o.model = "sphere";
   o.method = "gn";  // a spline method for a primitive
   EXPECT_EQ(FailureOf(o).first, kUsage);
@@ -76,10 +76,10 @@ TEST(FitDispatch, FailuresCarryTheirExitCodes) {
 }
 
 TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
-  EXPECT_EQ(
-      ManifestOptionKeys(),
-      "bending, closed, contour, control_points, initial, loss, max_iterations, method, order, reference, "
-      "rejected_output, robust, seed, solver, step_control, stretch, units");
+  EXPECT_EQ(ManifestOptionKeys(),
+            "bending, closed, contour, control_points, criterion, initial, loss, max_iterations, method, "
+            "order, reference, "
+            "rejected_output, robust, seed, solver, step_control, stretch, units");
   for (const FitOptionSpec& spec : FitOptionTable()) {
     EXPECT_TRUE(spec.set) << spec.key << spec.names;
     // Every manifest key but the solver (three flags) is also a command-line option with the dashed name.
@@ -122,7 +122,13 @@ TEST(FitOptionTable, ValuesAreCheckedAndApplied) {
   EXPECT_EQ(message("step_control", "armijo"), "accepted");
   EXPECT_EQ(ModelError("cone"), "");
   EXPECT_EQ(ModelError("part:"), "part: needs a part file, e.g. part:block.part.json");
-  EXPECT_NE(ModelError("torus").find("torus is not a model"), std::string::npos);
+  EXPECT_EQ(ModelError("torus"), "");
+  EXPECT_EQ(ModelError("circle"), "");
+  EXPECT_EQ(ModelError("line"), "");
+  EXPECT_NE(ModelError("ellipsoid").find("ellipsoid is not a model"), std::string::npos);
+  EXPECT_EQ(message("criterion", "minzone"), "accepted");
+  EXPECT_NE(message("criterion", "chebyshev").find("lsq, minzone, inscribed, circumscribed"),
+            std::string::npos);
 }
 
 TEST(FitOptionTable, TheLossIsParsedAndChecked) {
