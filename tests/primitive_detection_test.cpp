@@ -242,95 +242,97 @@ TEST(PrimitiveDetection, ObjectsCutInTwoByABarAreOneInstanceEach) {
       EXPECT_EQ(instances[k], merge ? 1 : 2) << "object " << k << (merge ? " merged" : " apart");
     }
   }
-  // A ring torus (R 40 mm, r 12 mm) lying on a floor among uniform clutter (15 % of the points), 0.1 mm noise
-  // along the normals: found once, with its radii within 5 of the refit's own standard uncertainties, beside
-  // the floor; nothing spurious.
-  TEST(PrimitiveDetection, TorusOnAFloorAmongClutter) {
-    std::mt19937_64 rng(8);
-    std::uniform_real_distribution<double> unit(0.0, 1.0), side(-100.0, 100.0), height(0.0, 60.0);
-    std::normal_distribution<double> noise(0.0, 0.1);
-    const Torus truth{{0, 0, 12}, {0, 0, 1}, 40.0, 12.0};
-    std::vector<Eigen::Vector3d> pts;
-    while (pts.size() <
-           6000) {  // uniform over the area: accept (theta, phi) with probability (R + r cos phi) / (R + r)
-      const double t = 2 * M_PI * unit(rng), u = 2 * M_PI * unit(rng);
-      if (unit(rng) * (truth.major_radius + truth.minor_radius) >
-          truth.major_radius + truth.minor_radius * std::cos(u))
-        continue;
-      const Eigen::Vector3d e(std::cos(t), std::sin(t), 0.0);
-      const Eigen::Vector3d n = std::cos(u) * e + std::sin(u) * truth.axis;
-      pts.push_back(truth.center + truth.major_radius * e + (truth.minor_radius + noise(rng)) * n);
-    }
-    while (pts.size() < 12000) {  // the floor outside the torus's footprint
-      const Eigen::Vector3d x(side(rng), side(rng), noise(rng));
-      if (x.head<2>().norm() > truth.major_radius + truth.minor_radius + 2) pts.push_back(x);
-    }
-    while (pts.size() < 14000) pts.push_back({side(rng), side(rng), height(rng)});
-    Eigen::Matrix3Xd cloud(3, static_cast<Eigen::Index>(pts.size()));
-    for (std::size_t i = 0; i < pts.size(); ++i) cloud.col(static_cast<Eigen::Index>(i)) = pts[i];
-    DetectionOptions options;
-    options.kinds = {PrimitiveKind::kTorus, PrimitiveKind::kPlane};
-    options.seed = 3;
-    const DetectionResult result = DetectPrimitives(cloud, options);
-    int tori = 0, planes = 0;
-    for (const DetectedPrimitive& instance : result.instances) {
-      std::printf("[ torus scene ] %s: %zu inliers, RMS %.3f mm, %d draws\n", ToString(instance.kind),
-                  instance.inliers.size(), instance.rms, instance.draws);
-      if (const auto* t = std::get_if<Torus>(&instance.shape)) {
-        ++tori;
-        double u_major = 0, u_minor = 0;
-        for (const ParameterUncertainty& u : instance.uncertainties) {
-          if (u.name == "major_radius") u_major = u.standard_uncertainty;
-          if (u.name == "minor_radius") u_minor = u.standard_uncertainty;
-        }
-        ASSERT_GT(u_major, 0);
-        std::printf("[ torus scene ] R %.4f (u %.4f), r %.4f (u %.4f), axis tilt %.2e rad\n", t->major_radius,
-                    u_major, t->minor_radius, u_minor, LineAngle(t->axis, truth.axis));
-        EXPECT_NEAR(t->major_radius, truth.major_radius, 5 * u_major);
-        EXPECT_NEAR(t->minor_radius, truth.minor_radius, 5 * u_minor);
-        EXPECT_LT((t->center - truth.center).norm(), 0.05);
-        EXPECT_GT(static_cast<double>(instance.inliers.size()), 0.95 * 6000);
-      } else if (std::holds_alternative<Plane>(instance.shape)) {
-        ++planes;
-        EXPECT_GT(std::abs(std::get<Plane>(instance.shape).normal.z()), 1 - 1e-4);
+}
+
+// A ring torus (R 40 mm, r 12 mm) lying on a floor among uniform clutter (15 % of the points), 0.1 mm noise
+// along the normals: found once, with its radii within 5 of the refit's own standard uncertainties, beside
+// the floor; nothing spurious.
+TEST(PrimitiveDetection, TorusOnAFloorAmongClutter) {
+  std::mt19937_64 rng(8);
+  std::uniform_real_distribution<double> unit(0.0, 1.0), side(-100.0, 100.0), height(0.0, 60.0);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  const Torus truth{{0, 0, 12}, {0, 0, 1}, 40.0, 12.0};
+  std::vector<Eigen::Vector3d> pts;
+  while (pts.size() <
+         6000) {  // uniform over the area: accept (theta, phi) with probability (R + r cos phi) / (R + r)
+    const double t = 2 * M_PI * unit(rng), u = 2 * M_PI * unit(rng);
+    if (unit(rng) * (truth.major_radius + truth.minor_radius) >
+        truth.major_radius + truth.minor_radius * std::cos(u))
+      continue;
+    const Eigen::Vector3d e(std::cos(t), std::sin(t), 0.0);
+    const Eigen::Vector3d n = std::cos(u) * e + std::sin(u) * truth.axis;
+    pts.push_back(truth.center + truth.major_radius * e + (truth.minor_radius + noise(rng)) * n);
+  }
+  while (pts.size() < 12000) {  // the floor outside the torus's footprint
+    const Eigen::Vector3d x(side(rng), side(rng), noise(rng));
+    if (x.head<2>().norm() > truth.major_radius + truth.minor_radius + 2) pts.push_back(x);
+  }
+  while (pts.size() < 14000) pts.push_back({side(rng), side(rng), height(rng)});
+  Eigen::Matrix3Xd cloud(3, static_cast<Eigen::Index>(pts.size()));
+  for (std::size_t i = 0; i < pts.size(); ++i) cloud.col(static_cast<Eigen::Index>(i)) = pts[i];
+  DetectionOptions options;
+  options.kinds = {PrimitiveKind::kTorus, PrimitiveKind::kPlane};
+  options.seed = 3;
+  const DetectionResult result = DetectPrimitives(cloud, options);
+  int tori = 0, planes = 0;
+  for (const DetectedPrimitive& instance : result.instances) {
+    std::printf("[ torus scene ] %s: %zu inliers, RMS %.3f mm, %d draws\n", ToString(instance.kind),
+                instance.inliers.size(), instance.rms, instance.draws);
+    if (const auto* t = std::get_if<Torus>(&instance.shape)) {
+      ++tori;
+      double u_major = 0, u_minor = 0;
+      for (const ParameterUncertainty& u : instance.uncertainties) {
+        if (u.name == "major_radius") u_major = u.standard_uncertainty;
+        if (u.name == "minor_radius") u_minor = u.standard_uncertainty;
       }
+      ASSERT_GT(u_major, 0);
+      std::printf("[ torus scene ] R %.4f (u %.4f), r %.4f (u %.4f), axis tilt %.2e rad\n", t->major_radius,
+                  u_major, t->minor_radius, u_minor, LineAngle(t->axis, truth.axis));
+      EXPECT_NEAR(t->major_radius, truth.major_radius, 5 * u_major);
+      EXPECT_NEAR(t->minor_radius, truth.minor_radius, 5 * u_minor);
+      EXPECT_LT((t->center - truth.center).norm(), 0.05);
+      EXPECT_GT(static_cast<double>(instance.inliers.size()), 0.95 * 6000);
+    } else if (std::holds_alternative<Plane>(instance.shape)) {
+      ++planes;
+      EXPECT_GT(std::abs(std::get<Plane>(instance.shape).normal.z()), 1 - 1e-4);
     }
-    EXPECT_EQ(tori, 1);
-    EXPECT_EQ(planes, 1);
-    EXPECT_EQ(result.instances.size(), 2u);
   }
+  EXPECT_EQ(tori, 1);
+  EXPECT_EQ(planes, 1);
+  EXPECT_EQ(result.instances.size(), 2u);
+}
 
-  // The same seed, the same result, on one thread and on two (OpenMP only scores candidates already drawn).
-  TEST(PrimitiveDetection, TheSameSeedGivesTheSameResultOnAnyNumberOfThreads) {
-    const SpheresAndCylinderScene scene = MakeSpheresAndCylinderScene(4);
-    DetectionOptions options;
-    options.kinds = {PrimitiveKind::kPlane, PrimitiveKind::kSphere, PrimitiveKind::kCylinder};
-    options.seed = 11;
-    const int threads = omp_get_max_threads();
-    omp_set_num_threads(1);
-    const DetectionResult a = DetectPrimitives(scene.cloud.points, options);
-    omp_set_num_threads(2);
-    const DetectionResult b = DetectPrimitives(scene.cloud.points, options);
-    omp_set_num_threads(threads);
-    ASSERT_EQ(a.instances.size(), b.instances.size());
-    for (std::size_t i = 0; i < a.instances.size(); ++i) {
-      EXPECT_EQ(a.instances[i].kind, b.instances[i].kind);
-      EXPECT_EQ(a.instances[i].inliers, b.instances[i].inliers);
-      EXPECT_EQ(a.instances[i].rms, b.instances[i].rms);  // bit for bit
-    }
-    EXPECT_EQ(a.rejected, b.rejected);
+// The same seed, the same result, on one thread and on two (OpenMP only scores candidates already drawn).
+TEST(PrimitiveDetection, TheSameSeedGivesTheSameResultOnAnyNumberOfThreads) {
+  const SpheresAndCylinderScene scene = MakeSpheresAndCylinderScene(4);
+  DetectionOptions options;
+  options.kinds = {PrimitiveKind::kPlane, PrimitiveKind::kSphere, PrimitiveKind::kCylinder};
+  options.seed = 11;
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const DetectionResult a = DetectPrimitives(scene.cloud.points, options);
+  omp_set_num_threads(2);
+  const DetectionResult b = DetectPrimitives(scene.cloud.points, options);
+  omp_set_num_threads(threads);
+  ASSERT_EQ(a.instances.size(), b.instances.size());
+  for (std::size_t i = 0; i < a.instances.size(); ++i) {
+    EXPECT_EQ(a.instances[i].kind, b.instances[i].kind);
+    EXPECT_EQ(a.instances[i].inliers, b.instances[i].inliers);
+    EXPECT_EQ(a.instances[i].rms, b.instances[i].rms);  // bit for bit
   }
+  EXPECT_EQ(a.rejected, b.rejected);
+}
 
-  TEST(PrimitiveDetection, BadInputIsRejectedWithAReason) {
-    DetectionOptions options;
-    EXPECT_FALSE(options.IsValid());  // no kind
-    options.kinds = {PrimitiveKind::kPlane};
-    EXPECT_TRUE(options.IsValid());
-    EXPECT_THROW(DetectPrimitives(Eigen::Matrix3Xd::Random(3, 5), options), std::invalid_argument);
-    Eigen::Matrix3Xd bad = Eigen::Matrix3Xd::Random(3, 100);
-    bad(1, 7) = std::nan("");
-    EXPECT_THROW(DetectPrimitives(bad, options), std::invalid_argument);
-  }
+TEST(PrimitiveDetection, BadInputIsRejectedWithAReason) {
+  DetectionOptions options;
+  EXPECT_FALSE(options.IsValid());  // no kind
+  options.kinds = {PrimitiveKind::kPlane};
+  EXPECT_TRUE(options.IsValid());
+  EXPECT_THROW(DetectPrimitives(Eigen::Matrix3Xd::Random(3, 5), options), std::invalid_argument);
+  Eigen::Matrix3Xd bad = Eigen::Matrix3Xd::Random(3, 100);
+  bad(1, 7) = std::nan("");
+  EXPECT_THROW(DetectPrimitives(bad, options), std::invalid_argument);
+}
 
 }  // namespace
 }  // namespace s2m
