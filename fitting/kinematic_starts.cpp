@@ -652,19 +652,77 @@ std::vector<KinematicStart> FindKinematicStarts(const Eigen::Matrix3Xd& points,
   return kept;
 }
 
+double AllPointsObjective(const Eigen::Ref<const Eigen::VectorXd>& distances, double scale) {
+  if (distances.size() == 0) return 0.0;
+  if (!(scale > 0) || !std::isfinite(scale))
+    throw std::invalid_argument("the objective needs a positive scale");
+  const double c = TuningConstant(LossKind::kTukey) * scale;
+  const double cap = c * c / 3.0;  // rho beyond c (eq. 44)
+  double sum = 0.0;
+  for (Eigen::Index j = 0; j < distances.size(); ++j)
+    sum += EvaluateLoss(LossKind::kTukey, c, distances[j] * distances[j]).rho / cap;  // eq. 79
+  return sum / static_cast<double>(distances.size());
+}
+
+Eigen::VectorXd PlacedDistances(const ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
+                                const std::vector<RigidMotion>& model_T_scan) {
+  Eigen::Index count = 0;
+  for (const Eigen::Matrix3Xd& s : scans) count += s.cols();
+  Eigen::VectorXd all(count);
+  Eigen::Index at = 0;
+  std::vector<FootPoint> feet;
+  for (std::size_t k = 0; k < scans.size(); ++k) {
+    ComputeFootPoints(model, model_T_scan[k].apply(scans[k]), feet);
+    all.segment(at, scans[k].cols()) = FootPointDistances(feet);
+    at += scans[k].cols();
+  }
+  return all;
+}
+
+double CoveredTurnFraction(const Eigen::Matrix3Xd& points, const Eigen::Vector3d& axis_point,
+                           const Eigen::Vector3d& axis_direction) {
+  constexpr int kSectors = 72;
+  const Eigen::Matrix3d frame = FrameWithAxis(axis_direction.normalized());
+  std::vector<double> count(kSectors, 0.0);
+  for (Eigen::Index j = 0; j < points.cols(); ++j) {
+    const Eigen::Vector3d d = points.col(j) - axis_point;
+    const double x = d.dot(frame.col(0)), y = d.dot(frame.col(1));
+    if (x == 0.0 && y == 0.0) continue;
+    const double turn = (std::atan2(y, x) + M_PI) / (2 * M_PI);  // [0, 1]
+    count[static_cast<std::size_t>(std::min(kSectors - 1, static_cast<int>(turn * kSectors)))] += 1.0;
+  }
+  double occupied = 0.0, total = 0.0;
+  for (double c : count)
+    if (c > 0) {
+      occupied += 1.0;
+      total += c;
+    }
+  if (occupied == 0.0) return 1.0;
+  const double floor = 0.1 * total / occupied;
+  int kept = 0;
+  for (double c : count) kept += c >= floor;
+  return static_cast<double>(kept) / kSectors;
+}
+
 StartedJointFit FitJointlyFromStarts(const std::vector<KinematicStart>& starts,
                                      const std::vector<Eigen::Matrix3Xd>& scans,
                                      const std::vector<RigidMotion>& world_T_scan,
                                      const std::vector<Eigen::Matrix3Xd>& scan_normals,
                                      const JointFitOptions& options,
-                                     const KinematicStartOptions& start_options) {
+                                     const KinematicStartOptions& start_options, double noise) {
   if (starts.empty()) throw std::invalid_argument("no start for the joint fit");
   if (world_T_scan.size() != scans.size()) throw std::invalid_argument("one pose per scan is needed");
   const bool with_normals = scan_normals.size() == scans.size();
-  StartedJointFit best;
-  double best_score = INFINITY;
-  for (std::size_t s = 0; s < starts.size(); ++s) {
-    const KinematicStart& start = starts[s];
+  struct Tried {
+    std::shared_ptr<ParametricModel> model;
+    JointFitResult result;
+    std::vector<std::vector<bool>> masks;
+    Eigen::VectorXd distances;
+    Eigen::Index left_out = 0;
+  };
+  std::vector<Tried> tried;
+  double best_scale = INFINITY;
+  for (const KinematicStart& start : starts) {
     std::shared_ptr<ParametricModel> model = start.model->Clone();
     const RigidMotion model_T_world = start.world_T_model.inverse();
     std::vector<RigidMotion> initial;
@@ -709,7 +767,7 @@ StartedJointFit FitJointlyFromStarts(const std::vector<KinematicStart>& starts,
     judge(r, masks, distances);
     // A start already far behind the best final fit is not refined further (a second pass moves the robust
     // scale by a few percent, not by half).
-    const bool behind = MadSigma(distances) > 1.5 * best_score;
+    const bool behind = MadSigma(distances) > 1.5 * best_scale;
     if (masks != o.left_out && !behind) {
       o.left_out = masks;
       JointFitResult again = FitJointly(*model, scans, r.model_T_scan, o);
@@ -718,19 +776,34 @@ StartedJointFit FitJointlyFromStarts(const std::vector<KinematicStart>& starts,
       r = std::move(again);
       judge(r, masks, distances);
     }
-    Eigen::Index left = 0;
-    for (const auto& mask : o.left_out) left += std::count(mask.begin(), mask.end(), true);
-    const double score = MadSigma(distances);
-    best.final_scores.push_back(score);
-    if (score < best_score) {
-      best_score = score;
-      best.model = model;
-      best.world_T_model = start.world_T_model;
-      best.result = std::move(r);
+    Tried t;
+    for (const auto& mask : o.left_out) t.left_out += std::count(mask.begin(), mask.end(), true);
+    best_scale = std::min(best_scale, MadSigma(distances));
+    t.model = model;
+    t.result = std::move(r);
+    t.masks = o.left_out;
+    t.distances = std::move(distances);
+    tried.push_back(std::move(t));
+  }
+  StartedJointFit best;
+  best.objective_scale = noise > 0 && std::isfinite(noise) ? noise : best_scale;
+  if (!(best.objective_scale > 0)) best.objective_scale = 1e-12;  // exact data: every fit at zero
+  double best_objective = INFINITY;
+  for (std::size_t s = 0; s < tried.size(); ++s) {
+    best.final_scores.push_back(MadSigma(tried[s].distances));
+    best.final_objectives.push_back(AllPointsObjective(tried[s].distances, best.objective_scale));
+    best.left_out_per_start.push_back(tried[s].left_out);
+    if (best.final_objectives.back() < best_objective) {
+      best_objective = best.final_objectives.back();
       best.chosen = s;
-      best.left_out = left;
     }
   }
+  Tried& chosen = tried[best.chosen];
+  best.model = chosen.model;
+  best.world_T_model = starts[best.chosen].world_T_model;
+  best.result = std::move(chosen.result);
+  best.left_out = chosen.left_out;
+  best.left_out_masks = std::move(chosen.masks);
   return best;
 }
 

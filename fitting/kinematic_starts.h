@@ -16,6 +16,7 @@
 
 #include <Eigen/Core>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -128,25 +129,48 @@ std::vector<bool> PointsOffTheSurface(const ParametricModel& model, const Eigen:
                                       double max_angle_deg, double* sigma = nullptr,
                                       Eigen::VectorXd* distances = nullptr);
 
+// The all-points objective of a fit (eq. 79): the mean over ALL points, those left out as off the surface
+// included, of Tukey's rho (eq. 44) of their distances at the common scale c = 4.6851 s, divided by its
+// value beyond c, so that it lies in [0, 1]: about 0.05 for a fit at the noise (s the noise), and each point
+// farther than c counts 1 whichever start left it behind. Unlike a robust scale (47), which ignores up to
+// half of the points, it cannot be won by leaving a view or a stretch of the surface behind.
+double AllPointsObjective(const Eigen::Ref<const Eigen::VectorXd>& distances, double scale);
+
+// The distances of the scans placed by `model_T_scan` to `model`, all points, scan after scan.
+Eigen::VectorXd PlacedDistances(const ParametricModel& model, const std::vector<Eigen::Matrix3Xd>& scans,
+                                const std::vector<RigidMotion>& model_T_scan);
+
+// The fraction of a full turn about the axis (point, unit direction) the points cover (eq. 80): the
+// occupied share of 72 sectors of 5 degrees, a sector counting when it holds at least a tenth of the mean
+// count of the occupied ones (stray points do not widen a sherd). 1 for a whole object.
+double CoveredTurnFraction(const Eigen::Matrix3Xd& points, const Eigen::Vector3d& axis_point,
+                           const Eigen::Vector3d& axis_direction);
+
 struct StartedJointFit {
   std::shared_ptr<ParametricModel> model;  // fitted
   RigidMotion world_T_model;               // of the chosen start (the fit's model frame)
   JointFitResult result;
-  std::size_t chosen = 0;            // index into the starts
-  std::vector<double> final_scores;  // per start tried: robust scale of all points' distances
-  Eigen::Index left_out = 0;         // points left out as off the surface in the final fit
+  std::size_t chosen = 0;                // index into the starts
+  std::vector<double> final_scores;      // per start tried: robust scale (47) of all points' distances
+  std::vector<double> final_objectives;  // per start tried: AllPointsObjective (eq. 79)
+  std::vector<Eigen::Index> left_out_per_start;
+  double objective_scale = 0.0;                   // s of eq. 79
+  Eigen::Index left_out = 0;                      // points left out as off the surface in the chosen fit
+  std::vector<std::vector<bool>> left_out_masks;  // per scan, of the chosen fit
 };
 
 // The joint fit (FitJointly) from each start: poses model_T_world * world_T_scan, the start's off-surface
 // points left out; at its solution the off-surface points are decided again against the fitted surface
 // (per-scan normals `scan_normals`, in scan coordinates; may be empty) and, when they changed, the fit is
-// run once more from there. The start whose final fit has the lowest robust scale (eq. 47) of the
-// distances of ALL points wins (a start cannot win by leaving points out). Throws what FitJointly throws.
+// run once more from there. The start whose final fit has the lowest all-points objective (eq. 79) at the
+// common scale `noise` wins (a start cannot win by leaving points out); `noise` NaN or not positive: the
+// smallest robust scale (47) among the final fits. Throws what FitJointly throws.
 StartedJointFit FitJointlyFromStarts(const std::vector<KinematicStart>& starts,
                                      const std::vector<Eigen::Matrix3Xd>& scans,
                                      const std::vector<RigidMotion>& world_T_scan,
                                      const std::vector<Eigen::Matrix3Xd>& scan_normals,
                                      const JointFitOptions& options,
-                                     const KinematicStartOptions& start_options = {});
+                                     const KinematicStartOptions& start_options = {},
+                                     double noise = std::numeric_limits<double>::quiet_NaN());
 
 }  // namespace s2m

@@ -403,13 +403,23 @@ RefinableGeneratrixFit::RefinableGeneratrixFit(ParametricModel& model,
 }
 
 void RefinableGeneratrixFit::ComputeFeet() {
+  // The points the fit uses: those options_.left_out leaves out (off the surface, docs/method.md eq. 77)
+  // count neither in the criterion nor in the end rule.
+  used_per_scan_.assign(scans_.size(), 0);
   Eigen::Index total = 0;
-  for (const auto& s : scans_) total += s.cols();
+  for (std::size_t k = 0; k < scans_.size(); ++k) {
+    const bool masked = k < options_.left_out.size() && !options_.left_out[k].empty();
+    for (Eigen::Index j = 0; j < scans_[k].cols(); ++j)
+      if (!masked || !options_.left_out[k][static_cast<std::size_t>(j)]) ++used_per_scan_[k];
+    total += used_per_scan_[k];
+  }
   Eigen::Matrix3Xd registered(3, total);
   Eigen::Index at = 0;
   for (std::size_t k = 0; k < scans_.size(); ++k) {
-    registered.middleCols(at, scans_[k].cols()) = model_T_scan_[k].apply(scans_[k]);
-    at += scans_[k].cols();
+    const bool masked = k < options_.left_out.size() && !options_.left_out[k].empty();
+    const Eigen::Matrix3Xd placed = model_T_scan_[k].apply(scans_[k]);
+    for (Eigen::Index j = 0; j < placed.cols(); ++j)
+      if (!masked || !options_.left_out[k][static_cast<std::size_t>(j)]) registered.col(at++) = placed.col(j);
   }
   std::vector<FootPoint> feet;
   ComputeFootPoints(model_, registered, feet);
@@ -544,7 +554,7 @@ void RefinableGeneratrixFit::UpdateResultAfterCut(const Eigen::MatrixXd& transfo
   double total = 0.0, largest = 0.0;
   for (std::size_t k = 0; k < scans_.size(); ++k) {
     double sum = 0.0, max_abs = 0.0;
-    const auto n = static_cast<std::size_t>(scans_[k].cols());
+    const auto n = static_cast<std::size_t>(used_per_scan_[k]);
     for (std::size_t j = 0; j < n; ++j, ++at) {
       sum += feet_d2_[at];
       max_abs = std::max(max_abs, std::sqrt(feet_d2_[at]));

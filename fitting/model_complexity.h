@@ -194,7 +194,8 @@ class RefinableGeneratrixFit final : public RefinableFit {
   JointFitOptions options_;
   int max_control_points_;
   JointFitResult result_;
-  std::vector<double> feet_u_, feet_d2_;
+  std::vector<double> feet_u_, feet_d2_;  // of the points used (not left out), scan after scan
+  std::vector<Eigen::Index> used_per_scan_;
   int total_iterations_ = 0;
   int end_rule_cuts_ = 0;
   struct KeptState {

@@ -20,12 +20,12 @@ double ChiSquareMedian(int dof) {
 
 namespace {
 
-// Eq. 50's degrees of freedom of a median of m chi-square(k) / median estimates: 8 m (x f(x))^2 at the median
-// x, f the chi-square density (k = 2: x f = ln 2 / 2; k = 4: f(x) = x exp(-x / 2) / 4).
+// The equivalent degrees of freedom of a median of m chi-square(k) / median estimates (noise_estimate.h):
+// 8 m (x f(x))^2 at the median x, f the chi-square density x^(k/2 - 1) exp(-x/2) / (2^(k/2) Gamma(k/2)).
 double MedianEstimateDof(int m, int k) {
-  const double x = ChiSquareMedian(k);
-  const double f = k == 2 ? std::exp(-x / 2) / 2 : x * std::exp(-x / 2) / 4;
-  return 8.0 * m * (x * f) * (x * f);
+  const double x = ChiSquareMedian(k), h = 0.5 * k;
+  const double xf = std::exp(h * std::log(x) - 0.5 * x - h * std::log(2.0) - std::lgamma(h));
+  return 8.0 * m * xf * xf;
 }
 
 }  // namespace
@@ -81,58 +81,20 @@ NoiseEstimate EstimateNoiseWithDof(const ScanSet& set) {
   return out;
 }
 
-NoiseEstimate EstimatePlaneCurveNoise(const Eigen::MatrixXd& points) {
-  NoiseEstimate out;
-  out.sigma = std::numeric_limits<double>::quiet_NaN();
-  if (points.rows() != 2) return out;
-  constexpr int kNeighbours = 7;
-  constexpr int kDof = kNeighbours - 3;
-  const Eigen::Index n = points.cols();
-  if (n < 2 * kNeighbours) return out;
-  Eigen::Matrix3Xd lifted = Eigen::Matrix3Xd::Zero(3, n);
-  lifted.topRows(2) = points;
-  const NearestIndex index(lifted);
-  const Eigen::Index stride = std::max<Eigen::Index>(1, n / 1000);
-  std::vector<double> scaled;
-  for (Eigen::Index c = 0; c < n; c += stride) {
-    const std::vector<Eigen::Index> near = index.KNearest(lifted.col(c), kNeighbours);
-    if (static_cast<int>(near.size()) < kNeighbours) continue;
-    Eigen::Matrix2Xd q(2, kNeighbours);
-    for (int k = 0; k < kNeighbours; ++k) q.col(k) = points.col(near[static_cast<std::size_t>(k)]);
-    const Eigen::Vector2d mean = q.rowwise().mean();
-    q.colwise() -= mean;
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(q * q.transpose());
-    const Eigen::Vector2d along = eig.eigenvectors().col(1), across = eig.eigenvectors().col(0);
-    Eigen::Matrix<double, kNeighbours, 3> a;
-    Eigen::Matrix<double, kNeighbours, 1> y;
-    for (int k = 0; k < kNeighbours; ++k) {
-      const double x = along.dot(q.col(k));
-      a.row(k) << x * x, x, 1.0;
-      y[k] = across.dot(q.col(k));
-    }
-    const Eigen::ColPivHouseholderQR<Eigen::Matrix<double, kNeighbours, 3>> qr(a);
-    if (qr.rank() < 3) continue;  // coincident points
-    const Eigen::Vector3d coefficients = qr.solve(y);
-    scaled.push_back((a * coefficients - y).squaredNorm() / ChiSquareMedian(kDof));
-  }
-  out.neighbourhoods = static_cast<int>(scaled.size());
-  if (scaled.size() < 10) return out;
-  auto middle = scaled.begin() + static_cast<std::ptrdiff_t>(scaled.size() / 2);
-  std::nth_element(scaled.begin(), middle, scaled.end());
-  out.sigma = std::sqrt(*middle);
-  out.dof = MedianEstimateDof(out.neighbourhoods, kDof);
-  return out;
-}
-
 double EstimateNoise(const ScanSet& set) {
   return EstimateNoiseWithDof(set).sigma;
 }
 
-double EstimateCurveNoise(const Eigen::Ref<const Eigen::MatrixXd>& points) {
-  constexpr int kNeighbours = 8;  // as EstimateNoise: small patches keep the curve's cubic terms out
-  constexpr Eigen::Index kCentres = 500;
+NoiseEstimate EstimateCurveNoise(const Eigen::Ref<const Eigen::MatrixXd>& points) {
+  // 7 neighbours, 1000 centres: the plane-curve estimate the automatic complexity was measured with
+  // (docs/method.md section 18); the adequacy verdict's earlier 8 neighbours and 500 centres gave the same
+  // noise within its spread (measured: tests/residual_structure_test.cpp, EstimateCurveNoise.CircleAndHelix).
+  constexpr int kNeighbours = 7;
+  constexpr Eigen::Index kCentres = 1000;
+  NoiseEstimate out;
+  out.sigma = std::numeric_limits<double>::quiet_NaN();
   const Eigen::Index rows = points.rows(), n = points.cols();
-  if ((rows != 2 && rows != 3) || n < 2 * kNeighbours) return std::numeric_limits<double>::quiet_NaN();
+  if ((rows != 2 && rows != 3) || n < 2 * kNeighbours) return out;
   Eigen::Matrix3Xd padded = Eigen::Matrix3Xd::Zero(3, n);
   padded.topRows(rows) = points;
   const NearestIndex index(padded);
@@ -164,10 +126,13 @@ double EstimateCurveNoise(const Eigen::Ref<const Eigen::MatrixXd>& points) {
     }
     scaled_variances.push_back(sum_squares / median);
   }
-  if (scaled_variances.size() < 10) return std::numeric_limits<double>::quiet_NaN();
+  out.neighbourhoods = static_cast<int>(scaled_variances.size());
+  if (scaled_variances.size() < 10) return out;
   auto middle = scaled_variances.begin() + static_cast<std::ptrdiff_t>(scaled_variances.size() / 2);
   std::nth_element(scaled_variances.begin(), middle, scaled_variances.end());
-  return std::sqrt(static_cast<double>(codim) * *middle);
+  out.sigma = std::sqrt(static_cast<double>(codim) * *middle);
+  out.dof = MedianEstimateDof(out.neighbourhoods, dof);
+  return out;
 }
 
 }  // namespace s2m

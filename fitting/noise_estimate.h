@@ -19,13 +19,6 @@ double ChiSquareMedian(int dof);
 // fewer than 10 neighbourhoods could be fitted.
 double EstimateNoise(const ScanSet& set);
 
-// The noise of points along a curve (2 or 3 rows), without a model: around up to 500 points spread over the
-// data, the 8 nearest neighbours in the frame of their principal direction (the tangent), each normal
-// coordinate fitted by a quadratic in the tangential one; SS / dof scaled to have the noise variance as its
-// median (as EstimateNoise). Returned on the scale of an orthogonal distance: sqrt(codim) sigma, codim = 1
-// for a plane curve and 2 for a space curve (the distance spans the normal plane), i.e. the RMS a perfect
-// model leaves (docs/method.md section 17). NaN when fewer than 10 neighbourhoods could be fitted.
-double EstimateCurveNoise(const Eigen::Ref<const Eigen::MatrixXd>& points);
 // EstimateNoise with what its precision depends on: the number of neighbourhoods m whose median it is, and
 // the equivalent degrees of freedom of sigma^2, nu = 8 m (x f(x))^2 at the median x of the neighbourhoods'
 // chi-square (f its density; 0.96 m for 2 degrees of freedom): the variance of a sample median is
@@ -38,9 +31,15 @@ struct NoiseEstimate {
 };
 NoiseEstimate EstimateNoiseWithDof(const ScanSet& set);
 
-// The same for points sampled along a plane curve (2 x n): a parabola y = a x^2 + b x + c over each of up to
-// 1000 points' 7 nearest neighbours in the frame of their principal direction (4 degrees of freedom each),
-// SS / median(chi-square_4), the square root of the median. NaN when fewer than 10 neighbourhoods fit.
-NoiseEstimate EstimatePlaneCurveNoise(const Eigen::MatrixXd& points);
+// The noise of points along a curve (2 or 3 rows), without a model: around up to 1000 points spread over the
+// data, the 7 nearest neighbours in the frame of their principal direction (the tangent), each normal
+// coordinate fitted by a parabola in the tangential one (3 coefficients: k = codim (7 - 3) degrees of
+// freedom per neighbourhood); SS / median(chi-square_k), the square root of the median over the
+// neighbourhoods (as EstimateNoise; small neighbourhoods keep the curve's cubic terms out). `sigma` is on the
+// scale of an orthogonal distance: sqrt(codim) times the per-coordinate noise, codim = 1 for a plane curve
+// and 2 for a space curve (the distance spans the normal plane), i.e. the RMS a perfect model leaves
+// (docs/method.md section 17); `dof` that of the per-coordinate variance (eq. 68). NaN sigma when fewer than
+// 10 neighbourhoods could be fitted. One estimate for the adequacy verdict and the complexity band.
+NoiseEstimate EstimateCurveNoise(const Eigen::Ref<const Eigen::MatrixXd>& points);
 
 }  // namespace s2m

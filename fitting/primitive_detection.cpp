@@ -14,6 +14,7 @@
 #include <random>
 #include <stdexcept>
 
+#include "fitting/model_complexity.h"
 #include "fitting/noise_estimate.h"
 #include "registration/nearest_index.h"
 
@@ -64,6 +65,8 @@ bool DetectionOptions::IsValid(std::string* why) const {
   if (max_draws < 100) return fail("max_draws must be at least 100");
   if (score_subset < 100) return fail("score_subset must be at least 100");
   if (refit_rounds < 0) return fail("refit_rounds must be >= 0");
+  if (!(merge_significance > 0.0 && merge_significance < 1.0))
+    return fail("merge_significance must be in (0, 1)");
   if (!(max_radius >= 0.0)) return fail("max_radius must be >= 0");
   if (!(min_cone_half_angle > 0.0 && min_cone_half_angle < max_cone_half_angle &&
         max_cone_half_angle < M_PI / 2))
@@ -510,7 +513,9 @@ class Detector {
         result_.stop_reason = "too-few-points";
         break;
       }
+      const std::size_t before = result_.instances.size();
       if (!ExtractOne()) break;
+      if (options_.merge_split_instances && result_.instances.size() > before) MergeNewest();
     }
     for (Eigen::Index i = 0; i < n; ++i)
       if (active_[static_cast<std::size_t>(i)]) result_.rejected.push_back(i);
@@ -532,6 +537,70 @@ class Detector {
     if (const auto* t = std::get_if<Torus>(&shape))
       return t->major_radius > 0 && t->minor_radius > 0 && t->major_radius + t->minor_radius <= max_radius_;
     return true;
+  }
+
+  // An object cut in two by an occluder comes out as two instances (connectivity, eq. 56): the newest
+  // instance is merged into an earlier one of the same curved kind when one shape explains both, by the
+  // nested-model F-test (eq. 81): with SS_a, SS_b the sums of squared distances of each instance's inliers to
+  // its own refit, SS_u those of the union's to one refit of p parameters,
+  //   F = ((SS_u - SS_a - SS_b) / p) / ((SS_a + SS_b) / (n_a + n_b - 2 p))
+  // is F(p, n_a + n_b - 2 p)-distributed when both are the same shape; merged when F stays below its
+  // (1 - merge_significance) quantile. Planes are not merged: coplanar faces of different objects (a table
+  // and a box's top at its height) are common and the test cannot tell them apart.
+  void MergeNewest() {
+    auto& all = result_.instances;
+    DetectedPrimitive& b = all.back();
+    // Planes: see above; tori are left to their own detection (not merged).
+    if (b.kind == PrimitiveKind::kPlane || b.kind == PrimitiveKind::kTorus) return;
+    for (std::size_t i = 0; i + 1 < all.size(); ++i) {
+      DetectedPrimitive& a = all[i];
+      if (a.kind != b.kind) continue;
+      std::vector<Eigen::Index> both;
+      std::merge(a.inliers.begin(), a.inliers.end(), b.inliers.begin(), b.inliers.end(),
+                 std::back_inserter(both));
+      const DetectedPrimitive& larger = a.inliers.size() >= b.inliers.size() ? a : b;
+      auto fit = Refit(larger.shape, both);
+      if (!fit || !Plausible(fit->first)) continue;
+      const double na = static_cast<double>(a.inliers.size()), nb = static_cast<double>(b.inliers.size());
+      const double p = ShapeParameters(b.kind);
+      const double dof = na + nb - 2 * p;
+      if (dof < 1) continue;
+      double ss_union = 0.0;
+      for (Eigen::Index k : both) {
+        const double d = Distance(fit->first, P(k));
+        ss_union += d * d;
+      }
+      const double ss_apart = a.rms * a.rms * na + b.rms * b.rms * nb;
+      const double f = ss_apart > 0 ? ((ss_union - ss_apart) / p) / (ss_apart / dof) : INFINITY;
+      if (!(f <= FQuantile(options_.merge_significance, p, dof))) continue;
+      a.shape = fit->first;
+      a.uncertainties = fit->second;
+      a.inliers = std::move(both);
+      a.rms = std::sqrt(ss_union / static_cast<double>(a.inliers.size()));
+      a.epsilon = std::max(a.epsilon, b.epsilon);
+      a.components += b.components;
+      a.merge_f = f;
+      a.miss_probability = std::max(a.miss_probability, b.miss_probability);
+      a.draws += b.draws;
+      all.pop_back();
+      return;
+    }
+  }
+
+  static double ShapeParameters(PrimitiveKind kind) {
+    switch (kind) {
+      case PrimitiveKind::kPlane:
+        return 3;
+      case PrimitiveKind::kSphere:
+        return 4;
+      case PrimitiveKind::kCylinder:
+        return 5;
+      case PrimitiveKind::kCone:
+        return 6;
+      case PrimitiveKind::kTorus:
+        return 7;
+    }
+    return 0;
   }
 
   // One localized draw: a remaining point, a level, and two more remaining points of its cell there (three

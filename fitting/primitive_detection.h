@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <variant>
@@ -75,6 +76,11 @@ struct DetectionOptions {
   double max_radius = 0.0;
   double min_cone_half_angle = 0.05;
   double max_cone_half_angle = 1.4;
+  // An object cut in two by an occluder (two connected components, eq. 56) is one instance: a new curved
+  // instance is merged into an earlier one of its kind when the nested-model F-test of eq. 81 at this
+  // significance does not reject one shape for both (planes are never merged).
+  bool merge_split_instances = true;
+  double merge_significance = 0.01;
 
   // Why the options cannot be used ("" when they can).
   bool IsValid(std::string* why = nullptr) const;
@@ -93,6 +99,10 @@ struct DetectedPrimitive {
   // The bound of eq. 57 when the instance was accepted, and the draws it took.
   double miss_probability = 1.0;
   int draws = 0;
+  // Connected components (eq. 56) the instance spans: more than 1 when instances split by an occluder were
+  // merged (eq. 81); merge_f is the last merge's F statistic (NaN when none).
+  int components = 1;
+  double merge_f = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct DetectionResult {

@@ -149,6 +149,9 @@ nlohmann::json InstanceJson(const DetectedPrimitive& instance, const std::string
   j["epsilon"] = instance.epsilon;
   j["miss_probability"] = instance.miss_probability;
   j["draws"] = instance.draws;
+  // More than 1 when parts cut apart by an occluder were merged (docs/method.md eq. 81).
+  j["components"] = instance.components;
+  j["merge_f"] = std::isfinite(instance.merge_f) ? nlohmann::json(instance.merge_f) : nlohmann::json(nullptr);
   return j;
 }
 
@@ -210,7 +213,12 @@ DetectOutcome ComputeDetect(const DetectOptions& o) {
   for (std::size_t k = 0; k < result.instances.size(); ++k) {
     const DetectedPrimitive& instance = result.instances[k];
     t << "  #" << k + 1 << " " << ToString(instance.kind) << ": " << instance.support() << " inliers, RMS "
-      << Format(instance.rms, 4) << ", epsilon " << Format(instance.epsilon, 3) << "\n"
+      << Format(instance.rms, 4) << ", epsilon " << Format(instance.epsilon, 3)
+      << (instance.components > 1
+              ? ", " + std::to_string(instance.components) + " parts cut apart by an occluder, merged (F " +
+                    Format(instance.merge_f, 3) + ")"
+              : std::string())
+      << "\n"
       << ParametersText(instance);
   }
   if (result.instances.empty()) t << "  no instance found\n";

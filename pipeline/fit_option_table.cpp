@@ -98,6 +98,44 @@ std::vector<FitOptionSpec> MakeTable() {
                1e300,
                [](FitOptions& o, const std::string& v) { o.bending = std::stod(v); }});
   t.push_back(
+      {"start",
+       "--start",
+       K::kChoice,
+       "auto",
+       "Revolution, helical, spiral: where the joint fit starts. auto: from the normals (revolution: "
+       "the best cylinder's axis), and only when that fit's RMS stays above the noise band a global "
+       "search (pitch or growth periodicity, sherd axis search) whose best starts are fitted too, the "
+       "lowest all-points objective winning; normals: the normals' start only; global: the search "
+       "always (docs/method.md section 19)",
+       {"auto", "normals", "global"},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.start = v; }});
+  t.push_back(
+      {"pitch",
+       "--pitch",
+       K::kNumber,
+       "",
+       "Helical: a pitch (length per radian along the axis) to centre the pitch searches on instead of "
+       "the normals' estimate",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.pitch = std::stod(v); }});
+  t.push_back({"growth",
+               "--growth",
+               K::kNumber,
+               "",
+               "Spiral: a growth (per radian) to centre the growth searches on instead of the normals' "
+               "estimate",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.growth = std::stod(v); }});
+  t.push_back(
       {"loss",
        "--loss",
        K::kText,

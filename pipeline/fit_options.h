@@ -32,6 +32,15 @@ struct FitOptions {
   bool closed = false;  // closed (periodic) curve; for surfaces: periodic in u over a fitted cylinder
   double stretch = 0.0;
   double bending = 1e-3;
+  // Kinematic surfaces (revolution, helical, spiral): where the joint fit starts (docs/method.md section 19):
+  // "auto" (the normals' start, and the global search only when that fit does not reach the noise band),
+  // "normals" (the normals' start only), "global" (the global search always, the normals' start among its
+  // candidates).
+  std::string start = "auto";
+  // A pitch (helical) or growth (spiral) the user knows, to centre both searches on instead of the
+  // normals' estimate; 0: none.
+  double pitch = 0.0;
+  double growth = 0.0;
   std::string step_control = "lm";
   RobustLoss loss;  // --loss: the robust loss of every fit (fitting/robust_loss.h)
   // Whether --loss (or a manifest's "loss") was given; otherwise ComputeFit chooses the default for the

@@ -2,6 +2,7 @@
 // of several views to a kinematic surface.
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
 #include <iomanip>
 #include <iostream>
@@ -12,6 +13,7 @@
 #include "acquisition/format_error.h"
 #include "fitting/initial_models.h"
 #include "fitting/joint_fit.h"
+#include "fitting/kinematic_starts.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/model_complexity.h"
 #include "fitting/primitive_fit.h"
@@ -41,15 +43,115 @@ KinematicAxis InitialKinematicAxis(const ScanSet& set, KinematicKind kind) {
   return KinematicAxisFromNormals(merged, EstimateNormals(merged, 12), kind);
 }
 
+// Unit normals of each view in its own coordinates (local plane fits over 12 neighbours), for deciding which
+// points lie off the fitted surface; a view too small for them gets none (distance test only).
+std::vector<Eigen::Matrix3Xd> ViewNormals(const ScanSet& set) {
+  std::vector<Eigen::Matrix3Xd> normals;
+  for (const Scan& s : set.scans) {
+    try {
+      normals.push_back(EstimateNormals(s.points, 12));
+    } catch (const std::invalid_argument&) {
+      normals.emplace_back();
+    }
+  }
+  return normals;
+}
+
+// Where the fit started and why (the JSON member `start`, docs/cli.md).
+struct StartReport {
+  std::string mode;                      // --start
+  std::string reason;                    // why the global search ran or not
+  std::optional<bool> normals_adequate;  // the RMS of the fit from the normals' start within the band
+  bool searched = false;
+  double normals_value = 0.0;          // the pitch or growth from the normals
+  double estimate = 0.0;               // --pitch / --growth
+  std::vector<KinematicStart> starts;  // searched ones, the normals' start last
+  StartedJointFit started;
+  std::size_t chosen = 0;
+  bool kept_normals = false;  // the normals' start won (at the coarse count or after both searches)
+  double normals_final_objective = std::numeric_limits<double>::quiet_NaN();
+  double searched_final_objective = std::numeric_limits<double>::quiet_NaN();
+  Eigen::Index left_out = 0;
+  std::vector<std::vector<bool>> left_out_masks;  // of the reported fit, per view (empty: none)
+  double search_seconds = 0.0;
+  double turn = 1.0;
+  FairnessWeights fairness;
+};
+
+nlohmann::json NumberOrNull(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
+nlohmann::json StartJson(const StartReport& s, KinematicKind kind) {
+  nlohmann::json j = {{"mode", s.mode},
+                      {"searched", s.searched},
+                      {"reason", s.reason},
+                      {"normals_adequate",
+                       s.normals_adequate ? nlohmann::json(*s.normals_adequate) : nlohmann::json(nullptr)},
+                      {"turn_fraction", s.turn},
+                      {"fairness", {{"stretch", s.fairness.stretch}, {"bending", s.fairness.bending}}}};
+  if (kind != KinematicKind::kRevolution) {
+    j["normals_value"] = s.normals_value;
+    j["estimate"] = s.estimate != 0.0 ? nlohmann::json(s.estimate) : nlohmann::json(nullptr);
+  }
+  if (!s.searched) {
+    j["source"] = kind == KinematicKind::kRevolution ? "best cylinder"
+                  : kind == KinematicKind::kHelical  ? "normals' pitch"
+                                                     : "normals' growth";
+    j["left_out_points"] = 0;
+    return j;
+  }
+  nlohmann::json tried = nlohmann::json::array();
+  for (std::size_t i = 0; i < s.starts.size(); ++i) {
+    const KinematicStart& k = s.starts[i];
+    nlohmann::json t = {{"source", k.source},
+                        {"axis",
+                         {{"point", ToJson(k.world_T_model.translation())},
+                          {"direction", ToJson(Eigen::Vector3d(k.world_T_model.rotation().col(2)))}}},
+                        {"start_scale", NumberOrNull(k.score)},
+                        {"final_scale", NumberOrNull(s.started.final_scores.at(i))},
+                        {"objective", NumberOrNull(s.started.final_objectives.at(i))},
+                        {"left_out_points", s.started.left_out_per_start.at(i)}};
+    if (kind != KinematicKind::kRevolution) t["value"] = k.searched_value;
+    tried.push_back(t);
+  }
+  const KinematicStart& chosen = s.starts.at(s.chosen);
+  j["source"] = chosen.source;
+  if (kind != KinematicKind::kRevolution) j["searched_value"] = chosen.searched_value;
+  j["chosen"] = s.chosen;
+  j["tried"] = tried;
+  j["objective_scale"] = s.started.objective_scale;
+  j["normals_final_objective"] = NumberOrNull(s.normals_final_objective);
+  j["searched_final_objective"] = NumberOrNull(s.searched_final_objective);
+  j["left_out_points"] = s.left_out;
+  j["search_seconds"] = s.search_seconds;
+  return j;
+}
+
+std::string StartText(const StartReport& s, KinematicKind kind) {
+  std::ostringstream t;
+  if (!s.searched) {
+    t << (kind == KinematicKind::kRevolution ? "best cylinder's axis" : "axis from normals") << " ("
+      << s.reason << "; no global search)";
+  } else {
+    const KinematicStart& chosen = s.starts.at(s.chosen);
+    t << chosen.source;
+    if (kind != KinematicKind::kRevolution)
+      t << " " << Format(chosen.searched_value, 6) << " (normals " << Format(s.normals_value, 4) << ")";
+    t << ": start " << s.chosen + 1 << " of " << s.starts.size() << " tried (" << s.reason << "; "
+      << Format(s.search_seconds, 3) << " s), " << s.left_out << " points left out as off the surface";
+  }
+  if (s.turn < 1.0)
+    t << "\n                    covers " << Format(100 * s.turn, 3) << " % of a turn: bending weight "
+      << Format(s.fairness.bending, 3) << " (eq. 80)";
+  return t.str();
+}
+
 double UncertaintyOf(const ParametricModel& m, const JointFitResult& r, const std::string& name) {
   for (int i = 0; i < m.num_parameters(); ++i) {
     if (m.parameter_name(i) == name && i < r.shape_uncertainty.size()) return r.shape_uncertainty[i];
   }
   return std::numeric_limits<double>::quiet_NaN();
-}
-
-nlohmann::json NumberOrNull(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
 }  // namespace
@@ -73,40 +175,52 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     const int n = request.automatic ? o.order + 1
                                     : (coarse_first ? std::min(request.first, o.order + 2) : request.first);
     const int max_control_points = request.max > 0 ? request.max : std::max(40, request.first);
-    // Model frame: the initial axis (revolution: of the best cylinder; helical: from normals; spiral: from
-    // normals, origin at the centre). Scans start at their given world poses, expressed in that frame.
-    std::unique_ptr<ParametricModel> model;
-    RigidMotion world_T_model;
-    if (o.model == "revolution") {
-      world_T_model = InitialAxisFrame(set);
-      model = std::make_unique<KinematicSurface>(
-          InitialRevolution(world_T_model.inverse().apply(set.MergedWorldPoints()), n, o.order));
+    const KinematicKind kind = o.model == "revolution" ? KinematicKind::kRevolution
+                               : o.model == "helical"  ? KinematicKind::kHelical
+                                                       : KinematicKind::kSpiral;
+    const double estimate = kind == KinematicKind::kHelical  ? o.pitch
+                            : kind == KinematicKind::kSpiral ? o.growth
+                                                             : 0.0;
+    const Eigen::Matrix3Xd merged = set.MergedWorldPoints();
+    // The normals' start (revolution: the best cylinder's axis; helical, spiral: the axis from normals, the
+    // pitch or growth searched +-20 % about theirs or the given estimate; spiral: origin at the centre).
+    // Scans start at their given world poses, expressed in that frame.
+    KinematicStart normals_start;
+    if (kind == KinematicKind::kRevolution) {
+      normals_start.world_T_model = InitialAxisFrame(set);
+      normals_start.model = std::make_shared<KinematicSurface>(
+          InitialRevolution(normals_start.world_T_model.inverse().apply(merged), n, o.order));
+      normals_start.source = "best cylinder";
     } else {
-      KinematicAxis axis =
-          InitialKinematicAxis(set, o.model == "helical" ? KinematicKind::kHelical : KinematicKind::kSpiral);
+      KinematicAxis axis = InitialKinematicAxis(set, kind);
       if (axis.growth < 0) {  // the same motion reversed: report growing whorls about the opposite direction
         axis.growth = -axis.growth;
         axis.direction = -axis.direction;
       }
-      world_T_model = RigidMotion(FrameWithAxis(axis.direction), axis.point);
-      const Eigen::Matrix3Xd local = world_T_model.inverse().apply(set.MergedWorldPoints());
-      if (o.model == "helical") {
-        model =
-            std::make_unique<KinematicSurface>(InitialHelicalWithPitchSearch(local, axis.pitch, n, o.order));
+      normals_start.normals_value = kind == KinematicKind::kHelical ? axis.pitch : axis.growth;
+      if (estimate != 0.0) (kind == KinematicKind::kHelical ? axis.pitch : axis.growth) = estimate;
+      normals_start.world_T_model = RigidMotion(FrameWithAxis(axis.direction), axis.point);
+      const Eigen::Matrix3Xd local = normals_start.world_T_model.inverse().apply(merged);
+      if (kind == KinematicKind::kHelical) {
+        auto m =
+            std::make_shared<KinematicSurface>(InitialHelicalWithPitchSearch(local, axis.pitch, n, o.order));
+        normals_start.searched_value = m->pitch();
+        normals_start.model = m;
       } else {
-        model =
-            std::make_unique<SpiralSurface>(InitialSpiralWithGrowthSearch(local, axis.growth, n, o.order));
+        auto m =
+            std::make_shared<SpiralSurface>(InitialSpiralWithGrowthSearch(local, axis.growth, n, o.order));
+        normals_start.searched_value = m->growth();
+        normals_start.model = m;
       }
+      normals_start.source = kind == KinematicKind::kHelical ? "normals' pitch" : "normals' growth";
     }
-    const RigidMotion model_T_world = world_T_model.inverse();
     std::vector<Eigen::Matrix3Xd> scans;
-    std::vector<RigidMotion> initial;
+    std::vector<RigidMotion> world_T_scan;
     for (const Scan& s : set.scans) {
       scans.push_back(s.points);
-      initial.push_back(model_T_world * s.world_T_scan);
+      world_T_scan.push_back(s.world_T_scan);
     }
     JointFitOptions options = JointOptions(o);  // TDM by default (apps/views.cpp)
-    options.fairness = {o.stretch, o.bending};
     // Helical and spiral profiles are distorted by a shared-motion stage on mis-registered views (measured on
     // the synthetic screw: stalls at RMS 1.7 x the noise; without it the noise is reached in 15 iterations,
     // docs/multiview-cases.md): per-view motions from the start.
@@ -116,12 +230,143 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     ComplexityOptions complexity_options;
     complexity_options.noise = noise.sigma;
     complexity_options.noise_dof = noise.dof;
-    RefinableGeneratrixFit refinable(*model, scans, initial, options, max_control_points);
-    const ComplexityChoice complexity =
-        request.automatic
-            ? ChooseComplexity(refinable, complexity_options)
-            : FitFixedComplexity(refinable, complexity_options, coarse_first ? request.first : 0);
-    const JointFitResult& r = refinable.result();
+    // The fairness weights hold for a whole turn; a part of a turn (a sherd) gets them scaled by the square
+    // of the turn fraction it covers (docs/method.md eq. 80), measured about the start's axis.
+    auto fairness_for = [&](const RigidMotion& world_T_model, double* turn) {
+      *turn = CoveredTurnFraction(merged, world_T_model.translation(), world_T_model.rotation().col(2));
+      return FairnessWeights{o.stretch * *turn * *turn, o.bending * *turn * *turn};
+    };
+    // The complexity search (docs/method.md section 18) from a fitted or initial model at given poses.
+    struct Searched {
+      std::shared_ptr<ParametricModel> model;
+      ComplexityChoice complexity;
+      JointFitResult result;
+      double turn = 1.0;
+      FairnessWeights fairness;
+    };
+    auto search_complexity = [&](std::shared_ptr<ParametricModel> m, const std::vector<RigidMotion>& poses,
+                                 const RigidMotion& world_T_model, std::vector<std::vector<bool>> left_out) {
+      Searched out;
+      out.model = std::move(m);
+      JointFitOptions opts = options;
+      opts.fairness = out.fairness = fairness_for(world_T_model, &out.turn);
+      opts.left_out = std::move(left_out);
+      RefinableGeneratrixFit refinable(*out.model, scans, poses, opts, max_control_points);
+      out.complexity = request.automatic ? ChooseComplexity(refinable, complexity_options)
+                                         : FitFixedComplexity(refinable, complexity_options,
+                                                              coarse_first ? request.first : 0);
+      out.result = refinable.result();
+      return out;
+    };
+    auto poses_from = [&](const RigidMotion& world_T_model) {
+      std::vector<RigidMotion> poses;
+      for (const RigidMotion& pose : world_T_scan) poses.push_back(world_T_model.inverse() * pose);
+      return poses;
+    };
+    // Where the fit starts (docs/method.md section 19): the normals' start, then (--start auto) the global
+    // search only when that fit's RMS stays above the noise band (a wrong basin: a pitch, growth or axis
+    // far off), or (--start global) always.
+    std::optional<Searched> from_normals;
+    StartReport report;
+    report.mode = o.start;
+    report.normals_value = normals_start.normals_value;
+    report.estimate = estimate;
+    if (o.start != "global") {
+      from_normals = search_complexity(normals_start.model->Clone(), poses_from(normals_start.world_T_model),
+                                       normals_start.world_T_model, {});
+      const ComplexityStep& chosen = from_normals->complexity.steps.at(from_normals->complexity.chosen);
+      report.normals_adequate = chosen.adequate;
+    }
+    const bool search = o.start == "global" || (o.start == "auto" && report.normals_adequate != true);
+    Searched fitted;
+    if (!search) {
+      fitted = std::move(*from_normals);
+      report.reason = o.start == "normals" ? "--start normals"
+                                           : "the fit from the normals' start is within the noise band";
+    } else {
+      report.searched = true;
+      report.reason = o.start == "global" ? "--start global"
+                      : report.normals_adequate.has_value()
+                          ? "the fit from the normals' start stays above the noise band"
+                          : "no noise estimate to judge the normals' start by";
+      KinematicStartOptions start_options;
+      start_options.num_control = n;
+      start_options.order = o.order;
+      start_options.estimate = estimate;
+      const auto search_start = std::chrono::steady_clock::now();
+      try {
+        report.starts = FindKinematicStarts(merged, EstimateNormals(merged, 12), kind, start_options);
+      } catch (const std::invalid_argument& e) {  // no searched start: the normals' start stands alone
+        report.reason += std::string(report.reason.empty() ? "" : "; ") + "no searched start: " + e.what();
+      }
+      // The normals' start is one candidate among the others (the global search must not lose what it had).
+      normals_start.score =
+          MadSigma(PlacedDistances(*normals_start.model, {merged}, {normals_start.world_T_model.inverse()}));
+      report.starts.push_back(normals_start);
+      // The coarse fits' fairness scaled about the best-scored start's axis (a sherd's best cylinder may
+      // stand 90 degrees off).
+      JointFitOptions coarse = options;
+      double coarse_turn = 1.0;
+      coarse.fairness = fairness_for(report.starts.front().world_T_model, &coarse_turn);
+      const std::vector<Eigen::Matrix3Xd> view_normals = ViewNormals(set);
+      report.started = FitJointlyFromStarts(report.starts, scans, world_T_scan, view_normals, coarse,
+                                            start_options, noise.sigma);
+      const StartedJointFit& started = report.started;
+      const bool normals_won = started.chosen + 1 == report.starts.size();
+      if (normals_won && from_normals) {
+        fitted = std::move(*from_normals);
+        report.kept_normals = true;
+      } else {
+        // The fairness scaled about the coarse fit's axis (a start's axis may still be tens of degrees off).
+        const RigidMotion world_T_coarse = world_T_scan[0] * started.result.model_T_scan[0].inverse();
+        fitted = search_complexity(started.model, started.result.model_T_scan, world_T_coarse,
+                                   started.left_out_masks);
+        // The points off the surface decided at the coarse count again at the chosen one (a surface point
+        // the coarse generatrix missed comes back), with one refit when that changed them.
+        std::vector<std::vector<bool>> masks = started.left_out_masks;
+        for (std::size_t k = 0; k < scans.size(); ++k)
+          masks[k] = PointsOffTheSurface(*fitted.model, fitted.result.model_T_scan[k].apply(scans[k]),
+                                         fitted.result.model_T_scan[k].rotation() * view_normals[k],
+                                         start_options.off_distance, start_options.off_angle_deg);
+        if (masks != started.left_out_masks) {
+          JointFitOptions opts = options;
+          opts.fairness = fitted.fairness;
+          opts.left_out = masks;
+          RefinableGeneratrixFit refit(*fitted.model, scans, fitted.result.model_T_scan, opts,
+                                       max_control_points);
+          refit.Fit();
+          const int before = fitted.result.iterations;
+          fitted.result = refit.result();
+          fitted.result.iterations += before;
+        }
+        report.left_out = 0;
+        for (const auto& mask : masks) report.left_out += std::count(mask.begin(), mask.end(), true);
+        report.left_out_masks = masks;
+        // The normals' whole search stands against the searched start's (eq. 79 over all points, at one
+        // scale): the global search must not lose what the normals' start had.
+        if (from_normals) {
+          const double scale = started.objective_scale;
+          report.normals_final_objective = AllPointsObjective(
+              PlacedDistances(*from_normals->model, scans, from_normals->result.model_T_scan), scale);
+          report.searched_final_objective =
+              AllPointsObjective(PlacedDistances(*fitted.model, scans, fitted.result.model_T_scan), scale);
+          if (report.normals_final_objective <= report.searched_final_objective) {
+            fitted = std::move(*from_normals);
+            report.kept_normals = true;
+            report.left_out = 0;
+            report.left_out_masks.clear();
+          }
+        }
+      }
+      report.chosen = report.kept_normals ? report.starts.size() - 1 : started.chosen;
+      report.search_seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - search_start).count();
+    }
+    report.turn = fitted.turn;
+    report.fairness = fitted.fairness;
+    const std::shared_ptr<ParametricModel> model = fitted.model;
+    const ComplexityChoice& complexity = fitted.complexity;
+    const JointFitResult& r = fitted.result;
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
     // Report in the data's world. The fit fixes the views only relative to each other and to the model; place
@@ -157,6 +402,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     j["loss"] = LossJson(o.loss, r.loss_scale, Eigen::VectorXd());
     j["loss"]["reason"] = o.loss_reason;
     j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
+    j["start"] = StartJson(report, kind);
     const auto* kinematic = dynamic_cast<const KinematicSurface*>(model.get());
     const auto* spiral = dynamic_cast<const SpiralSurface*>(model.get());
     const BSplineBasis& basis = kinematic ? kinematic->basis() : spiral->basis();
@@ -214,23 +460,41 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     // Adequacy (docs/method.md section 17): the RMS against the views' own noise, and the signed residuals'
     // structure, for a surface of revolution along the height (the generatrix's parameter up to its
     // direction), for helical and spiral surfaces along a Hilbert curve through the registered points.
+    // The points left out as off the surface (eq. 77) are not the fit's residuals: the verdict is over the
+    // others.
+    Eigen::VectorXd judged = deviations;
+    Eigen::Matrix3Xd judged_feet = feet;
+    if (!report.left_out_masks.empty()) {
+      std::vector<Eigen::Index> kept;
+      Eigen::Index at = 0;
+      for (std::size_t k = 0; k < K; ++k)
+        for (Eigen::Index p = 0; p < scans[k].cols(); ++p, ++at)
+          if (!report.left_out_masks[k][static_cast<std::size_t>(p)]) kept.push_back(at);
+      judged.resize(static_cast<Eigen::Index>(kept.size()));
+      judged_feet.resize(3, judged.size());
+      for (std::size_t i = 0; i < kept.size(); ++i) {
+        judged[static_cast<Eigen::Index>(i)] = deviations[kept[i]];
+        judged_feet.col(static_cast<Eigen::Index>(i)) = feet.col(kept[i]);
+      }
+    }
     AdequacyEvidence evidence;
     evidence.family = ModelFamily::kMultiView;
     evidence.model = o.model;
     evidence.control_points = std::to_string(profile.cols());
     evidence.fit_rms = r.residuals.rms;
     evidence.noise_estimate = noise.sigma;
-    evidence.residuals = deviations;
-    evidence.points = feet;
+    evidence.residuals = judged;
+    evidence.points = judged_feet;
     if (o.model == "revolution") {
-      evidence.order = OrderByParameter(feet.row(2).transpose());
+      evidence.order = OrderByParameter(judged_feet.row(2).transpose());
       evidence.order_description = "the height along the axis";
     }
-    evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, deviations);
+    evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, judged);
     evidence.extent = ComputeBounds(registered).diagonal();
     const Adequacy adequacy = AssessAdequacy(evidence);
     const std::optional<bool> trusted = adequacy.uncertainty_trusted();
-    j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations, {}, evidence.weights);
+    j["deviations"] = DeviationsJson(world_T_model_fit.apply(registered), deviations, {},
+                                     RobustWeightsAt(o.loss, r.loss_scale, deviations));
     j["complexity"] = ComplexityJson(complexity, complexity_options);
     j["adequacy"] = adequacy.ToJson();
     std::optional<VesselMeasures> vessel;
@@ -249,6 +513,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
          << UntrustedUncertaintiesLine(trusted) << "  solver            "
          << SolverSummary(options, r, seconds) << "\n"
          << "  loss              " << ToString(o.loss) << "; " << o.loss_reason << "\n"
+         << "  start             " << StartText(report, kind) << "\n"
          << "  axis point        " << Format(axis_point) << "\n"
          << "  axis direction    " << Format(axis_direction) << "\n";
     if (j.contains("pitch")) {

@@ -217,7 +217,7 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
       one.scans.back().points = data;
       noise = EstimateNoiseWithDof(one);
     } else if (data.rows() == 2) {
-      noise = EstimatePlaneCurveNoise(data);
+      noise = EstimateCurveNoise(data);
     } else {
       noise.sigma = std::numeric_limits<double>::quiet_NaN();
     }
@@ -280,9 +280,9 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
           std::to_string(dynamic_cast<const BSplineCurve&>(*model).basis().num_control());
       evidence.order = OrderByParameter(feet.row(0).transpose());
       evidence.order_description = "the curve parameter";
-      evidence.noise_estimate = EstimateCurveNoise(data);
+      evidence.noise_estimate = EstimateCurveNoise(data).sigma;
       evidence.noise_method =
-          "median over local quadratics of 8 neighbours along the curve (docs/method.md section 17)";
+          "median over local quadratics of 7 neighbours along the curve (docs/method.md section 17)";
     }
     if (o.loss.is_robust()) evidence.weights = r.weights;
     {

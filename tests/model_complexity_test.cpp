@@ -86,7 +86,7 @@ TEST(AutomaticComplexity, ClosedCurveChoosesAnAdequateCountBelowTheMaximum) {
     const Eigen::Vector2d tangent(dr * std::cos(t) - r * std::sin(t), dr * std::sin(t) + r * std::cos(t));
     points.col(j) = p + noise(rng) * Eigen::Vector2d(tangent.y(), -tangent.x()).normalized();
   }
-  const NoiseEstimate estimate = EstimatePlaneCurveNoise(points);
+  const NoiseEstimate estimate = EstimateCurveNoise(points);
   EXPECT_NEAR(estimate.sigma, sigma, 0.25 * sigma);  // the model-free estimate itself
   BSplineCurve curve = InitialCurveFromQuadtree(points, 6, 4, true);
   GeometricFitOptions options;
