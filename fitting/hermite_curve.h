@@ -90,8 +90,8 @@ class HermiteCurve final : public ParametricModel {
   void ApplySimilarity(double scale, const VecS& offset) override;
   void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
-  // FairnessWeights maps stretch to alpha1 and bending to alpha2; the model's own terms (alpha3, beta) come
-  // from set_fairness, which this adds to.
+  // FairnessWeights maps stretch, bending, variation, jump2, jump3 to alpha1..3, beta2, beta3, added to the
+  // model's own terms (set_fairness).
   Eigen::MatrixXd FairnessMatrix(const FairnessWeights& weights) const override;
   std::vector<ParamT> SampleParameters() const override;
   // Exact feet by Bernstein root isolation on every element that can hold the foot (hermite_curve.cpp).

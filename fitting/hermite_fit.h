@@ -45,7 +45,14 @@ struct HermiteFitOptions {
   // fit's RMS equal to it (the fairest curve within the tolerance, a 1-D search); with adaptive elements,
   // elements are added until the RMS can go below it.
   double tolerance = 0.0;
-  OptimizerOptions optimizer;  // of each fit (the spring method: at most optimizer.max_iterations steps)
+  // Of each fit (the spring method: at most optimizer.max_iterations steps). The relative decrease tolerance
+  // is 1e-8 rather than the engine's 1e-10: the nodal derivatives' tangential parts (the parametrization) are
+  // held only by the fairness, and the last digits of E they still gain are not worth a hundred iterations.
+  OptimizerOptions optimizer = [] {
+    OptimizerOptions o;
+    o.objective_tolerance = 1e-8;
+    return o;
+  }();
 
   bool IsValid(std::string* why) const;
 };

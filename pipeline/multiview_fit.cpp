@@ -106,7 +106,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       initial.push_back(model_T_world * s.world_T_scan);
     }
     JointFitOptions options = JointOptions(o);  // TDM by default (apps/views.cpp)
-    options.fairness = {o.stretch, o.bending};
+    options.fairness = {o.stretch, o.bending, o.alpha3_given ? o.alpha3 : 0.0, o.beta2, o.beta3};
     // Helical and spiral profiles are distorted by a shared-motion stage on mis-registered views (measured on
     // the synthetic screw: stalls at RMS 1.7 x the noise; without it the noise is reached in 15 iterations,
     // docs/multiview-cases.md): per-view motions from the start.

@@ -40,28 +40,6 @@ StepStrategy ParseStepControl(const std::string& s) {
   return StepStrategy::kTrustRegion;
 }
 
-// Points of the input: a point cloud, or one contour of a .glif glyph (2D).
-Eigen::MatrixXd ReadInput(const FitOptions& o, std::string& format, std::string& units,
-                          std::vector<std::string>& notes, std::string& device) {
-  if (std::filesystem::path(o.file).extension() == ".glif") {
-    const auto contours = ReadGlifContours(o.file);
-    if (o.contour < 0 || o.contour >= static_cast<int>(contours.size())) {
-      throw UsageError("--contour " + std::to_string(o.contour) + ": the glyph has " +
-                       std::to_string(contours.size()) + " contours");
-    }
-    format = "glif";
-    units = "font units";
-    return contours[static_cast<std::size_t>(o.contour)];
-  }
-  const PointCloudFormat f = DetectFormat(o.file);
-  const Scan scan = ReadPointCloud(o.file, f);
-  notes = scan.metadata.notes;
-  device = scan.metadata.device;
-  format = ToString(f);
-  units = scan.units;
-  return scan.points;
-}
-
 // A curve's initial model: quadtree chain in the data's plane (2D data as is; 3D data on their best-fit
 // plane).
 std::unique_ptr<ParametricModel> InitialCurve(const Eigen::MatrixXd& points, int n, int order, bool closed) {
@@ -152,6 +130,27 @@ Eigen::Matrix3Xd Samples(const ParametricModel& model) {
 
 }  // namespace
 
+Eigen::MatrixXd ReadFitPoints(const FitOptions& o, std::string& format, std::string& units,
+                              std::vector<std::string>& notes, std::string& device) {
+  if (std::filesystem::path(o.file).extension() == ".glif") {
+    const auto contours = ReadGlifContours(o.file);
+    if (o.contour < 0 || o.contour >= static_cast<int>(contours.size())) {
+      throw FitFailure(kUsage, "--contour " + std::to_string(o.contour) + ": the glyph has " +
+                                   std::to_string(contours.size()) + " contours");
+    }
+    format = "glif";
+    units = "font units";
+    return contours[static_cast<std::size_t>(o.contour)];
+  }
+  const PointCloudFormat f = DetectFormat(o.file);
+  const Scan scan = ReadPointCloud(o.file, f);
+  notes = scan.metadata.notes;
+  device = scan.metadata.device;
+  format = ToString(f);
+  units = scan.units;
+  return scan.points;
+}
+
 FitOutcome ComputeSplineFit(const FitOptions& given) {
   FitOptions o = given;
   const bool surface = o.model == "bspline-surface";
@@ -172,7 +171,7 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
     std::string format, units;
     FitOutcome outcome;
     std::string device = "file";
-    const Eigen::MatrixXd points = ReadInput(o, format, units, outcome.notes, device);
+    const Eigen::MatrixXd points = ReadFitPoints(o, format, units, outcome.notes, device);
     ResolveDefaultLoss(o, ClassifyInput(o.file, device));
     const std::string units_out = o.units.empty() ? units : o.units;
     if (surface && points.rows() != 3) throw UsageError("a B-spline surface needs 3D points");
@@ -196,7 +195,7 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
     GeometricFitOptions options;
     options.error_term = ErrorTermFromString(o.method.empty() ? "sdm" : o.method);
     options.optimizer.step_strategy = ParseStepControl(o.step_control);
-    options.fairness = {o.stretch, o.bending};
+    options.fairness = {o.stretch, o.bending, o.alpha3_given ? o.alpha3 : 0.0, o.beta2, o.beta3};
     options.optimizer.max_iterations = o.max_iterations;
     options.optimizer.loss = o.loss;
     const bool progress = o.interactive && !o.json && isatty(STDERR_FILENO);
@@ -300,7 +299,11 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
     j["step_control"] = ToString(options.optimizer.step_strategy);
     j["loss"] = LossJson(o.loss, r.loss_scale, r.weights);
     j["loss"]["reason"] = o.loss_reason;
-    j["fairness"] = {{"stretch", o.stretch}, {"bending", o.bending}};
+    j["fairness"] = {{"stretch", options.fairness.stretch},
+                     {"bending", options.fairness.bending},
+                     {"variation", options.fairness.variation},
+                     {"jump2", options.fairness.jump2},
+                     {"jump3", options.fairness.jump3}};
     if (surface) {
       const auto& s = dynamic_cast<const BSplineSurface&>(*model);
       j["basis_u"] = BasisJson(s.basis_u());
@@ -364,6 +367,8 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
     }
     outcome.text = text.str();
     return outcome;
+  } catch (const FitFailure&) {
+    throw;
   } catch (const UsageError& e) {
     throw FitFailure(kUsage, e.what());
   } catch (const FormatError& e) {
