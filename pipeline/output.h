@@ -29,8 +29,8 @@ std::string HistoryCsv(const std::vector<IterationRecord>& history);
 // The history as an aligned text table (iteration, RMS, max distance, damping, step, time).
 std::string HistoryTable(const std::vector<IterationRecord>& history);
 // Writes beside the target, fsyncs, then renames, so that a crash, a full disk or a power cut never leaves a
-// half-written file under the final name (and a failed write leaves no partial file). Throws FormatError
-// naming the file and the operating system's reason when it cannot be written.
+// half-written file under the final name (and a failed write leaves no partial file). Throws FormatError naming
+// the file and the operating system's reason when it cannot be written.
 void WriteTextAtomically(const std::string& path, const std::string& text);
 // A failure: the message on standard error and, with --json, a scan2model.error/1 document on standard
 // output.
