@@ -68,7 +68,7 @@ struct CurveInterrogation {
   double max_g1 = 0.0, max_g2 = 0.0;  // largest jumps
 };
 
-// Curvature and its derivative from derivatives w', w'', w''' (docs/fair-curves.md eqs. 19-22).
+// Curvature and its derivative from derivatives w', w'', w''' (docs/fair-curves.md eqs. F20-F21).
 void CurvatureOf(const Eigen::Ref<const Eigen::VectorXd>& d1, const Eigen::Ref<const Eigen::VectorXd>& d2,
                  const Eigen::Ref<const Eigen::VectorXd>& d3, double& kappa, double& dkappa_ds,
                  double& torsion);

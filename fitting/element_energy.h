@@ -1,5 +1,5 @@
 #pragma once
-// Exact energy integrals of piecewise-polynomial bases (docs/fair-curves.md eqs. 5-8): on one element (a
+// Exact energy integrals of piecewise-polynomial bases (docs/fair-curves.md eqs. F5-F8): on one element (a
 // Hermite element or a B-spline knot span) each basis function is a polynomial in a local coordinate y = (u -
 // origin) / length, given by its power coefficients. The element matrix of the p-th derivative,
 //   K_p(i, j) = integral over the element of phi_i^(p)(u) phi_j^(p)(u) du,

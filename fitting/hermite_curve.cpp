@@ -32,7 +32,7 @@ Eigen::MatrixXd HermiteShapeCoefficients(int degree, double h) {
   if (!(h > 0)) throw std::invalid_argument("a Hermite element needs a positive length");
   const int m = (degree - 1) / 2, n = degree + 1;
   // Conditions on a polynomial sum_k c_k t^k: its j-th t-derivative at t = 0 (rows 0..m) and t = 1 (rows
-  // m+1..2m+1). The shape functions are the dual basis (docs/fair-curves.md eq. 3): C V^T = I.
+  // m+1..2m+1). The shape functions are the dual basis (docs/fair-curves.md eq. F3): C V^T = I.
   Eigen::MatrixXd v = Eigen::MatrixXd::Zero(n, n);
   for (int j = 0; j <= m; ++j) {
     v(j, j) = Factorial(j);
@@ -99,7 +99,7 @@ void HermiteCurve::BuildExpansion() {
     for (int d = 0; d < dofs; ++d) independent_global_[static_cast<std::size_t>(d)] = d;
     return;
   }
-  // Reduced transformation (Fang section 5.3, docs/fair-curves.md eq. 12): the C2 conditions A Q = 0, one
+  // Reduced transformation (Fang section 5.3, docs/fair-curves.md eq. F11): the C2 conditions A Q = 0, one
   // per junction (the jump of w'' across it), split into the independent dofs (positions, and an open
   // curve's two end slopes) and the dependent ones (the other slopes): Q_dep = -A_dep^-1 A_indep Q_indep.
   std::vector<int> junctions;
@@ -298,7 +298,7 @@ Eigen::MatrixXd HermiteCurve::FairnessMatrixOf(const HermiteFairness& f) const {
   const int dofs = num_nodes() * per_node_, n = degree_ + 1;
   Eigen::MatrixXd k = Eigen::MatrixXd::Zero(dofs, dofs);
   const double alpha[4] = {0.0, f.alpha1, f.alpha2, f.alpha3};
-  // Element matrices K_p^e, exact (docs/fair-curves.md eqs. 5-7), assembled by global dof.
+  // Element matrices K_p^e, exact (docs/fair-curves.md eq. F5), assembled by global dof.
   for (int e = 0; e < num_elements(); ++e) {
     const ElementBasis basis = HermiteElementBasis(degree_, knots_[e + 1] - knots_[e]);
     for (int p = 1; p <= 3; ++p) {
@@ -308,7 +308,7 @@ Eigen::MatrixXd HermiteCurve::FairnessMatrixOf(const HermiteFairness& f) const {
         for (int j = 0; j < n; ++j) k(GlobalDof(e, i), GlobalDof(e, j)) += ke(i, j);
     }
   }
-  // Junction matrices beta_p kbar kbar^T (eqs. 8-11): the jump of w^(p) across each junction node.
+  // Junction matrices beta_p kbar kbar^T (eqs. F6-F9): the jump of w^(p) across each junction node.
   const double beta[4] = {0.0, 0.0, degree_ == 3 ? f.beta2 : 0.0, f.beta3};
   for (int node = closed_ ? 0 : 1; node < (closed_ ? num_nodes() : num_nodes() - 1); ++node) {
     const int right = node, left = closed_ ? (node + num_elements() - 1) % num_elements() : node - 1;
@@ -403,7 +403,7 @@ HermiteCurve HermiteCurve::Refined(const std::vector<int>& elements) const {
 double HermiteCurve::FootOnElement(int e, const VecS& x, double& t_best) const {
   const Eigen::MatrixXd& a = power_[static_cast<std::size_t>(e)];
   const int s = ambient_dimension(), d = degree_;
-  // g(t) = (w(t) - x) . w_t(t), degree 2d - 1 (docs/fair-curves.md eq. 14): its roots in [0, 1] and the
+  // g(t) = (w(t) - x) . w_t(t), degree 2d - 1 (docs/fair-curves.md eq. F12): its roots in [0, 1] and the
   // element's ends are the candidates for the smallest |w - x|^2.
   Eigen::VectorXd g = Eigen::VectorXd::Zero(2 * d);
   for (int c = 0; c < s; ++c) {

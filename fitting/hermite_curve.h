@@ -7,7 +7,7 @@
 //
 // The model's parameters are the nodal dofs numbered node by node, [w(u_0), w'(u_0), (w''(u_0)), w(u_1), ...]
 // with the coordinates of each dof consecutive, so that the fairness matrix is banded. A cubic curve made C2
-// by the reduced transformation (Fang section 5.3, docs/fair-curves.md eq. 12) has the positions (and, open,
+// by the reduced transformation (Fang section 5.3, docs/fair-curves.md eq. F11) has the positions (and, open,
 // the two end slopes) as parameters; its interior slopes follow from them.
 
 #include <Eigen/Core>
@@ -18,14 +18,14 @@
 
 namespace s2m {
 
-// The Hermite shape functions of one element of degree 3 or 5 (Fang Table 3.1, docs/fair-curves.md eq. 3):
+// The Hermite shape functions of one element of degree 3 or 5 (Fang Table 3.1, docs/fair-curves.md eq. F3):
 // power coefficients in t = u / h, rows in dof order [w(0), w'(0), (w''(0)), w(h), w'(h), (w''(h))], the
 // derivative dofs' rows scaled by h^k.
 Eigen::MatrixXd HermiteShapeCoefficients(int degree, double h);
 // The element as an ElementBasis (y = t on [0, 1]).
 ElementBasis HermiteElementBasis(int degree, double h);
 
-// The fairness weights of Fang's energy (docs/fair-curves.md eq. 1): alpha_p integral |w^(p)|^2 du, p = 1..3,
+// The fairness weights of Fang's energy (docs/fair-curves.md eq. F1): alpha_p integral |w^(p)|^2 du, p = 1..3,
 // and beta_p sum over junctions |jump of w^(p)|^2, p = 2, 3; on the parameter domain [0, 1].
 struct HermiteFairness {
   double alpha1 = 0.0;  // stretch
@@ -70,7 +70,7 @@ class HermiteCurve final : public ParametricModel {
   // its Hermite data at both ends), or only the elements listed.
   HermiteCurve Refined(const std::vector<int>& elements) const;
 
-  // K of E(Q) = Q^T K Q for the parameters (docs/fair-curves.md eqs. 5-11), a full-size matrix.
+  // K of E(Q) = Q^T K Q for the parameters (docs/fair-curves.md eqs. F5-F10), a full-size matrix.
   Eigen::MatrixXd FairnessMatrixOf(const HermiteFairness& weights) const;
   // Each term's value for the current shape: alpha1..3 and beta2..3 as the weighted energies.
   HermiteFairness EnergyBreakdown(const HermiteFairness& weights) const;

@@ -19,7 +19,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// ---- Fang's sliding springs as a problem of the minimizer (docs/fair-curves.md eqs. 15-17)
+// ---- Fang's sliding springs as a problem of the minimizer (docs/fair-curves.md eqs. F14-F16)
 // ----------------- State: the curve (in the unit box) and its exact feet. Cost: 1/2 sum d_j^2 + Q^T K Q.
 // Linearization: the geometric Hessian 2 K alone (the springs' Hessian is left out, as in Fang eq. 5.1.4) and
 // the gradient 2 K Q

@@ -38,7 +38,7 @@ struct HermiteFitOptions {
   int max_elements = 64;
   // Interpolation of ordered points (each point a node, uniform knots); otherwise approximation.
   bool interpolate = false;
-  // Fang's raw weights on u in [0, 1] with the closeness 1/2 sum d_j^2 (docs/fair-curves.md eq. 1).
+  // Fang's raw weights on u in [0, 1] with the closeness 1/2 sum d_j^2 (docs/fair-curves.md eq. F1).
   HermiteFairness fairness{0.0, 0.0, 1e-8, 0.0, 0.0};
   HermiteMethod method = HermiteMethod::kSdm;
   // > 0: the target RMS distance in data units. The weights are multiplied by the one factor that makes the
@@ -93,7 +93,7 @@ Eigen::VectorXd LinearLoadVector(int degree, double h, double q_a, double q_b);
 
 // The generalized forces on the curve's dofs (per coordinate, all nodal dofs) of a unit spring force at u,
 // resolved as a linear load over its element and the two neighbours (Fang's Method 2, eq. 5.1.9b;
-// docs/fair-curves.md eq. 16); at an open curve's end elements, over the host element alone (Method 1).
+// docs/fair-curves.md eq. F15); at an open curve's end elements, over the host element alone (Method 1).
 Eigen::VectorXd ResolvedUnitForce(const HermiteCurve& curve, double u);
 
 }  // namespace s2m

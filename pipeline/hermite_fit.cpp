@@ -29,11 +29,11 @@ nlohmann::json WeightsJson(const HermiteFairness& f) {
           {"beta3", f.beta3}};
 }
 
-// How to evaluate the curve from the JSON alone (docs/fair-curves.md eq. 3).
+// How to evaluate the curve from the JSON alone (docs/fair-curves.md eq. F3).
 const char* kEvaluation =
     "On element i (u_i <= u <= u_(i+1), h = u_(i+1) - u_i, t = (u - u_i) / h): w(u) = sum_j "
     "[ w^(j)(u_i) h^j H_j(t) + w^(j)(u_(i+1)) h^j G_j(t) ], j = 0..1 (cubic) or 0..2 (quintic), with the "
-    "Hermite polynomials of docs/fair-curves.md eq. 3: cubic H_0 = 1 - 3t^2 + 2t^3, H_1 = t - 2t^2 + t^3, "
+    "Hermite polynomials of docs/fair-curves.md eq. F3: cubic H_0 = 1 - 3t^2 + 2t^3, H_1 = t - 2t^2 + t^3, "
     "G_0 = 3t^2 - 2t^3, G_1 = -t^2 + t^3; quintic H_0 = 1 - 10t^3 + 15t^4 - 6t^5, H_1 = t - 6t^3 + 8t^4 - "
     "3t^5, H_2 = (t^2 - 3t^3 + 3t^4 - t^5) / 2, G_0 = 10t^3 - 15t^4 + 6t^5, G_1 = -4t^3 + 7t^4 - 3t^5, "
     "G_2 = (t^3 - 2t^4 + t^5) / 2. A closed curve's last element ends at node 0.";

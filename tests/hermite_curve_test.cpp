@@ -163,7 +163,7 @@ HermiteCurve RandomCurve(int degree, bool closed, int dimension, std::uint32_t s
 
 TEST(HermiteJunctionMatrices, MatchFangsVectorsAndFiniteDifferencesOfTheJump) {
   // Fang's printed cubic vectors (eqs. 3.2.5-3.2.6) and the quintic one restated in docs/fair-curves.md
-  // eq. 10.
+  // eq. F9.
   const double h0 = 0.3, h1 = 0.45;
   Eigen::VectorXd kd2(6), kd3(6), kq3(9);
   kd2 << -6 / (h0 * h0), -2 / h0, 6 / (h0 * h0) - 6 / (h1 * h1), -4 / h0 - 4 / h1, 6 / (h1 * h1), -2 / h1;
