@@ -12,6 +12,7 @@
 #include "fitting/curve_interrogation.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
+#include "pipeline/interrogation_json.h"
 #include "pipeline/output.h"
 
 namespace s2m::pipeline {
@@ -121,33 +122,7 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
     j["seconds"] = r.seconds;
     j["history"] = HistoryJson(r.history);
     if (!r.note.empty()) j["note"] = r.note;
-    nlohmann::json inter = {{"length", q.length},
-                            {"comb_scale", q.comb_scale},
-                            {"max_abs_kappa", q.max_abs_kappa},
-                            {"zeta", q.zeta},
-                            {"dkappa_ds_squared", q.dkappa_ds_squared},
-                            {"inflections", q.inflections},
-                            {"max_g1", q.max_g1},
-                            {"max_g2", q.max_g2}};
-    nlohmann::json junctions = nlohmann::json::array();
-    for (const JunctionJump& jj : q.junctions)
-      junctions.push_back({{"u", jj.u}, {"s", jj.s}, {"g1", jj.g1}, {"g2", jj.g2}, {"g3", jj.g3}});
-    inter["junctions"] = junctions;
-    nlohmann::json s = nlohmann::json::array(), u = s, kappa = s, dk = s, tau = s, point = s, tip = s;
-    const int dim = curve.ambient_dimension();
-    for (const CurvatureSample& c : q.samples) {
-      s.push_back(c.s);
-      u.push_back(c.u);
-      kappa.push_back(c.kappa);
-      dk.push_back(c.dkappa_ds);
-      tau.push_back(c.torsion);
-      point.push_back(Column(c.point.head(dim)));
-      tip.push_back(Column(c.comb_tip.head(dim)));
-    }
-    inter["samples"] = {{"s", s},          {"u", u},         {"kappa", kappa},
-                        {"dkappa_ds", dk}, {"point", point}, {"comb_tip", tip}};
-    if (dim == 3) inter["samples"]["torsion"] = tau;
-    j["interrogation"] = inter;
+    j["interrogation"] = InterrogationJson(q, curve.ambient_dimension());
 
     std::string history_path = o.history;
     if (!o.output.empty()) {

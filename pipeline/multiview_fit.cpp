@@ -21,6 +21,7 @@
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
+#include "pipeline/interrogation_json.h"
 #include "pipeline/output.h"
 #include "pipeline/views.h"
 #include "registration/scan_to_scan.h"
@@ -192,6 +193,12 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
                     {"samples_height_radius", samples}};
     j["profile"]["samples_radius_uncertainty"] = nlohmann::json::array();
     for (double u : radius_uncertainty) j["profile"]["samples_radius_uncertainty"].push_back(NumberOrNull(u));
+    {
+      // The generatrix (r(u), z(u)) as a plane curve: its fairness (docs/fair-curves.md section 6).
+      const BSplineCurve generatrix(basis, profile);
+      j["profile"]["interrogation"] =
+          InterrogationJson(InterrogateCurve(ToInterrogated(generatrix), {256, 0.0}), 2);
+    }
     if (kinematic && kinematic->helical()) {
       j["pitch"] = MeasureHelix(kinematic->pitch(), UncertaintyOf(*model, r, "pitch"), units).ToJson();
     }

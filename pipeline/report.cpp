@@ -185,20 +185,23 @@ std::string Vessel(const nlohmann::json& v) {
 // A fair curve's interrogation (scan2model.hermite/1, docs/fair-curves.md section 6): the energy breakdown,
 // curvature and its arc-length derivative against normalized arc length, the curvature comb with its envelope
 // (plane curves; space curves seen along z), and the junctions' breaks.
-std::string FairCurve(const nlohmann::json& d) {
+std::string FairCurve(const nlohmann::json& d, const nlohmann::json& q, const std::string& heading) {
   std::ostringstream s;
-  const nlohmann::json& e = d["energy"];
-  const nlohmann::json& q = d["interrogation"];
-  s << "<h2>Fairness</h2>\n<table>\n"
-    << Row({"term", "weight", "energy"}, true)
-    << Row({"closeness 1/2 &#8721; d&#178;", "1", Number(e["closeness"], 6)});
-  const char* names[5][2] = {{"alpha1", "stretch &#8747;|w'|&#178;"},
-                             {"alpha2", "bending &#8747;|w''|&#178;"},
-                             {"alpha3", "variation &#8747;|w'''|&#178;"},
-                             {"beta2", "jumps of w''"},
-                             {"beta3", "jumps of w'''"}};
-  for (const auto& n : names) s << Row({n[1], Number(d["weights"][n[0]], 6), Number(e[n[0]], 6)});
-  s << "</table>\n<table>\n"
+  s << "<h2>" << Escape(heading) << "</h2>\n";
+  if (d.contains("energy")) {
+    const nlohmann::json& e = d["energy"];
+    s << "<table>\n"
+      << Row({"term", "weight", "energy"}, true)
+      << Row({"closeness 1/2 &#8721; d&#178;", "1", Number(e["closeness"], 6)});
+    const char* names[5][2] = {{"alpha1", "stretch &#8747;|w'|&#178;"},
+                               {"alpha2", "bending &#8747;|w''|&#178;"},
+                               {"alpha3", "variation &#8747;|w'''|&#178;"},
+                               {"beta2", "jumps of w''"},
+                               {"beta3", "jumps of w'''"}};
+    for (const auto& n : names) s << Row({n[1], Number(d["weights"][n[0]], 6), Number(e[n[0]], 6)});
+    s << "</table>\n";
+  }
+  s << "<table>\n"
     << Row({"length", Number(q["length"], 8)}) << Row({"max |&#954;|", Number(q["max_abs_kappa"], 6)})
     << Row({"&#8747;(d&#954;/ds)&#178; ds", Number(q["dkappa_ds_squared"], 6)})
     << Row({"Sapidis &#950; (sum of d&#954;/ds jumps)", Number(q["zeta"], 6)})
@@ -396,7 +399,9 @@ std::string ReportHtml(const nlohmann::json& in) {
     }
     if (d.contains("adequacy")) body << AdequacySection(d["adequacy"]);
     if (d.contains("vessel")) body << Vessel(d["vessel"]);
-    if (schema == "scan2model.hermite/1") body << FairCurve(d);
+    if (d.contains("interrogation")) body << FairCurve(d, d["interrogation"], "Fairness");
+    if (d.contains("profile") && d["profile"].contains("interrogation"))
+      body << FairCurve(d["profile"], d["profile"]["interrogation"], "Fairness of the generatrix (r, z)");
     body << Convergence(d) << Deviations(d) << Views(d);
   }
   std::ostringstream html;

@@ -14,6 +14,7 @@
 #include "acquisition/format_error.h"
 #include "acquisition/glyph_outline.h"
 #include "acquisition/point_cloud_io.h"
+#include "fitting/curve_interrogation.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
 #include "fitting/model_complexity.h"
@@ -24,6 +25,7 @@
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
+#include "pipeline/interrogation_json.h"
 #include "pipeline/output.h"
 
 namespace s2m::pipeline {
@@ -322,6 +324,9 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
         cp.emplace_back(col.data(), col.data() + col.size());
       }
       j["control_points"] = cp;
+      // The curve's fairness (docs/fair-curves.md section 6), drawn by the report.
+      j["interrogation"] =
+          InterrogationJson(InterrogateCurve(ToInterrogated(c), {256, 0.0}), c.ambient_dimension());
     }
     j["complexity"] = ComplexityJson(complexity, complexity_options);
     j["residuals"] = {
