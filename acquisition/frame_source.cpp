@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "acquisition/e57_io.h"
 #include "acquisition/format_error.h"
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
@@ -122,6 +123,10 @@ class RecordingSource final : public FrameSource {
   RecordingSource(const fs::path& path, const ReplayOptions& options)
       : reader_(RecordingReader::Open(path)), options_(options) {
     if (!options_.clock) options_.clock = SteadyReplayClock();
+    if (!(options_.max_gap_s > 0.0) || !std::isfinite(options_.max_gap_s)) {
+      throw std::invalid_argument(
+          "replay: the largest gap between frames must be a positive number of seconds");
+    }
     const std::string file = path.string();
     const RecordingSummary summary = reader_.Summary();
     description_.origin = file;
@@ -184,13 +189,7 @@ class RecordingSource final : public FrameSource {
       out.points = DecodePoints(payload, file, where);
     }
     out.source = file + ": stream '" + stream.name + "', view " + std::to_string(f.view) + ", " + where;
-    if (options_.original_timing && f.timestamp_ns) {
-      if (!anchor_) {
-        anchor_ = std::make_pair(options_.clock->NowNs(), *f.timestamp_ns);
-      } else {
-        options_.clock->SleepUntilNs(anchor_->first + (*f.timestamp_ns - anchor_->second));
-      }
-    }
+    if (options_.original_timing && f.timestamp_ns) WaitForDueTime(*f.timestamp_ns);
     return out;
   }
 
@@ -205,7 +204,29 @@ class RecordingSource final : public FrameSource {
     return static_cast<std::int64_t>(frames_.size());
   }
 
+  TimingReport timing_report() const override { return timing_; }
+
  private:
+  // Original timing (ReplayOptions): a frame is due as long after the anchor's clock reading as its timestamp
+  // is after the anchor's timestamp; clock jumps on either side restart the timing at the frame.
+  void WaitForDueTime(std::int64_t timestamp_ns) {
+    const auto max_gap_ns = static_cast<std::int64_t>(options_.max_gap_s * 1e9);
+    const std::int64_t now = options_.clock->NowNs();
+    if (!anchor_) {
+      anchor_ = std::make_pair(now, timestamp_ns);
+    } else if (const std::int64_t gap = timestamp_ns - last_timestamp_ns_; gap < 0 || gap > max_gap_ns) {
+      ++timing_.recording_clock_jumps;
+      anchor_ = std::make_pair(now, timestamp_ns);
+    } else if (const std::int64_t due = anchor_->first + (timestamp_ns - anchor_->second);
+               now - due > max_gap_ns) {
+      ++timing_.replay_late_restarts;
+      anchor_ = std::make_pair(now, timestamp_ns);
+    } else {
+      options_.clock->SleepUntilNs(due);
+    }
+    last_timestamp_ns_ = timestamp_ns;
+  }
+
   RecordingReader reader_;
   ReplayOptions options_;
   SourceDescription description_;
@@ -213,6 +234,8 @@ class RecordingSource final : public FrameSource {
   std::vector<RecordingFrame> frames_;
   std::size_t next_ = 0;
   std::optional<std::pair<std::int64_t, std::int64_t>> anchor_;  // (clock, timestamp) of the first frame
+  std::int64_t last_timestamp_ns_ = 0;  // of the previous frame delivered with its timing
+  TimingReport timing_;
 };
 
 // ------------------------------------------------------------------------------------------------ files
@@ -354,6 +377,8 @@ std::unique_ptr<FrameSource> OpenFileSource(const std::vector<fs::path>& files) 
   ScanSet set;
   if (ext == ".json" || ext == ".conf") {
     set = ReadScanSet(file);
+  } else if (IsE57File(file)) {
+    set = ReadE57ScanSet(file);  // each data3D scan a view, with its pose
   } else {
     set.scans.push_back(ReadPointCloud(file));  // one view in world coordinates
     set.name = file.stem().string();

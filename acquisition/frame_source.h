@@ -86,6 +86,13 @@ class FrameSource {
   // The next frame is the first of `view`. Throws std::out_of_range when the source has no such view.
   virtual void SeekView(std::int64_t view) = 0;
   virtual std::optional<std::int64_t> FrameCount() const { return std::nullopt; }
+  // What the replay did with the recording's timing (recordings replayed with their original timing; all zero
+  // otherwise).
+  struct TimingReport {
+    int recording_clock_jumps = 0;  // timestamps that went back, or forward by more than max_gap_s
+    int replay_late_restarts = 0;   // frames due more than max_gap_s in the past (the replay clock jumped)
+  };
+  virtual TimingReport timing_report() const { return {}; }
 };
 
 // ---------------------------------------------------------------------------------------------- recordings
@@ -95,6 +102,13 @@ struct ReplayOptions {
   // when as much time has passed since the first delivered frame (or the last seek) as between their
   // timestamps. Frames without a timestamp are delivered at once.
   bool original_timing = false;
+  // A clock jump is not a pause. When the recording's timestamps go back, or forward by more than
+  // `max_gap_s` (the recording machine's clock was set while it recorded), the frame is delivered at once and
+  // the timing restarts from it, instead of replaying everything after a backward jump at once or waiting out
+  // a forward one. When the replay clock is more than `max_gap_s` past a frame's due time (the replaying
+  // machine slept, or the reader stalled), the timing restarts at that frame too, instead of delivering the
+  // frames after it in a burst. Both are counted in FrameSource::timing_report().
+  double max_gap_s = 60.0;
   std::shared_ptr<ReplayClock> clock;  // null: SteadyReplayClock()
 };
 

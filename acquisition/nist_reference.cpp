@@ -81,4 +81,15 @@ std::vector<double> ToNistLayout(const Cone& s) {
           2.0 * s.half_angle / kDegree};
 }
 
+std::vector<double> ToNistLayout(const Line3d& s) {
+  return {s.point.x(), s.point.y(), s.point.z(), s.direction.x(), s.direction.y(), s.direction.z()};
+}
+std::vector<double> ToNistLayout(const Circle3d& s) {
+  return {s.center.x(), s.center.y(), s.center.z(), s.normal.x(), s.normal.y(), s.normal.z(), 2.0 * s.radius};
+}
+std::vector<double> ToNistLayout(const Torus& s) {
+  return {s.center.x(), s.center.y(), s.center.z(),         s.axis.x(),
+          s.axis.y(),   s.axis.z(),   2.0 * s.major_radius, 2.0 * s.minor_radius};
+}
+
 }  // namespace s2m

@@ -25,5 +25,11 @@ std::vector<double> ToNistLayout(const Plane& s);
 std::vector<double> ToNistLayout(const Sphere& s);
 std::vector<double> ToNistLayout(const Cylinder& s);
 std::vector<double> ToNistLayout(const Cone& s);
+// The ISO 10360-6 features without NIST files, in the same spirit (docs/metrology.md): line = point, unit
+// direction; circle = centre, unit normal, DIAMETER; torus = centre, unit axis, major DIAMETER (of the tube's
+// centre circle), minor DIAMETER (of the tube).
+std::vector<double> ToNistLayout(const Line3d& s);
+std::vector<double> ToNistLayout(const Circle3d& s);
+std::vector<double> ToNistLayout(const Torus& s);
 
 }  // namespace s2m

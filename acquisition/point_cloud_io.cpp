@@ -8,6 +8,7 @@
 #include <sstream>
 #include <vector>
 
+#include "acquisition/e57_io.h"
 #include "acquisition/format_error.h"
 #include "acquisition/formats/readers.h"
 #include "fitting/enum_names.h"
@@ -28,11 +29,12 @@ std::string LowerExtension(const std::filesystem::path& path) {
 }  // namespace
 
 const char* ToString(PointCloudFormat format) {
-  static constexpr std::array<EnumName<PointCloudFormat>, 4> kFormatNames = {{
+  static constexpr std::array<EnumName<PointCloudFormat>, 5> kFormatNames = {{
       {PointCloudFormat::kPly, "ply"},
       {PointCloudFormat::kPcd, "pcd"},
       {PointCloudFormat::kText, "text"},
       {PointCloudFormat::kNistDs, "nist-ds"},
+      {PointCloudFormat::kE57, "e57"},
   }};
   return NameOf(kFormatNames, format);
 }
@@ -46,9 +48,10 @@ PointCloudFormat DetectFormat(const std::filesystem::path& path) {
     return PointCloudFormat::kText;
   }
   if (ext == ".ds") return PointCloudFormat::kNistDs;
+  if (ext == kE57Extension) return PointCloudFormat::kE57;
   throw FormatError(path.string(), "",
                     "unknown point-cloud format '" + ext +
-                        "' (supported: .ply, .ply.gz, .pcd, .xyz, .txt, .csv, .pts, .ds)");
+                        "' (supported: .ply, .ply.gz, .pcd, .xyz, .txt, .csv, .pts, .ds, .e57)");
 }
 
 Scan ReadPointCloud(const std::filesystem::path& path) {
@@ -60,6 +63,7 @@ Scan ReadPointCloud(const std::filesystem::path& path, PointCloudFormat format) 
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec))
     throw FormatError(file, "", "is a directory, not a point-cloud file");
+  if (format == PointCloudFormat::kE57) return ToOneCloud(ReadE57(path), path);
   const std::string bytes = formats::ReadFileBytes(file);
   if (bytes.empty()) throw FormatError(file, "", "empty file");
   switch (format) {
@@ -71,6 +75,8 @@ Scan ReadPointCloud(const std::filesystem::path& path, PointCloudFormat format) 
       return formats::ParseTextPoints(bytes, file);
     case PointCloudFormat::kNistDs:
       return formats::ParseNistDs(bytes, file);
+    case PointCloudFormat::kE57:
+      break;
   }
   throw FormatError(file, "", "unknown format");
 }

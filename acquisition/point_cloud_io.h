@@ -1,8 +1,9 @@
 #pragma once
 // Reading and writing single-view point sets. Formats: PLY (ASCII and binary, optionally gzipped), PCD
-// (ascii, binary, binary_compressed), plain text (XYZ/CSV) and the NIST .ds format. Every reader throws
-// FormatError naming the file, the line or byte offset and the problem for corrupt, truncated, NaN-laden or
-// empty input.
+// (ascii, binary, binary_compressed), plain text (XYZ/CSV), the NIST .ds format and E57 (read as one cloud:
+// every scan placed in the file's world by its pose; acquisition/e57_io.h reads the scans as views). Every
+// reader throws FormatError naming the file, the line or byte offset and the problem for corrupt, truncated,
+// NaN-laden or empty input.
 
 #include <filesystem>
 #include <string>
@@ -11,10 +12,11 @@
 
 namespace s2m {
 
-enum class PointCloudFormat { kPly, kPcd, kText, kNistDs };
+enum class PointCloudFormat { kPly, kPcd, kText, kNistDs, kE57 };
 const char* ToString(PointCloudFormat format);
 
-// From the file name: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds. Throws FormatError for anything else.
+// From the file name: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds, .e57. Throws FormatError for anything
+// else.
 PointCloudFormat DetectFormat(const std::filesystem::path& path);
 
 Scan ReadPointCloud(const std::filesystem::path& path);

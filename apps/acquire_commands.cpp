@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "acquisition/e57_io.h"
 #include "acquisition/format_error.h"
 #include "acquisition/frame_source.h"
 #include "acquisition/recording.h"
@@ -56,7 +57,7 @@ FrameProgress ProgressBar(const std::string& what, bool quiet) {
 }
 
 std::unique_ptr<FrameSource> OpenSource(const std::string& device, const std::vector<std::string>& inputs,
-                                        bool original_timing) {
+                                        bool original_timing, double max_gap_s = 60.0) {
   if (!device.empty()) {
     if (!inputs.empty()) throw std::invalid_argument("give either --device or input files, not both");
 #ifdef S2M_HAVE_VIRTUAL_SCANNER
@@ -71,6 +72,7 @@ std::unique_ptr<FrameSource> OpenSource(const std::string& device, const std::ve
   std::vector<fs::path> paths(inputs.begin(), inputs.end());
   ReplayOptions replay;
   replay.original_timing = original_timing;
+  replay.max_gap_s = max_gap_s;
   return OpenFrameSource(paths, replay);
 }
 
@@ -81,13 +83,14 @@ Runner AddRecordCommand(CLI::App& app) {
     std::string device, out;
     std::vector<std::string> inputs;
     bool original_timing = false, quiet = false, compress = false;
+    double max_gap_s = 60.0;
   };
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
       "record", "Record a device's frames (the virtual scanner) or input files into a recording (.s2mrec)");
   cmd->add_option("inputs", options->inputs,
-                  "Instead of --device: a views manifest (.json), Stanford .conf, point cloud, recording, or "
-                  "Kinect depth frames (frame_<time>_depth.tiff beside frame_<time>.xml)");
+                  "Instead of --device: a views manifest (.json), Stanford .conf, E57 file, point cloud, "
+                  "recording, or Kinect depth frames (frame_<time>_depth.tiff beside frame_<time>.xml)");
   cmd->add_option("--device", options->device,
                   "virtual:<vase|helical|spiral|part|mesh.ply>[,key=value...] (docs/acquisition.md)");
   cmd->add_option("-o,--output,--out", options->out,
@@ -95,18 +98,34 @@ Runner AddRecordCommand(CLI::App& app) {
       ->required();
   cmd->add_flag("--original-timing", options->original_timing,
                 "Replaying a recording: deliver its frames with their original timing");
+  cmd->add_option("--max-gap", options->max_gap_s,
+                  "With --original-timing: a gap between frames' timestamps longer than this (seconds), or a "
+                  "timestamp going back, is a clock jump: that frame comes at once and the timing restarts")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_flag("--compress", options->compress,
                 "Store each frame zlib-compressed (depth images shrink several-fold)");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");
   return [options]() {
     try {
       std::unique_ptr<FrameSource> source =
-          OpenSource(options->device, options->inputs, options->original_timing);
+          OpenSource(options->device, options->inputs, options->original_timing, options->max_gap_s);
       const std::int64_t frames =
           RecordSource(*source, options->out, ProgressBar("recording", options->quiet),
                        options->compress ? kZlibCompression : kNoCompression);
       const RecordingSummary s = RecordingReader::Open(options->out).Summary();
       std::cout << options->out << ": " << frames << " frames\n";
+      const FrameSource::TimingReport timing = source->timing_report();
+      if (timing.recording_clock_jumps > 0) {
+        std::cout << "  replay: " << timing.recording_clock_jumps
+                  << " clock jump(s) in the input's timestamps (back, or forward by more than --max-gap "
+                  << options->max_gap_s << " s): those frames came at once and the timing restarted there\n";
+      }
+      if (timing.replay_late_restarts > 0) {
+        std::cout << "  replay: fell behind the original timing by more than --max-gap "
+                  << timing.replay_late_restarts << " time(s) (the clock jumped or reading stalled): the "
+                  << "timing restarted there instead of delivering the frames after it in a burst\n";
+      }
       for (std::size_t k = 0; k < s.streams.size(); ++k) {
         std::cout << "  stream '" << s.streams[k].name << "' (" << s.streams[k].kind << ", "
                   << s.streams[k].units << "): " << s.frames_per_stream[k] << " frames, "
@@ -138,15 +157,17 @@ Runner AddExportCommand(CLI::App& app) {
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
       "export",
-      "Write a recording's (or any input's) views as one PLY per view plus a scan2model.views/1 manifest");
+      "Write a recording's (or any input's) views as one PLY per view plus a scan2model.views/1 manifest, or "
+      "as one E57 file");
   cmd->add_option(
          "inputs", options->inputs,
-         "A recording (.s2mrec), views manifest (.json), Stanford .conf, point cloud, or Kinect depth "
-         "frames")
+         "A recording (.s2mrec), views manifest (.json), Stanford .conf, E57 file, point cloud, or Kinect "
+         "depth frames")
       ->required();
-  cmd->add_option("-o,--output,--out", options->out,
-                  "Output folder (created; views.json and view_NNN.ply inside) (--out: the old spelling, an "
-                  "alias for one release)")
+  cmd->add_option(
+         "-o,--output,--out", options->out,
+         "Output folder (created; views.json and view_NNN.ply inside), or an .e57 file (every view a "
+         "scan with its pose, in metres) (--out: the old spelling, an alias for one release)")
       ->required();
   cmd->add_option("--view", options->views, "Only these views (the recording's view numbers); repeatable");
   cmd->add_flag("-q,--quiet", options->quiet, "No progress on standard error");
@@ -251,6 +272,15 @@ Runner AddExportCommand(CLI::App& app) {
         }
       }
 #endif
+      if (IsE57File(options->out)) {
+        // One E57 file: every view a data3D scan with its pose, coordinates as float64 in metres.
+        if (fs::path(options->out).has_parent_path())
+          fs::create_directories(fs::path(options->out).parent_path());
+        WriteE57(options->out, set);
+        std::cout << options->out << ": " << set.scans.size() << " views, " << set.TotalPoints()
+                  << " points (E57, metres)\n";
+        return int{kOk};
+      }
       fs::create_directories(options->out);
       const fs::path manifest = fs::path(options->out) / "views.json";
       WriteScanSet(manifest, set);

@@ -10,6 +10,7 @@
 
 #include "acquisition/format_error.h"
 #include "apps/commands.h"
+#include "apps/stop_signal.h"
 #include "pipeline/batch.h"
 #include "pipeline/batch_mpi.h"
 #include "pipeline/output.h"
@@ -63,6 +64,9 @@ int Run(BatchCommandOptions& o) {
   std::unique_ptr<MpiSession> mpi = use_mpi ? StartMpi() : nullptr;
   const int rank = mpi ? mpi->rank() : 0, ranks = mpi ? mpi->size() : 1;
   int exit_code = kOk;
+  std::string stopped_by;  // the signal that stopped the run early, if one did
+  // From the start: a signal while the manifest is read stops the batch before its first object.
+  StopOnSignals stop_on_signals;
   try {
     const BatchManifest manifest = ReadBatchManifest(o.manifest);
     if (o.run.output_dir.empty()) {
@@ -101,7 +105,13 @@ int Run(BatchCommandOptions& o) {
         entries.push_back(SummaryEntry(object, &record, path));
       }
     } else {
+      o.run.stop = &StopOnSignals::Flag();
       entries = RunBatchObjects(manifest, mine, o.run, counts);
+      o.run.stop = nullptr;
+      if (StopOnSignals::Requested()) {
+        stopped_by = StopOnSignals::SignalName();
+        if (stopped_by.empty()) stopped_by = "a signal";
+      }
     }
     if (mpi && !o.summary_only) {
       // One write: the ranks share standard error, and a line written piecewise interleaves with another's.
@@ -118,7 +128,17 @@ int Run(BatchCommandOptions& o) {
     } else {
       all = entries;
     }
-    if (rank == 0) {
+    if (rank == 0 && !stopped_by.empty()) {
+      // No summary: it would list the objects not started as missing as if the batch had finished.
+      std::cerr << ("[batch] stopped by " + stopped_by + ": " + std::to_string(counts.computed) +
+                    " objects computed in this run, " + std::to_string(counts.skipped) +
+                    " finished before, " + std::to_string(counts.not_started) +
+                    " not started; every finished object is written in " +
+                    (fs::path(o.run.output_dir) / "objects").string() +
+                    ". Run the same command again to resume (no summary was written).\n")
+                << std::flush;
+      exit_code = kInterrupted;
+    } else if (rank == 0) {
       const std::string name = shard_count == 1 ? "summary"
                                                 : "summary_shard_" + std::to_string(shard_index) + "_of_" +
                                                       std::to_string(shard_count);

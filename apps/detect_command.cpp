@@ -14,8 +14,7 @@ Runner AddDetectCommand(CLI::App& app) {
   cmd->add_option("file", o->file, "Input point cloud (.ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds)")
       ->required();
   cmd->add_option("--model,-m", o->models,
-                  "Model to detect: plane, sphere, cylinder or cone (repeat for several; torus is not "
-                  "supported)")
+                  "Model to detect: plane, sphere, cylinder, cone or torus (repeat for several)")
       ->required()
       ->expected(1)  // one name per --model, so that the input file is not taken for a model
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);

@@ -1,6 +1,8 @@
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 
+#include "acquisition/e57_io.h"
 #include "acquisition/format_error.h"
 #include "acquisition/frame_source.h"
 #include "acquisition/point_cloud_io.h"
@@ -81,6 +83,58 @@ int DescribeRecording(const std::string& file, bool json) {
   return kOk;
 }
 
+// `info` on an E57 file: the merged cloud as for any point-cloud file (what `fit` of a primitive reads), plus
+// each data3D scan: its name, points, pose, fields and encodings (what multi-view `fit` reads as views).
+int DescribeE57(const std::string& file, bool json) {
+  const E57Data data = ReadE57(file);
+  const Scan cloud = ToOneCloud(data, file);
+  nlohmann::json j = DescribeScan(cloud, file, ToString(PointCloudFormat::kE57));
+  nlohmann::json scans = nlohmann::json::array();
+  for (const E57Scan& s : data.scans) {
+    scans.push_back({{"name", s.name},
+                     {"guid", s.guid},
+                     {"points", s.scan.size()},
+                     {"records", s.records},
+                     {"invalid", s.invalid},
+                     {"coordinates", s.coordinates},
+                     {"intensity", s.intensity.size() > 0},
+                     {"colour", s.colour.cols() > 0},
+                     {"row_column", !s.row_index.empty()},
+                     {"world_T_scan", ToJson(s.scan.world_T_scan.matrix())},
+                     {"fields", s.fields}});
+  }
+  j["e57"] = {{"guid", data.guid},
+              {"library_version", data.library_version},
+              {"images", data.images},
+              {"scans", scans}};
+  if (json) {
+    j["schema"] = "scan2model.info/1";
+    std::cout << j.dump(2) << "\n";
+    return kOk;
+  }
+  const Bounds b = ComputeBounds(cloud.points);
+  std::cout << file << "\n"
+            << "  format    e57 (" << data.scans.size() << (data.scans.size() == 1 ? " scan, " : " scans, ")
+            << data.images << (data.images == 1 ? " image" : " images")
+            << (data.library_version.empty() ? "" : ", written by " + data.library_version) << ")\n"
+            << "  points    " << cloud.size() << " (all scans in the file's world frame)\n"
+            << "  units     " << cloud.units << "\n"
+            << "  min       " << Format(b.min, 8) << "  (world)\n"
+            << "  max       " << Format(b.max, 8) << "  (world)\n";
+  for (std::size_t k = 0; k < data.scans.size(); ++k) {
+    const E57Scan& s = data.scans[k];
+    const Eigen::Vector3d t = s.scan.world_T_scan.translation();
+    std::cout << "  scan " << k << "    '" << s.name << "': " << s.scan.size() << " points of " << s.records
+              << " records (" << s.coordinates << (s.intensity.size() > 0 ? ", intensity" : "")
+              << (s.colour.cols() > 0 ? ", colour" : "") << (!s.row_index.empty() ? ", rows/columns" : "")
+              << "), pose rotation " << Format(s.scan.world_T_scan.angle() * 180.0 / M_PI, 6)
+              << " deg, translation " << Format(t, 8) << "\n";
+    for (const std::string& f : s.fields) std::cout << "            " << f << "\n";
+  }
+  for (const std::string& note : cloud.metadata.notes) std::cout << "  note      " << note << "\n";
+  return kOk;
+}
+
 }  // namespace
 
 Runner AddInfoCommand(CLI::App& app) {
@@ -90,7 +144,8 @@ Runner AddInfoCommand(CLI::App& app) {
   };
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand("info", "Describe a point-cloud file: points, bounds, units, normals");
-  cmd->add_option("file", options->file, "Input: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds, .s2mrec")
+  cmd->add_option("file", options->file,
+                  "Input: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds, .e57, .s2mrec")
       ->required();
   cmd->add_flag("--json", options->json, "Machine-readable output (schema scan2model.info/1, docs/cli.md)");
   return [options]() {
@@ -98,6 +153,7 @@ Runner AddInfoCommand(CLI::App& app) {
       if (std::filesystem::path(options->file).extension() == kRecordingExtension) {
         return DescribeRecording(options->file, options->json);
       }
+      if (IsE57File(options->file)) return DescribeE57(options->file, options->json);
       const PointCloudFormat format = DetectFormat(options->file);
       const Scan scan = ReadPointCloud(options->file, format);
       nlohmann::json j = DescribeScan(scan, options->file, ToString(format));

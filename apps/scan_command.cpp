@@ -3,9 +3,7 @@
 
 #include <unistd.h>
 
-#include <atomic>
 #include <cmath>
-#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -18,6 +16,7 @@
 
 #include "acquisition/format_error.h"
 #include "apps/commands.h"
+#include "apps/stop_signal.h"
 #include "devices/horus_interfaces.h"
 #include "devices/horus_rig.h"
 #include "devices/horus_scan.h"
@@ -32,11 +31,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Ctrl-C during a scan: the loop stops after the pair in progress, switches lasers and motor off and marks
-// the recording interrupted (resumable), instead of dying with the lasers on.
-std::atomic<bool> g_stop{false};
-extern "C" void OnInterrupt(int) {
-  g_stop = true;
+// Ctrl-C or SIGTERM during a scan (apps/stop_signal.h): the loop stops after the pair in progress, switches
+// lasers and motor off and marks the recording interrupted (resumable), instead of dying with the lasers on.
+[[maybe_unused]] std::string StopReason() {
+  const std::string signal = StopOnSignals::SignalName();
+  return signal == "SIGTERM" ? "stopped by SIGTERM" : "interrupted by the user (Ctrl-C)";
 }
 
 [[maybe_unused]] std::string Duration(double seconds) {
@@ -53,7 +52,7 @@ extern "C" void OnInterrupt(int) {
   const bool tty = isatty(STDERR_FILENO) != 0;
   auto last_tenth = std::make_shared<std::int64_t>(-1);
   return [quiet, tty, last_tenth](const HorusScanProgress& p) {
-    if (g_stop) throw std::runtime_error("interrupted by the user (Ctrl-C)");
+    if (StopOnSignals::Requested()) throw std::runtime_error(StopReason());
     if (quiet || p.total <= 0) return;
     const std::string eta = p.eta_s ? ", " + Duration(*p.eta_s) + " left" : "";
     if (tty) {
@@ -208,16 +207,11 @@ Runner AddScanCommand(CLI::App& app) {
       if (settle->count() > 0) resume_hint += " --settle " + number(o->settle);
       if (o->start_angle != 0.0) resume_hint += " --start-angle " + number(o->start_angle);
       resume_hint += " --resume";
-      g_stop = false;
-      const auto previous = std::signal(SIGINT, OnInterrupt);
       HorusScanResult r;
-      try {
+      {
+        StopOnSignals stop_on_signals;
         r = RunHorusScan(*rig.board, *rig.camera, c, profile, o->out, options, ScanProgressBar(o->quiet));
-      } catch (...) {
-        std::signal(SIGINT, previous);
-        throw;
       }
-      std::signal(SIGINT, previous);
       if (!r.complete) {
         std::cerr << "\n";
         return ReportError("scan",
@@ -226,7 +220,7 @@ Runner AddScanCommand(CLI::App& app) {
                                "\n  every profile acquired so far is in " + o->out + " (" +
                                std::to_string(r.frames) +
                                " frames, status 'interrupted'); continue it with:\n  " + resume_hint,
-                           kDeviceError, false);
+                           StopOnSignals::Requested() ? kInterrupted : kDeviceError, false);
       }
       std::cout << o->out << ": complete, " << r.total << " (step, laser) pairs"
                 << (r.resumed_from > 0 ? " (resumed at " + std::to_string(r.resumed_from) + ")" : "") << ", "
@@ -245,7 +239,7 @@ Runner AddScanCommand(CLI::App& app) {
       return ReportError("scan",
                          std::string(e.what()) + "; the lasers and the motor are off" +
                              (resume_hint.empty() ? "" : "; continue with:\n  " + resume_hint),
-                         kDeviceError, false);
+                         StopOnSignals::Requested() ? kInterrupted : kDeviceError, false);
     }
   };
 }

@@ -648,4 +648,23 @@ std::vector<ParamT> Ellipse3D::SampleParameters() const {
   return out;
 }
 
+bool Ellipse3D::ClosedFormFootPoint(const VecS& x, ParamT& t) const {
+  double distance;
+  bool on_boundary, ambiguous;
+  return ClosedFormFoot(x, t, distance, on_boundary, ambiguous);
+}
+
+bool Ellipse3D::ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                               bool& ambiguous) const {
+  if (!circle_) return false;
+  const Eigen::Vector3d q = rotation_.transpose() * (Eigen::Vector3d(x) - center_);
+  const double rho = std::sqrt(q.x() * q.x() + q.y() * q.y());
+  t = {std::atan2(q.y(), q.x()), 0.0, 0.0};
+  t[0] += 2 * M_PI * static_cast<double>(t[0] < 0);  // into [0, 2 pi)
+  distance = std::hypot(q.z(), rho - a_);
+  on_boundary = false;  // closed curve
+  ambiguous = rho == 0;
+  return true;
+}
+
 }  // namespace s2m

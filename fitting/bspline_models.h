@@ -127,6 +127,12 @@ class Ellipse3D final : public ParametricModel {
   void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
   std::vector<ParamT> SampleParameters() const override;
+  // Circles only (the ellipse's foot is a quartic: the engine's Newton feet): in the circle's plane the
+  // nearest point lies on the ray from the centre through x's projection, t = atan2(q_y, q_x) for q = R^T
+  // (x - c), at the distance sqrt(q_z^2 + (rho - a)^2) (docs/metrology.md eq. 2). Ambiguous on the axis.
+  bool ClosedFormFootPoint(const VecS& x, ParamT& t) const override;
+  bool ClosedFormFoot(const VecS& x, ParamT& t, double& distance, bool& on_boundary,
+                      bool& ambiguous) const override;
 
  private:
   Eigen::Vector3d center_;

@@ -3,6 +3,8 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <Eigen/QR>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -27,6 +29,8 @@ const char* ToString(PrimitiveKind kind) {
       return "cylinder";
     case PrimitiveKind::kCone:
       return "cone";
+    case PrimitiveKind::kTorus:
+      return "torus";
   }
   return "?";
 }
@@ -36,12 +40,9 @@ PrimitiveKind PrimitiveKindFromString(const std::string& name) {
   if (name == "sphere") return PrimitiveKind::kSphere;
   if (name == "cylinder") return PrimitiveKind::kCylinder;
   if (name == "cone") return PrimitiveKind::kCone;
-  if (name == "torus") {
-    throw std::invalid_argument(
-        "torus detection is not supported: there is no torus primitive to refit and certify yet (plane, "
-        "sphere, cylinder, cone)");
-  }
-  throw std::invalid_argument("'" + name + "' is not a detectable model: plane, sphere, cylinder or cone");
+  if (name == "torus") return PrimitiveKind::kTorus;
+  throw std::invalid_argument("'" + name +
+                              "' is not a detectable model: plane, sphere, cylinder, cone or torus");
 }
 
 bool DetectionOptions::IsValid(std::string* why) const {
@@ -188,6 +189,82 @@ std::optional<Cone> ConeFromPointNormals(const Eigen::Vector3d& p1, const Eigen:
   return Cone{apex + along * axis, axis, half_angle, along * std::tan(half_angle)};
 }
 
+// Eq. 78. A line with direction d and moment m = p x d meets a line (d_i, m_i) (or is parallel to it) iff
+// d.m_i + m.d_i = 0: four linear equations in (d, m), whose solutions form a pencil v0 + t v1 (the null
+// space), of which the lines are those on the Klein quadric d.m = 0: a quadratic in t.
+std::vector<Torus> TorusFromPointNormals(const std::array<Eigen::Vector3d, 4>& points,
+                                         const std::array<Eigen::Vector3d, 4>& normals) {
+  // Work relative to the points' mean, so that the moments stay of the points' spread.
+  const Eigen::Vector3d origin = 0.25 * (points[0] + points[1] + points[2] + points[3]);
+  Eigen::Matrix<double, 4, 6> a;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d d = normals[static_cast<std::size_t>(i)].normalized();
+    const Eigen::Vector3d m = (points[static_cast<std::size_t>(i)] - origin).cross(d);
+    a.row(i) << m.transpose(), d.transpose();
+  }
+  const Eigen::JacobiSVD<Eigen::Matrix<double, 4, 6>> svd(a, Eigen::ComputeFullV);
+  if (!(svd.singularValues()[3] > 1e-9 * svd.singularValues()[0])) return {};  // the lines are dependent
+  const Eigen::Matrix<double, 6, 1> v0 = svd.matrixV().col(4), v1 = svd.matrixV().col(5);
+  auto klein = [](const Eigen::Matrix<double, 6, 1>& u, const Eigen::Matrix<double, 6, 1>& w) {
+    return 0.5 * (u.head<3>().dot(w.tail<3>()) + w.head<3>().dot(u.tail<3>()));
+  };
+  // Q(x v0 + y v1) = qa x^2 + qb x y + qc y^2 = 0 with (x, y) a unit vector.
+  const double qa = klein(v0, v0), qb = 2.0 * klein(v0, v1), qc = klein(v1, v1);
+  const double discriminant = qb * qb - 4.0 * qa * qc;
+  if (discriminant < 0.0) return {};
+  std::vector<Eigen::Matrix<double, 6, 1>> lines;
+  const double root = std::sqrt(discriminant);
+  if (std::abs(qc) >= std::abs(qa)) {  // x = 1, y = t: qa + qb t + qc t^2 = 0
+    for (const double sign : {1.0, -1.0}) {
+      const double t = (-qb + sign * root) / (2.0 * qc);
+      lines.push_back(v0 + t * v1);
+    }
+  } else {
+    for (const double sign : {1.0, -1.0}) {  // y = 1, x = t: qa t^2 + qb t + qc = 0
+      const double t = (-qb + sign * root) / (2.0 * qa);
+      lines.push_back(t * v0 + v1);
+    }
+  }
+  std::vector<Torus> out;
+  for (const auto& line : lines) {
+    const Eigen::Vector3d d = line.head<3>(), m = line.tail<3>();
+    if (!(d.norm() > 1e-9 * line.norm())) continue;
+    const Eigen::Vector3d axis = d.normalized();
+    const Eigen::Vector3d foot = origin + d.cross(m) / d.squaredNorm();  // the axis point nearest the origin
+    // Meridian coordinates (rho, z) of each point and its normal's components (along e_rho, along the axis);
+    // the normal line rho-z crosses the tube's centre (R, z0): w_i . ((R, z0) - q_i) = 0, w_i its normal.
+    Eigen::Matrix<double, 4, 2> rows;
+    Eigen::Vector4d rhs;
+    std::array<Eigen::Vector2d, 4> q;
+    bool ok = true;
+    for (int i = 0; i < 4 && ok; ++i) {
+      const Eigen::Vector3d v = points[static_cast<std::size_t>(i)] - foot;
+      const double z = axis.dot(v);
+      const Eigen::Vector3d radial = v - z * axis;
+      const double rho = radial.norm();
+      if (!(rho > 0.0)) {
+        ok = false;
+        break;
+      }
+      const Eigen::Vector3d e = radial / rho;
+      const Eigen::Vector3d n = normals[static_cast<std::size_t>(i)];
+      const Eigen::Vector2d w(-n.dot(axis), n.dot(e));
+      q[static_cast<std::size_t>(i)] = Eigen::Vector2d(rho, z);
+      rows.row(i) = w.transpose();
+      rhs[i] = w.dot(q[static_cast<std::size_t>(i)]);
+    }
+    if (!ok) continue;
+    const Eigen::ColPivHouseholderQR<Eigen::Matrix<double, 4, 2>> qr(rows);
+    if (qr.rank() < 2) continue;
+    const Eigen::Vector2d centre = qr.solve(rhs);
+    double minor = 0.0;
+    for (const Eigen::Vector2d& qi : q) minor += 0.25 * (qi - centre).norm();
+    if (!(centre[0] > 0.0) || !(minor > 0.0) || !std::isfinite(minor)) continue;
+    out.push_back(Torus{foot + centre[1] * axis, axis, centre[0], minor});
+  }
+  return out;
+}
+
 // ---- Distances and normals of candidates -----------------------------------------------------------------
 
 double Distance(const DetectedShape& shape, const Eigen::Vector3d& x) {
@@ -211,6 +288,16 @@ Eigen::Vector3d NormalOf(const Cone& s, const Eigen::Vector3d& x) {
   const Eigen::Vector3d v = x - s.axis_point;
   const Eigen::Vector3d radial = (v - s.axis_direction.dot(v) * s.axis_direction).normalized();
   return std::cos(s.half_angle) * radial - std::sin(s.half_angle) * s.axis_direction;
+}
+
+// The gradient of the torus's distance sqrt((rho - R)^2 + z^2) - r (primitives.cpp).
+Eigen::Vector3d NormalOf(const Torus& s, const Eigen::Vector3d& x) {
+  const Eigen::Vector3d v = x - s.center;
+  const double z = s.axis.dot(v);
+  const Eigen::Vector3d radial = v - z * s.axis;
+  const double rho = radial.norm();
+  const Eigen::Vector3d e = rho > 0 ? Eigen::Vector3d(radial / rho) : Eigen::Vector3d::Zero();
+  return ((rho - s.major_radius) * e + z * s.axis).normalized();
 }
 
 }  // namespace
@@ -371,6 +458,7 @@ class SamplingLevels {
 };
 
 int MinimalSetSize(PrimitiveKind kind) {
+  if (kind == PrimitiveKind::kTorus) return 4;
   return kind == PrimitiveKind::kSphere || kind == PrimitiveKind::kCylinder ? 2 : 3;
 }
 
@@ -441,23 +529,29 @@ class Detector {
       return c->half_angle >= options_.min_cone_half_angle && c->half_angle <= options_.max_cone_half_angle &&
              c->radius <= max_radius_;
     }
+    if (const auto* t = std::get_if<Torus>(&shape))
+      return t->major_radius > 0 && t->minor_radius > 0 && t->major_radius + t->minor_radius <= max_radius_;
     return true;
   }
 
-  // One localized draw: a remaining point, a level, and two more remaining points of its cell there.
-  bool DrawMinimalSet(std::array<Eigen::Index, 3>& set) {
+  // One localized draw: a remaining point, a level, and two more remaining points of its cell there (three
+  // more when a torus is sought).
+  bool DrawMinimalSet(std::array<Eigen::Index, 4>& set) {
+    const int count = std::max(3, max_k_);
     std::uniform_int_distribution<std::size_t> pick(0, remaining_.size() - 1);
     set[0] = remaining_[pick(rng_)];
     const int level = std::uniform_int_distribution<int>(0, levels_.count() - 1)(rng_);
     const auto [lo, hi] = levels_.Cell(level, P(set[0]));
     const auto size = static_cast<std::size_t>(hi - lo);
-    if (size < 3) return false;
+    if (size < static_cast<std::size_t>(count)) return false;
     std::uniform_int_distribution<std::size_t> in_cell(0, size - 1);
-    for (int slot = 1; slot < 3; ++slot) {
+    for (int slot = 1; slot < count; ++slot) {
       bool found = false;
       for (int attempt = 0; attempt < 16 && !found; ++attempt) {
         const Eigen::Index j = lo[in_cell(rng_)].second;
-        if (!active_[static_cast<std::size_t>(j)] || j == set[0] || (slot == 2 && j == set[1])) continue;
+        if (!active_[static_cast<std::size_t>(j)] ||
+            std::find(set.begin(), set.begin() + slot, j) != set.begin() + slot)
+          continue;
         set[static_cast<std::size_t>(slot)] = j;
         found = true;
       }
@@ -467,10 +561,22 @@ class Detector {
   }
 
   // Candidates of every requested kind from one minimal set, kept when the set's own points pass eq. 54.
-  void AddCandidates(const std::array<Eigen::Index, 3>& set, std::vector<Candidate>& out) const {
+  void AddCandidates(const std::array<Eigen::Index, 4>& set, std::vector<Candidate>& out) const {
     const Eigen::Vector3d p1 = P(set[0]), p2 = P(set[1]), p3 = P(set[2]);
     const Eigen::Vector3d n1 = N(set[0]), n2 = N(set[1]), n3 = N(set[2]);
+    auto keep = [&](PrimitiveKind kind, const DetectedShape& shape) {
+      if (!Plausible(shape)) return;
+      const int k = MinimalSetSize(kind);
+      for (int m = 0; m < k; ++m)
+        if (!Passes(shape, set[static_cast<std::size_t>(m)])) return;
+      out.push_back({kind, shape});
+    };
     for (PrimitiveKind kind : options_.kinds) {
+      if (kind == PrimitiveKind::kTorus) {
+        for (const Torus& t : TorusFromPointNormals({p1, p2, p3, P(set[3])}, {n1, n2, n3, N(set[3])}))
+          keep(kind, t);
+        continue;
+      }
       std::optional<DetectedShape> shape;
       switch (kind) {
         case PrimitiveKind::kPlane:
@@ -485,12 +591,10 @@ class Detector {
         case PrimitiveKind::kCone:
           if (auto s = ConeFromPointNormals(p1, n1, p2, n2, p3, n3)) shape = *s;
           break;
+        case PrimitiveKind::kTorus:
+          break;
       }
-      if (!shape || !Plausible(*shape)) continue;
-      const int k = MinimalSetSize(kind);
-      bool ok = true;
-      for (int m = 0; m < k && ok; ++m) ok = Passes(*shape, set[static_cast<std::size_t>(m)]);
-      if (ok) out.push_back({kind, *shape});
+      if (shape) keep(kind, *shape);
     }
   }
 
@@ -532,8 +636,11 @@ class Detector {
             } else if constexpr (std::is_same_v<S, Cylinder>) {
               const auto fit = RefineCylinder(y, s, fit_options);
               return std::make_pair(DetectedShape(fit.shape), fit.uncertainties);
-            } else {
+            } else if constexpr (std::is_same_v<S, Cone>) {
               const auto fit = RefineCone(y, s, fit_options);
+              return std::make_pair(DetectedShape(fit.shape), fit.uncertainties);
+            } else {
+              const auto fit = RefineTorus(y, s, fit_options);
               return std::make_pair(DetectedShape(fit.shape), fit.uncertainties);
             }
           },
@@ -630,7 +737,7 @@ class Detector {
     while (draws < options_.max_draws) {
       candidates.clear();
       for (int b = 0; b < kBatch; ++b) {
-        std::array<Eigen::Index, 3> set{};
+        std::array<Eigen::Index, 4> set{};
         if (DrawMinimalSet(set)) AddCandidates(set, candidates);
       }
       draws += kBatch;

@@ -1,19 +1,20 @@
 #pragma once
-// Robust extraction of primitives (planes, spheres, cylinders, cones) from raw scans with clutter: efficient
-// RANSAC after Schnabel, Wahl & Klein, "Efficient RANSAC for point-cloud shape detection", Computer Graphics
-// Forum 26(2) 2007 (docs/method.md section "Robust extraction", eqs. 49-59).
+// Robust extraction of primitives (planes, spheres, cylinders, cones, tori) from raw scans with clutter:
+// efficient RANSAC after Schnabel, Wahl & Klein, "Efficient RANSAC for point-cloud shape detection", Computer
+// Graphics Forum 26(2) 2007 (docs/method.md section "Robust extraction", eqs. 49-59).
 //
 // Per point a normal from the PCA of its k nearest neighbours; candidates from minimal sets with normals
-// (plane: 3 points, sphere and cylinder: 2 points, cone: 3 points), drawn by localized sampling (a point,
-// then a cell of an octree-like grid around it, so that small objects in large scenes are found); a
-// candidate's score is the number of points within a distance epsilon AND a normal angle alpha of it,
-// restricted to the largest connected component of those points; the best candidate is accepted once the
+// (plane: 3 points, sphere and cylinder: 2 points, cone: 3 points, torus: 4 points), drawn by localized
+// sampling (a point, then a cell of an octree-like grid around it, so that small objects in large scenes are
+// found); a candidate's score is the number of points within a distance epsilon AND a normal angle alpha of
+// it, restricted to the largest connected component of those points; the best candidate is accepted once the
 // probability that a larger shape was missed is below a bound, refitted by the certified least-squares fits
 // of primitive_fit.h with a robust loss, its inliers re-collected, and its points removed before the next
 // instance. Deterministic for a given seed: one std::mt19937_64 draws every sample in order; OpenMP only
 // scores candidates already drawn.
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -26,10 +27,9 @@
 
 namespace s2m {
 
-enum class PrimitiveKind { kPlane, kSphere, kCylinder, kCone };
+enum class PrimitiveKind { kPlane, kSphere, kCylinder, kCone, kTorus };
 const char* ToString(PrimitiveKind kind);
-// "plane", "sphere", "cylinder", "cone"; throws std::invalid_argument otherwise (a torus is named as not
-// supported: the project has no torus primitive to refit and certify).
+// "plane", "sphere", "cylinder", "cone", "torus"; throws std::invalid_argument otherwise.
 PrimitiveKind PrimitiveKindFromString(const std::string& name);
 
 struct DetectionOptions {
@@ -80,7 +80,7 @@ struct DetectionOptions {
   bool IsValid(std::string* why = nullptr) const;
 };
 
-using DetectedShape = std::variant<Plane, Sphere, Cylinder, Cone>;
+using DetectedShape = std::variant<Plane, Sphere, Cylinder, Cone, Torus>;
 
 struct DetectedPrimitive {
   PrimitiveKind kind = PrimitiveKind::kPlane;
@@ -141,6 +141,14 @@ std::optional<Cylinder> CylinderFromPointNormals(const Eigen::Vector3d& p1, cons
 std::optional<Cone> ConeFromPointNormals(const Eigen::Vector3d& p1, const Eigen::Vector3d& n1,
                                          const Eigen::Vector3d& p2, const Eigen::Vector3d& n2,
                                          const Eigen::Vector3d& p3, const Eigen::Vector3d& n3);
+
+// A torus from four points with normals (docs/method.md eq. 78): its axis meets every normal line (a surface
+// of revolution's normals pass through its axis), and the lines meeting four given lines are found in
+// Pluecker coordinates as the two roots of a quadratic on a pencil; for each real one the tube's centre in
+// the meridian plane is where the points' normals cross (least squares over the four) and the minor radius
+// the mean distance from it. Zero, one or two candidates; none for degenerate sets.
+std::vector<Torus> TorusFromPointNormals(const std::array<Eigen::Vector3d, 4>& points,
+                                         const std::array<Eigen::Vector3d, 4>& normals);
 
 // The unit normal of the shape at the foot point of x (outward), for the normal-angle test.
 Eigen::Vector3d SurfaceNormal(const DetectedShape& shape, const Eigen::Vector3d& x);

@@ -14,262 +14,30 @@
 #include <string>
 
 #include "fitting/covariance.h"
+#include "fitting/initial_models.h"
+#include "fitting/kinematic_starts.h"
 #include "fitting/minimizer.h"
 #include "fitting/parametric_model.h"
+#include "fitting/primitive_detection.h"
+#include "fitting/primitive_local_models.h"
 #include "fitting/robust_loss.h"
 
 namespace s2m {
 namespace {
 
+using primitive_local::CircleLocal;
+using primitive_local::ConeLocal;
+using primitive_local::CylinderLocal;
+using primitive_local::LineLocal;
+using primitive_local::Normalize;
+using primitive_local::NormalizedData;
+using primitive_local::PlaneLocal;
+using primitive_local::PointDistances;
+using primitive_local::Residuals;
+using primitive_local::SphereLocal;
+using primitive_local::TorusLocal;
+
 using Clock = std::chrono::steady_clock;
-
-// Data centred at the centroid and scaled uniformly into the unit box (docs/method.md section 3), so that
-// tolerances and damping do not depend on the user's units or on where the part sits in the scanner's frame.
-struct NormalizedData {
-  Eigen::Vector3d offset;
-  double scale = 1.0;
-  Eigen::Matrix3Xd points;
-};
-
-NormalizedData Normalize(const Eigen::Matrix3Xd& points, Eigen::Index min_points, const char* what) {
-  if (points.cols() < min_points) {
-    throw FitError(std::string("a ") + what + " fit needs at least " + std::to_string(min_points) +
-                   " points, got " + std::to_string(points.cols()));
-  }
-  if (!points.allFinite())
-    throw FitError(std::string("cannot fit a ") + what + ": the points contain NaN or inf");
-  NormalizedData n;
-  n.offset = points.rowwise().mean();
-  const double half_extent = 0.5 * (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).maxCoeff();
-  if (!(half_extent > 0.0)) throw FitError(std::string("cannot fit a ") + what + ": all points coincide");
-  n.scale = half_extent;
-  n.points = (points.colwise() - n.offset) / n.scale;
-  return n;
-}
-
-// Coordinates of y in the frame whose z axis is an axis through `point`: distance from the axis, the
-// direction (cos, sin) around it and the axial position.
-struct AxisCoordinates {
-  double rho, cos, sin, z;
-};
-AxisCoordinates InAxisFrame(const Eigen::Matrix3d& frame, const Eigen::Vector3d& point,
-                            const Eigen::Vector3d& y) {
-  const Eigen::Vector3d v = frame.transpose() * (y - point);
-  const double rho = std::hypot(v[0], v[1]);
-  return {rho, rho > 0 ? v[0] / rho : 1.0, rho > 0 ? v[1] / rho : 0.0, v[2]};
-}
-
-// Applies the axis increments (u1, u2, a1, b1) of the local parametrization: the axis point moves by (u1, u2,
-// 0), the direction becomes (a1, b1, 1), both in the frame of the current axis.
-void MoveAxis(const Eigen::Vector3d& point, const Eigen::Vector3d& direction, const Eigen::VectorXd& delta,
-              Eigen::Vector3d& new_point, Eigen::Vector3d& new_direction) {
-  const Eigen::Matrix3d frame = FrameWithAxis(direction);
-  new_point = point + frame * Eigen::Vector3d(delta[0], delta[1], 0.0);
-  new_direction = (frame * Eigen::Vector3d(delta[2], delta[3], 1.0)).normalized();
-}
-
-// ---- Models: closed-form foot points, TDM rows d(distance)/d(params) and SDM tangential rows
-// ---------------------- For every model the TDM row equals -n^T C_P at the foot point (Liu & Wang, GMP 2008,
-// section 3), and the SDM term adds beta_k (T_k^T C_P)^T (T_k^T C_P) with C_P the motion of the model point
-// at a fixed surface parameter.
-
-// An SDM weight scaled by a point's robust IRLS weight (no weights: plain least squares, unchanged).
-double Weighted(const double* weights, Eigen::Index i, double beta) {
-  return weights ? weights[i] * beta : beta;
-}
-
-// The plane is fitted in closed form (FitPlane); this local model serves its robust refinement. Local
-// parameters (w, t1, t2): the point moves by w n, the normal becomes n + t1 e1 + t2 e2 (normalized) with
-// (e1, e2, n) = FrameWithAxis(n); so d = n.(y - p) has the rows (-1, e1.(y - p), e2.(y - p)). A plane has
-// no curvature: SDM adds no tangential terms.
-struct PlaneLocal {
-  using Shape = Plane;
-  static constexpr int kParams = 3;
-  static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix3d& cov, double scale) {
-    return {{"offset", std::sqrt(cov(0, 0)) * scale, false},
-            {"normal_direction", std::sqrt(cov(1, 1) + cov(2, 2)), true}};
-  }
-  static double Magnitude(const Plane& s) { return s.point.norm() + 1.0; }
-
-  template <class JacobianT, class TangentialT>
-  static void Linearize(const Plane& s, const Eigen::Matrix3Xd& y, bool /*sdm*/, const double* /*weights*/,
-                        Eigen::VectorXd& d, JacobianT& J, TangentialT& T) {
-    const Eigen::Matrix3d frame = FrameWithAxis(s.normal);
-    const Eigen::Index n = y.cols();
-    d.resize(n);
-    J.resize(n, kParams);
-    T.setZero();
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const Eigen::Vector3d v = y.col(i) - s.point;
-      d[i] = s.normal.dot(v);
-      J.row(i) << -1.0, frame.col(0).dot(v), frame.col(1).dot(v);
-    }
-  }
-
-  static Plane Update(const Plane& s, const Eigen::VectorXd& delta) {
-    const Eigen::Matrix3d frame = FrameWithAxis(s.normal);
-    Plane out;
-    out.point = s.point + delta[0] * s.normal;
-    out.normal = (s.normal + delta[1] * frame.col(0) + delta[2] * frame.col(1)).normalized();
-    out.point = out.normal * out.normal.dot(out.point);  // the foot of the origin: a canonical point
-    return out;
-  }
-};
-
-struct SphereLocal {
-  using Shape = Sphere;
-  static constexpr int kParams = 4;
-  // User-facing uncertainties: which local parameters (summed in quadrature) and whether the result is a
-  // length.
-  static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix4d& cov, double scale) {
-    return {{"center_x", std::sqrt(cov(0, 0)) * scale, false},
-            {"center_y", std::sqrt(cov(1, 1)) * scale, false},
-            {"center_z", std::sqrt(cov(2, 2)) * scale, false},
-            {"radius", std::sqrt(cov(3, 3)) * scale, false}};
-  }
-  static double Magnitude(const Sphere& s) { return s.center.norm() + std::abs(s.radius); }
-
-  template <class JacobianT, class TangentialT>
-  static void Linearize(const Sphere& s, const Eigen::Matrix3Xd& y, bool sdm, const double* weights,
-                        Eigen::VectorXd& d, JacobianT& J, TangentialT& T) {
-    const Eigen::Index n = y.cols();
-    d.resize(n);
-    J.resize(n, kParams);
-    T.setZero();
-    const double kappa = -1.0 / s.radius;  // outward normal: the sphere bends away from n
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const Eigen::Vector3d v = y.col(i) - s.center;
-      const double rho = v.norm();
-      const Eigen::Vector3d normal = rho > 0 ? Eigen::Vector3d(v / rho) : Eigen::Vector3d::UnitZ();
-      d[i] = rho - s.radius;
-      J.row(i) << -normal.transpose(), -1.0;
-      if (sdm) {
-        const double beta = Weighted(weights, i, SdmWeight(d[i], kappa));
-        // C_P = [I | n]: both tangential directions see the centre block only.
-        if (beta > 0)
-          T.template topLeftCorner<3, 3>() +=
-              beta * (Eigen::Matrix3d::Identity() - normal * normal.transpose());
-      }
-    }
-  }
-
-  static Sphere Update(const Sphere& s, const Eigen::VectorXd& delta) {
-    return {s.center + delta.head<3>(), s.radius + delta[3]};
-  }
-};
-
-struct CylinderLocal {
-  using Shape = Cylinder;
-  static constexpr int kParams = 5;
-  static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix<double, 5, 5>& cov,
-                                                         double scale) {
-    return {{"axis_position", std::sqrt(cov(0, 0) + cov(1, 1)) * scale, false},
-            {"axis_direction", std::sqrt(cov(2, 2) + cov(3, 3)), true},
-            {"radius", std::sqrt(cov(4, 4)) * scale, false}};
-  }
-  static double Magnitude(const Cylinder& s) { return s.axis_point.norm() + 1.0 + std::abs(s.radius); }
-
-  // Local parameters (u1, u2, a1, b1, r): axis point (u1, u2, 0) and direction (a1, b1, 1) in the frame whose
-  // z axis is the current axis (Forbes, NPL DITC 140/89, section 6). Foot point of y: s = y - d n, n = (cos
-  // t, sin t, 0).
-  template <class JacobianT, class TangentialT>
-  static void Linearize(const Cylinder& s, const Eigen::Matrix3Xd& y, bool sdm, const double* weights,
-                        Eigen::VectorXd& d, JacobianT& J, TangentialT& T) {
-    const Eigen::Matrix3d frame = FrameWithAxis(s.axis_direction);
-    const Eigen::Index n = y.cols();
-    d.resize(n);
-    J.resize(n, kParams);
-    T.setZero();
-    const double kappa = -1.0 / s.radius;
-    Eigen::Matrix<double, kParams, 1> t;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const auto [rho, c, sn, z] = InAxisFrame(frame, s.axis_point, y.col(i));
-      d[i] = rho - s.radius;
-      J.row(i) << -c, -sn, -c * z, -sn * z, -1.0;
-      if (sdm) {
-        // Circumferential direction T1 = (-sin, cos, 0), kappa1 = -1/r; the rulings are straight (kappa2 =
-        // 0).
-        const double beta = Weighted(weights, i, SdmWeight(d[i], kappa));
-        if (beta > 0) {
-          t << -sn, c, -z * sn, z * c, 0.0;
-          T.noalias() += beta * t * t.transpose();
-        }
-      }
-    }
-  }
-
-  static Cylinder Update(const Cylinder& s, const Eigen::VectorXd& delta) {
-    Cylinder out;
-    MoveAxis(s.axis_point, s.axis_direction, delta, out.axis_point, out.axis_direction);
-    out.radius = s.radius + delta[4];
-    MoveAxisPointNear(out, Eigen::Vector3d::Zero());
-    return out;
-  }
-};
-
-struct ConeLocal {
-  using Shape = Cone;
-  static constexpr int kParams = 6;
-  static std::vector<ParameterUncertainty> Uncertainties(const Eigen::Matrix<double, 6, 6>& cov,
-                                                         double scale) {
-    return {{"axis_position", std::sqrt(cov(0, 0) + cov(1, 1)) * scale, false},
-            {"axis_direction", std::sqrt(cov(2, 2) + cov(3, 3)), true},
-            {"half_angle", std::sqrt(cov(4, 4)), true},
-            {"surface_distance", std::sqrt(cov(5, 5)) * scale, false}};
-  }
-  static double Magnitude(const Cone& s) {
-    return s.axis_point.norm() + 1.0 + std::abs(s.radius) + s.half_angle;
-  }
-
-  // Local parameters (u1, u2, a1, b1, psi, s) with d = rho cos(psi) - z sin(psi) - s (Forbes, NPL DITC
-  // 140/89, section 7): s, the orthogonal distance from the axis point to the surface, stays well conditioned
-  // for small apex angles where the apex runs off to infinity.
-  template <class JacobianT, class TangentialT>
-  static void Linearize(const Cone& s, const Eigen::Matrix3Xd& y, bool sdm, const double* weights,
-                        Eigen::VectorXd& d, JacobianT& J, TangentialT& T) {
-    const Eigen::Matrix3d frame = FrameWithAxis(s.axis_direction);
-    const double cpsi = std::cos(s.half_angle), spsi = std::sin(s.half_angle);
-    const double offset = s.radius * cpsi;
-    const Eigen::Index n = y.cols();
-    d.resize(n);
-    J.resize(n, kParams);
-    T.setZero();
-    Eigen::Matrix<double, kParams, 1> t;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const auto [rho, c, sn, z] = InAxisFrame(frame, s.axis_point, y.col(i));
-      d[i] = rho * cpsi - z * spsi - offset;
-      const double dpsi = -rho * spsi - z * cpsi;
-      J.row(i) << -cpsi * c, -cpsi * sn, c * dpsi, sn * dpsi, dpsi, -1.0;
-      if (sdm) {
-        // Foot point s = y - d n with n = (cos psi e_rho - sin psi e_z): radius rho_f = rho - d cos psi,
-        // axial h = z + d sin psi. The circle direction has normal curvature -cos(psi)/rho_f; the rulings are
-        // straight.
-        const double rho_foot = rho - d[i] * cpsi;
-        if (rho_foot > 0) {
-          const double beta = Weighted(weights, i, SdmWeight(d[i], -cpsi / rho_foot));
-          const double h = z + d[i] * spsi;
-          if (beta > 0) {
-            t << -sn, c, -h * sn, h * c, 0.0, 0.0;
-            T.noalias() += beta * t * t.transpose();
-          }
-        }
-      }
-    }
-  }
-
-  static Cone Update(const Cone& s, const Eigen::VectorXd& delta) {
-    Cone out;
-    MoveAxis(s.axis_point, s.axis_direction, delta, out.axis_point, out.axis_direction);
-    out.half_angle = s.half_angle + delta[4];
-    out.radius = (s.radius * std::cos(s.half_angle) + delta[5]) / std::cos(out.half_angle);
-    if (out.half_angle < 0) {  // the same cone, opening the other way
-      out.half_angle = -out.half_angle;
-      out.axis_direction = -out.axis_direction;
-    }
-    MoveAxisPointNear(out, Eigen::Vector3d::Zero());
-    return out;
-  }
-};
 
 // ---- The fit as the minimizer's problem (minimizer.h; docs/method.md section 9)
 // -----------------------------------------------------------------------------------------------------------
@@ -341,6 +109,18 @@ class PrimitiveNormalEquations : public DenseNormalEquations {
 // The state is the shape (normalized units) and its signed distances; a linearization is the TDM or SDM
 // normal equations at the frozen closed-form foot points, weighted by the robust loss (scale re-estimated
 // from the current distances first); a trial applies the local increment and recomputes the distances.
+// A point's IRLS weight on each of its residual rows (curves have two rows per point).
+template <int Rows>
+Eigen::VectorXd ExpandToRows(const Eigen::VectorXd& per_point) {
+  if constexpr (Rows == 1) {
+    return per_point;
+  } else {
+    Eigen::VectorXd out(Rows * per_point.size());
+    for (Eigen::Index i = 0; i < per_point.size(); ++i) out.segment<Rows>(Rows * i).setConstant(per_point[i]);
+    return out;
+  }
+}
+
 template <class Model>
 class PrimitiveFitProblem : public NonlinearProblem {
  public:
@@ -356,7 +136,7 @@ class PrimitiveFitProblem : public NonlinearProblem {
         weighting_(options.optimizer.loss),
         normal_(options.optimizer.damping.diagonal_floor) {
     weighting_.set_units(unit_);
-    d_ = SignedDistances(shape_, y_);
+    d_ = Residuals<Model>(shape_, y_);
     UpdateWeights();
     cost_ = Objective(d_);
   }
@@ -371,10 +151,11 @@ class PrimitiveFitProblem : public NonlinearProblem {
     const double* weights = weighting_.is_robust() ? weights_.data() : nullptr;
     Model::Linearize(shape_, y_, sdm_, weights, linear_d_, J_, T_);
     if (weights) {
-      const Eigen::Matrix<double, Eigen::Dynamic, P> WJ = weights_.asDiagonal() * J_;
+      const Eigen::VectorXd row_weights = RowWeights(weights_);
+      const Eigen::Matrix<double, Eigen::Dynamic, P> WJ = row_weights.asDiagonal() * J_;
       const Mat JtWJ = J_.transpose() * WJ;
       normal_.Set(JtWJ + T_, WJ.transpose() * linear_d_, JtWJ.diagonal(),
-                  std::sqrt(weights_.dot(linear_d_.cwiseAbs2())));
+                  std::sqrt(row_weights.dot(linear_d_.cwiseAbs2())));
     } else {
       normal_.Set(J_.transpose() * J_ + T_, J_.transpose() * linear_d_,
                   J_.colwise().squaredNorm().transpose(), linear_d_.norm());
@@ -384,7 +165,7 @@ class PrimitiveFitProblem : public NonlinearProblem {
 
   double EvaluateTrial(const Eigen::VectorXd& step, bool /*final_if_accepted*/) override {
     trial_shape_ = Model::Update(shape_, step);
-    trial_d_ = SignedDistances(trial_shape_, y_);
+    trial_d_ = Residuals<Model>(trial_shape_, y_);
     trial_cost_ = Objective(trial_d_);
     return std::isfinite(trial_cost_) ? trial_cost_ : std::numeric_limits<double>::infinity();
   }
@@ -399,7 +180,7 @@ class PrimitiveFitProblem : public NonlinearProblem {
 
   void DescribeState(IterationRecord& record) const override {
     record.rms = std::sqrt(d_.squaredNorm() / static_cast<double>(y_.cols())) * unit_;
-    record.max_distance = d_.cwiseAbs().maxCoeff() * unit_;
+    record.max_distance = PointDistances<Model>(d_).cwiseAbs().maxCoeff() * unit_;
   }
 
   // Fills the fit's shape, covariance-based uncertainties (the plain TDM Jacobian at the solution) and the
@@ -409,14 +190,18 @@ class PrimitiveFitProblem : public NonlinearProblem {
     Eigen::VectorXd weights;
     if (weighting_.is_robust()) {
       UpdateWeights();
-      weights = weights_;
+      weights = RowWeights(weights_);
       fit.loss_scale = weighting_.scale();
       fit.rejected = (weights_.array() < 0.5).count();
     }
-    if (y_.cols() > P) {
+    if (Model::kRowsPerPoint * y_.cols() > P) {
       Model::Linearize(shape_, y_, /*sdm=*/false, nullptr, linear_d_, J_, T_);
-      if (const auto cov = LocalCovariance<P>(J_, linear_d_, weights))
-        fit.uncertainties = Model::Uncertainties(*cov, unit_);
+      if (const auto cov = LocalCovariance<P>(J_, linear_d_, weights)) {
+        if constexpr (requires { Model::FrameOf(shape_); })
+          fit.uncertainties = Model::Uncertainties(*cov, unit_, Model::FrameOf(shape_));
+        else
+          fit.uncertainties = Model::Uncertainties(*cov, unit_);
+      }
     }
   }
 
@@ -427,15 +212,21 @@ class PrimitiveFitProblem : public NonlinearProblem {
   // 1/2 sum rho(d_j^2) (robust_loss.h); 1/2 sum d_j^2 for plain least squares.
   double Objective(const Eigen::VectorXd& d) const {
     if (!weighting_.is_robust()) return 0.5 * d.squaredNorm();
+    const Eigen::VectorXd distances = PointDistances<Model>(d);
     double f = 0.0;
-    for (Eigen::Index j = 0; j < d.size(); ++j) f += 0.5 * weighting_.Rho(d[j]);
+    for (Eigen::Index j = 0; j < distances.size(); ++j) f += 0.5 * weighting_.Rho(distances[j]);
     return f;
+  }
+
+  static Eigen::VectorXd RowWeights(const Eigen::VectorXd& per_point) {
+    return ExpandToRows<Model::kRowsPerPoint>(per_point);
   }
 
   void UpdateWeights() {
     if (!weighting_.is_robust()) return;
-    weighting_.Update(d_);
-    weights_ = weighting_.Weights(d_);
+    const Eigen::VectorXd distances = PointDistances<Model>(d_);
+    weighting_.Update(distances);
+    weights_ = weighting_.Weights(distances);
   }
 
   const Eigen::Matrix3Xd& y_;
@@ -757,6 +548,22 @@ PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitO
   return fit;
 }
 
+// The circle and the torus take TDM only (their SDM terms are not derived).
+template <class Local>
+void CheckErrorTerm(const PrimitiveFitOptions& options, const char* what) {
+  if (!Local::kSupportsSdm && options.error_term != ErrorTerm::kTdm) {
+    throw std::invalid_argument(std::string("a ") + what + " fit takes the error term " +
+                                ToString(ErrorTerm::kTdm) + " only, not " + ToString(options.error_term));
+  }
+}
+
+// A deterministic sign for a direction whose sign carries no meaning: the largest component positive.
+Eigen::Vector3d CanonicalSign(const Eigen::Vector3d& v) {
+  Eigen::Index k;
+  v.cwiseAbs().maxCoeff(&k);
+  return v[k] < 0 ? Eigen::Vector3d(-v) : v;
+}
+
 // A refinement from the caller's start (given in input units; `to_unit_box` maps it into the unit box of the
 // data) or a fit from automatic starts (`starts` in the unit box), then back to input units.
 template <class Local, class ToUnitBox>
@@ -764,6 +571,7 @@ PrimitiveFit<typename Local::Shape> RefineInUnitBox(const Eigen::Matrix3Xd& poin
                                                     const PrimitiveFitOptions& options, int min_points,
                                                     const char* what, const ToUnitBox& to_unit_box) {
   CheckOptions(options);
+  CheckErrorTerm<Local>(options, what);
   const NormalizedData data = Normalize(points, min_points, what);
   PrimitiveFit<typename Local::Shape> fit = Solve<Local>(data.points, to_unit_box(data), options, data.scale);
   Finish(fit, data, points);
@@ -775,6 +583,7 @@ PrimitiveFit<typename Local::Shape> FitInUnitBox(const Eigen::Matrix3Xd& points,
                                                  const PrimitiveFitOptions& options, int min_points,
                                                  const char* what, const Starts& starts) {
   CheckOptions(options);
+  CheckErrorTerm<Local>(options, what);
   const NormalizedData data = Normalize(points, min_points, what);
   PrimitiveFit<typename Local::Shape> fit = FitFromStarts<Local>(data.points, options, data.scale, starts);
   Finish(fit, data, points);
@@ -823,6 +632,177 @@ PrimitiveFit<Cone> FitCone(const Eigen::Matrix3Xd& points, const PrimitiveFitOpt
 }
 
 namespace {
+
+// The least-squares line passes through the centroid along the direction of largest variance (the
+// minimizer of the sum of squared distances; docs/metrology.md section 1). Points in normalized units.
+Line3d ClosedFormLine(const Eigen::Matrix3Xd& y) {
+  const Eigen::Vector3d centroid = y.rowwise().mean();
+  const Eigen::Matrix3Xd centred = y.colwise() - centroid;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(centred * centred.transpose());
+  if (!(eig.eigenvalues()[2] > 0.0)) throw FitError("cannot fit a line: all points coincide");
+  return {centroid, CanonicalSign(eig.eigenvectors().col(2))};
+}
+
+// The circle's start: the least-squares plane, then the algebraic (Kasa) circle of the points projected
+// into it. Throws FitError when the points are collinear (no circle is determined).
+Circle3d CircleStart(const Eigen::Matrix3Xd& y) {
+  const Eigen::Vector3d centroid = y.rowwise().mean();
+  const Eigen::Matrix3Xd centred = y.colwise() - centroid;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(centred * centred.transpose());
+  const Eigen::Vector3d values = eig.eigenvalues();
+  if (!(values[1] > 1e-12 * values[2]))
+    throw FitError("cannot fit a circle: the points are collinear (a circle is not determined)");
+  const Eigen::Vector3d normal = CanonicalSign(eig.eigenvectors().col(0));
+  const Eigen::Matrix3d frame = FrameWithAxis(normal);
+  const Eigen::Matrix2Xd q = frame.leftCols<2>().transpose() * centred;
+  Eigen::Vector2d c;
+  double r;
+  if (!AlgebraicCircle(q, c, r))
+    throw FitError("cannot fit a circle: the points are collinear (a circle is not determined)");
+  return {centroid + frame.leftCols<2>() * c, normal, r};
+}
+
+// A torus for a given axis (point, direction): in the meridian half-plane each point has coordinates (rho, z)
+// (distance from the axis, height along it); the tube's cross-section is a circle there, centred at (R, z0)
+// with radius r, fitted algebraically (Kasa). nullopt when the points are collinear in that plane or R <= 0.
+std::optional<Torus> TorusForAxis(const Eigen::Matrix3Xd& y, const Eigen::Vector3d& point,
+                                  const Eigen::Vector3d& direction) {
+  const Eigen::Vector3d a = direction.normalized();
+  Eigen::Matrix2Xd meridian(2, y.cols());
+  for (Eigen::Index i = 0; i < y.cols(); ++i) {
+    const Eigen::Vector3d v = y.col(i) - point;
+    const double z = a.dot(v);
+    meridian.col(i) << (v - z * a).norm(), z;
+  }
+  Eigen::Vector2d c;
+  double r;
+  if (!AlgebraicCircle(meridian, c, r) || !(c[0] > 0.0)) return std::nullopt;
+  return Torus{point + c[1] * a, CanonicalSign(a), c[0], r};
+}
+
+// The axis point for a given axis direction a from the normals: every normal line meets the axis, (x_i -
+// p).(n_i x a) = 0, linear in p (least squares across the axis). nullopt when the normals do not determine
+// it.
+std::optional<Eigen::Vector3d> AxisPointFromNormals(const Eigen::Matrix3Xd& y,
+                                                    const Eigen::Matrix3Xd& normals,
+                                                    const Eigen::Vector3d& a) {
+  const Eigen::Matrix3d frame = FrameWithAxis(a);
+  Eigen::Matrix2d m = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
+  for (Eigen::Index i = 0; i < y.cols(); ++i) {
+    const Eigen::Vector3d w = normals.col(i).cross(a);
+    const Eigen::Vector2d g = frame.leftCols<2>().transpose() * w;  // p = frame (u, 0): w.p = g.u
+    m += g * g.transpose();
+    rhs += g * w.dot(y.col(i));
+  }
+  const Eigen::LDLT<Eigen::Matrix2d> ldlt(m);
+  if (ldlt.info() != Eigen::Success || !(std::abs(m.determinant()) > 1e-12 * m.squaredNorm()))
+    return std::nullopt;
+  return Eigen::Vector3d(frame.leftCols<2>() * ldlt.solve(rhs));
+}
+
+// The torus's starts (docs/metrology.md section 1). A search over axis directions as for cylinders (400 on a
+// hemisphere and the principal axes): for each the axis point from the normals (AxisPointFromNormals; every
+// normal line of a surface of revolution meets its axis) and the tube from the meridian circle
+// (TorusForAxis); besides, the axis from the normals alone (KinematicAxisFromNormals, docs/method.md eqs. 26
+// and 71), which is fragile on small patches, and the data's least-variance direction through the centroid
+// (right for a whole ring). The best few mutually distinct candidates by their sum of squared distances are
+// refined. Normals: PCA of 16 nearest neighbours.
+std::vector<Torus> TorusStarts(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+  const Eigen::Matrix3Xd y = Subsample(points, options.max_initialization_points);
+  std::vector<Torus> candidates;
+  constexpr int kNeighbours = 16;
+  if (y.cols() >= 2 * kNeighbours) {
+    const PointNormals normals = EstimatePointNormals(y, kNeighbours);
+    for (const Eigen::Vector3d& dir : CandidateDirections(y, options.direction_samples)) {
+      if (const auto point = AxisPointFromNormals(y, normals.normals, dir))
+        if (auto t = TorusForAxis(y, *point, dir)) candidates.push_back(*t);
+    }
+    for (const bool robust : {false, true}) {
+      try {
+        const KinematicAxis axis =
+            robust ? RobustKinematicAxisFromNormals(y, normals.normals, KinematicKind::kRevolution)
+                   : KinematicAxisFromNormals(y, normals.normals, KinematicKind::kRevolution);
+        if (auto t = TorusForAxis(y, axis.point, axis.direction)) candidates.push_back(*t);
+      } catch (const std::invalid_argument&) {
+        // Normals spanning less than 3-D (e.g. a planar ring of points): the other starts remain.
+      }
+    }
+  }
+  const Eigen::Vector3d centroid = y.rowwise().mean();
+  const Eigen::Matrix3Xd centred = y.colwise() - centroid;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(centred * centred.transpose());
+  if (auto t = TorusForAxis(y, centroid, eig.eigenvectors().col(0))) candidates.push_back(*t);
+  std::vector<std::pair<double, std::size_t>> scored;
+  for (std::size_t k = 0; k < candidates.size(); ++k) {
+    const double score = SignedDistances(candidates[k], y).squaredNorm();
+    if (std::isfinite(score)) scored.emplace_back(score, k);
+  }
+  std::sort(scored.begin(), scored.end());
+  const double min_separation_cos = std::cos(10.0 * M_PI / 180.0);
+  std::vector<Torus> starts;
+  for (const auto& [score, k] : scored) {
+    const Torus& t = candidates[k];
+    if (std::all_of(starts.begin(), starts.end(),
+                    [&](const Torus& o) { return std::abs(o.axis.dot(t.axis)) < min_separation_cos; }))
+      starts.push_back(t);
+    if (static_cast<int>(starts.size()) >= std::max(1, options.refined_candidates)) break;
+  }
+  if (starts.empty())
+    throw FitError("cannot fit a torus: no axis gives a usable initial guess (degenerate data?)");
+  return starts;
+}
+
+}  // namespace
+
+PrimitiveFit<Line3d> FitLine(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+  PrimitiveFit<Line3d> fit = FitInUnitBox<LineLocal>(
+      points, options, 2, "line",
+      [](const Eigen::Matrix3Xd& y) { return std::vector<Line3d>{ClosedFormLine(y)}; });
+  // Plain least squares: the start is the exact minimizer, so the refinement can only move it by rounding; it
+  // supplies the covariance.
+  if (!options.optimizer.loss.is_robust()) fit.stop_reason = StopReason::kClosedForm;
+  fit.shape.direction = CanonicalSign(fit.shape.direction);
+  return fit;
+}
+
+PrimitiveFit<Circle3d> RefineCircle(const Eigen::Matrix3Xd& points, const Circle3d& initial,
+                                    const PrimitiveFitOptions& options) {
+  PrimitiveFit<Circle3d> fit =
+      RefineInUnitBox<CircleLocal>(points, options, 3, "circle", [&](const NormalizedData& data) {
+        return Circle3d{(initial.center - data.offset) / data.scale, initial.normal.normalized(),
+                        initial.radius / data.scale};
+      });
+  fit.shape.normal = CanonicalSign(fit.shape.normal);
+  return fit;
+}
+
+PrimitiveFit<Circle3d> FitCircle(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+  PrimitiveFit<Circle3d> fit = FitInUnitBox<CircleLocal>(
+      points, options, 3, "circle", [](const auto& y) { return std::vector<Circle3d>{CircleStart(y)}; });
+  fit.shape.normal = CanonicalSign(fit.shape.normal);
+  return fit;
+}
+
+PrimitiveFit<Torus> RefineTorus(const Eigen::Matrix3Xd& points, const Torus& initial,
+                                const PrimitiveFitOptions& options) {
+  PrimitiveFit<Torus> fit =
+      RefineInUnitBox<TorusLocal>(points, options, 7, "torus", [&](const NormalizedData& data) {
+        return Torus{(initial.center - data.offset) / data.scale, initial.axis.normalized(),
+                     initial.major_radius / data.scale, initial.minor_radius / data.scale};
+      });
+  fit.shape.axis = CanonicalSign(fit.shape.axis);
+  return fit;
+}
+
+PrimitiveFit<Torus> FitTorus(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+  PrimitiveFit<Torus> fit = FitInUnitBox<TorusLocal>(points, options, 7, "torus",
+                                                     [&](const auto& y) { return TorusStarts(y, options); });
+  fit.shape.axis = CanonicalSign(fit.shape.axis);
+  return fit;
+}
+
+namespace {
 template <class Model>
 Eigen::MatrixXd JacobianOf(const typename Model::Shape& s, const Eigen::Matrix3Xd& points) {
   Eigen::VectorXd d;
@@ -841,6 +821,30 @@ Eigen::MatrixXd DistanceJacobian(const Cylinder& s, const Eigen::Matrix3Xd& p) {
 }
 Eigen::MatrixXd DistanceJacobian(const Cone& s, const Eigen::Matrix3Xd& p) {
   return JacobianOf<ConeLocal>(s, p);
+}
+Eigen::MatrixXd DistanceJacobian(const Line3d& s, const Eigen::Matrix3Xd& p) {
+  return JacobianOf<LineLocal>(s, p);
+}
+Eigen::MatrixXd DistanceJacobian(const Circle3d& s, const Eigen::Matrix3Xd& p) {
+  return JacobianOf<CircleLocal>(s, p);
+}
+Eigen::MatrixXd DistanceJacobian(const Torus& s, const Eigen::Matrix3Xd& p) {
+  return JacobianOf<TorusLocal>(s, p);
+}
+Eigen::VectorXd ResidualVector(const Line3d& s, const Eigen::Matrix3Xd& p) {
+  return Residuals<LineLocal>(s, p);
+}
+Eigen::VectorXd ResidualVector(const Circle3d& s, const Eigen::Matrix3Xd& p) {
+  return Residuals<CircleLocal>(s, p);
+}
+Line3d ApplyIncrement(const Line3d& s, const Eigen::VectorXd& delta) {
+  return LineLocal::Update(s, delta);
+}
+Circle3d ApplyIncrement(const Circle3d& s, const Eigen::VectorXd& delta) {
+  return CircleLocal::Update(s, delta);
+}
+Torus ApplyIncrement(const Torus& s, const Eigen::VectorXd& delta) {
+  return TorusLocal::Update(s, delta);
 }
 Sphere ApplyIncrement(const Sphere& s, const Eigen::VectorXd& delta) {
   return SphereLocal::Update(s, delta);

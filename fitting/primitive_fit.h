@@ -1,11 +1,11 @@
 #pragma once
-// Orthogonal-distance least-squares fits of primitives (plane, sphere, cylinder, cone).
+// Orthogonal-distance least-squares fits of primitives (plane, sphere, cylinder, cone, line, circle, torus).
 //
-// Foot points are closed form; each iteration builds the TDM or SDM normal equations of docs/method.md section 2
-// at the frozen foot points and the one minimizer of every fit (minimizer.h: Levenberg-Marquardt, section 9)
-// takes the step. Cylinders and cones are linearized in a local frame whose z axis is the current axis
-// (Forbes, "Least squares best fit geometric elements", NPL DITC 140/89), which keeps the normal matrix well
-// conditioned; data are centred and scaled into the unit box first (section 3).
+// Foot points are closed form; each iteration builds the TDM or SDM normal equations of docs/method.md
+// section 2 at the frozen foot points and the one minimizer of every fit (minimizer.h: Levenberg-Marquardt,
+// section 9) takes the step. Cylinders and cones are linearized in a local frame whose z axis is the current
+// axis (Forbes, "Least squares best fit geometric elements", NPL DITC 140/89), which keeps the normal matrix
+// well conditioned; data are centred and scaled into the unit box first (section 3).
 //
 // Robust fits (optimizer.loss): each point's rows are weighted by the IRLS weight rho'(d^2) at every
 // linearization and the objective is 1/2 sum rho(d^2) (robust_loss.h; Triggs et al. 2000, section 4.3).
@@ -106,6 +106,17 @@ PrimitiveFit<Sphere> FitSphere(const Eigen::Matrix3Xd& points, const PrimitiveFi
 PrimitiveFit<Cylinder> FitCylinder(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
 PrimitiveFit<Cone> FitCone(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
 
+// The rest of the ISO 10360-6 set (docs/metrology.md section 1). A line's and a circle's residual is the
+// 2-vector across the curve (its length the distance; PrimitiveFit::residuals then holds the non-negative
+// distances). Line: closed form (centroid, principal direction); robust losses iterate. Circle: start from
+// the least-squares plane and the algebraic circle of the points projected into it; at least 3 points, not
+// collinear. Torus: starts from the axis of the points' normal lines and from the least-variance direction,
+// each completed by the algebraic circle in the meridian plane; at least 7 points. Circle and torus take
+// ErrorTerm::kTdm only (std::invalid_argument otherwise).
+PrimitiveFit<Line3d> FitLine(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
+PrimitiveFit<Circle3d> FitCircle(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
+PrimitiveFit<Torus> FitTorus(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
+
 // Refinement from a caller's initial shape (no automatic initial guess).
 PrimitiveFit<Sphere> RefineSphere(const Eigen::Matrix3Xd& points, const Sphere& initial,
                                   const PrimitiveFitOptions& options = {});
@@ -113,15 +124,29 @@ PrimitiveFit<Cylinder> RefineCylinder(const Eigen::Matrix3Xd& points, const Cyli
                                       const PrimitiveFitOptions& options = {});
 PrimitiveFit<Cone> RefineCone(const Eigen::Matrix3Xd& points, const Cone& initial,
                               const PrimitiveFitOptions& options = {});
+PrimitiveFit<Circle3d> RefineCircle(const Eigen::Matrix3Xd& points, const Circle3d& initial,
+                                    const PrimitiveFitOptions& options = {});
+PrimitiveFit<Torus> RefineTorus(const Eigen::Matrix3Xd& points, const Torus& initial,
+                                const PrimitiveFitOptions& options = {});
 
 // Exposed for the Jacobian property tests: rows d(distance)/d(local parameters) at the zero increment, and
 // the update that applies an increment. Local parameters: sphere (cx, cy, cz, r); cylinder (u1, u2, a1, b1,
-// r); cone (u1, u2, a1, b1, psi, s), all in the shape's local axis frame.
+// r); cone (u1, u2, a1, b1, psi, s); line (u1, u2, a1, b1); circle (c1, c2, c3, t1, t2, r); torus (u1, u2,
+// w, a1, b1, R, r), all in the shape's local axis frame (docs/metrology.md eqs. 1-3). The line's and the
+// circle's rows are those of the stacked 2-vector residuals (ResidualVector), two per point.
 Eigen::MatrixXd DistanceJacobian(const Sphere& s, const Eigen::Matrix3Xd& points);
 Eigen::MatrixXd DistanceJacobian(const Cylinder& s, const Eigen::Matrix3Xd& points);
 Eigen::MatrixXd DistanceJacobian(const Cone& s, const Eigen::Matrix3Xd& points);
 Sphere ApplyIncrement(const Sphere& s, const Eigen::VectorXd& delta);
 Cylinder ApplyIncrement(const Cylinder& s, const Eigen::VectorXd& delta);
 Cone ApplyIncrement(const Cone& s, const Eigen::VectorXd& delta);
+Eigen::MatrixXd DistanceJacobian(const Line3d& s, const Eigen::Matrix3Xd& points);
+Eigen::MatrixXd DistanceJacobian(const Circle3d& s, const Eigen::Matrix3Xd& points);
+Eigen::MatrixXd DistanceJacobian(const Torus& s, const Eigen::Matrix3Xd& points);
+Eigen::VectorXd ResidualVector(const Line3d& s, const Eigen::Matrix3Xd& points);
+Eigen::VectorXd ResidualVector(const Circle3d& s, const Eigen::Matrix3Xd& points);
+Line3d ApplyIncrement(const Line3d& s, const Eigen::VectorXd& delta);
+Circle3d ApplyIncrement(const Circle3d& s, const Eigen::VectorXd& delta);
+Torus ApplyIncrement(const Torus& s, const Eigen::VectorXd& delta);
 
 }  // namespace s2m

@@ -36,6 +36,27 @@ double SignedDistance(const Cone& cone, const Eigen::Vector3d& x) {
          cone.SurfaceDistanceFromAxisPoint();
 }
 
+double SignedDistance(const Line3d& line, const Eigen::Vector3d& x) {
+  const Eigen::Vector3d v = x - line.point;
+  return (v - line.direction.dot(v) * line.direction).norm();
+}
+
+double SignedDistance(const Circle3d& circle, const Eigen::Vector3d& x) {
+  // In the circle's plane the nearest point is on the ray from the centre through x's projection: the
+  // distance is sqrt(h^2 + (rho - r)^2) with h the height over the plane and rho the in-plane radius.
+  const Eigen::Vector3d v = x - circle.center;
+  const double h = circle.normal.dot(v);
+  const double rho = (v - h * circle.normal).norm();
+  return std::hypot(h, rho - circle.radius);
+}
+
+double SignedDistance(const Torus& torus, const Eigen::Vector3d& x) {
+  const Eigen::Vector3d v = x - torus.center;
+  const double z = torus.axis.dot(v);
+  const double rho = (v - z * torus.axis).norm();
+  return std::hypot(rho - torus.major_radius, z) - torus.minor_radius;
+}
+
 Plane Transformed(const Plane& s, double scale, const Eigen::Vector3d& offset) {
   return {scale * s.point + offset, s.normal};
 }
@@ -47,6 +68,20 @@ Cylinder Transformed(const Cylinder& s, double scale, const Eigen::Vector3d& off
 }
 Cone Transformed(const Cone& s, double scale, const Eigen::Vector3d& offset) {
   return {scale * s.axis_point + offset, s.axis_direction, s.half_angle, scale * s.radius};
+}
+
+Line3d Transformed(const Line3d& s, double scale, const Eigen::Vector3d& offset) {
+  return {scale * s.point + offset, s.direction};
+}
+Circle3d Transformed(const Circle3d& s, double scale, const Eigen::Vector3d& offset) {
+  return {scale * s.center + offset, s.normal, scale * s.radius};
+}
+Torus Transformed(const Torus& s, double scale, const Eigen::Vector3d& offset) {
+  return {scale * s.center + offset, s.axis, scale * s.major_radius, scale * s.minor_radius};
+}
+
+void MoveAxisPointNear(Line3d& line, const Eigen::Vector3d& reference) {
+  line.point += line.direction.dot(reference - line.point) * line.direction;
 }
 
 void MoveAxisPointNear(Cylinder& cylinder, const Eigen::Vector3d& reference) {

@@ -144,6 +144,20 @@ def main():
                              "platform_T_camera": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 300], [0, 0, 0, 1]]}}
     write("horus_calibration", "calibration.json", json.dumps(calibration, indent=1))
 
+    # e57_fuzz: the hand-made E57 files of the tests (tests/data/e57/make_e57_files.py builds them byte by byte):
+    # spherical and cartesian scans, every field kind, data, empty and index packets, plus a four-point file that
+    # mutates fast. Selector: 0 = the file as it is, 1 = its logical byte stream (the target adds the checksums).
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        "make_e57_files", os.path.join(HERE, "..", "tests", "data", "e57", "make_e57_files.py"))
+    e57 = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(e57)
+    for name, build in (("spherical_grid", e57.spherical_grid), ("cartesian_mixed", e57.cartesian_mixed),
+                        ("tiny", e57.with_points())):
+        physical = e57.e57_file(build)
+        logical = b"".join(physical[p:p + e57.PAYLOAD] for p in range(0, len(physical), e57.PAGE))
+        write("e57", name + ".e57", b"\x00" + physical)
+        write("e57", name + ".logical", b"\x01" + logical)
 
 def gzip_bytes(data):
     import gzip

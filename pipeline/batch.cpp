@@ -453,10 +453,13 @@ std::vector<nlohmann::json> RunBatchObjects(const BatchManifest& manifest,
   Progress progress(options, static_cast<int>(positions.size()), static_cast<int>(todo.size()));
   progress.Skipped(counts.skipped);
   std::atomic<std::size_t> next{0};
+  std::atomic<int> computed{0};
+  const auto stop_requested = [&options]() { return options.stop != nullptr && options.stop->load(); };
   auto worker = [&]() {
     omp_set_num_threads(threads);  // per thread: each worker's own OpenMP teams
-    for (std::size_t t = next++; t < todo.size(); t = next++) {
+    for (std::size_t t = next++; t < todo.size() && !stop_requested(); t = next++) {
       const std::size_t p = todo[t];
+      ++computed;
       const BatchObject& object = manifest.objects[positions[p]];
       progress.Started();
       nlohmann::json record;
@@ -481,8 +484,16 @@ std::vector<nlohmann::json> RunBatchObjects(const BatchManifest& manifest,
   worker();  // the calling thread works too
   for (std::thread& t : pool) t.join();
   progress.Done();
-  counts.computed += static_cast<int>(todo.size());
-  for (const nlohmann::json& entry : entries) (entry["status"] == "ok" ? counts.ok : counts.failed) += 1;
+  counts.computed += computed.load();
+  counts.not_started += static_cast<int>(todo.size()) - computed.load();
+  for (std::size_t p = 0; p < positions.size(); ++p) {
+    if (entries[p].is_null()) {  // not started: stopped before its turn
+      const BatchObject& object = manifest.objects[positions[p]];
+      entries[p] = SummaryEntry(object, nullptr, RecordPath(options.output_dir, object.id));
+      continue;
+    }
+    (entries[p]["status"] == "ok" ? counts.ok : counts.failed) += 1;
+  }
   return entries;
 }
 

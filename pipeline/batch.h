@@ -2,6 +2,7 @@
 // `scan2model batch`: many objects, each fitted by the code of `scan2model fit` (ComputeFit, in-process),
 // in parallel, resumable, with one summary. Manifest format and output layout: docs/batch.md.
 
+#include <atomic>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -39,14 +40,19 @@ struct BatchOptions {
   // Test hook (environment S2M_BATCH_KILL_AFTER=k): the process kills itself with SIGKILL right after the
   // k-th object it computed was written, as a crash or power cut would.
   int kill_after = 0;
+  // When given and set (a SIGTERM or Ctrl-C, apps/stop_signal.h), no further object starts; the objects in
+  // flight finish and are written, the others stay "missing" in the entries (BatchCounts::not_started), and
+  // a rerun resumes with them.
+  const std::atomic<bool>* stop = nullptr;
 };
 
 // What happened to the objects of one run.
 struct BatchCounts {
-  int computed = 0;  // fitted now (ok or error)
-  int skipped = 0;   // finished by an earlier run
-  int ok = 0;        // with a result (computed or skipped)
-  int failed = 0;    // with an error record
+  int computed = 0;     // fitted now (ok or error)
+  int skipped = 0;      // finished by an earlier run
+  int ok = 0;           // with a result (computed or skipped)
+  int failed = 0;       // with an error record
+  int not_started = 0;  // left for a rerun because BatchOptions::stop was set
 };
 
 // The positions (into manifest.objects) of shard `index` of `count`: every count-th object, deterministic in

@@ -30,6 +30,11 @@ nlohmann::json ParametersJson(const DetectedShape& shape) {
     j["axis_direction"] = ToJson(c->axis_direction);
     j["radius"] = c->radius;
     j["diameter"] = 2 * c->radius;
+  } else if (const auto* t = std::get_if<Torus>(&shape)) {
+    j["center"] = ToJson(t->center);
+    j["axis_direction"] = ToJson(t->axis);
+    j["major_radius"] = t->major_radius;
+    j["minor_radius"] = t->minor_radius;
   } else {
     const Cone& k = std::get<Cone>(shape);
     j["axis_point"] = ToJson(k.axis_point);
@@ -59,6 +64,11 @@ std::string ParametersText(const DetectedPrimitive& instance) {
     t << "    axis point  " << Format(c->axis_point, 9) << uncertainty("axis_position") << "\n"
       << "    axis        " << Format(c->axis_direction, 9) << uncertainty("axis_direction") << "\n"
       << "    radius      " << Format(c->radius, 9) << uncertainty("radius") << "\n";
+  } else if (const auto* r = std::get_if<Torus>(&instance.shape)) {
+    t << "    center      " << Format(r->center, 9) << "\n"
+      << "    axis        " << Format(r->axis, 9) << uncertainty("axis_direction") << "\n"
+      << "    R (major)   " << Format(r->major_radius, 9) << uncertainty("major_radius") << "\n"
+      << "    r (minor)   " << Format(r->minor_radius, 9) << uncertainty("minor_radius") << "\n";
   } else {
     const Cone& k = std::get<Cone>(instance.shape);
     t << "    axis point  " << Format(k.axis_point, 9) << uncertainty("axis_position") << "\n"

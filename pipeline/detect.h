@@ -16,7 +16,7 @@ namespace s2m::pipeline {
 
 struct DetectOptions {
   std::string file;
-  std::vector<std::string> models;  // plane, sphere, cylinder, cone (torus: a clear "not supported")
+  std::vector<std::string> models;  // plane, sphere, cylinder, cone, torus
   int max_instances = 10;
   int min_support = 0;  // 0: automatic (max(30, N / 1000))
   std::uint64_t seed = 1;

@@ -12,6 +12,9 @@ enum ExitCode : int {
   kInternal = 70,   // a bug: please report it
   // A device failed: not found, no permission, disconnected, timed out (docs/horus-scan.md).
   kDeviceError = 5,
+  // Stopped by SIGINT or SIGTERM at a safe point: everything finished is written, a rerun resumes
+  // (`batch`, `record`, `scan`; docs/reliability.md).
+  kInterrupted = 6,
 };
 
 }  // namespace s2m::pipeline

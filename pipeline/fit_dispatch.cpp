@@ -1,5 +1,6 @@
 // ComputeFit: the dispatch of `scan2model fit` and `scan2model batch` to the fits of every model family, and
-// the primitive fits (plane, sphere, cylinder, cone) themselves.
+// the primitive fits (plane, sphere, cylinder, cone, line, circle, torus) themselves with their form errors
+// (least-squares zone, and the minimum-zone, inscribed or circumscribed fit that --criterion asks for).
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +14,7 @@
 #include "acquisition/nist_reference.h"
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
+#include "fitting/minimum_zone.h"
 #include "fitting/noise_estimate.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_fit.h"
@@ -57,6 +59,92 @@ std::vector<Row> Parameters(const Cone& s) {
           {"half_angle", s.half_angle, Format(s.half_angle) + " rad"},
           {"apex_angle_deg", 2 * s.half_angle * degrees, Format(2 * s.half_angle * degrees) + " deg (full)"},
           {"apex", ToJson(s.Apex()), Format(s.Apex())}};
+}
+
+std::vector<Row> Parameters(const Line3d& s) {
+  return {{"point", ToJson(s.point), Format(s.point) + "  (nearest the points' centroid)"},
+          {"direction", ToJson(s.direction), Format(s.direction)}};
+}
+std::vector<Row> Parameters(const Circle3d& s) {
+  return {{"center", ToJson(s.center), Format(s.center)},
+          {"normal", ToJson(s.normal), Format(s.normal)},
+          {"radius", s.radius, Format(s.radius)},
+          {"diameter", 2 * s.radius, Format(2 * s.radius)}};
+}
+std::vector<Row> Parameters(const Torus& s) {
+  return {{"center", ToJson(s.center), Format(s.center)},
+          {"axis_direction", ToJson(s.axis), Format(s.axis)},
+          {"major_radius", s.major_radius, Format(s.major_radius) + "  (axis to the tube's centre circle)"},
+          {"minor_radius", s.minor_radius, Format(s.minor_radius) + "  (the tube's radius)"}};
+}
+
+// NIST reference files exist for the four primitives of the NIST data sets; none for lines, circles, tori.
+template <class Shape>
+constexpr bool kHasNistReference = std::is_same_v<Shape, Plane> || std::is_same_v<Shape, Sphere> ||
+                                   std::is_same_v<Shape, Cylinder> || std::is_same_v<Shape, Cone>;
+
+// The form error of each primitive by its ISO 1101 name (docs/metrology.md section 2).
+const char* FormName(const Plane&) {
+  return "flatness";
+}
+const char* FormName(const Sphere&) {
+  return "sphericity";
+}
+const char* FormName(const Cylinder&) {
+  return "cylindricity";
+}
+const char* FormName(const Cone&) {
+  return "conicity";
+}
+const char* FormName(const Line3d&) {
+  return "straightness";
+}
+const char* FormName(const Circle3d&) {
+  return "roundness";
+}
+const char* FormName(const Torus&) {
+  return "torus form deviation";
+}
+
+// The Chebyshev fit --criterion asks for, from the least-squares shape; nullopt for lsq. Inscribed and
+// circumscribed features exist for circles, cylinders and spheres only.
+template <class Shape>
+std::optional<ChebyshevFit<Shape>> CriterionFit(FitCriterion criterion, const Eigen::Matrix3Xd& points,
+                                                const Shape& start, const std::string& model) {
+  switch (criterion) {
+    case FitCriterion::kLeastSquares:
+      return std::nullopt;
+    case FitCriterion::kMinimumZone:
+      return MinimumZoneFit(points, start);
+    case FitCriterion::kInscribed:
+    case FitCriterion::kCircumscribed:
+      if constexpr (std::is_same_v<Shape, Circle3d> || std::is_same_v<Shape, Cylinder> ||
+                    std::is_same_v<Shape, Sphere>) {
+        return criterion == FitCriterion::kInscribed ? InscribedFit(points, start)
+                                                     : CircumscribedFit(points, start);
+      } else {
+        throw FitFailure(kUsage, std::string("--criterion ") + ToString(criterion) +
+                                     " applies to circle, cylinder and sphere, not " + model);
+      }
+  }
+  return std::nullopt;
+}
+
+template <class Shape>
+nlohmann::json ContactsJson(const ChebyshevFit<Shape>& z) {
+  nlohmann::json contacts = nlohmann::json::array();
+  for (const ZoneContact& c : z.contacts)
+    contacts.push_back(
+        {{"index", c.index}, {"side", c.side > 0 ? "outer" : "inner"}, {"distance", c.distance}});
+  return contacts;
+}
+
+std::string ContactsText(const std::vector<ZoneContact>& contacts) {
+  std::string out;
+  for (std::size_t k = 0; k < contacts.size() && k < 12; ++k)
+    out += (k ? ", " : "") + std::to_string(contacts[k].index) + (contacts[k].side > 0 ? "+" : "-");
+  if (contacts.size() > 12) out += ", ...";
+  return out;
 }
 
 Plane ReadReference(const std::string& f, const Plane&) {
@@ -104,7 +192,15 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   const double extent = ComputeBounds(scan.points).diagonal();
 
   std::optional<PrimitiveDeviation> deviation;
-  if (!o.reference.empty()) deviation = Compare(fit.shape, ReadReference(o.reference, fit.shape));
+  if (!o.reference.empty()) {
+    if constexpr (kHasNistReference<Shape>) {
+      deviation = Compare(fit.shape, ReadReference(o.reference, fit.shape));
+    } else {
+      throw FitFailure(
+          kUsage,
+          "--reference: NIST reference fits exist for plane, sphere, cylinder and cone, not " + o.model);
+    }
+  }
   if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(fit.history));
 
   // Adequacy (docs/method.md section 17): the RMS against the cloud's own noise, and the signed residuals'
@@ -124,6 +220,34 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   const Adequacy adequacy = AssessAdequacy(evidence);
   const std::optional<bool> trusted = adequacy.uncertainty_trusted();
 
+  // Form error (docs/metrology.md section 2): the least-squares zone always, the --criterion fit on request.
+  const ChebyshevFit<Shape> lsq_zone = ZoneAbout(scan.points, fit.shape);
+  const FitCriterion criterion = FitCriterionFromString(o.criterion);
+  const auto chebyshev_start = std::chrono::steady_clock::now();
+  const std::optional<ChebyshevFit<Shape>> chebyshev =
+      CriterionFit(criterion, scan.points, fit.shape, o.model);
+  const double chebyshev_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - chebyshev_start).count();
+  nlohmann::json form_json = {{"name", FormName(fit.shape)},
+                              {"least_squares_zone",
+                               {{"width", lsq_zone.zone_width},
+                                {"max_distance", lsq_zone.max_distance},
+                                {"min_distance", lsq_zone.min_distance}}},
+                              {"criterion", o.criterion}};
+  if (chebyshev) {
+    nlohmann::json c = {{"width", chebyshev->zone_width},
+                        {"max_distance", chebyshev->max_distance},
+                        {"min_distance", chebyshev->min_distance},
+                        {"contacts", ContactsJson(*chebyshev)},
+                        {"iterations", chebyshev->iterations},
+                        {"converged", chebyshev->converged},
+                        {"stop_reason", chebyshev->stop_reason},
+                        {"optimality", chebyshev->optimality},
+                        {"seconds", chebyshev_seconds}};
+    for (const Row& r : Parameters(chebyshev->shape)) c["parameters"][r.name] = r.value;
+    form_json[o.criterion] = c;
+  }
+
   FitOutcome outcome;
   {
     nlohmann::json& j = outcome.document;
@@ -133,6 +257,7 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
     j["method"] = ToString(options.error_term);
     for (const Row& r : rows) j["parameters"][r.name] = r.value;
     j["nist_layout"] = ToNistLayout(fit.shape);
+    j["form"] = form_json;
     for (const ParameterUncertainty& u : fit.uncertainties) {
       j["uncertainties"][u.name] = {{"standard_uncertainty", u.standard_uncertainty},
                                     {"unit", u.is_angle ? "rad" : scan.units}};
@@ -187,6 +312,24 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
   } else {
     text << "  loss              none; " << o.loss_reason << "\n";
   }
+  const char* form = FormName(fit.shape);
+  text << "\n  " << std::left << std::setw(18) << "form (ISO 1101)" << form << " "
+       << Format(lsq_zone.zone_width, 6) << " about the least-squares fit ("
+       << (std::is_same_v<Shape, Line3d> ? "2 x max distance" : "max - min distance")
+       << "; an upper bound of the minimum zone)\n";
+  if (chebyshev) {
+    const char* what = criterion == FitCriterion::kMinimumZone ? "minimum zone"
+                       : criterion == FitCriterion::kInscribed ? "inscribed"
+                                                               : "circumscribed";
+    text << "  " << std::left << std::setw(18) << what << form << " " << Format(chebyshev->zone_width, 6)
+         << " (max " << Format(chebyshev->max_distance, 6) << ", min " << Format(chebyshev->min_distance, 6)
+         << "), " << chebyshev->contacts.size() << " contacting points [" << ContactsText(chebyshev->contacts)
+         << "], " << chebyshev->iterations << " iterations, "
+         << (chebyshev->converged ? "converged" : "NOT converged (" + chebyshev->stop_reason + ")") << ", "
+         << Format(chebyshev_seconds * 1e3, 3) << " ms\n";
+    for (const Row& r : Parameters(chebyshev->shape))
+      text << "    " << std::left << std::setw(16) << r.name << r.text << "\n";
+  }
   text << adequacy.Text();
   if (o.verbose) text << HistoryTable(fit.history);
   if (deviation) {
@@ -209,6 +352,9 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
 // fit and report on its inliers, started at the detection's refit; the rejected points are counted and, when
 // asked, written.
 FitOutcome ComputeRobustPrimitiveFit(FitOptions o, const Scan& scan, const std::string& format) {
+  if (o.model == "line" || o.model == "circle")
+    throw FitFailure(kUsage, "--robust detects surfaces (plane, sphere, cylinder, cone, torus), not a " +
+                                 o.model + "; use --loss for a robust " + o.model + " fit");
   const DetectionOptions detection = MakeDetectionOptions({o.model}, 1, 0, o.seed, 0.0, 0.0);
   DetectionResult found;
   try {
@@ -246,9 +392,13 @@ FitOutcome ComputeRobustPrimitiveFit(FitOptions o, const Scan& scan, const std::
     outcome = ComputePrimitiveFit<Cylinder>(o, inliers, format, [&](const auto& p, const auto& opt) {
       return RefineCylinder(p, std::get<Cylinder>(start), opt);
     });
-  } else {
+  } else if (o.model == "cone") {
     outcome = ComputePrimitiveFit<Cone>(o, inliers, format, [&](const auto& p, const auto& opt) {
       return RefineCone(p, std::get<Cone>(start), opt);
+    });
+  } else {
+    outcome = ComputePrimitiveFit<Torus>(o, inliers, format, [&](const auto& p, const auto& opt) {
+      return RefineTorus(p, std::get<Torus>(start), opt);
     });
   }
   outcome.document["input"] = DescribeScan(scan, o.file, format);
@@ -288,7 +438,8 @@ FitOutcome ComputeFit(const FitOptions& o) {
   if (o.model == "hermite-curve") return ComputeHermiteFit(o);
   if (o.model == "revolution" || o.model == "helical" || o.model == "spiral") return ComputeMultiViewFit(o);
   if (o.model.rfind("part:", 0) == 0) return ComputePartFit(o);
-  if (o.model != "plane" && o.model != "sphere" && o.model != "cylinder" && o.model != "cone")
+  if (o.model != "plane" && o.model != "sphere" && o.model != "cylinder" && o.model != "cone" &&
+      o.model != "line" && o.model != "circle" && o.model != "torus")
     throw FitFailure(kUsage, o.model + " is not a model (docs/cli.md)");
   FitOptions options = o;
   if (options.method.empty()) options.method = "tdm";
@@ -327,6 +478,15 @@ FitOutcome ComputeFit(const FitOptions& o) {
     } else if (options.model == "cylinder") {
       outcome = ComputePrimitiveFit<Cylinder>(
           options, scan, f, [](const auto& p, const auto& opt) { return FitCylinder(p, opt); });
+    } else if (options.model == "line") {
+      outcome = ComputePrimitiveFit<Line3d>(options, scan, f,
+                                            [](const auto& p, const auto& opt) { return FitLine(p, opt); });
+    } else if (options.model == "circle") {
+      outcome = ComputePrimitiveFit<Circle3d>(
+          options, scan, f, [](const auto& p, const auto& opt) { return FitCircle(p, opt); });
+    } else if (options.model == "torus") {
+      outcome = ComputePrimitiveFit<Torus>(options, scan, f,
+                                           [](const auto& p, const auto& opt) { return FitTorus(p, opt); });
     } else {
       outcome = ComputePrimitiveFit<Cone>(options, scan, f,
                                           [](const auto& p, const auto& opt) { return FitCone(p, opt); });

@@ -214,6 +214,18 @@ std::vector<FitOptionSpec> MakeTable() {
        [](const std::string& v) {
          if (v != "auto") ParseRobustLoss(v);
        }});
+  t.push_back({"criterion",
+               "--criterion",
+               K::kChoice,
+               "lsq",
+               "Primitives: the reference feature of the form error besides the least-squares fit: lsq (the "
+               "least-squares zone only), minzone (the minimum zone of ISO 1101: flatness, roundness, "
+               "cylindricity, ...), inscribed or circumscribed (circle, cylinder, sphere); docs/metrology.md",
+               {"lsq", "minzone", "inscribed", "circumscribed"},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.criterion = v; }});
   t.push_back(
       {"robust",
        "--robust",
@@ -494,16 +506,14 @@ void ResolveDefaultLoss(FitOptions& o, InputKind kind) {
 
 std::string ModelError(const std::string& model) {
   static const std::set<std::string> kModels = {
-      "plane",           "sphere",        "cylinder",   "cone",    "bspline-curve",
-      "bspline-surface", "hermite-curve", "revolution", "helical", "spiral"};
+      "plane",         "sphere",          "cylinder",      "cone",       "line",    "circle", "torus",
+      "bspline-curve", "bspline-surface", "hermite-curve", "revolution", "helical", "spiral"};
   if (kModels.count(model) > 0) return "";
   if (model.rfind("part:", 0) == 0)
     return model.size() > 5 ? "" : "part: needs a part file, e.g. part:block.part.json";
   return model +
-         " is not a model (plane, sphere, cylinder, cone, bspline-curve, bspline-surface, hermite-curve, "
-         "revolution, "
-         "helical, "
-         "spiral, part:FILE)";
+         " is not a model (plane, sphere, cylinder, cone, line, circle, torus, bspline-curve, "
+         "bspline-surface, hermite-curve, revolution, helical, spiral, part:FILE)";
 }
 
 }  // namespace s2m::pipeline

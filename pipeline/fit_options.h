@@ -39,6 +39,9 @@ struct FitOptions {
   // input's kind (ResolveDefaultLoss, fit_option_table.h) and says why in `loss_reason`.
   bool loss_given = false;
   std::string loss_reason;
+  // Primitives: the criterion of the form evaluation besides least squares (fitting/minimum_zone.h): lsq,
+  // minzone, inscribed or circumscribed (docs/metrology.md).
+  std::string criterion = "lsq";
   // Primitives: detect the dominant instance first (pipeline/detect.h), fit its inliers, count the rest.
   bool robust = false;
   std::uint64_t seed = 1;

@@ -5,6 +5,7 @@
 #include <iomanip>
 #include <sstream>
 
+#include "acquisition/e57_io.h"
 #include "acquisition/frame_source.h"
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
@@ -16,6 +17,7 @@ namespace s2m::pipeline {
 ScanSet ReadViews(const std::string& file) {
   const std::string ext = std::filesystem::path(file).extension().string();
   if (ext == ".json" || ext == ".conf") return ReadScanSet(file);
+  if (IsE57File(file)) return ReadE57ScanSet(file);  // every data3D scan a view, its pose the view's pose
   // A recording is replayed through the same frame path as a live device: points as they are, depth images
   // back-projected with the stream's intrinsics, the profiles of a sweep gathered into one view.
   if (ext == kRecordingExtension) {

@@ -13,8 +13,8 @@
 
 namespace s2m::pipeline {
 
-// A scan2model.views/1 manifest (.json) or Stanford .conf; any other file is read as one cloud, one view in
-// world coordinates. Throws FormatError.
+// A scan2model.views/1 manifest (.json), Stanford .conf, recording or E57 file (each data3D scan a view with its
+// pose); any other file is read as one cloud, one view in world coordinates. Throws FormatError.
 ScanSet ReadViews(const std::string& file);
 
 // The error term (default tdm), iteration cap and solver variant (joint, alternating, register-then-fit).

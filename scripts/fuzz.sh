@@ -25,7 +25,7 @@ fi
 
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
   -DS2M_FUZZ=ON -DS2M_SANITIZE=address,undefined -DS2M_BUILD_TESTS=OFF -DS2M_BUILD_BENCH=OFF >/dev/null
-all_targets=$(sed -n 's/^ *s2m_add_fuzz_target(\([a-z_]*\) .*/\1/p' "$root/fuzz/CMakeLists.txt")
+all_targets=$(sed -n 's/^ *s2m_add_fuzz_target(\([a-z0-9_]*\) .*/\1/p' "$root/fuzz/CMakeLists.txt")
 if [ "$target" = all ]; then targets=$all_targets; else targets=$target; fi
 for t in $targets; do
   grep -qx "$t" <<<"$all_targets" || { echo "[fuzz] unknown target '$t' (targets: $(echo $all_targets))" >&2; exit 2; }
@@ -33,6 +33,9 @@ done
 cmake --build "$build" -j"$(nproc)" --target $(for t in $targets; do printf '%s_fuzz ' "$t"; done) >/dev/null
 
 found=0
+# The targets write every input to a scratch file (fuzz/fuzz_input.h): in memory where the system has it, since
+# rewriting a file on a disk mounted with `discard` costs milliseconds each (measured 3.6 ms against 0.03 ms).
+if [ -z "${TMPDIR:-}" ] && [ -d /dev/shm ] && [ -w /dev/shm ]; then export TMPDIR=/dev/shm; fi
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=0}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 for t in $targets; do

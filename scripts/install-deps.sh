@@ -9,9 +9,11 @@ packages=(
   libcli11-dev           # command line
   zlib1g-dev             # .ply.gz
   libsqlite3-dev         # recordings (.s2mrec, docs/recordings.md)
+  libpugixml-dev         # E57 files' XML section (acquisition/e57_io.cpp, docs/e57.md)
   libgtest-dev libgmock-dev
   libbenchmark-dev
   libpcl-dev             # optional edge (s2m_pcl): PCL's reference ICP, coarse alignment (FPFH + RANSAC)
+  python3-jsonschema     # tests only: docs/schemas/ validated against real outputs (tests/json_schemas_test.py)
   libtiff-dev            # tests only: libtiff decodes the Kinect depth TIFFs independently of our reader
   libopen3d-dev          # optional edge (s2m_virtual_scanner): the virtual scanner's ray casting (RaycastingScene) and the
                          # benchmark's Open3D point-to-plane ICP baseline (bench/open3d_baselines.cpp)

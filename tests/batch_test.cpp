@@ -9,6 +9,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -123,7 +125,7 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
       EXPECT_NE(error.find("truncated"), std::string::npos) << error;
     } else {
       EXPECT_EQ(e["status"], "ok") << e["id"];
-      EXPECT_LT(e["rms"].get<double>(), 0.03) << e["id"];  // noise 0.02
+      EXPECT_LT(e["rms"].get<double>(), 0.03) << e["id"];          // noise 0.02
       EXPECT_LT(e["rms_to_noise"].get<double>(), 1.2) << e["id"];  // measured: 0.88 - 1.05
       // The RMS is at the noise, but the default 8 generatrix control points leave a small real misfit on
       // some pots (Moran's I of the residuals 0.02-0.10 over the ten pots; pot_07: 0.101, and 0.012 with 12
@@ -190,6 +192,87 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
 // file-size limit (`ulimit -f`; SIGXFSZ ignored so that the write fails with EFBIG instead of killing the
 // process). The batch says which file it could not write and why, leaves no partial or unreadable result
 // under a final name, and a rerun with room on the disk resumes and finishes every object.
+// SIGTERM and SIGKILL at random points of a batch (docs/reliability.md): whatever is in the output folder
+// afterwards is complete (no partial file, every JSON readable); SIGTERM lets the objects in flight finish,
+// writes no summary, says how to resume and exits with 6; the rerun finishes every object with the results of
+// an uninterrupted batch. The signal times are drawn over the uninterrupted batch's own duration.
+TEST(Batch, SignalsAtRandomPointsLeaveCompleteResultsAndResume) {
+  const fs::path dir = FreshDir("signals");
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (int k = 0; k < 3; ++k) {
+    Scan sphere;
+    sphere.points.resize(3, 20000);
+    for (Eigen::Index j = 0; j < sphere.points.cols(); ++j) {
+      Eigen::Vector3d u(gauss(rng), gauss(rng), gauss(rng));
+      sphere.points.col(j) = Eigen::Vector3d(k, 2, 3) + (20.0 + 5 * k + 0.01 * gauss(rng)) * u.normalized();
+    }
+    WritePly(dir / ("sphere_" + std::to_string(k) + ".ply"), sphere);
+  }
+  const fs::path manifest = dir / "spheres.csv";
+  {
+    std::ofstream csv(manifest);
+    csv << "id,input,model\n";
+    for (int i = 0; i < 40; ++i) csv << "s" << i << ",sphere_" << i % 3 << ".ply,sphere\n";
+  }
+  const auto argv = [&](const fs::path& out) {
+    return std::vector<std::string>{Cli(), "batch", manifest.string(),   "-o", out.string(),
+                                    "-j",  "2",     "--threads-per-job", "1",  "-q"};
+  };
+  const auto start = std::chrono::steady_clock::now();
+  const test::SignalledRun reference =
+      test::RunAndSignal(argv(dir / "reference"), 600000, SIGKILL, dir / "ref.log");
+  const double whole_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(reference.exit_code, 0) << reference.log;
+  const auto parameters = [](const fs::path& out, int i) {
+    return ReadJson(out / "objects" / ("s" + std::to_string(i) + ".json"))["result"]["parameters"];
+  };
+
+  std::uniform_real_distribution<double> when(0.05, 1.0);
+  int terminated = 0, killed = 0;
+  for (int round = 0; round < 6; ++round) {
+    const int signal_number = round % 2 == 0 ? SIGTERM : SIGKILL;
+    const fs::path out = dir / ("round_" + std::to_string(round));
+    const auto delay_ms = static_cast<int>(when(rng) * whole_ms);
+    const test::SignalledRun run = test::RunAndSignal(argv(out), delay_ms, signal_number, dir / "run.log");
+    SCOPED_TRACE("round " + std::to_string(round) + ", signal " + std::to_string(signal_number) + " after " +
+                 std::to_string(delay_ms) + " ms");
+    if (fs::exists(out)) {
+      for (const auto& e : fs::recursive_directory_iterator(out)) {
+        EXPECT_EQ(e.path().string().find(".partial"), std::string::npos) << e.path();
+        if (e.path().extension() == ".json") {
+          EXPECT_NO_THROW(ReadJson(e.path())) << e.path();
+        }
+      }
+    }
+    if (!run.signalled || run.exit_code == 0) {
+      EXPECT_EQ(run.exit_code, 0) << run.log;  // finished before the signal came
+    } else if (signal_number == SIGTERM && run.signal == SIGTERM) {
+      // Before the command installed its handler (loading its libraries): nothing was written yet.
+      EXPECT_FALSE(fs::exists(out / "objects") && !fs::is_empty(out / "objects")) << run.log;
+    } else if (signal_number == SIGTERM) {
+      ++terminated;
+      EXPECT_EQ(run.exit_code, 6) << run.log;
+      EXPECT_NE(run.log.find("[batch] stopped by SIGTERM"), std::string::npos) << run.log;
+      EXPECT_NE(run.log.find("Run the same command again to resume"), std::string::npos) << run.log;
+      EXPECT_FALSE(fs::exists(out / "summary.json"));
+    } else {
+      ++killed;
+      EXPECT_EQ(run.signal, SIGKILL) << run.log;
+    }
+    const Result resumed = Shell(test::Quote(argv(out)));
+    ASSERT_EQ(resumed.exit_code, 0) << resumed.out;
+    const nlohmann::json summary = ReadJson(out / "summary.json");
+    EXPECT_EQ(summary["counts"]["ok"], 40) << summary["counts"].dump();
+    for (int i = 0; i < 40; ++i) EXPECT_EQ(parameters(out, i), parameters(dir / "reference", i)) << i;
+  }
+  std::cout << "[ signals  ] " << terminated << " batches stopped by SIGTERM, " << killed
+            << " killed, the rest finished first; uninterrupted batch " << whole_ms << " ms\n";
+  EXPECT_GT(terminated + killed, 0);
+  fs::remove_all(dir);
+}
+
 TEST(Batch, FullDiskLeavesNoCorruptResultAndResumes) {
   const fs::path dir = FreshDir("full_disk");
   SyntheticBatchOptions small;

@@ -132,6 +132,72 @@ std::string WriteXyz(const std::string& name, const std::vector<std::array<doubl
   return path.string();
 }
 
+// Form errors (docs/metrology.md): every primitive fit prints its least-squares zone; --criterion minzone
+// adds the minimum zone with its contacting points, in text and JSON; inscribed and circumscribed apply to
+// circles, cylinders and spheres only.
+TEST(Cli, FitReportsFormErrorsByCriterion) {
+  const Result lsq = RunCli("fit --model plane " + Data("pla1.ds"));
+  ASSERT_EQ(lsq.exit_code, 0) << lsq.out;
+  EXPECT_NE(lsq.out.find("flatness"), std::string::npos) << lsq.out;
+  const Result zone = RunCli("fit --json --model plane --criterion minzone " + Data("pla1.ds"), false);
+  ASSERT_EQ(zone.exit_code, 0) << zone.out;
+  const auto doc = nlohmann::json::parse(zone.out);
+  const auto& form = doc["form"];
+  EXPECT_EQ(form["name"], "flatness");
+  EXPECT_EQ(form["criterion"], "minzone");
+  EXPECT_TRUE(form["minzone"]["converged"].get<bool>());
+  EXPECT_LE(form["minzone"]["width"].get<double>(),
+            form["least_squares_zone"]["width"].get<double>() + 1e-12);
+  EXPECT_GE(form["minzone"]["contacts"].size(), 4u);
+  EXPECT_TRUE(form["minzone"]["parameters"].contains("normal"));
+  const Result text = RunCli("fit --model cylinder --criterion circumscribed " + Data("cyl1.ds"));
+  ASSERT_EQ(text.exit_code, 0) << text.out;
+  EXPECT_NE(text.out.find("circumscribed"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("contacting points"), std::string::npos) << text.out;
+  const Result wrong = RunCli("fit --model plane --criterion inscribed " + Data("pla1.ds"));
+  EXPECT_EQ(wrong.exit_code, 2) << wrong.out;
+  EXPECT_NE(wrong.out.find("circle, cylinder and sphere"), std::string::npos) << wrong.out;
+  EXPECT_EQ(RunCli("fit --model plane --criterion chebyshev " + Data("pla1.ds")).exit_code, 2);
+}
+
+// The ISO 10360-6 curves and the torus as `fit --model` models; a circle of collinear points is a clear
+// error.
+TEST(Cli, FitsLinesCirclesAndTori) {
+  std::vector<std::array<double, 3>> circle, line, torus, collinear;
+  for (int i = 0; i < 40; ++i) {
+    const double t = 2 * M_PI * i / 40;
+    circle.push_back({3 + 2 * std::cos(t), -1 + 2 * std::sin(t), 0.5});
+    line.push_back({1 + 0.1 * i, 2 - 0.2 * i, 3 + 0.3 * i + 1e-3 * std::sin(7.0 * i)});
+    collinear.push_back({1.0 * i, 2.0 * i, 0});
+    for (int j = 0; j < 10; ++j) {
+      const double u = 2 * M_PI * j / 10;
+      torus.push_back({(5 + std::cos(u)) * std::cos(t), (5 + std::cos(u)) * std::sin(t), std::sin(u)});
+    }
+  }
+  const Result c = RunCli(
+      "fit --json --model circle --criterion minzone " + WriteXyz("s2m_cli_circle.xyz", circle), false);
+  ASSERT_EQ(c.exit_code, 0) << c.out;
+  const auto cd = nlohmann::json::parse(c.out);
+  EXPECT_NEAR(cd["parameters"]["radius"].get<double>(), 2.0, 1e-12);
+  EXPECT_EQ(cd["form"]["name"], "roundness");
+  EXPECT_EQ(cd["nist_layout"].size(), 7u);
+  const Result l = RunCli("fit --model line --criterion minzone " + WriteXyz("s2m_cli_line.xyz", line));
+  ASSERT_EQ(l.exit_code, 0) << l.out;
+  EXPECT_NE(l.out.find("straightness"), std::string::npos) << l.out;
+  const Result t = RunCli("fit --json --model torus " + WriteXyz("s2m_cli_torus.xyz", torus), false);
+  ASSERT_EQ(t.exit_code, 0) << t.out;
+  const auto td = nlohmann::json::parse(t.out);
+  EXPECT_NEAR(td["parameters"]["major_radius"].get<double>(), 5.0, 1e-10);
+  EXPECT_NEAR(td["parameters"]["minor_radius"].get<double>(), 1.0, 1e-10);
+  const Result bad = RunCli("fit --model circle " + WriteXyz("s2m_cli_collinear.xyz", collinear));
+  EXPECT_EQ(bad.exit_code, 4) << bad.out;
+  EXPECT_NE(bad.out.find("collinear"), std::string::npos) << bad.out;
+  EXPECT_EQ(
+      RunCli("fit --model torus --reference " + Data("cyl1.fit") + " " + WriteXyz("s2m_cli_torus.xyz", torus))
+          .exit_code,
+      2);
+}
+
 TEST(Cli, FitsAClosedBSplineCurveAndWritesItsFiles) {
   std::vector<std::array<double, 3>> pts;
   for (int i = 0; i < 80; ++i)

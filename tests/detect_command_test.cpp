@@ -75,16 +75,14 @@ TEST_F(DetectCommand, FitRobustFindsTheSphereWherePlainLeastSquaresFails) {
 TEST_F(DetectCommand, UnsupportedModelsAreUsageErrors) {
   DetectOptions o;
   o.file = file_;
-  o.models = {"torus"};
+  o.models = {"helix"};
   try {
     ComputeDetect(o);
-    FAIL() << "torus accepted";
+    FAIL() << "helix accepted";
   } catch (const FitFailure& e) {
     EXPECT_EQ(e.exit_code(), kUsage);
-    EXPECT_NE(std::string(e.what()).find("not supported"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("torus"), std::string::npos) << "the message lists the models";
   }
-  o.models = {"helix"};
-  EXPECT_THROW(ComputeDetect(o), FitFailure);
 }
 
 }  // namespace

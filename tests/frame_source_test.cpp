@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "acquisition/format_error.h"
@@ -242,6 +243,76 @@ TEST(FrameSource, ReplayTimingOriginalOrAsFastAsPossible) {
   EXPECT_EQ(last->view, 2);
   EXPECT_EQ(clock->waits, (std::vector<std::int64_t>{before + 2'000'000'000LL}));
   EXPECT_THROW(replay->SeekView(7), std::out_of_range);
+  fs::remove_all(dir);
+}
+
+// Clock jumps during a replay with the original timing (docs/reliability.md): the recording machine's clock
+// set back and forward while it recorded, and the replaying machine's clock jumping ahead (a suspend). Every
+// frame comes, in order; no jump is waited out, none makes the frames after it come in a burst; each is
+// counted.
+TEST(FrameSource, ReplayWithOriginalTimingSurvivesClockJumps) {
+  const fs::path dir = TempDir("clock_jump");
+  ListSource base = DepthSource();
+  SourceDescription d = base.description();
+  std::vector<Frame> frames;
+  // Frames every second, with the recorder's clock set back an hour before frame 3 and forward two hours
+  // before frame 6.
+  const std::int64_t s = 1'000'000'000LL;
+  const std::vector<std::int64_t> stamps = {10 * s,
+                                            11 * s,
+                                            12 * s,
+                                            13 * s - 3600 * s,
+                                            14 * s - 3600 * s,
+                                            15 * s - 3600 * s,
+                                            16 * s + 3600 * s,
+                                            17 * s + 3600 * s};
+  for (std::size_t k = 0; k < stamps.size(); ++k) {
+    std::optional<Frame> f = base.Next();
+    if (!f) {
+      base.SeekView(0);
+      f = base.Next();
+    }
+    f->view = static_cast<std::int64_t>(k);
+    f->timestamp_ns = stamps[k];
+    frames.push_back(*f);
+  }
+  ListSource jumpy(d, frames);
+  RecordSource(jumpy, dir / "jumpy.s2mrec");
+
+  auto clock = std::make_shared<FakeClock>();
+  ReplayOptions timed;
+  timed.original_timing = true;
+  timed.clock = clock;
+  const auto replay = OpenRecordingSource(dir / "jumpy.s2mrec", timed);
+  std::vector<std::int64_t> views, delivered_at;
+  while (const std::optional<Frame> f = replay->Next()) {
+    views.push_back(f->view);
+    delivered_at.push_back(clock->now);
+    if (f->view == 4) clock->now += 7200 * s;  // the replaying machine sleeps two hours after frame 4
+  }
+  EXPECT_EQ(views, (std::vector<std::int64_t>{0, 1, 2, 3, 4, 5, 6, 7}));
+  // Seconds between deliveries: 1, 1, then the backward jump comes at once, 1, then frame 5 is two hours late
+  // and comes at once (the timing restarts: no burst), then the forward jump comes at once, 1.
+  std::vector<std::int64_t> spacing;
+  for (std::size_t k = 1; k < delivered_at.size(); ++k)
+    spacing.push_back(delivered_at[k] - delivered_at[k - 1]);
+  EXPECT_EQ(spacing, (std::vector<std::int64_t>{s, s, 0, s, 7200 * s, 0, s}));
+  EXPECT_EQ(replay->timing_report().recording_clock_jumps, 2);
+  EXPECT_EQ(replay->timing_report().replay_late_restarts, 1);
+
+  // The command says what it did (and refuses a gap that is not a positive number of seconds).
+  const test::ShellResult r =
+      test::Shell(std::string(S2M_CLI_PATH) + " record --original-timing --max-gap 5 " +
+                  (dir / "jumpy.s2mrec").string() + " -q -o " + (dir / "again.s2mrec").string());
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("2 clock jump(s)"), std::string::npos) << r.out;
+  EXPECT_EQ(test::Shell(std::string(S2M_CLI_PATH) + " record --original-timing --max-gap 0 " +
+                        (dir / "jumpy.s2mrec").string() + " -q -o " + (dir / "never.s2mrec").string())
+                .exit_code,
+            2);
+  ReplayOptions bad;
+  bad.max_gap_s = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(OpenRecordingSource(dir / "jumpy.s2mrec", bad), std::invalid_argument);
   fs::remove_all(dir);
 }
 

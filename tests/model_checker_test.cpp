@@ -117,6 +117,12 @@ std::unique_ptr<ParametricModel> SphereFamily() {
   return std::make_unique<SphereModel>(Sphere{{1, -2, 0.5}, 2.0},
                                        Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 0, 0)).toRotationMatrix());
 }
+std::unique_ptr<ParametricModel> LineFamily() {
+  return std::make_unique<LineModel>(Line3d{{1, -2, 3}, Eigen::Vector3d(0.3, 1, -0.5).normalized()});
+}
+std::unique_ptr<ParametricModel> TorusFamily() {
+  return std::make_unique<TorusModel>(Torus{{0.5, 1, -1}, Eigen::Vector3d(1, 2, 2).normalized(), 3.0, 0.8});
+}
 KinematicSurface Vase() {
   Eigen::Matrix2Xd profile(2, 6);
   profile << 1.0, 1.4, 1.8, 1.5, 1.2, 1.6, 0.0, 0.5, 1.2, 2.0, 2.6, 3.2;
@@ -203,6 +209,8 @@ S2M_CHECK_MODEL_FAMILY(Ellipse3d, Ellipse)
 S2M_CHECK_MODEL_FAMILY(Circle3d, Circle)
 S2M_CHECK_MODEL_FAMILY(Cylinder, CylinderFamily)
 S2M_CHECK_MODEL_FAMILY(Sphere, SphereFamily)
+S2M_CHECK_MODEL_FAMILY(Line3d, LineFamily)
+S2M_CHECK_MODEL_FAMILY(Torus, TorusFamily)
 S2M_CHECK_MODEL_FAMILY(SurfaceOfRevolution, Revolution)
 S2M_CHECK_MODEL_FAMILY(RevolutionGeneratrix, RevolutionGeneratrix)
 S2M_CHECK_MODEL_FAMILY(HelicalSurface, Helical)
@@ -226,6 +234,14 @@ TEST(ModelChecker, OptionalChecksRunWhereTheModelProvidesThem) {
   const ModelCheckReport cylinder = CheckModel(*CylinderFamily());
   EXPECT_TRUE(cylinder.Find(kCheckClosedFormFeet)->applicable);
   EXPECT_TRUE(cylinder.Find(kCheckInvariantMotions)->applicable);
+  // The ISO 10360-6 curves and the torus check their closed-form feet and invariant motions.
+  for (const auto& make : {Circle, LineFamily, TorusFamily}) {
+    const ModelCheckReport report = CheckModel(*make());
+    EXPECT_TRUE(report.Find(kCheckClosedFormFeet)->applicable) << report.model_name;
+  }
+  EXPECT_TRUE(CheckModel(*TorusFamily()).Find(kCheckInvariantMotions)->applicable);
+  EXPECT_TRUE(CheckModel(*LineFamily()).Find(kCheckInvariantMotions)->applicable);
+  EXPECT_FALSE(CheckModel(*Ellipse()).Find(kCheckClosedFormFeet)->applicable);
   const ModelCheckReport spiral = CheckModel(*Spiral());
   EXPECT_TRUE(spiral.Find(kCheckCommonMotions)->applicable);
   EXPECT_FALSE(spiral.Find(kCheckInvariantMotions)->applicable);
@@ -375,6 +391,9 @@ TEST(ModelChecker, DeliberatelyWrongModelsAreCaught) {
       {"apply step, sphere", SphereFamily, Fault::kApplyStep, kCheckApplyStep},
       {"similarity, closed curve", ClosedCurve2d, Fault::kSimilarity, kCheckSimilarity},
       {"closed-form foot, cylinder", CylinderFamily, Fault::kFoot, kCheckClosedFormFeet},
+      {"closed-form foot, torus", TorusFamily, Fault::kFoot, kCheckClosedFormFeet},
+      {"jacobian column, torus", TorusFamily, Fault::kJacobianColumn, kCheckShapeJacobian},
+      {"jacobian dt, torus", TorusFamily, Fault::kJacobianDt, kCheckShapeJacobianDt},
   };
   for (const FaultCase& c : cases) {
     const Faulty model(c.make(), c.fault);

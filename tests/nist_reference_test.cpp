@@ -6,11 +6,14 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "acquisition/point_cloud_io.h"
+#include "fitting/minimum_zone.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_fit.h"
 #include "test_paths.h"
@@ -114,6 +117,43 @@ TEST_P(NistShared, SdmAgreesWithTheReferenceFit) {
 }
 INSTANTIATE_TEST_SUITE_P(Nist, NistShared, ::testing::ValuesIn(SharedCases()),
                          [](const auto& param_info) { return param_info.param.name; });
+
+// Form errors on the NIST sets (docs/metrology.md section 3): the minimum zone, started at our certified
+// least-squares fit, converges, contains every point and is never wider than the least-squares zone.
+template <class Shape>
+void ExpectMinimumZoneWithinLeastSquares(const Case& c, const Eigen::Matrix3Xd& points, const Shape& lsq) {
+  const double extent = ComputeBounds(points).diagonal();
+  const auto start = std::chrono::steady_clock::now();
+  const ChebyshevFit<Shape> zone = MinimumZoneFit(points, lsq);
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  const double lsq_width = ZoneAbout(points, lsq).zone_width;
+  std::printf(
+      "%s: %ld points, minimum zone %.9g, least-squares zone %.9g, %d iterations, %zu contacts, %.1f ms\n",
+      c.name.c_str(), static_cast<long>(points.cols()), zone.zone_width, lsq_width, zone.iterations,
+      zone.contacts.size(), ms);
+  EXPECT_TRUE(zone.converged) << c.name << ": " << zone.stop_reason;
+  // Rounding: distances of coordinates of size ~extent are exact to ~1e-15 of it.
+  EXPECT_LE(zone.zone_width, lsq_width + 1e-12 * extent) << c.name;
+  const ChebyshevFit<Shape> about = ZoneAbout(points, zone.shape);
+  EXPECT_NEAR(about.zone_width, zone.zone_width, 1e-12 * extent) << c.name;
+}
+
+void ExpectFormErrors(const Case& c) {
+  const Scan scan = ReadPointCloud(c.data);
+  const std::string kind = Kind(c.name);
+  if (kind == "pla") ExpectMinimumZoneWithinLeastSquares(c, scan.points, FitPlane(scan.points).shape);
+  if (kind == "sph") ExpectMinimumZoneWithinLeastSquares(c, scan.points, FitSphere(scan.points).shape);
+  if (kind == "cyl") ExpectMinimumZoneWithinLeastSquares(c, scan.points, FitCylinder(scan.points).shape);
+  if (kind == "con") ExpectMinimumZoneWithinLeastSquares(c, scan.points, FitCone(scan.points).shape);
+}
+
+TEST_P(NistShipped, MinimumZoneIsWithinTheLeastSquaresZone) {
+  ExpectFormErrors(GetParam());
+}
+TEST_P(NistShared, MinimumZoneIsWithinTheLeastSquaresZone) {
+  ExpectFormErrors(GetParam());
+}
 
 }  // namespace
 }  // namespace s2m

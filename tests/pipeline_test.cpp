@@ -61,10 +61,10 @@ std::pair<int, std::string> FailureOf(const FitOptions& o) {
 TEST(FitDispatch, FailuresCarryTheirExitCodes) {
   FitOptions o;
   o.file = Nist("cyl1.ds");
-  o.model = "torus";
+  o.model = "ellipsoid";
   const auto [unknown_code, unknown] = FailureOf(o);
   EXPECT_EQ(unknown_code, kUsage);
-  EXPECT_NE(unknown.find("torus is not a model"), std::string::npos) << unknown;
+  EXPECT_NE(unknown.find("ellipsoid is not a model"), std::string::npos) << unknown;
   o.model = "sphere";
   o.method = "gn";  // a spline method for a primitive
   EXPECT_EQ(FailureOf(o).first, kUsage);
@@ -76,11 +76,10 @@ TEST(FitDispatch, FailuresCarryTheirExitCodes) {
 }
 
 TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
-  EXPECT_EQ(
-      ManifestOptionKeys(),
-      "alpha1, alpha2, alpha3, bending, beta2, beta3, c2, closed, contour, control_points, degree, elements, "
-      "initial, interpolate, loss, max_iterations, method, order, reference, rejected_output, robust, seed, "
-      "solver, step_control, stretch, tolerance, units");
+  EXPECT_EQ(ManifestOptionKeys(),
+            "alpha1, alpha2, alpha3, bending, beta2, beta3, c2, closed, contour, control_points, criterion, "
+            "degree, elements, initial, interpolate, loss, max_iterations, method, order, reference, "
+            "rejected_output, robust, seed, solver, step_control, stretch, tolerance, units");
   for (const FitOptionSpec& spec : FitOptionTable()) {
     EXPECT_TRUE(spec.set) << spec.key << spec.names;
     // Every manifest key but the solver (three flags) is also a command-line option with the dashed name.
@@ -123,7 +122,13 @@ TEST(FitOptionTable, ValuesAreCheckedAndApplied) {
   EXPECT_EQ(message("step_control", "armijo"), "accepted");
   EXPECT_EQ(ModelError("cone"), "");
   EXPECT_EQ(ModelError("part:"), "part: needs a part file, e.g. part:block.part.json");
-  EXPECT_NE(ModelError("torus").find("torus is not a model"), std::string::npos);
+  EXPECT_EQ(ModelError("torus"), "");
+  EXPECT_EQ(ModelError("circle"), "");
+  EXPECT_EQ(ModelError("line"), "");
+  EXPECT_NE(ModelError("ellipsoid").find("ellipsoid is not a model"), std::string::npos);
+  EXPECT_EQ(message("criterion", "minzone"), "accepted");
+  EXPECT_NE(message("criterion", "chebyshev").find("lsq, minzone, inscribed, circumscribed"),
+            std::string::npos);
 }
 
 TEST(FitOptionTable, TheLossIsParsedAndChecked) {

@@ -12,8 +12,10 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
+#include <random>
 #include <string>
 
+#include "fitting/primitive_compare.h"
 #include "synthetic/clutter_scenes.h"
 
 namespace s2m {
@@ -55,7 +57,32 @@ TEST(PrimitiveDetection, MinimalSetsGiveTheExactShapes) {
   EXPECT_LT((k->Apex() - cone.Apex()).norm(), 1e-10);
 
   EXPECT_FALSE(SphereFromPointNormals({0, 0, 0}, {0, 0, 1}, {1, 0, 0}, {0, 0, 1}));  // parallel normals
-  EXPECT_THROW(PrimitiveKindFromString("torus"), std::invalid_argument);
+  EXPECT_EQ(PrimitiveKindFromString("torus"), PrimitiveKind::kTorus);
+  EXPECT_THROW(PrimitiveKindFromString("helix"), std::invalid_argument);
+}
+
+// Four points with normals of a torus give it back (one of at most two candidates; docs/method.md eq. 78).
+TEST(PrimitiveDetection, FourPointsWithNormalsGiveTheTorus) {
+  const Torus torus{{1, -2, 3}, Eigen::Vector3d(0.2, 0.3, 1).normalized(), 6.0, 1.5};
+  const Eigen::Matrix3d f = FrameWithAxis(torus.axis);
+  std::array<Eigen::Vector3d, 4> tp, tn;
+  const double angles[4][2] = {{0.1, 0.4}, {1.3, -0.8}, {2.9, 2.2}, {4.4, 1.0}};
+  for (int i = 0; i < 4; ++i) {
+    const double t = angles[i][0], u = angles[i][1];
+    const Eigen::Vector3d e = std::cos(t) * f.col(0) + std::sin(t) * f.col(1);
+    tn[static_cast<std::size_t>(i)] = std::cos(u) * e + std::sin(u) * torus.axis;
+    tp[static_cast<std::size_t>(i)] =
+        torus.center + torus.major_radius * e + torus.minor_radius * tn[static_cast<std::size_t>(i)];
+  }
+  const std::vector<Torus> candidates = TorusFromPointNormals(tp, tn);
+  bool found = false;
+  for (const Torus& c : candidates) {
+    if (std::abs(std::abs(c.axis.dot(torus.axis)) - 1) < 1e-10 && (c.center - torus.center).norm() < 1e-9 &&
+        std::abs(c.major_radius - torus.major_radius) < 1e-9 &&
+        std::abs(c.minor_radius - torus.minor_radius) < 1e-9)
+      found = true;
+  }
+  EXPECT_TRUE(found) << candidates.size() << " candidates";
 }
 
 // Issue 22: a 50 mm sphere as a terrestrial scanner sees it (one side, noise 0.1-0.3 mm, range 6-8 m) on a
@@ -168,6 +195,64 @@ TEST(PrimitiveDetection, SeveralSpheresAndACylinderOnAFloorAllFoundNoneSpurious)
   std::printf("[ scene ] %ld points, stop: %s, epsilon %.3f, alpha %.3f, min support %ld\n",
               static_cast<long>(scene.cloud.points.cols()), result.stop_reason.c_str(), result.epsilon,
               result.alpha, static_cast<long>(result.min_support));
+}
+
+// A ring torus (R 40 mm, r 12 mm) lying on a floor among uniform clutter (15 % of the points), 0.1 mm noise
+// along the normals: found once, with its radii within 5 of the refit's own standard uncertainties, beside
+// the floor; nothing spurious.
+TEST(PrimitiveDetection, TorusOnAFloorAmongClutter) {
+  std::mt19937_64 rng(8);
+  std::uniform_real_distribution<double> unit(0.0, 1.0), side(-100.0, 100.0), height(0.0, 60.0);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  const Torus truth{{0, 0, 12}, {0, 0, 1}, 40.0, 12.0};
+  std::vector<Eigen::Vector3d> pts;
+  while (pts.size() <
+         6000) {  // uniform over the area: accept (theta, phi) with probability (R + r cos phi) / (R + r)
+    const double t = 2 * M_PI * unit(rng), u = 2 * M_PI * unit(rng);
+    if (unit(rng) * (truth.major_radius + truth.minor_radius) >
+        truth.major_radius + truth.minor_radius * std::cos(u))
+      continue;
+    const Eigen::Vector3d e(std::cos(t), std::sin(t), 0.0);
+    const Eigen::Vector3d n = std::cos(u) * e + std::sin(u) * truth.axis;
+    pts.push_back(truth.center + truth.major_radius * e + (truth.minor_radius + noise(rng)) * n);
+  }
+  while (pts.size() < 12000) {  // the floor outside the torus's footprint
+    const Eigen::Vector3d x(side(rng), side(rng), noise(rng));
+    if (x.head<2>().norm() > truth.major_radius + truth.minor_radius + 2) pts.push_back(x);
+  }
+  while (pts.size() < 14000) pts.push_back({side(rng), side(rng), height(rng)});
+  Eigen::Matrix3Xd cloud(3, static_cast<Eigen::Index>(pts.size()));
+  for (std::size_t i = 0; i < pts.size(); ++i) cloud.col(static_cast<Eigen::Index>(i)) = pts[i];
+  DetectionOptions options;
+  options.kinds = {PrimitiveKind::kTorus, PrimitiveKind::kPlane};
+  options.seed = 3;
+  const DetectionResult result = DetectPrimitives(cloud, options);
+  int tori = 0, planes = 0;
+  for (const DetectedPrimitive& instance : result.instances) {
+    std::printf("[ torus scene ] %s: %zu inliers, RMS %.3f mm, %d draws\n", ToString(instance.kind),
+                instance.inliers.size(), instance.rms, instance.draws);
+    if (const auto* t = std::get_if<Torus>(&instance.shape)) {
+      ++tori;
+      double u_major = 0, u_minor = 0;
+      for (const ParameterUncertainty& u : instance.uncertainties) {
+        if (u.name == "major_radius") u_major = u.standard_uncertainty;
+        if (u.name == "minor_radius") u_minor = u.standard_uncertainty;
+      }
+      ASSERT_GT(u_major, 0);
+      std::printf("[ torus scene ] R %.4f (u %.4f), r %.4f (u %.4f), axis tilt %.2e rad\n", t->major_radius,
+                  u_major, t->minor_radius, u_minor, LineAngle(t->axis, truth.axis));
+      EXPECT_NEAR(t->major_radius, truth.major_radius, 5 * u_major);
+      EXPECT_NEAR(t->minor_radius, truth.minor_radius, 5 * u_minor);
+      EXPECT_LT((t->center - truth.center).norm(), 0.05);
+      EXPECT_GT(static_cast<double>(instance.inliers.size()), 0.95 * 6000);
+    } else if (std::holds_alternative<Plane>(instance.shape)) {
+      ++planes;
+      EXPECT_GT(std::abs(std::get<Plane>(instance.shape).normal.z()), 1 - 1e-4);
+    }
+  }
+  EXPECT_EQ(tori, 1);
+  EXPECT_EQ(planes, 1);
+  EXPECT_EQ(result.instances.size(), 2u);
 }
 
 // The same seed, the same result, on one thread and on two (OpenMP only scores candidates already drawn).
