@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "fitting/spline_energy.h"
+
 namespace s2m {
 namespace {
 
@@ -17,30 +19,6 @@ void CheckOrder(int order, int num_control) {
     throw std::invalid_argument("a B-spline of order " + std::to_string(order) + " needs at least " +
                                 std::to_string(order) + " control points, got " +
                                 std::to_string(num_control));
-  }
-}
-
-// Gauss-Legendre nodes and weights on [-1, 1]; n points integrate polynomials of degree 2n - 1 exactly.
-void GaussLegendre(int n, std::vector<double>& x, std::vector<double>& w) {
-  x.assign(static_cast<std::size_t>(n), 0.0);
-  w.assign(static_cast<std::size_t>(n), 0.0);
-  for (int i = 0; i < n; ++i) {
-    double z = std::cos(M_PI * (i + 0.75) / (n + 0.5));
-    double dp = 0.0;
-    for (int it = 0; it < 100; ++it) {
-      double p0 = 1.0, p1 = 0.0;
-      for (int k = 1; k <= n; ++k) {
-        const double p2 = p1;
-        p1 = p0;
-        p0 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p2) / k;
-      }
-      dp = n * (z * p0 - p1) / (z * z - 1.0);
-      const double dz = p0 / dp;
-      z -= dz;
-      if (std::abs(dz) < 1e-16) break;
-    }
-    x[static_cast<std::size_t>(i)] = z;
-    w[static_cast<std::size_t>(i)] = 2.0 / ((1.0 - z * z) * dp * dp);
   }
 }
 
@@ -323,29 +301,12 @@ void BSplineBasis::Evaluate(double t_in, int derivatives, Values& out) const {
 }
 
 std::vector<double> BSplineBasis::GramMatrix(int derivative) const {
-  const int n = num_control_;
-  std::vector<double> gram(static_cast<std::size_t>(n * n), 0.0);
-  std::vector<double> gx, gw;
-  GaussLegendre(order_, gx, gw);  // products of degree-(order-1) pieces: degree <= 2 order - 2
-  const std::vector<double> breaks = Breakpoints();
-  Values v;
-  for (std::size_t s = 0; s + 1 < breaks.size(); ++s) {
-    const double a = breaks[s], b = breaks[s + 1];
-    for (std::size_t q = 0; q < gx.size(); ++q) {
-      const double t = 0.5 * (a + b) + 0.5 * (b - a) * gx[q];
-      const double w = 0.5 * (b - a) * gw[q];
-      Evaluate(t, derivative, v);
-      const auto& d = v.values[static_cast<std::size_t>(derivative)];
-      for (int i = 0; i < order_; ++i) {
-        for (int j = 0; j < order_; ++j) {
-          const int ci = ControlIndex(v.first, i), cj = ControlIndex(v.first, j);
-          gram[static_cast<std::size_t>(ci * n + cj)] +=
-              w * d[static_cast<std::size_t>(i)] * d[static_cast<std::size_t>(j)];
-        }
-      }
-    }
-  }
-  return gram;
+  // Exact, from each span's power form (fitting/spline_energy.h, docs/fair-curves.md eq. F5).
+  const Eigen::MatrixXd g = SplineEnergyMatrix(*this, derivative);
+  std::vector<double> out(static_cast<std::size_t>(g.size()));
+  Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(out.data(), g.rows(),
+                                                                                     g.cols()) = g;
+  return out;
 }
 
 }  // namespace s2m

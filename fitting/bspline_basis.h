@@ -82,7 +82,8 @@ class BSplineBasis {
     return coeffs_[static_cast<std::size_t>(((s * 3 + d) * order_ + j) * order_ + i)];
   }
 
-  // Gram matrix G_ij = integral of B_i^(d) B_j^(d) over the domain (exact, Gauss-Legendre per span).
+  // Gram matrix G_ij = integral of B_i^(d) B_j^(d) over the domain (exact, from each span's power form:
+  // fitting/spline_energy.h).
   std::vector<double> GramMatrix(int derivative) const;  // row-major num_control x num_control
 
  private:

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "fitting/spline_energy.h"
+
 namespace s2m {
 namespace {
 
@@ -25,6 +27,20 @@ Eigen::MatrixXd Gram(const BSplineBasis& b, int derivative) {
   return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(g.data(), n,
                                                                                                   n);
 }
+
+}  // namespace
+
+Eigen::MatrixXd CurveFairness(const BSplineBasis& b, const FairnessWeights& w) {
+  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(b.num_control(), b.num_control());
+  if (w.stretch != 0.0) k += w.stretch * SplineEnergyMatrix(b, 1);
+  if (w.bending != 0.0 && b.order() > 2) k += w.bending * SplineEnergyMatrix(b, 2);
+  if (w.variation != 0.0 && b.order() > 3) k += w.variation * SplineEnergyMatrix(b, 3);
+  if (w.jump2 != 0.0 && b.order() > 2) k += w.jump2 * SplineJumpMatrix(b, 2);
+  if (w.jump3 != 0.0 && b.order() > 3) k += w.jump3 * SplineJumpMatrix(b, 3);
+  return k;
+}
+
+namespace {
 
 // K (x) I_s for parameters stacked point by point (index = point * s + coordinate).
 Eigen::MatrixXd KroneckerIdentity(const Eigen::MatrixXd& k, int s) {
@@ -214,13 +230,10 @@ void BSplineCurve::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Jaco
 }
 
 Eigen::MatrixXd BSplineCurve::FairnessMatrix(const FairnessWeights& w) const {
-  if (w.stretch == 0.0 && w.bending == 0.0) return {};
-  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(basis_.num_control(), basis_.num_control());
+  if (w.IsZero()) return {};
   // F_1 = integral |C'|^2 = P^T (G1 (x) I) P and F_2 likewise (docs/method.md section 3; Wang et al. 2006,
-  // section 5).
-  if (w.stretch != 0.0) k += w.stretch * Gram(basis_, 1);
-  if (w.bending != 0.0 && basis_.order() > 2) k += w.bending * Gram(basis_, 2);
-  return KroneckerIdentity(k, ambient_dimension());
+  // section 5), and Fang's curvature variation and junction jumps (docs/fair-curves.md section 8).
+  return KroneckerIdentity(CurveFairness(basis_, w), ambient_dimension());
 }
 
 std::vector<ParamT> BSplineCurve::SampleParameters() const {
@@ -489,7 +502,7 @@ void BSplineSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Ja
 }
 
 Eigen::MatrixXd BSplineSurface::FairnessMatrix(const FairnessWeights& w) const {
-  if (w.stretch == 0.0 && w.bending == 0.0) return {};
+  if (w.IsZero()) return {};
   const Eigen::MatrixXd u0 = Gram(basis_u_, 0), u1 = Gram(basis_u_, 1), v0 = Gram(basis_v_, 0),
                         v1 = Gram(basis_v_, 1);
   const Eigen::MatrixXd u2 =
@@ -497,6 +510,13 @@ Eigen::MatrixXd BSplineSurface::FairnessMatrix(const FairnessWeights& w) const {
   const Eigen::MatrixXd v2 =
       basis_v_.order() > 2 ? Gram(basis_v_, 2) : Eigen::MatrixXd::Zero(v0.rows(), v0.cols());
   const Eigen::Index nu = u0.rows(), nv = v0.rows();
+  const bool third = w.variation != 0.0;
+  const Eigen::MatrixXd u3 = third ? SplineEnergyMatrix(basis_u_, 3) : Eigen::MatrixXd::Zero(nu, nu);
+  const Eigen::MatrixXd v3 = third ? SplineEnergyMatrix(basis_v_, 3) : Eigen::MatrixXd::Zero(nv, nv);
+  const Eigen::MatrixXd ju2 = w.jump2 != 0.0 ? SplineJumpMatrix(basis_u_, 2) : Eigen::MatrixXd::Zero(nu, nu);
+  const Eigen::MatrixXd jv2 = w.jump2 != 0.0 ? SplineJumpMatrix(basis_v_, 2) : Eigen::MatrixXd::Zero(nv, nv);
+  const Eigen::MatrixXd ju3 = w.jump3 != 0.0 ? SplineJumpMatrix(basis_u_, 3) : Eigen::MatrixXd::Zero(nu, nu);
+  const Eigen::MatrixXd jv3 = w.jump3 != 0.0 ? SplineJumpMatrix(basis_v_, 3) : Eigen::MatrixXd::Zero(nv, nv);
   Eigen::MatrixXd k = Eigen::MatrixXd::Zero(nu * nv, nu * nv);
   // Tensor-product Gram matrices: integral S_uu . S_uu = P^T (G2u (x) G0v) P, etc. (thin plate + membrane
   // energies).
@@ -508,6 +528,12 @@ Eigen::MatrixXd BSplineSurface::FairnessMatrix(const FairnessWeights& w) const {
           if (w.bending != 0.0)
             e += w.bending * (u2(a, b) * v0(c, d) + 2.0 * u1(a, b) * v1(c, d) + u0(a, b) * v2(c, d));
           if (w.stretch != 0.0) e += w.stretch * (u1(a, b) * v0(c, d) + u0(a, b) * v1(c, d));
+          // Fang's third-order energy and the jumps across knot lines (docs/fair-curves.md eqs. F25-F26).
+          if (w.variation != 0.0)
+            e += w.variation * (u3(a, b) * v0(c, d) + 3.0 * u2(a, b) * v1(c, d) + 3.0 * u1(a, b) * v2(c, d) +
+                                u0(a, b) * v3(c, d));
+          if (w.jump2 != 0.0) e += w.jump2 * (ju2(a, b) * v0(c, d) + u0(a, b) * jv2(c, d));
+          if (w.jump3 != 0.0) e += w.jump3 * (ju3(a, b) * v0(c, d) + u0(a, b) * jv3(c, d));
           k(a * nv + c, b * nv + d) = e;
         }
   return KroneckerIdentity(k, 3);

@@ -26,6 +26,11 @@ class SpanPowerForm {
   int dimension_ = 3;  // s: the lanes Evaluate computes
 };
 
+// The fairness matrix of one coordinate of a B-spline curve (or a generatrix) on basis `b`: stretch, bending
+// and Fang's curvature variation and junction jumps (docs/method.md section 3, docs/fair-curves.md section
+// 8).
+Eigen::MatrixXd CurveFairness(const BSplineBasis& b, const FairnessWeights& w);
+
 class BSplineCurve final : public ParametricModel {
  public:
   // control_points: s x n (s = 2 or 3), n == basis.num_control().

@@ -379,18 +379,11 @@ bool KinematicSurface::FactoredShapeJacobian(const ParamT& t, FactoredJacobian& 
 }
 
 Eigen::MatrixXd KinematicSurface::FairnessMatrix(const FairnessWeights& w) const {
-  if (w.stretch == 0.0 && w.bending == 0.0) return {};
+  if (w.IsZero()) return {};
   const int n = basis_.num_control();
-  auto gram = [&](int derivative) {
-    const std::vector<double> g = basis_.GramMatrix(derivative);
-    return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(g.data(),
-                                                                                                    n, n)
-        .eval();
-  };
-  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(n, n);
-  // Fairness of the generatrix (r(u), z(u)) as a plane curve (docs/method.md section 3).
-  if (w.stretch != 0.0) k += w.stretch * gram(1);
-  if (w.bending != 0.0 && basis_.order() > 2) k += w.bending * gram(2);
+  // Fairness of the generatrix (r(u), z(u)) as a plane curve (docs/method.md section 3, docs/fair-curves.md
+  // section 8).
+  const Eigen::MatrixXd k = CurveFairness(basis_, w);
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(num_parameters(), num_parameters());
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)

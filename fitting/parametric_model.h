@@ -71,6 +71,14 @@ struct FairnessWeights {
   double stretch = 0.0;  // curves: alpha * integral |C'|^2; surfaces: membrane integral |S_u|^2 + |S_v|^2
   double bending =
       0.0;  // curves: beta * integral |C''|^2; surfaces: thin plate |S_uu|^2 + 2|S_uv|^2 + |S_vv|^2
+  // L. Fang's further terms (docs/fair-curves.md section 8): curves integral |C'''|^2 (curvature variation);
+  // surfaces integral |S_uuu|^2 + 3|S_uuv|^2 + 3|S_uvv|^2 + |S_vvv|^2.
+  double variation = 0.0;
+  // Junction springs: curves sum over the knots of |jump of C''|^2 (jump2) and |jump of C'''|^2 (jump3);
+  // surfaces the same jumps across the knot lines of the u- and v-derivatives, integrated along the lines.
+  double jump2 = 0.0;
+  double jump3 = 0.0;
+  bool IsZero() const { return stretch == 0 && bending == 0 && variation == 0 && jump2 == 0 && jump3 == 0; }
 };
 
 class ParametricModel;
@@ -111,7 +119,8 @@ class ParametricModel {
   virtual Eigen::VectorXd parameters() const = 0;
   virtual void set_parameters(const Eigen::VectorXd& p) = 0;
   // Applies a step D of the linearized problem. Models whose parameters enter non-linearly (rotations)
-  // linearize at the current value and override this (docs/method.md section 6, last item); the default adds D.
+  // linearize at the current value and override this (docs/method.md section 6, last item); the default adds
+  // D.
   virtual void ApplyStep(const Eigen::VectorXd& step) { set_parameters(parameters() + step); }
   // Maps the model by x -> scale * x + offset (data normalization into the unit box and back).
   virtual void ApplySimilarity(double scale, const VecS& offset) = 0;
@@ -143,8 +152,8 @@ class ParametricModel {
   }
   // Parameter values whose model points seed the foot-point search (spread over the whole domain).
   virtual std::vector<ParamT> SampleParameters() const = 0;
-  // Models that compute their own foot points (closed form on primitives, docs/method.md section 10; per face on
-  // parts) fill t and return true; the engine then skips its sample search and Newton.
+  // Models that compute their own foot points (closed form on primitives, docs/method.md section 10; per face
+  // on parts) fill t and return true; the engine then skips its sample search and Newton.
   virtual bool ClosedFormFootPoint(const VecS& x, ParamT& t) const {
     (void)x;
     (void)t;
@@ -176,8 +185,8 @@ class ParametricModel {
   }
 };
 
-// The principal frame of the model at a foot point, oriented towards a data point X (docs/method.md section 2):
-// unit tangents T_k with signed curvatures kappa_k w.r.t. the unit normal n, an orthonormal basis of the
+// The principal frame of the model at a foot point, oriented towards a data point X (docs/method.md section
+// 2): unit tangents T_k with signed curvatures kappa_k w.r.t. the unit normal n, an orthonormal basis of the
 // normal space, and delta = n.(X - s) >= 0.
 struct PrincipalFrame {
   int tangent_count = 1;

@@ -536,6 +536,13 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
           Flat("base_diameter", v["base_diameter"].get<double>(), v["base_diameter_uncertainty"], units));
       out.push_back(Flat("max_diameter", v["max_diameter"].get<double>(), nullptr, units));
     }
+  } else if (schema == "scan2model.hermite/1") {
+    const nlohmann::json& q = d["interrogation"];
+    out.push_back(Flat("length", q["length"].get<double>(), nullptr, units));
+    out.push_back(Flat("max_abs_kappa", q["max_abs_kappa"].get<double>(), nullptr, "1/" + units));
+    out.push_back(
+        Flat("dkappa_ds_squared", q["dkappa_ds_squared"].get<double>(), nullptr, "1/" + units + "^3"));
+    out.push_back(Flat("inflections", static_cast<double>(q["inflections"].size()), nullptr, ""));
   } else if (schema == "scan2model.part_fit/1") {
     for (const nlohmann::json& p : d["parameters"]) {
       nlohmann::json f = Flat(p["name"].get<std::string>(), p["value"].get<double>(),

@@ -435,6 +435,7 @@ FitOutcome ComputeRobustPrimitiveFit(FitOptions o, const Scan& scan, const std::
 
 FitOutcome ComputeFit(const FitOptions& o) {
   if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
+  if (o.model == "hermite-curve") return ComputeHermiteFit(o);
   if (o.model == "revolution" || o.model == "helical" || o.model == "spiral") return ComputeMultiViewFit(o);
   if (o.model.rfind("part:", 0) == 0) return ComputePartFit(o);
   if (o.model != "plane" && o.model != "sphere" && o.model != "cylinder" && o.model != "cone" &&

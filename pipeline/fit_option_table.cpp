@@ -37,9 +37,10 @@ std::vector<FitOptionSpec> MakeTable() {
        "--method",
        K::kChoice,
        "",
-       "Error term per iteration: pdm, tdm, sdm, cdm, gtdm or gn (primitives: tdm or sdm). Default: tdm "
-       "for primitives and multi-view fits, sdm for splines",
-       {"pdm", "tdm", "sdm", "cdm", "gtdm", "gn"},
+       "Error term per iteration: pdm, tdm, sdm, cdm, gtdm or gn (primitives: tdm or sdm; hermite-curve: "
+       "spring, sdm, tdm or pdm, spring being Fang's sliding springs). Default: tdm for primitives and "
+       "multi-view fits, sdm for splines and Hermite curves",
+       {"pdm", "tdm", "sdm", "cdm", "gtdm", "gn", "spring"},
        false,
        -1e300,
        1e300,
@@ -71,7 +72,8 @@ std::vector<FitOptionSpec> MakeTable() {
        "--closed",
        K::kFlag,
        "",
-       "bspline-curve: closed (periodic) curve; bspline-surface: periodic in u over a fitted cylinder",
+       "bspline-curve, hermite-curve: closed (periodic) curve; bspline-surface: periodic in u over a fitted "
+       "cylinder",
        {},
        false,
        -1e300,
@@ -97,6 +99,101 @@ std::vector<FitOptionSpec> MakeTable() {
                0,
                1e300,
                [](FitOptions& o, const std::string& v) { o.bending = std::stod(v); }});
+  // Hermite curves (docs/fair-curves.md).
+  t.push_back({"degree",
+               "--degree",
+               K::kInteger,
+               "5",
+               "hermite-curve: 3 (cubic, C1) or 5 (quintic, C2)",
+               {},
+               false,
+               3,
+               5,
+               [](FitOptions& o, const std::string& v) { o.degree = ToInt(v); }});
+  t.push_back({"elements",
+               "--elements",
+               K::kText,
+               "auto",
+               "hermite-curve: number of elements, or auto (elements split where the local error is largest "
+               "until the tolerance, or the data's noise estimate, is met)",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.elements = v; },
+               [](const std::string& v) {
+                 if (v == "auto") return;
+                 std::size_t used = 0;
+                 int n = 0;
+                 try {
+                   n = std::stoi(v, &used);
+                 } catch (const std::exception&) {
+                   used = 0;
+                 }
+                 if (used != v.size() || n < 1)
+                   throw std::invalid_argument("--elements: '" + v + "' is not a positive integer or auto");
+               }});
+  t.push_back({"interpolate",
+               "--interpolate",
+               K::kFlag,
+               "",
+               "hermite-curve: interpolate the ordered points (each a node, derivatives free, uniform knots) "
+               "instead of approximating them",
+               {},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.interpolate = v == "true"; }});
+  t.push_back(
+      {"c2",
+       "--c2",
+       K::kFlag,
+       "",
+       "hermite-curve, cubic: C2 by the reduced transformation (the slopes follow from the positions)",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.c2 = v == "true"; }});
+  const auto weight = [&t](const char* key, const char* names, const char* default_text, const char* what,
+                           double FitOptions::*member) {
+    t.push_back({key,
+                 names,
+                 K::kNumber,
+                 default_text,
+                 std::string("hermite-curve: Fang's weight of ") + what +
+                     " on the parameter domain [0, 1] (h = 1 / elements), closeness 1/2 sum d^2",
+                 {},
+                 false,
+                 0,
+                 1e300,
+                 [member](FitOptions& o, const std::string& v) {
+                   o.*member = std::stod(v);
+                   if (member == &FitOptions::alpha3) o.alpha3_given = true;
+                 }});
+  };
+  weight("alpha1", "--alpha1", "0", "the stretch energy integral |w'|^2 du", &FitOptions::alpha1);
+  weight("alpha2", "--alpha2", "0", "the bending energy integral |w''|^2 du", &FitOptions::alpha2);
+  weight(
+      "alpha3", "--alpha3", "1e-08 (hermite-curve), 0 (splines)",
+      "the curvature-variation energy integral |w'''|^2 du (splines and generatrices: the same on their own "
+      "parameter, unit box)",
+      &FitOptions::alpha3);
+  weight("beta2", "--beta2", "0", "the second-derivative jumps at junctions (cubic; splines: at knots)",
+         &FitOptions::beta2);
+  weight("beta3", "--beta3", "0", "the third-derivative jumps at junctions (splines: at knots)",
+         &FitOptions::beta3);
+  t.push_back({"tolerance",
+               "--tolerance",
+               K::kNumber,
+               "0",
+               "hermite-curve: target RMS distance in data units; the weights are scaled by the one factor "
+               "that meets it (the fairest curve within it). 0: the weights as given",
+               {},
+               false,
+               0,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.tolerance = std::stod(v); }});
   t.push_back(
       {"start",
        "--start",
@@ -446,14 +543,14 @@ void ResolveDefaultLoss(FitOptions& o, InputKind kind) {
 
 std::string ModelError(const std::string& model) {
   static const std::set<std::string> kModels = {
-      "plane", "sphere",        "cylinder",        "cone",       "line",    "circle",
-      "torus", "bspline-curve", "bspline-surface", "revolution", "helical", "spiral"};
+      "plane",         "sphere",          "cylinder",      "cone",       "line",    "circle", "torus",
+      "bspline-curve", "bspline-surface", "hermite-curve", "revolution", "helical", "spiral"};
   if (kModels.count(model) > 0) return "";
   if (model.rfind("part:", 0) == 0)
     return model.size() > 5 ? "" : "part: needs a part file, e.g. part:block.part.json";
   return model +
          " is not a model (plane, sphere, cylinder, cone, line, circle, torus, bspline-curve, "
-         "bspline-surface, revolution, helical, spiral, part:FILE)";
+         "bspline-surface, hermite-curve, revolution, helical, spiral, part:FILE)";
 }
 
 }  // namespace s2m::pipeline

@@ -1,6 +1,7 @@
 #pragma once
 // Options of `scan2model fit`, shared by the primitive and the spline paths.
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -57,6 +58,16 @@ struct FitOptions {
   std::string output;           // prefix for PREFIX.json, PREFIX.ply, PREFIX_history.csv
   int contour = 0;              // .glif inputs: which contour
   std::string initial;  // a scan2model.bspline/1 JSON to start from instead of the automatic initial model
+  // Hermite curves (`--model hermite-curve`, docs/fair-curves.md).
+  int degree = 5;
+  std::string elements = "auto";  // N, or auto (adaptive)
+  bool interpolate = false;
+  bool c2 = false;
+  double alpha1 = 0.0, alpha2 = 0.0, alpha3 = 1e-8, beta2 = 0.0, beta3 = 0.0;
+  // Whether --alpha3 was given: B-spline curves, surfaces and generatrices take it (and beta2, beta3) as
+  // their curvature-variation and jump weights (docs/fair-curves.md section 8), 0 unless given.
+  bool alpha3_given = false;
+  double tolerance = 0.0;  // target RMS in data units (0: the weights as given)
   // Show the iterations on a terminal as they run (splines); `batch` turns it off for its objects.
   bool interactive = true;
 };
@@ -89,6 +100,13 @@ FitOutcome ComputeFit(const FitOptions& o);
 // The fits ComputeFit dispatches to; each throws FitFailure.
 // A B-spline curve or surface fit.
 FitOutcome ComputeSplineFit(const FitOptions& options);
+// A Hermite finite-element curve fit with Fang's fairness energy (pipeline/hermite_fit.cpp).
+FitOutcome ComputeHermiteFit(const FitOptions& options);
+// The points of a curve or spline fit's input: a point cloud, or one contour (--contour) of a .glif glyph;
+// sets the format's name, the units, the reader's notes and the device. Throws FitFailure (kUsage) for a
+// contour out of range, FormatError for unreadable files.
+Eigen::MatrixXd ReadFitPoints(const FitOptions& o, std::string& format, std::string& units,
+                              std::vector<std::string>& notes, std::string& device);
 // A joint multi-view fit (surface of revolution, helical or spiral surface).
 FitOutcome ComputeMultiViewFit(const FitOptions& options);
 // A joint multi-view fit of a constrained part (`--model part:FILE`, docs/parts.md).

@@ -23,6 +23,7 @@
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
+#include "pipeline/interrogation_json.h"
 #include "pipeline/output.h"
 #include "pipeline/views.h"
 #include "registration/scan_to_scan.h"
@@ -89,7 +90,12 @@ nlohmann::json StartJson(const StartReport& s, KinematicKind kind) {
                       {"normals_adequate",
                        s.normals_adequate ? nlohmann::json(*s.normals_adequate) : nlohmann::json(nullptr)},
                       {"turn_fraction", s.turn},
-                      {"fairness", {{"stretch", s.fairness.stretch}, {"bending", s.fairness.bending}}}};
+                      {"fairness",
+                       {{"stretch", s.fairness.stretch},
+                        {"bending", s.fairness.bending},
+                        {"variation", s.fairness.variation},
+                        {"jump2", s.fairness.jump2},
+                        {"jump3", s.fairness.jump3}}}};
   if (kind != KinematicKind::kRevolution) {
     j["normals_value"] = s.normals_value;
     j["estimate"] = s.estimate != 0.0 ? nlohmann::json(s.estimate) : nlohmann::json(nullptr);
@@ -234,7 +240,9 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     // of the turn fraction it covers (docs/method.md eq. 80), measured about the start's axis.
     auto fairness_for = [&](const RigidMotion& world_T_model, double* turn) {
       *turn = CoveredTurnFraction(merged, world_T_model.translation(), world_T_model.rotation().col(2));
-      return FairnessWeights{o.stretch * *turn * *turn, o.bending * *turn * *turn};
+      const double scale = *turn * *turn;
+      return FairnessWeights{o.stretch * scale, o.bending * scale, (o.alpha3_given ? o.alpha3 : 0.0) * scale,
+                             o.beta2 * scale, o.beta3 * scale};
     };
     // The complexity search (docs/method.md section 18) from a fitted or initial model at given poses.
     struct Searched {
@@ -438,6 +446,12 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
                     {"samples_height_radius", samples}};
     j["profile"]["samples_radius_uncertainty"] = nlohmann::json::array();
     for (double u : radius_uncertainty) j["profile"]["samples_radius_uncertainty"].push_back(NumberOrNull(u));
+    {
+      // The generatrix (r(u), z(u)) as a plane curve: its fairness (docs/fair-curves.md section 6).
+      const BSplineCurve generatrix(basis, profile);
+      j["profile"]["interrogation"] =
+          InterrogationJson(InterrogateCurve(ToInterrogated(generatrix), {256, 0.0}), 2);
+    }
     if (kinematic && kinematic->helical()) {
       j["pitch"] = MeasureHelix(kinematic->pitch(), UncertaintyOf(*model, r, "pitch"), units).ToJson();
     }

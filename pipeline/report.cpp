@@ -182,6 +182,66 @@ std::string Vessel(const nlohmann::json& v) {
   return s.str();
 }
 
+// A fair curve's interrogation (scan2model.hermite/1, docs/fair-curves.md section 6): the energy breakdown,
+// curvature and its arc-length derivative against normalized arc length, the curvature comb with its envelope
+// (plane curves; space curves seen along z), and the junctions' breaks.
+std::string FairCurve(const nlohmann::json& d, const nlohmann::json& q, const std::string& heading) {
+  std::ostringstream s;
+  s << "<h2>" << Escape(heading) << "</h2>\n";
+  if (d.contains("energy")) {
+    const nlohmann::json& e = d["energy"];
+    s << "<table>\n"
+      << Row({"term", "weight", "energy"}, true)
+      << Row({"closeness 1/2 &#8721; d&#178;", "1", Number(e["closeness"], 6)});
+    const char* names[5][2] = {{"alpha1", "stretch &#8747;|w'|&#178;"},
+                               {"alpha2", "bending &#8747;|w''|&#178;"},
+                               {"alpha3", "variation &#8747;|w'''|&#178;"},
+                               {"beta2", "jumps of w''"},
+                               {"beta3", "jumps of w'''"}};
+    for (const auto& n : names) s << Row({n[1], Number(d["weights"][n[0]], 6), Number(e[n[0]], 6)});
+    s << "</table>\n";
+  }
+  s << "<table>\n"
+    << Row({"length", Number(q["length"], 8)}) << Row({"max |&#954;|", Number(q["max_abs_kappa"], 6)})
+    << Row({"&#8747;(d&#954;/ds)&#178; ds", Number(q["dkappa_ds_squared"], 6)})
+    << Row({"Sapidis &#950; (sum of d&#954;/ds jumps)", Number(q["zeta"], 6)})
+    << Row({"inflections", Number(static_cast<double>(q["inflections"].size()))})
+    << Row({"largest G1 break (rad)", Number(q["max_g1"], 3)})
+    << Row({"largest G2 break", Number(q["max_g2"], 3)}) << "</table>\n";
+  const nlohmann::json& samples = q["samples"];
+  svg::Series kappa{samples["s"].get<std::vector<double>>(), samples["kappa"].get<std::vector<double>>(),
+                    "#1f5fa8", "curvature"};
+  svg::Series dk{samples["s"].get<std::vector<double>>(), samples["dkappa_ds"].get<std::vector<double>>(),
+                 "#b2182b", "dkappa/ds"};
+  s << "<figure>" << svg::LinePlot("Curvature", "normalized arc length", "curvature", {kappa}, false)
+    << "</figure>\n<figure>"
+    << svg::LinePlot("Derivative of curvature", "normalized arc length", "dkappa/ds", {dk}, false)
+    << "</figure>\n";
+  std::vector<Eigen::Vector2d> points, tips, junctions;
+  for (std::size_t i = 0; i < samples["point"].size(); ++i) {
+    const auto p = samples["point"][i].get<std::vector<double>>();
+    const auto t = samples["comb_tip"][i].get<std::vector<double>>();
+    points.emplace_back(p[0], p[1]);
+    tips.emplace_back(t[0], t[1]);
+  }
+  // Junction positions: the samples nearest in arc length.
+  const std::vector<double> ss = samples["s"].get<std::vector<double>>();
+  for (const nlohmann::json& j : q["junctions"]) {
+    const double sj = j["s"].get<double>();
+    std::size_t best = 0;
+    for (std::size_t i = 0; i < ss.size(); ++i)
+      if (std::abs(ss[i] - sj) < std::abs(ss[best] - sj)) best = i;
+    if (!points.empty()) junctions.push_back(points[best]);
+  }
+  s << "<figure>"
+    << svg::CurvatureComb(d.value("dimension", 2) == 3 ? "Curvature comb (seen along z)" : "Curvature comb",
+                          points, tips, junctions)
+    << "<figcaption class=\"note\">Teeth along the normal, length " << Number(q["comb_scale"], 4)
+    << " x curvature (0.5 x length / max |&#954;|), on the outside of each bend; the envelope through their "
+       "tips; circles: junctions of elements.</figcaption></figure>\n";
+  return s.str();
+}
+
 std::string Convergence(const nlohmann::json& d) {
   svg::Series rms{{}, {}, "#1f5fa8", "RMS"}, max{{}, {}, "#b2182b", "max distance"};
   for (const nlohmann::json& h : d.value("history", nlohmann::json::array())) {
@@ -327,7 +387,8 @@ std::string ReportHtml(const nlohmann::json& in) {
     const nlohmann::json& d = record ? in.at("result") : in;
     const std::string schema = d.value("schema", "");
     if (schema != "scan2model.fit/1" && schema != "scan2model.multiview/1" &&
-        schema != "scan2model.part_fit/1" && schema != "scan2model.bspline/1") {
+        schema != "scan2model.part_fit/1" && schema != "scan2model.bspline/1" &&
+        schema != "scan2model.hermite/1") {
       throw std::invalid_argument("not a result of scan2model fit (schema '" + schema + "')");
     }
     if (!record) title += " of " + d["input"].value("file", "");
@@ -338,6 +399,9 @@ std::string ReportHtml(const nlohmann::json& in) {
     }
     if (d.contains("adequacy")) body << AdequacySection(d["adequacy"]);
     if (d.contains("vessel")) body << Vessel(d["vessel"]);
+    if (d.contains("interrogation")) body << FairCurve(d, d["interrogation"], "Fairness");
+    if (d.contains("profile") && d["profile"].contains("interrogation"))
+      body << FairCurve(d["profile"], d["profile"]["interrogation"], "Fairness of the generatrix (r, z)");
     body << Convergence(d) << Deviations(d) << Views(d);
   }
   std::ostringstream html;

@@ -14,6 +14,7 @@
 #include "acquisition/format_error.h"
 #include "acquisition/glyph_outline.h"
 #include "acquisition/point_cloud_io.h"
+#include "fitting/curve_interrogation.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/initial_models.h"
 #include "fitting/model_complexity.h"
@@ -24,6 +25,7 @@
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
+#include "pipeline/interrogation_json.h"
 #include "pipeline/output.h"
 
 namespace s2m::pipeline {
@@ -38,28 +40,6 @@ StepStrategy ParseStepControl(const std::string& s) {
   if (s == "none") return StepStrategy::kFullStep;
   if (s == "armijo") return StepStrategy::kArmijo;
   return StepStrategy::kTrustRegion;
-}
-
-// Points of the input: a point cloud, or one contour of a .glif glyph (2D).
-Eigen::MatrixXd ReadInput(const FitOptions& o, std::string& format, std::string& units,
-                          std::vector<std::string>& notes, std::string& device) {
-  if (std::filesystem::path(o.file).extension() == ".glif") {
-    const auto contours = ReadGlifContours(o.file);
-    if (o.contour < 0 || o.contour >= static_cast<int>(contours.size())) {
-      throw UsageError("--contour " + std::to_string(o.contour) + ": the glyph has " +
-                       std::to_string(contours.size()) + " contours");
-    }
-    format = "glif";
-    units = "font units";
-    return contours[static_cast<std::size_t>(o.contour)];
-  }
-  const PointCloudFormat f = DetectFormat(o.file);
-  const Scan scan = ReadPointCloud(o.file, f);
-  notes = scan.metadata.notes;
-  device = scan.metadata.device;
-  format = ToString(f);
-  units = scan.units;
-  return scan.points;
 }
 
 // A curve's initial model: quadtree chain in the data's plane (2D data as is; 3D data on their best-fit
@@ -152,6 +132,27 @@ Eigen::Matrix3Xd Samples(const ParametricModel& model) {
 
 }  // namespace
 
+Eigen::MatrixXd ReadFitPoints(const FitOptions& o, std::string& format, std::string& units,
+                              std::vector<std::string>& notes, std::string& device) {
+  if (std::filesystem::path(o.file).extension() == ".glif") {
+    const auto contours = ReadGlifContours(o.file);
+    if (o.contour < 0 || o.contour >= static_cast<int>(contours.size())) {
+      throw FitFailure(kUsage, "--contour " + std::to_string(o.contour) + ": the glyph has " +
+                                   std::to_string(contours.size()) + " contours");
+    }
+    format = "glif";
+    units = "font units";
+    return contours[static_cast<std::size_t>(o.contour)];
+  }
+  const PointCloudFormat f = DetectFormat(o.file);
+  const Scan scan = ReadPointCloud(o.file, f);
+  notes = scan.metadata.notes;
+  device = scan.metadata.device;
+  format = ToString(f);
+  units = scan.units;
+  return scan.points;
+}
+
 FitOutcome ComputeSplineFit(const FitOptions& given) {
   FitOptions o = given;
   const bool surface = o.model == "bspline-surface";
@@ -172,7 +173,7 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
     std::string format, units;
     FitOutcome outcome;
     std::string device = "file";
-    const Eigen::MatrixXd points = ReadInput(o, format, units, outcome.notes, device);
+    const Eigen::MatrixXd points = ReadFitPoints(o, format, units, outcome.notes, device);
     ResolveDefaultLoss(o, ClassifyInput(o.file, device));
     const std::string units_out = o.units.empty() ? units : o.units;
     if (surface && points.rows() != 3) throw UsageError("a B-spline surface needs 3D points");
@@ -196,7 +197,7 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
     GeometricFitOptions options;
     options.error_term = ErrorTermFromString(o.method.empty() ? "sdm" : o.method);
     options.optimizer.step_strategy = ParseStepControl(o.step_control);
-    options.fairness = {o.stretch, o.bending};
+    options.fairness = {o.stretch, o.bending, o.alpha3_given ? o.alpha3 : 0.0, o.beta2, o.beta3};
     options.optimizer.max_iterations = o.max_iterations;
     options.optimizer.loss = o.loss;
     const bool progress = o.interactive && !o.json && isatty(STDERR_FILENO);
@@ -300,7 +301,11 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
     j["step_control"] = ToString(options.optimizer.step_strategy);
     j["loss"] = LossJson(o.loss, r.loss_scale, r.weights);
     j["loss"]["reason"] = o.loss_reason;
-    j["fairness"] = {{"stretch", o.stretch}, {"bending", o.bending}};
+    j["fairness"] = {{"stretch", options.fairness.stretch},
+                     {"bending", options.fairness.bending},
+                     {"variation", options.fairness.variation},
+                     {"jump2", options.fairness.jump2},
+                     {"jump3", options.fairness.jump3}};
     if (surface) {
       const auto& s = dynamic_cast<const BSplineSurface&>(*model);
       j["basis_u"] = BasisJson(s.basis_u());
@@ -319,6 +324,9 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
         cp.emplace_back(col.data(), col.data() + col.size());
       }
       j["control_points"] = cp;
+      // The curve's fairness (docs/fair-curves.md section 6), drawn by the report.
+      j["interrogation"] =
+          InterrogationJson(InterrogateCurve(ToInterrogated(c), {256, 0.0}), c.ambient_dimension());
     }
     j["complexity"] = ComplexityJson(complexity, complexity_options);
     j["residuals"] = {
@@ -364,6 +372,8 @@ FitOutcome ComputeSplineFit(const FitOptions& given) {
     }
     outcome.text = text.str();
     return outcome;
+  } catch (const FitFailure&) {
+    throw;
   } catch (const UsageError& e) {
     throw FitFailure(kUsage, e.what());
   } catch (const FormatError& e) {

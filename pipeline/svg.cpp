@@ -330,4 +330,41 @@ std::string ColouredScatter(const std::string& title, const std::vector<Eigen::V
   return s.str();
 }
 
+std::string CurvatureComb(const std::string& title, const std::vector<Eigen::Vector2d>& points,
+                          const std::vector<Eigen::Vector2d>& tips,
+                          const std::vector<Eigen::Vector2d>& junctions, int tooth_every, Size size) {
+  std::ostringstream s;
+  s << Open(size) << Text(size.width / 2.0, 20, title, "middle", " font-size=\"14\" font-weight=\"bold\"");
+  if (points.empty() || tips.size() != points.size())
+    return s.str() + Text(size.width / 2.0, size.height / 2.0, "no curve") + "</svg>\n";
+  Eigen::Vector2d lo = points.front(), hi = points.front();
+  for (const auto* set : {&points, &tips})
+    for (const Eigen::Vector2d& p : *set) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+  const double w = size.width - 20.0, h = size.height - 50.0;
+  const double extent = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1e-12});
+  const double scale =
+      std::min(w / std::max(hi.x() - lo.x(), extent * 1e-3), h / std::max(hi.y() - lo.y(), extent * 1e-3));
+  const double ox = 10 + (w - scale * (hi.x() - lo.x())) / 2, oy = 34 + (h - scale * (hi.y() - lo.y())) / 2;
+  auto x = [&](const Eigen::Vector2d& p) { return Num(ox + scale * (p.x() - lo.x())); };
+  auto y = [&](const Eigen::Vector2d& p) { return Num(oy + scale * (hi.y() - p.y())); };  // y up
+  const int every = std::max(1, tooth_every);
+  s << "<path d=\"";
+  for (std::size_t i = 0; i < points.size(); i += static_cast<std::size_t>(every))
+    s << "M" << x(points[i]) << " " << y(points[i]) << "L" << x(tips[i]) << " " << y(tips[i]);
+  s << "\" stroke=\"#9ab6d8\" stroke-width=\"0.7\" fill=\"none\"/>\n";
+  auto polyline = [&](const std::vector<Eigen::Vector2d>& v, const char* colour, double width) {
+    s << "<polyline fill=\"none\" stroke=\"" << colour << "\" stroke-width=\"" << width << "\" points=\"";
+    for (const Eigen::Vector2d& p : v) s << x(p) << "," << y(p) << " ";
+    s << "\"/>\n";
+  };
+  polyline(tips, "#1f5fa8", 1.0);    // the envelope
+  polyline(points, "#222222", 1.6);  // the curve
+  for (const Eigen::Vector2d& j : junctions)
+    s << "<circle cx=\"" << x(j) << "\" cy=\"" << y(j) << "\" r=\"2.5\" fill=\"none\" stroke=\"#b2182b\"/>\n";
+  return s.str() + "</svg>\n";
+}
+
 }  // namespace s2m::pipeline::svg

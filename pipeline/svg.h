@@ -46,4 +46,12 @@ std::string ColouredScatter(const std::string& title, const std::vector<Eigen::V
                             const std::vector<double>& values, double range, const std::string& unit,
                             Size size = {}, const std::vector<double>& weights = {});
 
+// A plane curve's curvature comb (docs/fair-curves.md section 6): the curve (polyline through `points`), a
+// tooth from each point to its `tips` entry (every `tooth_every`-th), the envelope through the tips, and the
+// junctions as small circles. Equal scale on both axes.
+std::string CurvatureComb(const std::string& title, const std::vector<Eigen::Vector2d>& points,
+                          const std::vector<Eigen::Vector2d>& tips,
+                          const std::vector<Eigen::Vector2d>& junctions, int tooth_every = 2,
+                          Size size = {640, 480});
+
 }  // namespace s2m::pipeline::svg

@@ -23,6 +23,9 @@ packages=(
   chromium               # tests only: the HTML report opens in headless Chromium (tests/report_test.cpp)
   libusb-1.0-0-dev       # optional edge (s2m_usb): USB transport and the Horus turntable board (docs/devices.md)
   umockdev libumockdev-dev  # tests only: the emulated USB board (tests/emulated_horus_board.h, umockdev-wrapper)
+  libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev
+                         # bench only (optional): OpenCASCADE's variational curve smoothing, the fair-curve
+                         # benchmark's baseline (bench/occt_curve_baseline.cpp, docs/fair-curves.md)
 )
 
 missing=()

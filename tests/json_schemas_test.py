@@ -4,7 +4,7 @@
     tests/json_schemas_test.py SCAN2MODEL SOURCE_DIR
 
 Runs the command on small shipped or generated data to produce every kind of document (info of a point cloud, an
-E57 file and a recording; fit of each primitive, with a reference and robust; B-spline curve and surface; surface of
+E57 file and a recording; fit of each primitive, with a reference and robust; B-spline curve and surface; Hermite curves; surface of
 revolution, helical and spiral surfaces; a constrained part; detect; a batch's records and summary; a views manifest
 written by export; an error; devices) and validates each against its schema (Draft 2020-12, python3-jsonschema).
 Every schema is first checked against the metaschema. Exits 77 (ctest: skipped) when python3-jsonschema is missing.
@@ -134,6 +134,10 @@ def main():
                                  os.path.join(work, "ellipse.xyz")] + quick, None),
         ("bspline.schema.json", ["fit", "--json", "--model", "bspline-surface", "--control-points", "5x5",
                                  os.path.join(work, "sheet.xyz")] + quick, None),
+        ("hermite.schema.json", ["fit", "--json", "--model", "hermite-curve", "--closed", "--elements", "6",
+                                 os.path.join(work, "ellipse.xyz")] + quick, None),
+        ("hermite.schema.json", ["fit", "--json", "--model", "hermite-curve", "--degree", "3", "--c2",
+                                 "--interpolate", "--alpha3", "1", os.path.join(work, "ellipse.xyz")], None),
         ("multiview.schema.json", ["fit", "--json", "--model", "revolution", "--control-points", "8", vase] + quick, None),
         ("multiview.schema.json", ["fit", "--json", "--model", "helical", "--control-points", "6", vase] + quick, None),
         ("multiview.schema.json", ["fit", "--json", "--model", "spiral", "--control-points", "6", vase] + quick, None),

@@ -13,6 +13,7 @@
 
 #include "acquisition/part_file.h"
 #include "fitting/bspline_models.h"
+#include "fitting/hermite_curve.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/part_model.h"
 #include "fitting/primitive_models.h"
@@ -171,6 +172,32 @@ std::unique_ptr<ParametricModel> PartWithEveryFaceType() {
   return std::make_unique<PartModel>(d);
 }
 
+// Hermite curves (fitting/hermite_curve.h): nodal values of a generic analytic curve (an epitrochoid-like
+// loop lifted into 3D), non-uniform knots, so that no derivative vanishes by accident.
+std::unique_ptr<ParametricModel> HermiteFamily(int degree, int dimension, bool closed, bool c2) {
+  const int elements = 5, per_node = (degree + 1) / 2, nodes = closed ? elements : elements + 1;
+  std::vector<double> knots = {0.0, 0.17, 0.41, 0.58, 0.79, 1.0};
+  Eigen::MatrixXd dofs(dimension, nodes * per_node);
+  for (int i = 0; i < nodes; ++i) {
+    const double a = 2.0 * M_PI * knots[static_cast<std::size_t>(i)];
+    // w(u) = (3 cos a + 0.7 cos 3a, 2 sin a - 0.5 sin 2a, 0.8 sin a + 0.3 cos 2a), a = 2 pi u.
+    const double da = 2.0 * M_PI;
+    const Eigen::Vector3d p(3 * std::cos(a) + 0.7 * std::cos(3 * a), 2 * std::sin(a) - 0.5 * std::sin(2 * a),
+                            0.8 * std::sin(a) + 0.3 * std::cos(2 * a));
+    const Eigen::Vector3d d1 =
+        da * Eigen::Vector3d(-3 * std::sin(a) - 2.1 * std::sin(3 * a), 2 * std::cos(a) - std::cos(2 * a),
+                             0.8 * std::cos(a) - 0.6 * std::sin(2 * a));
+    const Eigen::Vector3d d2 =
+        da * da *
+        Eigen::Vector3d(-3 * std::cos(a) - 6.3 * std::cos(3 * a), -2 * std::sin(a) + 2 * std::sin(2 * a),
+                        -0.8 * std::sin(a) - 1.2 * std::cos(2 * a));
+    dofs.col(i * per_node) = p.head(dimension);
+    dofs.col(i * per_node + 1) = d1.head(dimension);
+    if (per_node == 3) dofs.col(i * per_node + 2) = d2.head(dimension);
+  }
+  return std::make_unique<HermiteCurve>(degree, knots, dofs, closed, c2);
+}
+
 S2M_CHECK_MODEL_FAMILY(OpenCurve2d, OpenCurve2d)
 S2M_CHECK_MODEL_FAMILY(OpenCurve3dQuadratic, OpenCurve3dQuadratic)
 S2M_CHECK_MODEL_FAMILY(ClosedCurve2d, ClosedCurve2d)
@@ -191,6 +218,11 @@ S2M_CHECK_MODEL_FAMILY(SpiralSurface, Spiral)
 S2M_CHECK_MODEL_FAMILY(PartCounterboredBlock, [] { return PartFromExample("counterbored_block.part.json"); })
 S2M_CHECK_MODEL_FAMILY(PartFreeformPlate, [] { return PartFromExample("freeform_plate.part.json"); })
 S2M_CHECK_MODEL_FAMILY(PartEveryFaceType, PartWithEveryFaceType)
+S2M_CHECK_MODEL_FAMILY(HermiteOpenCubic2d, [] { return HermiteFamily(3, 2, false, false); })
+S2M_CHECK_MODEL_FAMILY(HermiteClosedQuintic3d, [] { return HermiteFamily(5, 3, true, false); })
+S2M_CHECK_MODEL_FAMILY(HermiteOpenQuintic2d, [] { return HermiteFamily(5, 2, false, false); })
+S2M_CHECK_MODEL_FAMILY(HermiteClosedC2Cubic2d, [] { return HermiteFamily(3, 2, true, true); })
+S2M_CHECK_MODEL_FAMILY(HermiteOpenC2Cubic3d, [] { return HermiteFamily(3, 3, false, true); })
 
 // The checks that apply only to some models ran where they should.
 TEST(ModelChecker, OptionalChecksRunWhereTheModelProvidesThem) {

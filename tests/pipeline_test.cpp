@@ -77,9 +77,9 @@ TEST(FitDispatch, FailuresCarryTheirExitCodes) {
 
 TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
   EXPECT_EQ(ManifestOptionKeys(),
-            "bending, closed, contour, control_points, criterion, initial, loss, max_iterations, method, "
-            "order, reference, "
-            "rejected_output, robust, seed, solver, step_control, stretch, units");
+            "alpha1, alpha2, alpha3, bending, beta2, beta3, c2, closed, contour, control_points, criterion, "
+            "degree, elements, initial, interpolate, loss, max_iterations, method, order, reference, "
+            "rejected_output, robust, seed, solver, step_control, stretch, tolerance, units");
   for (const FitOptionSpec& spec : FitOptionTable()) {
     EXPECT_TRUE(spec.set) << spec.key << spec.names;
     // Every manifest key but the solver (three flags) is also a command-line option with the dashed name.
@@ -116,7 +116,7 @@ TEST(FitOptionTable, ValuesAreCheckedAndApplied) {
   EXPECT_EQ(message("max_iterations", "0"),
             "option max_iterations: '0' is not an integer in [1, 1000000000]");
   EXPECT_EQ(message("order", "9"), "option order: '9' is not an integer in [2, 8]");
-  EXPECT_EQ(message("method", "newton"), "method 'newton' (pdm, tdm, sdm, cdm, gtdm, gn)");
+  EXPECT_EQ(message("method", "newton"), "method 'newton' (pdm, tdm, sdm, cdm, gtdm, gn, spring)");
   EXPECT_EQ(message("closed", "yes"), "closed: 'yes' is not true or false");
   EXPECT_NE(message("stretch", "-1").find("below"), std::string::npos);
   EXPECT_EQ(message("step_control", "armijo"), "accepted");
@@ -346,6 +346,79 @@ TEST(Report, HtmlOfAFitAndOfAFailedObject) {
       {"spec", {{"input", "x.ply"}, {"model", "sphere"}, {"options", nlohmann::json::object()}}}};
   EXPECT_NE(ReportHtml(failed).find("x.ply: cannot open"), std::string::npos);
   EXPECT_THROW(ReportHtml(nlohmann::json{{"schema", "something/1"}}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace s2m::pipeline
+
+namespace s2m::pipeline {
+namespace {
+
+// `fit --model hermite-curve` in-process: the JSON members of docs/cli.md, the curve evaluated from the JSON
+// alone by the documented formula (docs/fair-curves.md eqs. F2-F3) against the document's own samples, the
+// report's fairness section, and bad options.
+TEST(FitDispatch, HermiteCurveDocumentIsSelfContained) {
+  const fs::path dir = FreshDir("hermite");
+  {
+    std::ofstream out(dir / "circle.xyz");
+    for (int i = 0; i < 80; ++i) {
+      const double a = 2 * M_PI * i / 80, r = 2.0 + 0.01 * std::sin(7.0 * i);
+      out << r * std::cos(a) << " " << r * std::sin(a) << " 0\n";
+    }
+  }
+  FitOptions o;
+  o.file = (dir / "circle.xyz").string();
+  o.model = "hermite-curve";
+  ApplyFitOption(*FindManifestOption("closed"), "true", o);
+  ApplyFitOption(*FindManifestOption("elements"), "6", o);
+  ApplyFitOption(*FindManifestOption("alpha3"), "1e-6", o);
+  const nlohmann::json d = ComputeFit(o).document;
+  EXPECT_EQ(d["schema"], "scan2model.hermite/1");
+  EXPECT_EQ(d["elements"], 6);
+  ASSERT_EQ(d["nodes"].size(), 6u);
+  EXPECT_EQ(d["knots"].size(), 7u);
+  EXPECT_GT(d["energy"]["alpha3"].get<double>(), 0.0);
+  // The fairness pulls the curve inwards a little (its energy grows with the length): within 0.25 %.
+  EXPECT_NEAR(d["interrogation"]["length"].get<double>(), 4 * M_PI, 0.0025 * 4 * M_PI);
+  // The quintic Hermite polynomials of the "evaluation" member.
+  auto eval = [&](double u) {
+    const std::vector<double> knots = d["knots"].get<std::vector<double>>();
+    std::size_t i = 0;
+    while (i + 2 < knots.size() && u >= knots[i + 1]) ++i;
+    const double h = knots[i + 1] - knots[i], t = (u - knots[i]) / h;
+    const double t2 = t * t, t3 = t2 * t, t4 = t3 * t, t5 = t4 * t;
+    const double H[3] = {1 - 10 * t3 + 15 * t4 - 6 * t5, t - 6 * t3 + 8 * t4 - 3 * t5,
+                         0.5 * (t2 - 3 * t3 + 3 * t4 - t5)};
+    const double G[3] = {10 * t3 - 15 * t4 + 6 * t5, -4 * t3 + 7 * t4 - 3 * t5, 0.5 * (t3 - 2 * t4 + t5)};
+    const nlohmann::json& a = d["nodes"][i];
+    const nlohmann::json& b =
+        d["nodes"][(i + 1) % d["nodes"].size()];  // closed: the last element ends at node 0
+    const char* names[3] = {"position", "first_derivative", "second_derivative"};
+    Eigen::Vector2d w = Eigen::Vector2d::Zero();
+    for (int j = 0; j < 3; ++j) {
+      const auto pa = a[names[j]].get<std::vector<double>>(), pb = b[names[j]].get<std::vector<double>>();
+      w += std::pow(h, j) * (H[j] * Eigen::Vector2d(pa[0], pa[1]) + G[j] * Eigen::Vector2d(pb[0], pb[1]));
+    }
+    return w;
+  };
+  const nlohmann::json& samples = d["interrogation"]["samples"];
+  for (std::size_t k = 0; k < samples["u"].size(); k += 17) {
+    const auto p = samples["point"][k].get<std::vector<double>>();
+    EXPECT_LT((eval(samples["u"][k].get<double>()) - Eigen::Vector2d(p[0], p[1])).norm(), 1e-9) << k;
+  }
+  const std::string html = ReportHtml(d);
+  EXPECT_NE(html.find("Curvature comb"), std::string::npos);
+  EXPECT_NE(html.find("Derivative of curvature"), std::string::npos);
+  // Usage errors: a quintic cannot take --c2; elements must be a number or auto.
+  FitOptions bad = o;
+  ApplyFitOption(*FindManifestOption("c2"), "true", bad);
+  try {
+    ComputeFit(bad);
+    ADD_FAILURE() << "no error";
+  } catch (const FitFailure& e) {
+    EXPECT_EQ(e.exit_code(), kUsage) << e.what();
+  }
+  EXPECT_THROW(ParseFitOption(*FindManifestOption("elements"), "many"), std::invalid_argument);
 }
 
 }  // namespace

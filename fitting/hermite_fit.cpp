@@ -1,0 +1,492 @@
+#include "fitting/hermite_fit.h"
+
+#include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "fitting/geometric_fit.h"
+#include "fitting/initial_models.h"
+#include "fitting/linear_solver.h"
+#include "fitting/minimizer.h"
+#include "fitting/noise_estimate.h"
+
+namespace s2m {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// ---- Fang's sliding springs as a problem of the minimizer (docs/fair-curves.md eqs. F14-F16)
+// ----------------- State: the curve (in the unit box) and its exact feet. Cost: 1/2 sum d_j^2 + Q^T K Q.
+// Linearization: the geometric Hessian 2 K alone (the springs' Hessian is left out, as in Fang eq. 5.1.4) and
+// the gradient 2 K Q
+// - F, F the spring forces (X_j - w(u_j)) resolved over the elements around each attachment point. The
+// minimizer's Levenberg-Marquardt damping keeps the steps finite where K is singular (rigid translations) and
+// its acceptance test on the true cost replaces the thesis' undamped step.
+class SpringProblem : public NonlinearProblem {
+ public:
+  SpringProblem(HermiteCurve curve, const Eigen::MatrixXd& y, double unit, double diagonal_floor)
+      : curve_(std::move(curve)), trial_(curve_), y_(y), unit_(unit), normal_(diagonal_floor) {
+    k_ = curve_.FairnessMatrix({});
+    if (k_.size() == 0) k_ = Eigen::MatrixXd::Zero(curve_.num_parameters(), curve_.num_parameters());
+    ComputeFootPoints(curve_, y_, feet_);
+    cost_ = Objective(curve_, feet_);
+  }
+
+  double Cost() const override { return cost_; }
+
+  LinearSystem& Linearize() override {
+    const int s = curve_.ambient_dimension();
+    const Eigen::Index dofs = curve_.expansion().rows();
+    // F per coordinate over all nodal dofs, then onto the independent ones (T^T F).
+    Eigen::MatrixXd force = Eigen::MatrixXd::Zero(dofs, s);
+    LocalGeometry g;
+    for (Eigen::Index j = 0; j < y_.cols(); ++j) {
+      const FootPoint& foot = feet_[static_cast<std::size_t>(j)];
+      curve_.Evaluate(foot.t, 0, g);
+      const Eigen::VectorXd pull = y_.col(j) - Eigen::VectorXd(g.point);
+      force += ResolvedUnitForce(curve_, foot.t[0]) * pull.transpose();
+    }
+    const Eigen::MatrixXd reduced = curve_.expansion().transpose() * force;
+    Eigen::VectorXd f(curve_.num_parameters());
+    for (Eigen::Index k = 0; k < reduced.rows(); ++k)
+      for (int c = 0; c < s; ++c) f[k * s + c] = reduced(k, c);
+    normal_.H() = 2.0 * k_;
+    normal_.g() = 2.0 * k_ * curve_.parameters() - f;
+    return normal_;
+  }
+
+  double EvaluateTrial(const Eigen::VectorXd& step, bool) override {
+    trial_ = curve_;
+    trial_.set_parameters(curve_.parameters() + step);
+    ComputeFootPoints(trial_, y_, trial_feet_);
+    trial_cost_ = Objective(trial_, trial_feet_);
+    return std::isfinite(trial_cost_) ? trial_cost_ : std::numeric_limits<double>::infinity();
+  }
+
+  void AcceptTrial() override {
+    curve_ = trial_;
+    feet_.swap(trial_feet_);
+    cost_ = trial_cost_;
+  }
+
+  double ParameterNorm() const override { return curve_.parameters().norm(); }
+
+  void DescribeState(IterationRecord& record) const override {
+    double sum = 0.0;
+    record.max_distance = 0.0;
+    for (const FootPoint& p : feet_) {
+      sum += p.distance * p.distance;
+      record.max_distance = std::max(record.max_distance, p.distance * unit_);
+    }
+    record.rms = std::sqrt(sum / static_cast<double>(y_.cols())) * unit_;
+  }
+
+  HermiteCurve& curve() { return curve_; }
+
+ private:
+  double Objective(const HermiteCurve& c, const std::vector<FootPoint>& feet) const {
+    double f = 0.0;
+    for (const FootPoint& p : feet) f += 0.5 * p.distance * p.distance;
+    const Eigen::VectorXd q = c.parameters();
+    return f + q.dot(k_ * q);
+  }
+
+  HermiteCurve curve_, trial_;
+  const Eigen::MatrixXd& y_;
+  double unit_;
+  Eigen::MatrixXd k_;
+  DenseNormalEquations normal_;
+  std::vector<FootPoint> feet_, trial_feet_;
+  double cost_ = 0.0, trial_cost_ = 0.0;
+};
+
+struct OneFit {
+  HermiteCurve curve;
+  GeometricFitResult fit;
+};
+
+// One approximation at fixed elements and weights, from `start`.
+OneFit FitOnce(const HermiteCurve& start, const Eigen::MatrixXd& points, const HermiteFairness& weights,
+               const HermiteFitOptions& options) {
+  HermiteCurve curve = start;
+  curve.set_fairness(weights);
+  GeometricFitResult fit;
+  if (options.method != HermiteMethod::kSpring) {
+    GeometricFitOptions o;
+    o.error_term = options.method == HermiteMethod::kSdm   ? ErrorTerm::kSdm
+                   : options.method == HermiteMethod::kTdm ? ErrorTerm::kTdm
+                                                           : ErrorTerm::kPdm;
+    o.fairness = {};  // the curve's own terms (set_fairness)
+    o.optimizer = options.optimizer;
+    fit = FitModel(curve, points, o);
+    return {curve, fit};
+  }
+  // The spring method in the unit box (the energy ratio is scale-free: both terms are quadratic in lengths).
+  const int s = static_cast<int>(points.rows());
+  const VecS offset = points.rowwise().mean();
+  const double half = 0.5 * (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).maxCoeff();
+  const double scale = half > 0 ? half : 1.0;
+  const Eigen::MatrixXd y = (points.colwise() - Eigen::VectorXd(offset)) / scale;
+  HermiteCurve unit = curve;
+  unit.ApplySimilarity(1.0 / scale, VecS(-offset / scale));
+  SpringProblem problem(unit, y, scale, options.optimizer.damping.diagonal_floor);
+  const MinimizerSummary summary = TrustRegionMinimizer(options.optimizer).Minimize(problem);
+  curve = problem.curve();
+  curve.ApplySimilarity(scale, offset);
+  (void)s;
+  fit.iterations = summary.iterations;
+  fit.stop_reason = summary.stop_reason;
+  fit.history = summary.history;
+  ComputeFootPoints(curve, points, fit.foot_points);
+  fit.residuals = ComputeResidualStatistics(FootPointDistances(fit.foot_points));
+  return {curve, fit};
+}
+
+HermiteFairness Scaled(const HermiteFairness& f, double k) {
+  return {f.alpha1 * k, f.alpha2 * k, f.alpha3 * k, f.beta2 * k, f.beta3 * k};
+}
+
+// Mean squared distance of the points whose foot lies on each element, and their count.
+void LocalErrors(const HermiteCurve& curve, const std::vector<FootPoint>& feet, std::vector<double>& ms,
+                 std::vector<int>& count) {
+  ms.assign(static_cast<std::size_t>(curve.num_elements()), 0.0);
+  count.assign(ms.size(), 0);
+  for (const FootPoint& f : feet) {
+    double t = 0.0;
+    const auto e = static_cast<std::size_t>(curve.Locate(f.t[0], t));
+    ms[e] += f.distance * f.distance;
+    ++count[e];
+  }
+  for (std::size_t e = 0; e < ms.size(); ++e)
+    if (count[e] > 0) ms[e] /= count[e];
+}
+
+void CheckPoints(const Eigen::MatrixXd& points, const HermiteFitOptions& options) {
+  if (points.rows() != 2 && points.rows() != 3)
+    throw std::invalid_argument("Hermite curves are fitted to 2D or 3D points");
+  if (!points.allFinite()) throw std::invalid_argument("the points contain NaN or inf");
+  if (options.interpolate) {
+    if (points.cols() < 2) throw std::invalid_argument("an interpolation needs at least 2 points");
+    for (Eigen::Index j = 0; j + 1 < points.cols() + (options.closed ? 1 : 0); ++j) {
+      const Eigen::Index next = (j + 1) % points.cols();
+      if ((points.col(j) - points.col(next)).norm() == 0.0) {
+        throw std::invalid_argument(
+            "points " + std::to_string(j) + " and " + std::to_string(next) +
+            " coincide: an interpolating curve cannot pass twice through one place in "
+            "one element (remove the duplicate)");
+      }
+    }
+    if (options.closed && points.cols() < 3)
+      throw std::invalid_argument("a closed interpolation needs at least 3 points");
+    return;
+  }
+  // Distinct points: an approximation needs at least 3.
+  Eigen::Index distinct = 0;
+  for (Eigen::Index j = 0; j < points.cols() && distinct < 3; ++j) {
+    bool seen = false;
+    for (Eigen::Index k = 0; k < j && !seen; ++k) seen = (points.col(j) - points.col(k)).norm() == 0.0;
+    if (!seen) ++distinct;
+  }
+  if (distinct < 3)
+    throw std::invalid_argument("an approximation needs at least 3 distinct points (got " +
+                                std::to_string(distinct) + "); use --interpolate for 2");
+}
+
+HermiteFitResult Interpolate(const Eigen::MatrixXd& points, const HermiteFitOptions& options) {
+  const int s = static_cast<int>(points.rows()), per = (options.degree + 1) / 2;
+  const int nodes = static_cast<int>(points.cols());
+  const int elements = options.closed ? nodes : nodes - 1;
+  Eigen::MatrixXd dofs = Eigen::MatrixXd::Zero(s, nodes * per);
+  for (int i = 0; i < nodes; ++i) dofs.col(i * per) = points.col(i);
+  // Chord slopes as the start (only for the C2 reduction's end slopes; the solve below replaces them).
+  for (int i = 0; i < nodes; ++i) {
+    const int a = options.closed ? (i + nodes - 1) % nodes : std::max(i - 1, 0);
+    const int b = options.closed ? (i + 1) % nodes : std::min(i + 1, nodes - 1);
+    const int steps = options.closed ? 2 : b - a;  // knot steps of 1 / elements between a and b
+    dofs.col(i * per + 1) = (points.col(b) - points.col(a)) * elements / steps;
+  }
+  HermiteCurve curve = HermiteCurve::Uniform(options.degree, elements, dofs, options.closed, options.c2);
+  curve.set_fairness(options.fairness);
+  // min Q^T K Q over the free dofs (derivatives; positions fixed): K_ff Q_f = -K_fp Q_p, the fixed dofs'
+  // rows and columns deleted (Fang section 5.3). The minimum-norm solution where K_ff is singular.
+  const Eigen::MatrixXd k = curve.FairnessMatrixOf(options.fairness);
+  const Eigen::VectorXd q = curve.parameters();
+  std::vector<Eigen::Index> free, fixed;
+  for (int p = 0; p < curve.num_parameters(); ++p)
+    (curve.parameter_name(p).find("position") != std::string::npos ? fixed : free).push_back(p);
+  Eigen::VectorXd result = q;
+  if (!free.empty()) {
+    const auto nf = static_cast<Eigen::Index>(free.size()), np = static_cast<Eigen::Index>(fixed.size());
+    Eigen::MatrixXd kff(nf, nf), kfp(nf, np);
+    Eigen::VectorXd qp(np);
+    for (Eigen::Index a = 0; a < nf; ++a) {
+      for (Eigen::Index b = 0; b < nf; ++b) kff(a, b) = k(free[a], free[b]);
+      for (Eigen::Index b = 0; b < np; ++b) kfp(a, b) = k(free[a], fixed[b]);
+    }
+    for (Eigen::Index b = 0; b < np; ++b) qp[b] = q[fixed[b]];
+    const Eigen::VectorXd qf = kff.completeOrthogonalDecomposition().solve(Eigen::VectorXd(-kfp * qp));
+    for (Eigen::Index a = 0; a < nf; ++a) result[free[a]] = qf[a];
+  }
+  curve.set_parameters(result);
+  HermiteFitResult out(curve);
+  out.weights = options.fairness;
+  out.energy = curve.EnergyBreakdown(options.fairness);
+  ComputeFootPoints(curve, points, out.foot_points);
+  out.residuals = ComputeResidualStatistics(FootPointDistances(out.foot_points));
+  out.stop_reason = StopReason::kClosedForm;
+  out.fits = 1;
+  out.noise = std::numeric_limits<double>::quiet_NaN();
+  return out;
+}
+
+}  // namespace
+
+const char* ToString(HermiteMethod m) {
+  switch (m) {
+    case HermiteMethod::kSpring:
+      return "spring";
+    case HermiteMethod::kSdm:
+      return "sdm";
+    case HermiteMethod::kTdm:
+      return "tdm";
+    case HermiteMethod::kPdm:
+      return "pdm";
+  }
+  return "?";
+}
+
+HermiteMethod HermiteMethodFromString(const std::string& name) {
+  if (name == "spring") return HermiteMethod::kSpring;
+  if (name == "sdm") return HermiteMethod::kSdm;
+  if (name == "tdm") return HermiteMethod::kTdm;
+  if (name == "pdm") return HermiteMethod::kPdm;
+  throw std::invalid_argument("unknown Hermite fit method '" + name + "' (spring, sdm, tdm or pdm)");
+}
+
+bool HermiteFitOptions::IsValid(std::string* why) const {
+  auto fail = [&](const std::string& reason) {
+    if (why) *why = reason;
+    return false;
+  };
+  if (degree != 3 && degree != 5) return fail("degree must be 3 or 5");
+  if (c2 && degree != 3) return fail("the C2 reduction is for cubic curves (a quintic is C2 already)");
+  if (elements < 0) return fail("elements must be positive, or 0 for adaptive");
+  if (closed && elements == 1) return fail("a closed curve needs at least 2 elements");
+  if (max_elements < 1) return fail("max_elements must be positive");
+  for (const double w : {fairness.alpha1, fairness.alpha2, fairness.alpha3, fairness.beta2, fairness.beta3})
+    if (!(w >= 0) || !std::isfinite(w)) return fail("fairness weights must be finite and >= 0");
+  if (!(tolerance >= 0) || !std::isfinite(tolerance)) return fail("tolerance must be finite and >= 0");
+  if (tolerance > 0 && fairness.IsZero()) return fail("a tolerance scales the fairness weights: give one");
+  if (interpolate && fairness.IsZero()) return fail("an interpolation minimizes the fairness: give a weight");
+  if (interpolate && tolerance > 0) return fail("an interpolation passes through the points: no tolerance");
+  return optimizer.IsValid(why);
+}
+
+Eigen::VectorXd LinearLoadVector(int degree, double h, double q_a, double q_b) {
+  const ElementBasis basis = HermiteElementBasis(degree, h);
+  // F_k = h integral_0^1 phi_k(t) (q_a (1 - t) + q_b t) dt, term by term of phi_k's power coefficients.
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(degree + 1);
+  for (int j = 0; j <= degree; ++j) {
+    const double m0 = 1.0 / (j + 1), m1 = 1.0 / (j + 2);  // integral t^j, t^(j+1)
+    out += basis.coefficients.col(j) * h * (q_a * (m0 - m1) + q_b * m1);
+  }
+  return out;
+}
+
+Eigen::VectorXd ResolvedUnitForce(const HermiteCurve& curve, double u) {
+  const int per = curve.derivatives_per_node(), n = curve.degree() + 1, e_count = curve.num_elements();
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(curve.num_nodes()) * per);
+  double t = 0.0;
+  const int e = curve.Locate(u, t);
+  const std::vector<double>& k = curve.knots();
+  auto h_of = [&](int element) { return k[element + 1] - k[element]; };
+  auto add = [&](int element, double q_a, double q_b) {
+    const Eigen::VectorXd f = LinearLoadVector(curve.degree(), h_of(element), q_a, q_b);
+    for (int l = 0; l < n; ++l) out[curve.ElementNode(element, l / per) * per + l % per] += f[l];
+  };
+  const double hi = h_of(e), u0 = t * hi;
+  const bool neighbours = curve.closed() ? e_count >= 2 : (e > 0 && e + 1 < e_count);
+  if (!neighbours) {
+    // Method 1 (Fang eq. 5.1.9a): the host element alone.
+    add(e, (4.0 - 6.0 * t) / hi, (6.0 * t - 2.0) / hi);
+    return out;
+  }
+  const int prev = (e + e_count - 1) % e_count, next = (e + 1) % e_count;
+  const double hp = h_of(prev), hn = h_of(next), total = hp + hi + hn;
+  // Method 2 (eq. 5.1.9b): 0 -> p_a over the previous element, p_a -> p_b over the host, p_b -> 0 over the
+  // next; total force 1 applied at u0 (measured from the host's first node).
+  const double p_a = (2.0 * hn + 4.0 * hi - 6.0 * u0) / ((hp + hi) * total);
+  const double p_b = (6.0 * u0 + 2.0 * hp - 2.0 * hi) / ((hi + hn) * total);
+  add(prev, 0.0, p_a);
+  add(e, p_a, p_b);
+  add(next, p_b, 0.0);
+  return out;
+}
+
+HermiteCurve InitialHermiteCurve(const Eigen::MatrixXd& points, int degree, int elements, bool closed,
+                                 bool c2) {
+  const int s = static_cast<int>(points.rows());
+  // A B-spline chain through the data (in their best plane for space curves), then its nodal values.
+  const int control =
+      std::max(degree + 3, std::min<int>(2 * elements + 4, static_cast<int>(points.cols()) / 2));
+  const int order = 4;
+  Eigen::MatrixXd plane_basis = Eigen::MatrixXd::Identity(s, 2);
+  Eigen::VectorXd centre = Eigen::VectorXd::Zero(s);
+  Eigen::Matrix2Xd flat;
+  if (s == 2) {
+    flat = points;
+  } else {
+    centre = points.rowwise().mean();
+    const Eigen::MatrixXd centred = points.colwise() - centre;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(centred * centred.transpose());
+    plane_basis.col(0) = eig.eigenvectors().col(2);
+    plane_basis.col(1) = eig.eigenvectors().col(1);
+    flat = plane_basis.transpose() * centred;
+  }
+  const BSplineCurve chain = InitialCurveFromQuadtree(flat, std::max(control, order + 2), order, closed);
+  const double lo = chain.basis().lo(), hi = chain.basis().hi(), span = hi - lo;
+  const int per = (degree + 1) / 2, nodes = closed ? elements : elements + 1;
+  Eigen::MatrixXd dofs(s, nodes * per);
+  LocalGeometry g;
+  for (int i = 0; i < nodes; ++i) {
+    chain.Evaluate({lo + span * i / elements, 0.0, 0.0}, 2, g);
+    dofs.col(i * per) = plane_basis * Eigen::Vector2d(g.point) + centre;
+    dofs.col(i * per + 1) = plane_basis * Eigen::Vector2d(g.d1.col(0)) * span;
+    if (per == 3) dofs.col(i * per + 2) = plane_basis * Eigen::Vector2d(g.d2.col(0)) * span * span;
+  }
+  return HermiteCurve::Uniform(degree, elements, dofs, closed, c2);
+}
+
+HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFitOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument("Hermite fit options: " + why);
+  CheckPoints(points, options);
+  const auto start = Clock::now();
+  if (options.interpolate) {
+    HermiteFitResult r = Interpolate(points, options);
+    r.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    return r;
+  }
+  const bool adaptive = options.elements == 0;
+  const double noise = EstimateCurveNoise(points);
+  // Adaptive elements aim at the tolerance, or at the data's own noise (the RMS a right model leaves).
+  const double target = options.tolerance > 0 ? options.tolerance : noise;
+  int elements = adaptive ? (options.closed ? 3 : 2) : options.elements;
+  HermiteCurve curve = InitialHermiteCurve(points, options.degree, elements, options.closed, options.c2);
+  HermiteFitResult result(curve);
+  result.noise = noise;
+  int fits = 0, total_iterations = 0;
+  auto run = [&](const HermiteCurve& from, const HermiteFairness& w) {
+    OneFit f = FitOnce(from, points, w, options);
+    ++fits;
+    total_iterations += f.fit.iterations;
+    return f;
+  };
+  OneFit best = run(curve, options.fairness);
+  if (adaptive && std::isfinite(target)) {
+    // Split every element whose points' mean squared distance exceeds the target's square by more than its
+    // chi-square spread at 3 sigma (n points: sigma^2 (1 + 3 sqrt(2 / n))), until none does.
+    while (best.curve.num_elements() < options.max_elements) {
+      std::vector<double> ms;
+      std::vector<int> count;
+      LocalErrors(best.curve, best.fit.foot_points, ms, count);
+      std::vector<int> split;
+      for (std::size_t e = 0; e < ms.size(); ++e) {
+        if (count[e] == 0) continue;
+        if (ms[e] > target * target * (1.0 + 3.0 * std::sqrt(2.0 / count[e])))
+          split.push_back(static_cast<int>(e));
+      }
+      if (split.empty()) break;
+      const int room = options.max_elements - best.curve.num_elements();
+      if (static_cast<int>(split.size()) > room) {
+        std::sort(split.begin(), split.end(), [&](int a, int b) { return ms[a] > ms[b]; });
+        split.resize(static_cast<std::size_t>(room));
+      }
+      best = run(best.curve.Refined(split), options.fairness);
+    }
+  } else if (adaptive) {
+    result.note = "the data's noise could not be estimated (too few points along the curve): " +
+                  std::to_string(elements) + " elements kept; give --elements or --tolerance";
+  }
+  double scale = 1.0;
+  if (options.tolerance > 0) {
+    // The one factor k on all weights with RMS(k) = tolerance: the fairest curve within it. RMS grows with k;
+    // bracket by factors of 10, then bisect log k to 1 % of the tolerance.
+    const double tol = options.tolerance;
+    auto rms_of = [](const OneFit& f) { return f.fit.residuals.rms; };
+    double lo = 0.0, hi = 0.0;
+    OneFit at_lo = best;
+    if (rms_of(best) <= tol) {
+      lo = 1.0;
+      double k = 1.0;
+      while (k < 1e12) {
+        k *= 10.0;
+        OneFit f = run(at_lo.curve, Scaled(options.fairness, k));
+        if (rms_of(f) > tol) {
+          hi = k;
+          break;
+        }
+        lo = k;
+        at_lo = std::move(f);
+      }
+    } else {
+      hi = 1.0;
+      double k = 1.0;
+      while (k > 1e-12) {
+        k /= 10.0;
+        OneFit f = run(best.curve, Scaled(options.fairness, k));
+        if (rms_of(f) <= tol) {
+          lo = k;
+          at_lo = std::move(f);
+          break;
+        }
+        hi = k;
+      }
+    }
+    if (lo == 0.0) {
+      result.tolerance_met = false;
+      result.note = "the tolerance " + std::to_string(tol) + " is below what " +
+                    std::to_string(best.curve.num_elements()) +
+                    " elements reach with any fairness weight (add elements or use --elements auto)";
+      scale = 1.0;
+    } else {
+      if (hi > 0.0) {
+        for (int it = 0; it < 30 && std::abs(rms_of(at_lo) - tol) > 0.01 * tol; ++it) {
+          const double k = std::sqrt(lo * hi);
+          OneFit f = run(at_lo.curve, Scaled(options.fairness, k));
+          if (rms_of(f) <= tol) {
+            lo = k;
+            at_lo = std::move(f);
+          } else {
+            hi = k;
+          }
+          if (hi / lo < 1.0001) break;
+        }
+      }
+      scale = lo;
+      best = std::move(at_lo);
+    }
+  }
+  result.curve = best.curve;
+  result.weights = Scaled(options.fairness, scale);
+  result.weight_scale = scale;
+  result.curve.set_fairness(result.weights);
+  result.energy = result.curve.EnergyBreakdown(result.weights);
+  result.foot_points = best.fit.foot_points;
+  result.residuals = best.fit.residuals;
+  result.closeness = 0.0;
+  for (const FootPoint& f : result.foot_points) result.closeness += 0.5 * f.distance * f.distance;
+  result.iterations = best.fit.iterations;
+  result.stop_reason = best.fit.stop_reason;
+  result.history = best.fit.history;
+  result.fits = fits;
+  result.total_iterations = total_iterations;
+  result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return result;
+}
+
+}  // namespace s2m

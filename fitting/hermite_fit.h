@@ -1,0 +1,99 @@
+#pragma once
+// Fitting Hermite finite-element curves (fitting/hermite_curve.h) to points with L. Fang's fairness energy
+// (docs/fair-curves.md): approximation of unorganized points with exact closest points, by Fang's sliding
+// springs (his successive quadratic programming with the geometric Hessian and the spring forces resolved
+// over elements) or by the engine's PDM / TDM / SDM error terms with the fairness as regularizer; or
+// interpolation of ordered points (the points become the nodes, the derivatives are free). Element counts
+// given or adaptive; weights given raw, or scaled to meet a target RMS distance.
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "fitting/fit_result.h"
+#include "fitting/foot_point.h"
+#include "fitting/hermite_curve.h"
+#include "fitting/optimizer_options.h"
+
+namespace s2m {
+
+enum class HermiteMethod {
+  kSpring,  // Fang's sliding springs: SQP with the fairness Hessian only, forces resolved over elements
+  kSdm,     // the engine's squared-distance minimization (geometric_fit.h) with the fairness as regularizer
+  kTdm,
+  kPdm,
+};
+const char* ToString(HermiteMethod method);
+HermiteMethod HermiteMethodFromString(const std::string& name);  // throws std::invalid_argument
+
+struct HermiteFitOptions {
+  int degree = 5;
+  bool closed = false;
+  bool c2 = false;  // cubic only: C2 by the reduced transformation
+  // Elements: > 0 given; 0 adaptive (split where the local error is largest until the tolerance, or the
+  // data's own noise, is met; at most max_elements).
+  int elements = 0;
+  int max_elements = 64;
+  // Interpolation of ordered points (each point a node, uniform knots); otherwise approximation.
+  bool interpolate = false;
+  // Fang's raw weights on u in [0, 1] with the closeness 1/2 sum d_j^2 (docs/fair-curves.md eq. F1).
+  HermiteFairness fairness{0.0, 0.0, 1e-8, 0.0, 0.0};
+  HermiteMethod method = HermiteMethod::kSdm;
+  // > 0: the target RMS distance in data units. The weights are multiplied by the one factor that makes the
+  // fit's RMS equal to it (the fairest curve within the tolerance, a 1-D search); with adaptive elements,
+  // elements are added until the RMS can go below it.
+  double tolerance = 0.0;
+  // Of each fit (the spring method: at most optimizer.max_iterations steps). The relative decrease tolerance
+  // is 1e-8 rather than the engine's 1e-10: the nodal derivatives' tangential parts (the parametrization) are
+  // held only by the fairness, and the last digits of E they still gain are not worth a hundred iterations.
+  OptimizerOptions optimizer = [] {
+    OptimizerOptions o;
+    o.objective_tolerance = 1e-8;
+    return o;
+  }();
+
+  bool IsValid(std::string* why) const;
+};
+
+struct HermiteFitResult {
+  explicit HermiteFitResult(HermiteCurve c) : curve(std::move(c)) {}
+  HermiteCurve curve;
+  HermiteFairness weights;    // the weights used (after the tolerance's scaling)
+  double weight_scale = 1.0;  // the tolerance search's factor (1 without a tolerance)
+  HermiteFairness energy;     // each fairness term's value at the result
+  double closeness = 0.0;     // 1/2 sum d_j^2, data units
+  ResidualStatistics residuals;
+  std::vector<FootPoint> foot_points;
+  int iterations = 0;        // of the last fit (the spring method's SQP steps or the engine's iterations)
+  int total_iterations = 0;  // over all fits (adaptive elements, tolerance search)
+  int fits = 0;
+  StopReason stop_reason = StopReason::kMaxIterations;
+  std::vector<IterationRecord> history;  // of the last fit
+  double seconds = 0.0;
+  bool tolerance_met = true;  // false when the tolerance could not be reached (the note says why)
+  std::string note;
+  double noise = 0.0;  // the data's noise estimate used by adaptive elements (NaN when none)
+};
+
+// Fits a Hermite curve to the points (s x n, s = 2 or 3; ordered when interpolating). Throws
+// std::invalid_argument for invalid options or unusable data (fewer than 3 distinct points for an
+// approximation, fewer than 2 for an interpolation, NaN).
+HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFitOptions& options);
+
+// The initial curve of an approximation: a Hermite curve with `elements` uniform elements sampled from a
+// B-spline chain through the data (fitting/initial_models.h), positions and derivatives at the nodes.
+HermiteCurve InitialHermiteCurve(const Eigen::MatrixXd& points, int degree, int elements, bool closed,
+                                 bool c2);
+
+// Generalized force vector of the load density q_a (1 - t) + q_b t over one element of length h, integrated
+// exactly against its shape functions (Fang eq. 5.1.10, Table 5.1): F_k = integral phi_k(u) q(u) du.
+Eigen::VectorXd LinearLoadVector(int degree, double h, double q_a, double q_b);
+
+// The generalized forces on the curve's dofs (per coordinate, all nodal dofs) of a unit spring force at u,
+// resolved as a linear load over its element and the two neighbours (Fang's Method 2, eq. 5.1.9b;
+// docs/fair-curves.md eq. F15); at an open curve's end elements, over the host element alone (Method 1).
+Eigen::VectorXd ResolvedUnitForce(const HermiteCurve& curve, double u);
+
+}  // namespace s2m
