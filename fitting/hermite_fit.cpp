@@ -372,7 +372,7 @@ HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFit
     return r;
   }
   const bool adaptive = options.elements == 0;
-  const double noise = EstimateCurveNoise(points);
+  const double noise = EstimateCurveNoise(points).sigma;
   // Adaptive elements aim at the tolerance, or at the data's own noise (the RMS a right model leaves).
   const double target = options.tolerance > 0 ? options.tolerance : noise;
   int elements = adaptive ? (options.closed ? 3 : 2) : options.elements;
