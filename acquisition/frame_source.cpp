@@ -491,8 +491,16 @@ std::int64_t RecordSource(FrameSource& source, const fs::path& out, const FrameP
     const std::vector<std::uint8_t> payload =
         f->kind == FrameKind::kDepth ? EncodeDepth(f->depth) : EncodePoints(f->points);
     // A turntable angle needs a pose row to live in (docs/recordings.md): frames with an angle have a pose.
-    writer.AppendFrame(stream_ids.at(static_cast<std::size_t>(f->stream)), f->view, payload, f->world_T_scan,
-                       f->timestamp_ns, f->turntable_angle_rad, compression);
+    try {
+      writer.AppendFrame(stream_ids.at(static_cast<std::size_t>(f->stream)), f->view, payload,
+                         f->world_T_scan, f->timestamp_ns, f->turntable_angle_rad, compression);
+    } catch (const FormatError& e) {
+      // Each frame is its own transaction (docs/recordings.md): the ones before this are on disk. Saying how
+      // many tells the user what the recording holds without opening it.
+      throw FormatError(e.file(), e.location(),
+                        e.problem() + "; the " + std::to_string(done) +
+                            " frame(s) before it are committed and stay readable");
+    }
     ++done;
     if (progress) progress(done, total);
   }
