@@ -11,6 +11,8 @@
 // the minor diameter. Planes and lines have none (their form error is handled by the zone, section 7).
 
 #include <Eigen/Core>
+#include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -47,5 +49,25 @@ Eigen::MatrixXd LocalParameterCovariance(const Torus& shape, const Eigen::Matrix
 template <class Shape>
 std::vector<LinearPropagation> PropagateMeasurands(const Shape& shape, const Eigen::Matrix3Xd& points,
                                                    const MeasurandContext& context);
+
+// The closest points of `shape` to the points: x - d grad d, the gradient of the distance d by central
+// differences (step 1e-7 of the points' extent).
+template <class Shape>
+Eigen::Matrix3Xd FeetOnShape(const Shape& shape, const Eigen::Matrix3Xd& points);
+
+// The residuals' standard deviation s = sqrt(sum r^2 / (m - p)) of a least-squares fit (m residuals, 2 per
+// point for circles and lines; p local parameters); NaN when m <= p.
+template <class Shape>
+double ResidualStandardDeviation(const Shape& shape, const Eigen::Matrix3Xd& points);
+
+// GUM Supplement 1 (JCGM 101:2008) by refitting: each trial moves every foot of the fit (FeetOnShape) by an
+// isotropic normal error of standard deviation `sigma` per coordinate (the model the least-squares
+// covariance assumes: its normal component has variance sigma^2), refits from `shape` (Refine* for sphere,
+// cylinder, cone, circle and torus; Fit* for plane and line) and evaluates `outputs` of the refit and the
+// trial's points. Trials whose refit throws are counted as failed. One summary per output.
+template <class Shape>
+std::vector<MonteCarloSummary> MonteCarloByRefitting(
+    const Shape& shape, const Eigen::Matrix3Xd& points, double sigma, int trials, std::uint64_t seed,
+    const std::function<Eigen::VectorXd(const Shape& refit, const Eigen::Matrix3Xd& trial_points)>& outputs);
 
 }  // namespace s2m
