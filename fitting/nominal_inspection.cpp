@@ -40,6 +40,34 @@ Eigen::Matrix3Xd Columns(const Eigen::Matrix3Xd& points, const std::vector<Eigen
   return out;
 }
 
+// Whether the nominal's faces under the selected points fix all six motions of a rigid body well: the
+// point-to-plane normal matrix sum a a^T, a = [(x - c) x n / r; n] (c the points' centroid, r their RMS
+// radius, so rotations and translations are on one scale), has no eigenvalue below 1e-3 of its largest, i.e.
+// no motion is determined more than sqrt(1000) = 32 times worse than the best determined one. Two planes
+// leave the translation along their common line free (an eigenvalue of exactly zero: the normals are the
+// nominal's); a view that sees little more than that is better placed by the common pose of all views.
+bool FixesAllMotions(const TriangleMeshModel& nominal, const Eigen::Matrix3Xd& world,
+                     const std::vector<Eigen::Index>& keep) {
+  if (keep.size() < 6) return false;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (Eigen::Index i : keep) c += world.col(i);
+  c /= static_cast<double>(keep.size());
+  double r2 = 0;
+  for (Eigen::Index i : keep) r2 += (world.col(i) - c).squaredNorm();
+  const double r = std::sqrt(r2 / static_cast<double>(keep.size()));
+  if (!(r > 0)) return false;
+  Eigen::Matrix<double, 6, 6> h = Eigen::Matrix<double, 6, 6>::Zero();
+  for (Eigen::Index i : keep) {
+    const Eigen::Vector3d x = world.col(i);
+    const Eigen::Vector3d n = nominal.FaceNormal(nominal.Foot(x).triangle);
+    Eigen::Matrix<double, 6, 1> a;
+    a << (x - c).cross(n) / r, n;
+    h += a * a.transpose();
+  }
+  const Eigen::Matrix<double, 6, 1> eig = Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(h).eigenvalues();
+  return eig.minCoeff() > 1e-3 * eig.maxCoeff();
+}
+
 }  // namespace
 
 std::vector<RegionDeviation> RegionStatistics(const TriangleMesh& mesh, const Eigen::VectorXd& deviations,
@@ -147,11 +175,15 @@ NominalInspection InspectAgainstNominal(const TriangleMeshModel& nominal,
       out.registration.push_back(common);
       continue;
     }
-    ModelRegistrationResult result;
+    ModelRegistrationResult result = common;
     for (int round = 0; round < rounds; ++round) {
       const Eigen::Matrix3Xd world = out.nominal_T_scan[k].apply(scans[k]);
       const std::vector<Eigen::Index> keep = selected(world);
-      if (keep.size() < 6) break;  // this view sees too little of the datums: keep the common pose
+      // A view that sees too little of the datums (e.g. two of their planes) keeps the common pose.
+      if (!FixesAllMotions(nominal, world, keep)) {
+        ++out.views_on_common_pose;
+        break;
+      }
       used[k].assign(used[k].size(), 0);
       for (Eigen::Index i : keep) used[k][static_cast<std::size_t>(i)] = 1;
       result = RegisterToModel(target, Columns(scans[k], keep), out.nominal_T_scan[k], options.registration);

@@ -7,7 +7,8 @@
 // which removes the common placement error; (2) each view on its own from there (per_view), which removes
 // each view's own pose error (a turntable's angle and axis errors). With datum groups, both steps use only
 // the points whose foot lies inside a datum group's faces (not on their edges), matched to those faces alone,
-// re-selected over `datum_rounds` rounds: the part is aligned on its datum features, and the other faces'
+// re-selected over `datum_rounds` rounds (a view whose datum points leave a motion free keeps step (1)'s
+// pose): the part is aligned on its datum features, and the other faces'
 // deviations are measured in that frame (a least-squares datum system over the named faces; ISO 5459's
 // sequential primary/secondary/tertiary constraints are not modelled).
 
@@ -52,6 +53,9 @@ struct NominalInspection {
   Eigen::Matrix3Xd normals;                               // the nominal's outward normal at each foot
   std::vector<RegionDeviation> regions;                   // one per face group (groups with no point too)
   Eigen::Index registration_points = 0;                   // points that the registration used
+  // Views whose datum points do not fix all six motions (e.g. they see two datum planes only): they keep the
+  // common pose of step (1).
+  int views_on_common_pose = 0;
 };
 
 // `scans`: each view's points in its own coordinates; `nominal_T_scan_initial`: the recorded poses placing

@@ -11,6 +11,7 @@
 // (counter-clockwise seen from outside) 2-manifold, positive outside.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <memory>
 #include <string>
 #include <vector>
