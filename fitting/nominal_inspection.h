@@ -71,7 +71,7 @@ std::vector<RegionDeviation> RegionStatistics(const TriangleMesh& mesh, const Ei
 
 // The standard uncertainty of each point's normal deviation due to its view's registered pose (the law of
 // propagation from the pose's covariance s^2 H^-1 of the point-to-plane normal equations at the final feet,
-// s^2 = sum d^2 / (n - 6)): u_i^2 = a_i^T V a_i, a_i = [x_i x n_i; n_i] (docs/metrology.md eq. 16).
+// s^2 = sum d^2 / (n - 6)): u_i^2 = a_i^T V a_i, a_i = [x_i x n_i; n_i] (docs/metrology.md eq. 15).
 Eigen::VectorXd PoseDeviationUncertainty(const NominalInspection& inspection);
 
 }  // namespace s2m

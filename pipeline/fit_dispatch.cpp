@@ -193,7 +193,7 @@ constexpr bool kHasMeasurands = std::is_same_v<Shape, Sphere> || std::is_same_v<
 // The derived quantities of a primitive fit with their uncertainties (docs/metrology.md sections 6-8): the
 // shape's measurands and, with a --criterion other than lsq, its zone width (the form error). Linear: the
 // measurands from the fit's covariance (eq. 13 of JCGM 100:2008), the zone from the sensitivities of the
-// re-solved zone to its contacting points times the residuals' standard deviation s (eq. 18). Monte Carlo:
+// re-solved zone to its contacting points times the residuals' standard deviation s (docs/metrology.md eq. 19). Monte Carlo:
 // refits of the feet perturbed by s (JCGM 101:2008). Expanded U with the coverage factor stated.
 template <class Shape>
 nlohmann::json MeasurandsJson(const Shape& shape, const Eigen::Matrix3Xd& points, FitCriterion criterion,

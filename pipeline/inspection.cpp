@@ -197,7 +197,7 @@ Evaluated Evaluate(const CheckSpec& c, int group, const TriangleMesh& mesh, cons
                  {"worst_deviation", r.deviations[worst]}};
     if (linear) {
       const double up = u_pose.size() > worst && std::isfinite(u_pose[worst]) ? u_pose[worst] : 0.0;
-      e.u_linear = 2 * std::sqrt(sigma * sigma + up * up);  // docs/metrology.md eq. 17
+      e.u_linear = 2 * std::sqrt(sigma * sigma + up * up);  // docs/metrology.md eq. 20
     }
   } else if (c.type == "flatness") {
     Plane start_plane = start && start->plane ? *start->plane : FitPlane(g.points).shape;
@@ -220,7 +220,7 @@ Evaluated Evaluate(const CheckSpec& c, int group, const TriangleMesh& mesh, cons
           sum += dw * dw;
         }
       }
-      e.u_linear = sigma * std::sqrt(sum);  // docs/metrology.md eq. 18
+      e.u_linear = sigma * std::sqrt(sum);  // docs/metrology.md eq. 19
     }
   } else {  // position, diameter: the bore's least-squares cylinder
     PrimitiveFitOptions quiet;

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "fitting/measurement_uncertainty.h"
@@ -107,6 +108,7 @@ TEST(MeasurementUncertainty, StandardizedErrorsOfAConeDiameterOver200DataSets) {
   for (double v : z) mean += v / 200;
   for (double v : z) ss += (v - mean) * (v - mean);
   const double sd = std::sqrt(ss / 199);
+  std::printf("standardized errors of the cone diameter: mean %.3f, sd %.3f over 200 data sets\n", mean, sd);
   EXPECT_GE(sd, 0.8);
   EXPECT_LE(sd, 1.25);
   EXPECT_LT(std::abs(mean), 4 * sd / std::sqrt(200.0));
@@ -132,6 +134,9 @@ TEST(MeasurementUncertainty, LinearAndMonteCarloAgreeForANearLinearMeasurand) {
       fit, x, sigma, 400, 1,
       [&](const Cone& refit, const Eigen::Matrix3Xd&) { return Measurands(refit, context); });
   ASSERT_EQ(mc.size(), 1u);
+  std::printf("cone diameter: linear u %.6g, Monte Carlo u %.6g (ratio %.4f), 95 %% interval [%.6g, %.6g]\n",
+              linear.standard_uncertainty, mc[0].standard_uncertainty,
+              mc[0].standard_uncertainty / linear.standard_uncertainty, mc[0].interval_low, mc[0].interval_high);
   EXPECT_EQ(mc[0].failed_trials, 0);
   EXPECT_NEAR(mc[0].standard_uncertainty / linear.standard_uncertainty, 1.0, 0.10)
       << "linear " << linear.standard_uncertainty << ", Monte Carlo " << mc[0].standard_uncertainty;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "fitting/nominal_inspection.h"
@@ -171,6 +172,11 @@ void ExpectBumpFound(const NominalInspection& r, double noise, double flat_mean_
     }
   }
   ASSERT_GT(n, 20);
+  std::printf("bump: %d points, mean deviation %.4f (expected %.4f); +x max %.4f\n", n, sum / n, expected / n,
+              r.regions[0].max);
+  for (const RegionDeviation& g : r.regions)
+    std::printf("  %-7s %6ld points, mean %+.5f, sd %.5f\n", g.name.c_str(), static_cast<long>(g.count), g.mean,
+                g.standard_deviation);
   EXPECT_NEAR(sum / n, expected / n, 4 * noise / std::sqrt(n) + flat_mean_bound) << n << " points";
   // The +x region's largest deviation is the bump's top plus at most a few noise sigmas.
   EXPECT_NEAR(r.regions[0].max, 0.2, 5 * noise);
