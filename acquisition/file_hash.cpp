@@ -61,8 +61,9 @@ class Sha256 {
   void Compress() {
     std::array<std::uint32_t, 64> w{};
     for (int t = 0; t < 16; ++t)
-      w[static_cast<std::size_t>(t)] = (std::uint32_t{block_[4 * t]} << 24) | (std::uint32_t{block_[4 * t + 1]} << 16) |
-                                       (std::uint32_t{block_[4 * t + 2]} << 8) | std::uint32_t{block_[4 * t + 3]};
+      w[static_cast<std::size_t>(t)] =
+          (std::uint32_t{block_[4 * t]} << 24) | (std::uint32_t{block_[4 * t + 1]} << 16) |
+          (std::uint32_t{block_[4 * t + 2]} << 8) | std::uint32_t{block_[4 * t + 3]};
     for (std::size_t t = 16; t < 64; ++t) {
       const std::uint32_t s0 = Rotr(w[t - 15], 7) ^ Rotr(w[t - 15], 18) ^ (w[t - 15] >> 3);
       const std::uint32_t s1 = Rotr(w[t - 2], 17) ^ Rotr(w[t - 2], 19) ^ (w[t - 2] >> 10);
@@ -71,7 +72,8 @@ class Sha256 {
     std::uint32_t a = state_[0], b = state_[1], c = state_[2], d = state_[3], e = state_[4], f = state_[5],
                   g = state_[6], h = state_[7];
     for (std::size_t t = 0; t < 64; ++t) {
-      const std::uint32_t t1 = h + (Rotr(e, 6) ^ Rotr(e, 11) ^ Rotr(e, 25)) + ((e & f) ^ (~e & g)) + kRound[t] + w[t];
+      const std::uint32_t t1 =
+          h + (Rotr(e, 6) ^ Rotr(e, 11) ^ Rotr(e, 25)) + ((e & f) ^ (~e & g)) + kRound[t] + w[t];
       const std::uint32_t t2 = (Rotr(a, 2) ^ Rotr(a, 13) ^ Rotr(a, 22)) + ((a & b) ^ (a & c) ^ (b & c));
       h = g;
       g = f;
@@ -115,7 +117,8 @@ std::string Sha256OfFile(const std::filesystem::path& path) {
   while (in) {
     in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
     const std::streamsize got = in.gcount();
-    if (got > 0) h.Update(reinterpret_cast<const unsigned char*>(buffer.data()), static_cast<std::size_t>(got));
+    if (got > 0)
+      h.Update(reinterpret_cast<const unsigned char*>(buffer.data()), static_cast<std::size_t>(got));
   }
   if (in.bad()) throw FormatError(path.string(), "", "read error");
   return h.HexDigest();

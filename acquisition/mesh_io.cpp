@@ -36,7 +36,8 @@ namespace {
 
 bool EndsWithLower(std::string name, const std::string& suffix) {
   for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return name.size() >= suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return name.size() >= suffix.size() &&
+         name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
 // Builds an indexed mesh from triangles given by coordinates, merging bit-identical vertices.
@@ -61,8 +62,7 @@ class VertexMerger {
 
 Eigen::Matrix<int, 3, Eigen::Dynamic> ToMatrix(const std::vector<std::array<int, 3>>& t) {
   Eigen::Matrix<int, 3, Eigen::Dynamic> m(3, static_cast<Eigen::Index>(t.size()));
-  for (std::size_t i = 0; i < t.size(); ++i)
-    m.col(static_cast<Eigen::Index>(i)) << t[i][0], t[i][1], t[i][2];
+  for (std::size_t i = 0; i < t.size(); ++i) m.col(static_cast<Eigen::Index>(i)) << t[i][0], t[i][1], t[i][2];
   return m;
 }
 
@@ -88,7 +88,8 @@ TriangleMesh ParseBinaryStl(const std::string& bytes, const std::string& file) {
     throw FormatError(file, AtByte(bytes.size()),
                       "truncated: the header declares " + std::to_string(count) + " triangles (" +
                           std::to_string(need) + " bytes), the file has " + std::to_string(bytes.size()) +
-                          " bytes (it ends inside triangle " + std::to_string((bytes.size() - 84) / 50) + ")");
+                          " bytes (it ends inside triangle " + std::to_string((bytes.size() - 84) / 50) +
+                          ")");
   if (bytes.size() > need)
     throw FormatError(file, AtByte(need),
                       "corrupt: the header declares " + std::to_string(count) + " triangles (" +
@@ -104,7 +105,8 @@ TriangleMesh ParseBinaryStl(const std::string& bytes, const std::string& file) {
     for (int k = 0; k < 3; ++k) {
       Eigen::Vector3d p;
       for (int c = 0; c < 3; ++c) {
-        const std::size_t offset = at + 12 + 12 * static_cast<std::size_t>(k) + 4 * static_cast<std::size_t>(c);
+        const std::size_t offset =
+            at + 12 + 12 * static_cast<std::size_t>(k) + 4 * static_cast<std::size_t>(c);
         p[c] = formats::LoadScalar<float>(bytes.data() + offset, true);
         if (!std::isfinite(p[c]))
           throw FormatError(file, AtByte(offset),
@@ -151,7 +153,8 @@ TriangleMesh ParseAsciiStl(const std::string& bytes, const std::string& file) {
         if (key == "endsolid") {
           state = State::kOutside;
         } else if (key == "facet") {
-          if (tok.size() != 5 || tok[1] != "normal") fail("malformed facet line " + formats::Quoted(line.text));
+          if (tok.size() != 5 || tok[1] != "normal")
+            fail("malformed facet line " + formats::Quoted(line.text));
           state = State::kFacet;
           facet_line = line.number;
         } else {
@@ -167,8 +170,8 @@ TriangleMesh ParseAsciiStl(const std::string& bytes, const std::string& file) {
       case State::kLoop:
         if (key == "endloop") {
           if (vertices_in_loop != 3)
-            fail("the facet at line " + std::to_string(facet_line) + " has " + std::to_string(vertices_in_loop) +
-                 " vertices, not 3");
+            fail("the facet at line " + std::to_string(facet_line) + " has " +
+                 std::to_string(vertices_in_loop) + " vertices, not 3");
           state = State::kLoopDone;
         } else if (key == "vertex") {
           if (tok.size() != 4) fail("a vertex needs 3 coordinates: " + formats::Quoted(line.text));
@@ -195,7 +198,8 @@ TriangleMesh ParseAsciiStl(const std::string& bytes, const std::string& file) {
   }
   if (state != State::kOutside) {
     const char* inside = state == State::kSolid ? "a solid (no 'endsolid')" : "a facet";
-    throw FormatError(file, AtLine(lines.line_number() + 1), std::string("truncated: the file ends inside ") + inside);
+    throw FormatError(file, AtLine(lines.line_number() + 1),
+                      std::string("truncated: the file ends inside ") + inside);
   }
   if (triangles.empty()) throw FormatError(file, "", "no facets: an empty mesh");
   TriangleMesh mesh;
@@ -244,7 +248,8 @@ TriangleMesh ParseObj(const std::string& bytes, const std::string& file) {
       for (int c = 0; c < 3; ++c) {
         if (!formats::ParseDouble(tok[static_cast<std::size_t>(1 + c)], p[c]))
           fail("not a number: " + formats::Quoted(tok[static_cast<std::size_t>(1 + c)]));
-        if (!std::isfinite(p[c])) fail("vertex " + std::to_string(vertices.size() + 1) + ": a coordinate is not finite");
+        if (!std::isfinite(p[c]))
+          fail("vertex " + std::to_string(vertices.size() + 1) + ": a coordinate is not finite");
       }
       if (tok.size() == 5) {
         double w = 1;
@@ -274,7 +279,8 @@ TriangleMesh ParseObj(const std::string& bytes, const std::string& file) {
         group_index["default"] = 0;
       }
       for (std::size_t k = 1; k + 1 < face.size(); ++k) {
-        triangles.push_back({static_cast<int>(face[0]), static_cast<int>(face[k]), static_cast<int>(face[k + 1])});
+        triangles.push_back(
+            {static_cast<int>(face[0]), static_cast<int>(face[k]), static_cast<int>(face[k + 1])});
         groups.push_back(current);
       }
     } else if (key == "g" || key == "o") {
@@ -291,7 +297,8 @@ TriangleMesh ParseObj(const std::string& bytes, const std::string& file) {
                key == "mtllib" || key == "usemtl" || key == "cstype" || key == "deg" || key == "curv" ||
                key == "surf" || key == "parm" || key == "end" || key == "mg" || key == "lod" ||
                key == "usemap" || key == "maplib" || key == "shadow_obj" || key == "trace_obj") {
-      continue;  // texture, normals, lines, materials, free-form geometry: not part of the nominal's triangles
+      continue;  // texture, normals, lines, materials, free-form geometry: not part of the nominal's
+                 // triangles
     } else {
       fail("unknown OBJ statement " + formats::Quoted(key));
     }
@@ -300,7 +307,8 @@ TriangleMesh ParseObj(const std::string& bytes, const std::string& file) {
   if (triangles.empty()) throw FormatError(file, "", "no faces ('f' lines): not a mesh");
   TriangleMesh mesh;
   mesh.vertices.resize(3, static_cast<Eigen::Index>(vertices.size()));
-  for (std::size_t i = 0; i < vertices.size(); ++i) mesh.vertices.col(static_cast<Eigen::Index>(i)) = vertices[i];
+  for (std::size_t i = 0; i < vertices.size(); ++i)
+    mesh.vertices.col(static_cast<Eigen::Index>(i)) = vertices[i];
   mesh.triangles = ToMatrix(triangles);
   // Drop names of groups without faces (a `g` before the first face, then another).
   std::vector<int> used(names.size(), 0);
@@ -412,7 +420,8 @@ void WriteAtomically(const std::filesystem::path& path, const std::string& bytes
   }
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
-  if (ec) throw std::runtime_error("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
+  if (ec)
+    throw std::runtime_error("cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message());
 }
 
 }  // namespace
@@ -420,7 +429,8 @@ void WriteAtomically(const std::filesystem::path& path, const std::string& bytes
 void WriteStl(const std::filesystem::path& path, const TriangleMesh& mesh, bool ascii) {
   std::ostringstream out;
   auto normal = [&](Eigen::Index f) {
-    const Eigen::Vector3d a = mesh.vertices.col(mesh.triangles(0, f)), b = mesh.vertices.col(mesh.triangles(1, f)),
+    const Eigen::Vector3d a = mesh.vertices.col(mesh.triangles(0, f)),
+                          b = mesh.vertices.col(mesh.triangles(1, f)),
                           c = mesh.vertices.col(mesh.triangles(2, f));
     const Eigen::Vector3d n = (b - a).cross(c - a);
     return n.norm() > 0 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::Zero();
@@ -479,8 +489,8 @@ void WriteObj(const std::filesystem::path& path, const TriangleMesh& mesh) {
     out << "g " << mesh.GroupName(g) << "\n";
     for (Eigen::Index f = 0; f < mesh.triangle_count(); ++f)
       if (mesh.GroupOf(f) == g)
-        out << "f " << mesh.triangles(0, f) + 1 << " " << mesh.triangles(1, f) + 1 << " " << mesh.triangles(2, f) + 1
-            << "\n";
+        out << "f " << mesh.triangles(0, f) + 1 << " " << mesh.triangles(1, f) + 1 << " "
+            << mesh.triangles(2, f) + 1 << "\n";
   }
   WriteAtomically(path, out.str());
 }

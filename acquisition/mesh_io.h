@@ -28,8 +28,8 @@ TriangleMesh ReadMesh(const std::filesystem::path& path, const std::string& unit
 // The same from bytes already in memory (`file` names them in errors); the format from the name, and for
 // .stl from the bytes (binary when the size is 84 + 50 n for the n its header declares, else ASCII when it
 // starts with "solid").
-TriangleMesh ParseMesh(const std::string& bytes, const std::string& file, const std::string& units = "unknown",
-                       MeshFormat* format = nullptr);
+TriangleMesh ParseMesh(const std::string& bytes, const std::string& file,
+                       const std::string& units = "unknown", MeshFormat* format = nullptr);
 
 // Writes a binary STL (one group) or an ASCII STL with one solid per group; OBJ with one `g` per group.
 // Atomically (written beside, then renamed). Throws std::runtime_error naming the file on failure.

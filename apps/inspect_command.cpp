@@ -16,14 +16,18 @@ Runner AddInspectCommand(CLI::App& app) {
   auto o = std::make_shared<InspectOptions>();
   CLI::App* cmd = app.add_subcommand(
       "inspect",
-      "Compare scan views with a nominal mesh (STL, OBJ, PLY): registration, signed deviations per face group, "
+      "Compare scan views with a nominal mesh (STL, OBJ, PLY): registration, signed deviations per face "
+      "group, "
       "GD&T checks with uncertainties and ISO 14253-1 decisions, a metrology report (docs/metrology.md)");
   cmd->add_option("views", o->input,
                   "The scan: a point cloud, a views.json manifest, a recording (.s2mrec) or an E57 file")
       ->required();
-  cmd->add_option("--nominal", o->nominal, "The nominal mesh: .stl (binary or ASCII), .obj, .ply")->required();
-  cmd->add_option("--part", o->checks, "A checks file (scan2model.checks/1): profile, flatness, position, diameter");
-  cmd->add_option("--output,-o", o->output, "PREFIX: writes PREFIX.json, PREFIX.html and PREFIX_deviations.csv");
+  cmd->add_option("--nominal", o->nominal, "The nominal mesh: .stl (binary or ASCII), .obj, .ply")
+      ->required();
+  cmd->add_option("--part", o->checks,
+                  "A checks file (scan2model.checks/1): profile, flatness, position, diameter");
+  cmd->add_option("--output,-o", o->output,
+                  "PREFIX: writes PREFIX.json, PREFIX.html and PREFIX_deviations.csv");
   cmd->add_option("--units", o->units, "The nominal's units when its file states none (default: the views')");
   cmd->add_option("--method", o->method, "Registration error term: sdm (default), tdm, pdm");
   cmd->add_option("--datum", o->datums,

@@ -27,8 +27,8 @@ UncertaintyMethod UncertaintyMethod::FromString(const std::string& text) {
       used = 0;
     }
     if (used == 0 || used != n.size() || trials < 20 || trials > 1000000)
-      throw std::invalid_argument("--uncertainty monte-carlo:N needs a whole number of trials N in [20, 1e6], got '" +
-                                  n + "'");
+      throw std::invalid_argument(
+          "--uncertainty monte-carlo:N needs a whole number of trials N in [20, 1e6], got '" + n + "'");
     m.kind = Kind::kMonteCarlo;
     m.trials = trials;
     return m;
@@ -79,9 +79,8 @@ std::vector<LinearPropagation> PropagateLinear(
 LinearPropagation PropagateLinear(const std::function<double(const Eigen::VectorXd&)>& f,
                                   const Eigen::VectorXd& p, const Eigen::MatrixXd& covariance,
                                   double relative_step, double absolute_step) {
-  return PropagateLinear(
-      [&f](const Eigen::VectorXd& q) { return Eigen::VectorXd::Constant(1, f(q)); }, p, covariance,
-      relative_step, absolute_step)[0];
+  return PropagateLinear([&f](const Eigen::VectorXd& q) { return Eigen::VectorXd::Constant(1, f(q)); }, p,
+                         covariance, relative_step, absolute_step)[0];
 }
 
 MonteCarloSummary SummarizeMonteCarlo(std::vector<double> values, int failed_trials,
@@ -210,8 +209,8 @@ ConformityDecision DecideConformity(double value, double expanded_uncertainty, c
 }
 
 const char* PlainVerdict(double value, const Specification& spec) {
-  const bool ok = std::isfinite(value) && (!spec.lower || value >= *spec.lower) &&
-                  (!spec.upper || value <= *spec.upper);
+  const bool ok =
+      std::isfinite(value) && (!spec.lower || value >= *spec.lower) && (!spec.upper || value <= *spec.upper);
   return ok ? "pass" : "fail";
 }
 

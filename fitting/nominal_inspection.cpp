@@ -1,8 +1,8 @@
 #include "fitting/nominal_inspection.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <Eigen/Eigenvalues>
 #include <optional>
 #include <stdexcept>
 
@@ -30,7 +30,8 @@ TriangleMesh SubMesh(const TriangleMesh& mesh, const std::vector<int>& groups) {
   for (Eigen::Index f = 0; f < mesh.triangle_count(); ++f)
     if (std::find(groups.begin(), groups.end(), mesh.GroupOf(f)) != groups.end()) kept.push_back(f);
   out.triangles.resize(3, static_cast<Eigen::Index>(kept.size()));
-  for (std::size_t i = 0; i < kept.size(); ++i) out.triangles.col(static_cast<Eigen::Index>(i)) = mesh.triangles.col(kept[i]);
+  for (std::size_t i = 0; i < kept.size(); ++i)
+    out.triangles.col(static_cast<Eigen::Index>(i)) = mesh.triangles.col(kept[i]);
   return out;
 }
 
@@ -64,7 +65,8 @@ bool FixesAllMotions(const TriangleMeshModel& nominal, const Eigen::Matrix3Xd& w
     a << (x - c).cross(n) / r, n;
     h += a * a.transpose();
   }
-  const Eigen::Matrix<double, 6, 1> eig = Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(h).eigenvalues();
+  const Eigen::Matrix<double, 6, 1> eig =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(h).eigenvalues();
   return eig.minCoeff() > 1e-3 * eig.maxCoeff();
 }
 
@@ -102,7 +104,8 @@ std::vector<RegionDeviation> RegionStatistics(const TriangleMesh& mesh, const Ei
     const auto n = static_cast<double>(r.count);
     r.mean = sum[g] / n;
     r.rms = std::sqrt(sum2[g] / n);
-    r.standard_deviation = r.count > 1 ? std::sqrt(std::max(0.0, (sum2[g] - n * r.mean * r.mean) / (n - 1))) : 0.0;
+    r.standard_deviation =
+        r.count > 1 ? std::sqrt(std::max(0.0, (sum2[g] - n * r.mean * r.mean) / (n - 1))) : 0.0;
   }
   return regions;
 }
@@ -142,7 +145,8 @@ NominalInspection InspectAgainstNominal(const TriangleMeshModel& nominal,
       const MeshFoot f = nominal.Foot(world.col(i));
       if (f.region != TriangleRegion::kFace) continue;
       const int g = mesh.GroupOf(f.triangle);
-      if (std::find(options.datum_groups.begin(), options.datum_groups.end(), g) != options.datum_groups.end())
+      if (std::find(options.datum_groups.begin(), options.datum_groups.end(), g) !=
+          options.datum_groups.end())
         keep.push_back(i);
     }
     return keep;
@@ -165,7 +169,8 @@ NominalInspection InspectAgainstNominal(const TriangleMeshModel& nominal,
     correction = common.model_T_scan * correction;
   }
   out.common_correction = correction;
-  for (std::size_t k = 0; k < scans.size(); ++k) out.nominal_T_scan[k] = correction * nominal_T_scan_initial[k];
+  for (std::size_t k = 0; k < scans.size(); ++k)
+    out.nominal_T_scan[k] = correction * nominal_T_scan_initial[k];
 
   // (2) Each view on its own.
   std::vector<std::vector<char>> used(scans.size());

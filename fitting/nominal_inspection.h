@@ -42,17 +42,17 @@ struct RegionDeviation {
 };
 
 struct NominalInspection {
-  std::vector<RigidMotion> nominal_T_scan;                // final pose of each view
-  RigidMotion common_correction;                          // step (1): applied to every recorded pose
-  std::vector<ModelRegistrationResult> registration;      // step (2) per view (step (1)'s when !per_view)
-  Eigen::Matrix3Xd points;                                // every view's points in the nominal frame
-  std::vector<Eigen::Index> view_of_point;                // which view each point came from
-  Eigen::VectorXd deviations;                             // signed, positive outside the nominal
-  std::vector<Eigen::Index> triangle;                     // each point's foot triangle
-  std::vector<int> group;                                 // its face group
-  Eigen::Matrix3Xd normals;                               // the nominal's outward normal at each foot
-  std::vector<RegionDeviation> regions;                   // one per face group (groups with no point too)
-  Eigen::Index registration_points = 0;                   // points that the registration used
+  std::vector<RigidMotion> nominal_T_scan;            // final pose of each view
+  RigidMotion common_correction;                      // step (1): applied to every recorded pose
+  std::vector<ModelRegistrationResult> registration;  // step (2) per view (step (1)'s when !per_view)
+  Eigen::Matrix3Xd points;                            // every view's points in the nominal frame
+  std::vector<Eigen::Index> view_of_point;            // which view each point came from
+  Eigen::VectorXd deviations;                         // signed, positive outside the nominal
+  std::vector<Eigen::Index> triangle;                 // each point's foot triangle
+  std::vector<int> group;                             // its face group
+  Eigen::Matrix3Xd normals;                           // the nominal's outward normal at each foot
+  std::vector<RegionDeviation> regions;               // one per face group (groups with no point too)
+  Eigen::Index registration_points = 0;               // points that the registration used
   // Views whose datum points do not fix all six motions (e.g. they see two datum planes only): they keep the
   // common pose of step (1).
   int views_on_common_pose = 0;

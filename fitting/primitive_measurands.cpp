@@ -184,11 +184,11 @@ std::vector<MonteCarloSummary> MonteCarloByRefitting(
   });
 }
 
-#define S2M_INSTANTIATE(Shape)                                                                        \
-  template Eigen::Matrix3Xd FeetOnShape(const Shape&, const Eigen::Matrix3Xd&);                       \
-  template double ResidualStandardDeviation(const Shape&, const Eigen::Matrix3Xd&);                   \
-  template std::vector<MonteCarloSummary> MonteCarloByRefitting(                                      \
-      const Shape&, const Eigen::Matrix3Xd&, double, int, std::uint64_t,                              \
+#define S2M_INSTANTIATE(Shape)                                                      \
+  template Eigen::Matrix3Xd FeetOnShape(const Shape&, const Eigen::Matrix3Xd&);     \
+  template double ResidualStandardDeviation(const Shape&, const Eigen::Matrix3Xd&); \
+  template std::vector<MonteCarloSummary> MonteCarloByRefitting(                    \
+      const Shape&, const Eigen::Matrix3Xd&, double, int, std::uint64_t,            \
       const std::function<Eigen::VectorXd(const Shape&, const Eigen::Matrix3Xd&)>&);
 S2M_INSTANTIATE(Plane)
 S2M_INSTANTIATE(Line3d)

@@ -62,8 +62,8 @@ std::vector<double> TriangleMesh::GroupAreas() const {
 }
 
 Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
-                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& u, double& v,
-                                       TriangleRegion& region) {
+                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& u,
+                                       double& v, TriangleRegion& region) {
   // Ericson 2005, section 5.1.5: test the Voronoi regions of A, B, C, then of the edges, else the face.
   const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
   const double d1 = ab.dot(ap), d2 = ac.dot(ap);
@@ -266,7 +266,8 @@ int TriangleMeshModel::BuildNode(int begin, int end) {
   Eigen::Vector3d clo = lo, chi = hi;
   auto centroid = [this](int f) {
     return Eigen::Vector3d((mesh_.vertices.col(mesh_.triangles(0, f)) +
-                            mesh_.vertices.col(mesh_.triangles(1, f)) + mesh_.vertices.col(mesh_.triangles(2, f))) /
+                            mesh_.vertices.col(mesh_.triangles(1, f)) +
+                            mesh_.vertices.col(mesh_.triangles(2, f))) /
                            3.0);
   };
   for (int i = begin; i < end; ++i) {
@@ -336,9 +337,9 @@ MeshFoot TriangleMeshModel::Foot(const Eigen::Vector3d& x) const {
         const int f = order_[static_cast<std::size_t>(i)];
         double u = 0, v = 0;
         TriangleRegion region = TriangleRegion::kFace;
-        const Eigen::Vector3d p = ClosestPointOnTriangle(x, mesh_.vertices.col(mesh_.triangles(0, f)),
-                                                         mesh_.vertices.col(mesh_.triangles(1, f)),
-                                                         mesh_.vertices.col(mesh_.triangles(2, f)), u, v, region);
+        const Eigen::Vector3d p = ClosestPointOnTriangle(
+            x, mesh_.vertices.col(mesh_.triangles(0, f)), mesh_.vertices.col(mesh_.triangles(1, f)),
+            mesh_.vertices.col(mesh_.triangles(2, f)), u, v, region);
         const double d2 = (p - x).squaredNorm();
         if (d2 < best_d2) {
           best_d2 = d2;

@@ -1,7 +1,7 @@
 #pragma once
-// A nominal triangle mesh (a part's CAD model as STL, OBJ or PLY) as a fixed model of the fitting engine, with
-// exact point-to-triangle feet found through a bounding-volume hierarchy, and signed distances by the angle-
-// weighted pseudo-normals (docs/metrology.md section 5).
+// A nominal triangle mesh (a part's CAD model as STL, OBJ or PLY) as a fixed model of the fitting engine,
+// with exact point-to-triangle feet found through a bounding-volume hierarchy, and signed distances by the
+// angle- weighted pseudo-normals (docs/metrology.md section 5).
 //
 // Closest point on a triangle: Ericson, "Real-Time Collision Detection", 2005, section 5.1.5 (Voronoi regions
 // of the vertices, edges and face). Sign: Baerentzen and Aanaes, "Signed distance computation using the angle
@@ -20,7 +20,8 @@
 
 namespace s2m {
 
-// A triangle mesh with named face groups (an STL file's solids, an OBJ file's groups, a PLY file's face labels).
+// A triangle mesh with named face groups (an STL file's solids, an OBJ file's groups, a PLY file's face
+// labels).
 struct TriangleMesh {
   Eigen::Matrix3Xd vertices;                        // one vertex per column
   Eigen::Matrix<int, 3, Eigen::Dynamic> triangles;  // vertex indices, counter-clockwise seen from outside
@@ -59,8 +60,8 @@ struct MeshFoot {
 // The closest point of triangle (a, b, c) to x (Ericson 2005, section 5.1.5), with its barycentric (u, v) and
 // region.
 Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& x, const Eigen::Vector3d& a,
-                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& u, double& v,
-                                       TriangleRegion& region);
+                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& u,
+                                       double& v, TriangleRegion& region);
 
 // The mesh as a fixed model: no shape parameters; t = (u, v, triangle) with C(t) = A + u (B - A) + v (C - A)
 // on triangle t[2] (first derivatives the two edge vectors, second derivatives zero: the facets are flat, so

@@ -16,10 +16,10 @@
 #include "acquisition/recording.h"
 #include "fitting/measurement_uncertainty.h"
 #include "fitting/minimum_zone.h"
-#include "fitting/primitive_measurands.h"
 #include "fitting/noise_estimate.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_fit.h"
+#include "fitting/primitive_measurands.h"
 #include "pipeline/detect.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
@@ -186,15 +186,16 @@ nlohmann::json FiniteOrNull(double v) {
 
 // The shapes with measurands (fitting/primitive_measurands.h).
 template <class Shape>
-constexpr bool kHasMeasurands = std::is_same_v<Shape, Sphere> || std::is_same_v<Shape, Cylinder> ||
-                                std::is_same_v<Shape, Cone> || std::is_same_v<Shape, Circle3d> ||
-                                std::is_same_v<Shape, Torus>;
+constexpr bool kHasMeasurands =
+    std::is_same_v<Shape, Sphere> || std::is_same_v<Shape, Cylinder> || std::is_same_v<Shape, Cone> ||
+    std::is_same_v<Shape, Circle3d> || std::is_same_v<Shape, Torus>;
 
 // The derived quantities of a primitive fit with their uncertainties (docs/metrology.md sections 6-8): the
 // shape's measurands and, with a --criterion other than lsq, its zone width (the form error). Linear: the
 // measurands from the fit's covariance (eq. 13 of JCGM 100:2008), the zone from the sensitivities of the
-// re-solved zone to its contacting points times the residuals' standard deviation s (docs/metrology.md eq. 19). Monte Carlo:
-// refits of the feet perturbed by s (JCGM 101:2008). Expanded U with the coverage factor stated.
+// re-solved zone to its contacting points times the residuals' standard deviation s (docs/metrology.md eq.
+// 19). Monte Carlo: refits of the feet perturbed by s (JCGM 101:2008). Expanded U with the coverage factor
+// stated.
 template <class Shape>
 nlohmann::json MeasurandsJson(const Shape& shape, const Eigen::Matrix3Xd& points, FitCriterion criterion,
                               const ChebyshevFit<Shape>* zone, const std::string& model,
@@ -261,7 +262,8 @@ nlohmann::json MeasurandsJson(const Shape& shape, const Eigen::Matrix3Xd& points
   };
   for (std::size_t i = 0; i < names.size(); ++i) add(names[i], values[static_cast<Eigen::Index>(i)], u[i], i);
   if (with_zone)
-    add(std::string(FormName(shape)) + " (" + ToString(criterion) + ")", zone->zone_width, zone_u, names.size());
+    add(std::string(FormName(shape)) + " (" + ToString(criterion) + ")", zone->zone_width, zone_u,
+        names.size());
   return out;
 }
 
@@ -269,11 +271,13 @@ std::string MeasurandsText(const nlohmann::json& measurands) {
   std::ostringstream text;
   text << "\n  derived quantities (value, standard uncertainty u, expanded U = k u)\n";
   for (const auto& m : measurands) {
-    text << "  " << std::left << std::setw(28) << m["name"].get<std::string>() << Format(m["value"].get<double>(), 8)
-         << "  u " << (m["standard_uncertainty"].is_null() ? "-" : Format(m["standard_uncertainty"].get<double>(), 3))
-         << "  U " << (m["expanded_uncertainty"].is_null() ? "-" : Format(m["expanded_uncertainty"].get<double>(), 3))
-         << " (k = " << (m["coverage_factor"].is_null() ? "-" : Format(m["coverage_factor"].get<double>(), 3)) << ", "
-         << m["method"].get<std::string>() << ")\n";
+    text << "  " << std::left << std::setw(28) << m["name"].get<std::string>()
+         << Format(m["value"].get<double>(), 8) << "  u "
+         << (m["standard_uncertainty"].is_null() ? "-" : Format(m["standard_uncertainty"].get<double>(), 3))
+         << "  U "
+         << (m["expanded_uncertainty"].is_null() ? "-" : Format(m["expanded_uncertainty"].get<double>(), 3))
+         << " (k = " << (m["coverage_factor"].is_null() ? "-" : Format(m["coverage_factor"].get<double>(), 3))
+         << ", " << m["method"].get<std::string>() << ")\n";
   }
   return text.str();
 }

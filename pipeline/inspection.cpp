@@ -51,7 +51,9 @@ ChecksFile ParseChecksFile(const std::string& text, const std::string& file) {
   } catch (const nlohmann::json::parse_error& e) {
     throw FormatError(file, AtByte(e.byte), std::string("not valid JSON: ") + e.what());
   }
-  auto fail = [&](const std::string& where, const std::string& problem) { throw FormatError(file, where, problem); };
+  auto fail = [&](const std::string& where, const std::string& problem) {
+    throw FormatError(file, where, problem);
+  };
   if (!j.is_object()) fail("", "a checks file is a JSON object");
   if (!j.contains("schema") || j["schema"] != "scan2model.checks/1")
     fail("schema", "expected \"schema\": \"scan2model.checks/1\"");
@@ -98,7 +100,8 @@ ChecksFile ParseChecksFile(const std::string& text, const std::string& file) {
     } else if (s.type == "diameter") {
       s.nominal = number_member("nominal");
       const std::optional<double> lo = number_member("lower"), hi = number_member("upper");
-      if (!lo || !hi) fail(where, "a diameter check needs \"lower\" and \"upper\" (deviations from the nominal)");
+      if (!lo || !hi)
+        fail(where, "a diameter check needs \"lower\" and \"upper\" (deviations from the nominal)");
       if (*lo > *hi) fail(where, "\"lower\" exceeds \"upper\"");
       s.lower = *lo;
       s.upper = *hi;
@@ -122,7 +125,8 @@ GroupPoints PointsOfGroup(const NominalInspection& r, int group) {
   for (Eigen::Index i = 0; i < r.points.cols(); ++i)
     if (r.group[static_cast<std::size_t>(i)] == group) g.index.push_back(i);
   g.points.resize(3, static_cast<Eigen::Index>(g.index.size()));
-  for (std::size_t k = 0; k < g.index.size(); ++k) g.points.col(static_cast<Eigen::Index>(k)) = r.points.col(g.index[k]);
+  for (std::size_t k = 0; k < g.index.size(); ++k)
+    g.points.col(static_cast<Eigen::Index>(k)) = r.points.col(g.index[k]);
   return g;
 }
 
@@ -137,13 +141,16 @@ Cylinder NominalCylinder(const TriangleMesh& mesh, int group, const std::string&
   for (std::size_t i = 0; i < used.size(); ++i)
     if (used[i]) which.push_back(static_cast<Eigen::Index>(i));
   if (which.size() < 6)
-    throw FitFailure(kInputError, "check '" + check + "': the nominal's group has too few vertices for a cylinder");
+    throw FitFailure(kInputError,
+                     "check '" + check + "': the nominal's group has too few vertices for a cylinder");
   Eigen::Matrix3Xd v(3, static_cast<Eigen::Index>(which.size()));
-  for (std::size_t i = 0; i < which.size(); ++i) v.col(static_cast<Eigen::Index>(i)) = mesh.vertices.col(which[i]);
+  for (std::size_t i = 0; i < which.size(); ++i)
+    v.col(static_cast<Eigen::Index>(i)) = mesh.vertices.col(which[i]);
   try {
     return FitCylinder(v).shape;
   } catch (const std::exception& e) {
-    throw FitFailure(kInputError, "check '" + check + "': no cylinder through the nominal's group: " + e.what());
+    throw FitFailure(kInputError,
+                     "check '" + check + "': no cylinder through the nominal's group: " + e.what());
   }
 }
 
@@ -193,7 +200,8 @@ Evaluated Evaluate(const CheckSpec& c, int group, const TriangleMesh& mesh, cons
       }
     }
     e.value = 2 * largest;
-    e.details = {{"points", g.points.cols()}, {"worst_point", ToJson(Eigen::Vector3d(r.points.col(worst)))},
+    e.details = {{"points", g.points.cols()},
+                 {"worst_point", ToJson(Eigen::Vector3d(r.points.col(worst)))},
                  {"worst_deviation", r.deviations[worst]}};
     if (linear) {
       const double up = u_pose.size() > worst && std::isfinite(u_pose[worst]) ? u_pose[worst] : 0.0;
@@ -204,7 +212,8 @@ Evaluated Evaluate(const CheckSpec& c, int group, const TriangleMesh& mesh, cons
     const ChebyshevFit<Plane> zone = MinimumZoneFit(g.points, start_plane);
     e.value = zone.zone_width;
     e.plane = zone.shape;
-    e.details = {{"points", g.points.cols()}, {"contacts", zone.contacts.size()}, {"converged", zone.converged}};
+    e.details = {
+        {"points", g.points.cols()}, {"contacts", zone.contacts.size()}, {"converged", zone.converged}};
     if (linear) {
       // Sensitivities of the zone width to each contacting point's coordinates by central differences of the
       // re-solved minimum zone (JCGM 100:2008, 5.1.3 note 2); the other points do not move it to first order.
@@ -215,8 +224,9 @@ Evaluated Evaluate(const CheckSpec& c, int group, const TriangleMesh& mesh, cons
           Eigen::Matrix3Xd plus = g.points, minus = g.points;
           plus(axis, contact.index) += h;
           minus(axis, contact.index) -= h;
-          const double dw = (MinimumZoneFit(plus, zone.shape).zone_width - MinimumZoneFit(minus, zone.shape).zone_width) /
-                            (2 * h);
+          const double dw =
+              (MinimumZoneFit(plus, zone.shape).zone_width - MinimumZoneFit(minus, zone.shape).zone_width) /
+              (2 * h);
           sum += dw * dw;
         }
       }
@@ -234,7 +244,8 @@ Evaluated Evaluate(const CheckSpec& c, int group, const TriangleMesh& mesh, cons
       MeasurandContext context;
       e.value = 2 * fit.radius;
       if (linear) e.u_linear = PropagateMeasurands(fit, g.points, context)[0].standard_uncertainty;
-      e.details = {{"points", g.points.cols()}, {"axis_point", ToJson(fit.axis_point)},
+      e.details = {{"points", g.points.cols()},
+                   {"axis_point", ToJson(fit.axis_point)},
                    {"axis_direction", ToJson(fit.axis_direction)}};
     } else {
       const Eigen::Vector3d a0 = nominal.axis_direction.normalized();
@@ -296,9 +307,9 @@ std::string DeviationsCsv(const NominalInspection& r, const TriangleMesh& mesh) 
   out.precision(10);
   out << "view,x,y,z,deviation,group\n";
   for (Eigen::Index i = 0; i < r.points.cols(); ++i)
-    out << r.view_of_point[static_cast<std::size_t>(i)] << "," << r.points(0, i) << "," << r.points(1, i) << ","
-        << r.points(2, i) << "," << r.deviations[i] << "," << mesh.GroupName(r.group[static_cast<std::size_t>(i)])
-        << "\n";
+    out << r.view_of_point[static_cast<std::size_t>(i)] << "," << r.points(0, i) << "," << r.points(1, i)
+        << "," << r.points(2, i) << "," << r.deviations[i] << ","
+        << mesh.GroupName(r.group[static_cast<std::size_t>(i)]) << "\n";
   return out.str();
 }
 
@@ -318,7 +329,8 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw FitFailure(kUsage, std::string("--method: ") + e.what());
   }
-  if (options.registration.error_term != ErrorTerm::kSdm && options.registration.error_term != ErrorTerm::kTdm &&
+  if (options.registration.error_term != ErrorTerm::kSdm &&
+      options.registration.error_term != ErrorTerm::kTdm &&
       options.registration.error_term != ErrorTerm::kPdm)
     throw FitFailure(kUsage, "--method: registration to a nominal takes sdm, tdm or pdm");
   options.per_view = o.per_view;
@@ -339,23 +351,26 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
   }
   const std::string units = views.scans[0].units;
   if (mesh.units != "unknown" && units != "unknown" && mesh.units != units)
-    throw FitFailure(kInputError, "the nominal " + o.nominal + " is in " + mesh.units + " but the views " + o.input +
-                                      " are in " + units + " (give --units to override the nominal's)");
+    throw FitFailure(kInputError, "the nominal " + o.nominal + " is in " + mesh.units + " but the views " +
+                                      o.input + " are in " + units +
+                                      " (give --units to override the nominal's)");
   const std::vector<std::string> datum_names = !o.datums.empty() ? o.datums : checks.datums;
   for (const std::string& name : datum_names) {
     const int g = mesh.FindGroup(name);
     if (g < 0) {
       std::string known;
       for (int k = 0; k < mesh.group_count(); ++k) known += (k ? ", " : "") + mesh.GroupName(k);
-      throw FitFailure(kUsage, "datum '" + name + "' is not a face group of " + o.nominal + " (" + known + ")");
+      throw FitFailure(kUsage,
+                       "datum '" + name + "' is not a face group of " + o.nominal + " (" + known + ")");
     }
     options.datum_groups.push_back(g);
   }
   std::vector<int> check_groups;
   for (const CheckSpec& c : checks.checks) {
     const int g = mesh.FindGroup(c.group);
-    if (g < 0) throw FitFailure(kInputError, "check '" + c.name + "' names face group '" + c.group + "', which " +
-                                                 o.nominal + " does not have");
+    if (g < 0)
+      throw FitFailure(kInputError, "check '" + c.name + "' names face group '" + c.group + "', which " +
+                                        o.nominal + " does not have");
     check_groups.push_back(g);
   }
 
@@ -386,7 +401,8 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
   std::vector<Evaluated> measured;
   for (std::size_t k = 0; k < checks.checks.size(); ++k) {
     try {
-      measured.push_back(Evaluate(checks.checks[k], check_groups[k], mesh, r, sigma, u_pose, linear, nullptr));
+      measured.push_back(
+          Evaluate(checks.checks[k], check_groups[k], mesh, r, sigma, u_pose, linear, nullptr));
     } catch (const FitError& e) {
       throw FitFailure(kFitError, "check '" + checks.checks[k].name + "': " + e.what());
     }
@@ -395,26 +411,29 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
   // views' noise (in its view's coordinates), registers again from the final poses and re-measures.
   std::vector<MonteCarloSummary> mc;
   if (method.kind == UncertaintyMethod::Kind::kMonteCarlo && !checks.checks.empty()) {
-    mc = RunMonteCarlo(method.trials, method.seed, [&](int, std::mt19937_64& random) -> std::optional<Eigen::VectorXd> {
-      std::normal_distribution<double> normal(0.0, sigma);
-      std::vector<Eigen::Matrix3Xd> perturbed = scans;
-      Eigen::Index at = 0;
-      for (std::size_t v = 0; v < scans.size(); ++v) {
-        const Eigen::Matrix3d rt = r.nominal_T_scan[v].rotation().transpose();
-        for (Eigen::Index i = 0; i < scans[v].cols(); ++i, ++at)
-          perturbed[v].col(i) += normal(random) * (rt * r.normals.col(at));
-      }
-      try {
-        const NominalInspection trial = InspectAgainstNominal(nominal, perturbed, r.nominal_T_scan, options);
-        Eigen::VectorXd y(static_cast<Eigen::Index>(checks.checks.size()));
-        for (std::size_t k = 0; k < checks.checks.size(); ++k)
-          y[static_cast<Eigen::Index>(k)] =
-              Evaluate(checks.checks[k], check_groups[k], mesh, trial, sigma, u_pose, false, &measured[k]).value;
-        return y;
-      } catch (const std::exception&) {
-        return std::nullopt;
-      }
-    });
+    mc = RunMonteCarlo(
+        method.trials, method.seed, [&](int, std::mt19937_64& random) -> std::optional<Eigen::VectorXd> {
+          std::normal_distribution<double> normal(0.0, sigma);
+          std::vector<Eigen::Matrix3Xd> perturbed = scans;
+          Eigen::Index at = 0;
+          for (std::size_t v = 0; v < scans.size(); ++v) {
+            const Eigen::Matrix3d rt = r.nominal_T_scan[v].rotation().transpose();
+            for (Eigen::Index i = 0; i < scans[v].cols(); ++i, ++at)
+              perturbed[v].col(i) += normal(random) * (rt * r.normals.col(at));
+          }
+          try {
+            const NominalInspection trial =
+                InspectAgainstNominal(nominal, perturbed, r.nominal_T_scan, options);
+            Eigen::VectorXd y(static_cast<Eigen::Index>(checks.checks.size()));
+            for (std::size_t k = 0; k < checks.checks.size(); ++k)
+              y[static_cast<Eigen::Index>(k)] =
+                  Evaluate(checks.checks[k], check_groups[k], mesh, trial, sigma, u_pose, false, &measured[k])
+                      .value;
+            return y;
+          } catch (const std::exception&) {
+            return std::nullopt;
+          }
+        });
   }
 
   nlohmann::json& j = outcome.document;
@@ -423,8 +442,12 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
   j["units"] = units;
   nlohmann::json groups = nlohmann::json::array();
   for (int g = 0; g < mesh.group_count(); ++g) groups.push_back(mesh.GroupName(g));
-  j["nominal"] = {{"file", o.nominal}, {"format", ToString(mesh_format)}, {"vertices", mesh.vertices.cols()},
-                  {"triangles", mesh.triangle_count()}, {"groups", groups}, {"units", mesh.units}};
+  j["nominal"] = {{"file", o.nominal},
+                  {"format", ToString(mesh_format)},
+                  {"vertices", mesh.vertices.cols()},
+                  {"triangles", mesh.triangle_count()},
+                  {"groups", groups},
+                  {"units", mesh.units}};
   j["input"] = {{"file", o.input}, {"views", views.scans.size()}, {"points", views.TotalPoints()}};
   nlohmann::json view_json = nlohmann::json::array();
   for (std::size_t k = 0; k < views.scans.size(); ++k) {
@@ -448,20 +471,27 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
                        {"common_correction_translation", r.common_correction.translation().norm()},
                        {"seconds", seconds},
                        {"views", view_json}};
-  j["noise"] = {{"sigma", NumberOrNull(sigma)}, {"method", "local quadrics (fitting/noise_estimate.h)"},
+  j["noise"] = {{"sigma", NumberOrNull(sigma)},
+                {"method", "local quadrics (fitting/noise_estimate.h)"},
                 {"neighbourhoods", noise.neighbourhoods}};
   j["deviations"] = DeviationsJson(r.points, r.deviations);
   nlohmann::json regions = nlohmann::json::array();
   for (const RegionDeviation& g : r.regions)
-    regions.push_back({{"name", g.name}, {"nominal_area", g.nominal_area}, {"count", g.count},
-                       {"mean", NumberOrNull(g.mean)}, {"standard_deviation", NumberOrNull(g.standard_deviation)},
-                       {"rms", NumberOrNull(g.rms)}, {"min", NumberOrNull(g.min)}, {"max", NumberOrNull(g.max)}});
+    regions.push_back({{"name", g.name},
+                       {"nominal_area", g.nominal_area},
+                       {"count", g.count},
+                       {"mean", NumberOrNull(g.mean)},
+                       {"standard_deviation", NumberOrNull(g.standard_deviation)},
+                       {"rms", NumberOrNull(g.rms)},
+                       {"min", NumberOrNull(g.min)},
+                       {"max", NumberOrNull(g.max)}});
   j["regions"] = regions;
-  j["uncertainty"] = {{"method", method.ToString()},
-                      {"coverage_probability", 0.95},
-                      {"coverage_factor", method.kind == UncertaintyMethod::Kind::kLinear ? nlohmann::json(2.0)
-                                                                                            : nlohmann::json(nullptr)},
-                      {"decision_rule", "ISO 14253-1:2017 (conformance zone narrowed, non-conformance zone widened by U)"}};
+  j["uncertainty"] = {
+      {"method", method.ToString()},
+      {"coverage_probability", 0.95},
+      {"coverage_factor",
+       method.kind == UncertaintyMethod::Kind::kLinear ? nlohmann::json(2.0) : nlohmann::json(nullptr)},
+      {"decision_rule", "ISO 14253-1:2017 (conformance zone narrowed, non-conformance zone widened by U)"}};
   if (method.kind == UncertaintyMethod::Kind::kMonteCarlo) j["uncertainty"]["trials"] = method.trials;
   nlohmann::json characteristics = nlohmann::json::array();
   for (std::size_t k = 0; k < checks.checks.size(); ++k) {
@@ -492,8 +522,10 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
                          {"unit", units},
                          {"details", e.details}};
     if (method.kind == UncertaintyMethod::Kind::kMonteCarlo)
-      ch["monte_carlo"] = {{"trials", mc[k].trials}, {"failed_trials", mc[k].failed_trials},
-                           {"mean", NumberOrNull(mc[k].mean)}, {"interval_low", NumberOrNull(mc[k].interval_low)},
+      ch["monte_carlo"] = {{"trials", mc[k].trials},
+                           {"failed_trials", mc[k].failed_trials},
+                           {"mean", NumberOrNull(mc[k].mean)},
+                           {"interval_low", NumberOrNull(mc[k].interval_low)},
                            {"interval_high", NumberOrNull(mc[k].interval_high)}};
     characteristics.push_back(ch);
   }
@@ -518,7 +550,8 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
       scanner = nlohmann::json::parse(summary.device.empty() ? "null" : summary.device);
       calibration = nlohmann::json::parse(summary.calibration.empty() ? "null" : summary.calibration);
     } catch (const std::exception& e) {
-      outcome.notes.push_back(std::string("the recording's device description could not be read: ") + e.what());
+      outcome.notes.push_back(std::string("the recording's device description could not be read: ") +
+                              e.what());
     }
   } else if (!views.scans[0].metadata.device.empty()) {
     scanner = {{"name", views.scans[0].metadata.device}};
@@ -526,11 +559,12 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
   j["traceability"] = {
       {"software", "scan2model"},
       {"version", o.software_version},
-      {"method",
-       "registration of the views to the nominal mesh (" + std::string(ToString(options.registration.error_term)) +
-           (options.per_view ? ", all views then each view" : ", all views as one") +
-           (datum_names.empty() ? "" : ", on the datum faces") + "); signed point-to-triangle deviations; " +
-           "uncertainty " + method.ToString() + " (JCGM 100:2008 / JCGM 101:2008); decisions ISO 14253-1:2017"},
+      {"method", "registration of the views to the nominal mesh (" +
+                     std::string(ToString(options.registration.error_term)) +
+                     (options.per_view ? ", all views then each view" : ", all views as one") +
+                     (datum_names.empty() ? "" : ", on the datum faces") +
+                     "); signed point-to-triangle deviations; " + "uncertainty " + method.ToString() +
+                     " (JCGM 100:2008 / JCGM 101:2008); decisions ISO 14253-1:2017"},
       {"date", UtcNow()},
       {"operator", o.operator_name.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.operator_name)},
       {"files", files},
@@ -539,8 +573,8 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
 
   std::ostringstream text;
   text << "scan2model inspect: " << views.TotalPoints() << " points in " << views.scans.size() << " views of "
-       << o.input << " against " << o.nominal << " (" << mesh.triangle_count() << " triangles, units " << units
-       << ")\n\n"
+       << o.input << " against " << o.nominal << " (" << mesh.triangle_count() << " triangles, units "
+       << units << ")\n\n"
        << "  registration      " << ToString(options.registration.error_term)
        << (datum_names.empty() ? ", every face" : ", datums") << ", common correction "
        << Format(r.common_correction.angle() * kRadToDeg, 3) << " deg / "
@@ -548,21 +582,24 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
        << "  noise (views)     " << Format(sigma, 3) << "\n\n"
        << "  region                 points        mean          sd         min         max\n";
   for (const RegionDeviation& g : r.regions)
-    text << "  " << std::left << std::setw(18) << g.name << std::right << std::setw(11) << g.count << std::setw(12)
-         << Format(g.mean, 3) << std::setw(12) << Format(g.standard_deviation, 3) << std::setw(12) << Format(g.min, 3)
-         << std::setw(12) << Format(g.max, 3) << "\n";
+    text << "  " << std::left << std::setw(18) << g.name << std::right << std::setw(11) << g.count
+         << std::setw(12) << Format(g.mean, 3) << std::setw(12) << Format(g.standard_deviation, 3)
+         << std::setw(12) << Format(g.min, 3) << std::setw(12) << Format(g.max, 3) << "\n";
   if (!checks.checks.empty()) {
-    text << "\n  characteristic               nominal      actual   deviation   tolerance           U   decision\n";
+    text << "\n  characteristic               nominal      actual   deviation   tolerance           U   "
+            "decision\n";
     for (const auto& ch : characteristics) {
-      text << "  " << std::left << std::setw(24) << ch["name"].get<std::string>() << std::right << std::setw(12)
-           << Format(ch["nominal"].get<double>(), 5) << std::setw(12) << Format(ch["actual"].get<double>(), 5)
-           << std::setw(12) << Format(ch["deviation"].get<double>(), 4) << std::setw(12)
+      text << "  " << std::left << std::setw(24) << ch["name"].get<std::string>() << std::right
+           << std::setw(12) << Format(ch["nominal"].get<double>(), 5) << std::setw(12)
+           << Format(ch["actual"].get<double>(), 5) << std::setw(12)
+           << Format(ch["deviation"].get<double>(), 4) << std::setw(12)
            << Format(ch["tolerance"].get<double>(), 4) << std::setw(12)
            << (ch["expanded_uncertainty"].is_null() ? std::string("-")
                                                     : Format(ch["expanded_uncertainty"].get<double>(), 3))
            << "   " << ch["decision"].get<std::string>() << " (" << ch["verdict"].get<std::string>() << ")\n";
     }
-    text << "\n  U: expanded uncertainty, " << (linear ? "k = 2 (law of propagation)" : "95 % Monte Carlo interval")
+    text << "\n  U: expanded uncertainty, "
+         << (linear ? "k = 2 (law of propagation)" : "95 % Monte Carlo interval")
          << "; decisions per ISO 14253-1:2017\n";
   }
   outcome.text = text.str();
@@ -586,12 +623,13 @@ std::string InspectionHtml(const nlohmann::json& d) {
   std::ostringstream h;
   h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>Inspection report</title>\n"
     << "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
-       "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}"
+       "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px "
+       "8px;text-align:right}"
        "th{background:#eee}td.l,th.l{text-align:left}.conforms{background:#d8f0d8}"
        ".not-conform{background:#f6d0d0}.undecided{background:#fbeebd}.note{color:#555;font-size:90%}</style>"
        "</head><body>\n";
-  h << "<h1>Inspection report" << (d["part"].get<std::string>().empty() ? "" : ": " + Escape(d["part"].get<std::string>()))
-    << "</h1>\n";
+  h << "<h1>Inspection report"
+    << (d["part"].get<std::string>().empty() ? "" : ": " + Escape(d["part"].get<std::string>())) << "</h1>\n";
   const std::string units = d["units"].get<std::string>();
   // Characteristics.
   h << "<h2>Characteristics</h2>\n";
@@ -600,29 +638,33 @@ std::string InspectionHtml(const nlohmann::json& d) {
   } else {
     h << "<table><tr><th class=\"l\">characteristic</th><th class=\"l\">type</th><th class=\"l\">face</th>"
          "<th>nominal</th><th>actual</th><th>deviation</th><th>lower limit</th><th>upper limit</th><th>u</th>"
-         "<th>U</th><th>k</th><th class=\"l\">decision (ISO 14253-1)</th><th class=\"l\">plain verdict</th></tr>\n";
+         "<th>U</th><th>k</th><th class=\"l\">decision (ISO 14253-1)</th><th class=\"l\">plain "
+         "verdict</th></tr>\n";
     for (const auto& c : d["characteristics"]) {
       const std::string decision = c["decision"];
-      const char* cls = decision == "conforms" ? "conforms" : decision == "does not conform" ? "not-conform" : "undecided";
+      const char* cls = decision == "conforms"           ? "conforms"
+                        : decision == "does not conform" ? "not-conform"
+                                                         : "undecided";
       h << "<tr><td class=\"l\">" << Escape(c["name"]) << "</td><td class=\"l\">" << Escape(c["type"])
         << "</td><td class=\"l\">" << Escape(c["group"]) << "</td><td>" << num(c["nominal"], 6) << "</td><td>"
-        << num(c["actual"], 6) << "</td><td>" << num(c["deviation"]) << "</td><td>" << num(c["lower_limit"], 6)
-        << "</td><td>" << num(c["upper_limit"], 6) << "</td><td>" << num(c["standard_uncertainty"], 3) << "</td><td>"
-        << num(c["expanded_uncertainty"], 3) << "</td><td>" << num(c["coverage_factor"], 3) << "</td><td class=\"l "
-        << cls << "\">" << Escape(decision) << "</td><td class=\"l\">" << Escape(c["verdict"]) << "</td></tr>\n";
+        << num(c["actual"], 6) << "</td><td>" << num(c["deviation"]) << "</td><td>"
+        << num(c["lower_limit"], 6) << "</td><td>" << num(c["upper_limit"], 6) << "</td><td>"
+        << num(c["standard_uncertainty"], 3) << "</td><td>" << num(c["expanded_uncertainty"], 3)
+        << "</td><td>" << num(c["coverage_factor"], 3) << "</td><td class=\"l " << cls << "\">"
+        << Escape(decision) << "</td><td class=\"l\">" << Escape(c["verdict"]) << "</td></tr>\n";
     }
-    h << "</table>\n<p class=\"note\">Values in " << Escape(units) << ". Uncertainty: "
-      << Escape(d["uncertainty"]["method"]) << "; U = k u for about 95 % coverage. " << Escape(d["uncertainty"]["decision_rule"])
-      << ".</p>\n";
+    h << "</table>\n<p class=\"note\">Values in " << Escape(units)
+      << ". Uncertainty: " << Escape(d["uncertainty"]["method"]) << "; U = k u for about 95 % coverage. "
+      << Escape(d["uncertainty"]["decision_rule"]) << ".</p>\n";
   }
   // Regions.
   h << "<h2>Deviation by face group</h2>\n<table><tr><th class=\"l\">face group</th><th>nominal area</th>"
        "<th>points</th><th>mean</th><th>sd</th><th>rms</th><th>min</th><th>max</th></tr>\n";
   for (const auto& r : d["regions"])
-    h << "<tr><td class=\"l\">" << Escape(r["name"]) << "</td><td>" << num(r["nominal_area"], 5) << "</td><td>"
-      << r["count"].get<long long>() << "</td><td>" << num(r["mean"], 3) << "</td><td>" << num(r["standard_deviation"], 3)
-      << "</td><td>" << num(r["rms"], 3) << "</td><td>" << num(r["min"], 3) << "</td><td>" << num(r["max"], 3)
-      << "</td></tr>\n";
+    h << "<tr><td class=\"l\">" << Escape(r["name"]) << "</td><td>" << num(r["nominal_area"], 5)
+      << "</td><td>" << r["count"].get<long long>() << "</td><td>" << num(r["mean"], 3) << "</td><td>"
+      << num(r["standard_deviation"], 3) << "</td><td>" << num(r["rms"], 3) << "</td><td>" << num(r["min"], 3)
+      << "</td><td>" << num(r["max"], 3) << "</td></tr>\n";
   h << "</table>\n";
   // Colour map: the sample in three orthographic views.
   const nlohmann::json& sample = d["deviations"]["sample"]["points"];
@@ -635,7 +677,8 @@ std::string InspectionHtml(const nlohmann::json& d) {
     std::sort(sorted.begin(), sorted.end());
     range = std::max(sorted[static_cast<std::size_t>(0.99 * static_cast<double>(sorted.size() - 1))], 1e-12);
   }
-  h << "<h2>Deviation map</h2>\n<p class=\"note\">Every " << d["deviations"]["sample"]["stride"].get<long long>()
+  h << "<h2>Deviation map</h2>\n<p class=\"note\">Every "
+    << d["deviations"]["sample"]["stride"].get<long long>()
     << "-th point coloured by its signed deviation from the nominal (red outside, blue inside; the scale "
        "saturates at the 99th percentile of |deviation|, "
     << svg::Num(range) << " " << Escape(units) << ").</p>\n";
@@ -643,44 +686,50 @@ std::string InspectionHtml(const nlohmann::json& d) {
   const int axes[3][2] = {{0, 1}, {0, 2}, {1, 2}};
   for (int v = 0; v < 3; ++v) {
     std::vector<Eigen::Vector2d> projected;
-    for (const auto& p : sample) projected.emplace_back(p[axes[v][0]].get<double>(), p[axes[v][1]].get<double>());
-    h << "<figure>" << svg::ColouredScatter(std::string("View from the ") + names[v], projected, values, range, units,
-                                            {540, 400})
+    for (const auto& p : sample)
+      projected.emplace_back(p[axes[v][0]].get<double>(), p[axes[v][1]].get<double>());
+    h << "<figure>"
+      << svg::ColouredScatter(std::string("View from the ") + names[v], projected, values, range, units,
+                              {540, 400})
       << "</figure>\n";
   }
   const nlohmann::json& hist = d["deviations"]["histogram"];
   h << "<figure>"
-    << svg::Histogram("Signed deviations", "deviation (" + units + ")", hist["edges"].get<std::vector<double>>(),
-                      hist["counts"].get<std::vector<double>>())
+    << svg::Histogram("Signed deviations", "deviation (" + units + ")",
+                      hist["edges"].get<std::vector<double>>(), hist["counts"].get<std::vector<double>>())
     << "</figure>\n";
   // Registration.
   h << "<h2>Registration</h2>\n<p>" << Escape(d["registration"]["method"]) << ", "
-    << (d["registration"]["per_view"].get<bool>() ? "all views then each view" : "all views as one rigid body");
+    << (d["registration"]["per_view"].get<bool>() ? "all views then each view"
+                                                  : "all views as one rigid body");
   if (!d["registration"]["datums"].empty()) {
     h << ", on the datum faces";
     for (const auto& x : d["registration"]["datums"]) h << " " << Escape(x);
   }
-  h << ". Noise of the views (local quadrics): " << num(d["noise"]["sigma"], 3) << " " << Escape(units) << ".</p>\n"
+  h << ". Noise of the views (local quadrics): " << num(d["noise"]["sigma"], 3) << " " << Escape(units)
+    << ".</p>\n"
     << "<table><tr><th>view</th><th>points</th><th>rms</th><th>iterations</th><th>pose correction (deg)</th>"
-       "<th>pose correction (" << Escape(units) << ")</th></tr>\n";
+       "<th>pose correction ("
+    << Escape(units) << ")</th></tr>\n";
   int k = 0;
   for (const auto& v : d["registration"]["views"])
     h << "<tr><td>" << k++ << "</td><td>" << v["points"].get<long long>() << "</td><td>" << num(v["rms"], 3)
-      << "</td><td>" << v["iterations"].get<int>() << "</td><td>" << num(v["correction_rotation_deg"], 3) << "</td><td>"
-      << num(v["correction_translation"], 3) << "</td></tr>\n";
+      << "</td><td>" << v["iterations"].get<int>() << "</td><td>" << num(v["correction_rotation_deg"], 3)
+      << "</td><td>" << num(v["correction_translation"], 3) << "</td></tr>\n";
   h << "</table>\n";
   // Traceability.
   const nlohmann::json& t = d["traceability"];
   h << "<h2>Traceability</h2>\n<table>"
-    << "<tr><th class=\"l\">software</th><td class=\"l\">" << Escape(t["software"]) << " " << Escape(t["version"])
-    << "</td></tr><tr><th class=\"l\">method</th><td class=\"l\">" << Escape(t["method"])
-    << "</td></tr><tr><th class=\"l\">date (UTC)</th><td class=\"l\">" << Escape(t["date"])
-    << "</td></tr><tr><th class=\"l\">operator</th><td class=\"l\">"
+    << "<tr><th class=\"l\">software</th><td class=\"l\">" << Escape(t["software"]) << " "
+    << Escape(t["version"]) << "</td></tr><tr><th class=\"l\">method</th><td class=\"l\">"
+    << Escape(t["method"]) << "</td></tr><tr><th class=\"l\">date (UTC)</th><td class=\"l\">"
+    << Escape(t["date"]) << "</td></tr><tr><th class=\"l\">operator</th><td class=\"l\">"
     << (t["operator"].is_null() ? std::string("&ndash;") : Escape(t["operator"]))
     << "</td></tr><tr><th class=\"l\">scanner</th><td class=\"l\">"
     << (t["scanner"].is_null() ? std::string("&ndash;") : Escape(t["scanner"].dump()))
     << "</td></tr><tr><th class=\"l\">calibration</th><td class=\"l\">"
-    << (t["calibration"].is_null() ? std::string("&ndash;") : Escape(t["calibration"].dump())) << "</td></tr>\n";
+    << (t["calibration"].is_null() ? std::string("&ndash;") : Escape(t["calibration"].dump()))
+    << "</td></tr>\n";
   for (const auto& f : t["files"])
     h << "<tr><th class=\"l\">" << Escape(f["role"]) << "</th><td class=\"l\">" << Escape(f["path"])
       << "<br><code>SHA-256 " << Escape(f["sha256"]) << "</code></td></tr>\n";

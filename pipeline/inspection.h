@@ -15,12 +15,12 @@
 namespace s2m::pipeline {
 
 struct InspectOptions {
-  std::string nominal;             // STL, OBJ or PLY mesh
-  std::string input;               // the views: a cloud, views.json, recording or E57
-  std::string checks;              // a scan2model.checks/1 file (empty: deviations only)
-  std::string output;              // PREFIX: PREFIX.json, PREFIX.html, PREFIX_deviations.csv
-  std::string units;               // the nominal's units when its file has none (default: the views')
-  std::string method = "sdm";      // registration's error term: sdm, tdm or pdm
+  std::string nominal;              // STL, OBJ or PLY mesh
+  std::string input;                // the views: a cloud, views.json, recording or E57
+  std::string checks;               // a scan2model.checks/1 file (empty: deviations only)
+  std::string output;               // PREFIX: PREFIX.json, PREFIX.html, PREFIX_deviations.csv
+  std::string units;                // the nominal's units when its file has none (default: the views')
+  std::string method = "sdm";       // registration's error term: sdm, tdm or pdm
   std::vector<std::string> datums;  // face groups to align on (overrides the checks file's "datums")
   bool per_view = true;
   std::string uncertainty = "linear";  // none | linear | monte-carlo:N
@@ -33,11 +33,11 @@ struct InspectOptions {
 // One characteristic of a checks file.
 struct CheckSpec {
   std::string name;
-  std::string type;   // profile, flatness, position, diameter
-  std::string group;  // the nominal's face group it applies to
-  double tolerance = 0.0;                // profile, flatness, position: the zone's width
-  std::optional<double> nominal;         // diameter: the nominal size (default: the nominal mesh's)
-  double lower = 0.0, upper = 0.0;       // diameter: deviations allowed from the nominal
+  std::string type;                 // profile, flatness, position, diameter
+  std::string group;                // the nominal's face group it applies to
+  double tolerance = 0.0;           // profile, flatness, position: the zone's width
+  std::optional<double> nominal;    // diameter: the nominal size (default: the nominal mesh's)
+  double lower = 0.0, upper = 0.0;  // diameter: deviations allowed from the nominal
 };
 
 struct ChecksFile {

@@ -2,13 +2,14 @@
 // Carlo summary's interval, the ISO 14253-1 decisions, and on cone fits the standardized errors of a derived
 // quantity over 200 data sets and the agreement of linear and Monte Carlo uncertainties.
 
+#include "fitting/measurement_uncertainty.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 #include <random>
 
-#include "fitting/measurement_uncertainty.h"
 #include "fitting/primitive_fit.h"
 #include "fitting/primitive_measurands.h"
 
@@ -20,8 +21,7 @@ TEST(MeasurementUncertainty, LinearPropagationOfAProduct) {
   Eigen::Vector2d p(3.0, -2.0);
   Eigen::Matrix2d v;
   v << 0.04, 0.01, 0.01, 0.09;
-  const LinearPropagation r =
-      PropagateLinear([](const Eigen::VectorXd& q) { return q[0] * q[1]; }, p, v);
+  const LinearPropagation r = PropagateLinear([](const Eigen::VectorXd& q) { return q[0] * q[1]; }, p, v);
   EXPECT_DOUBLE_EQ(r.value, -6.0);
   EXPECT_NEAR(r.standard_uncertainty, std::sqrt(4 * 0.04 + 9 * 0.09 + 2 * 3 * -2 * 0.01), 1e-9);
   EXPECT_NEAR(r.sensitivities[0], -2.0, 1e-9);
@@ -76,8 +76,8 @@ Eigen::Matrix3Xd ConePoints(const Cone& cone, int n, double sigma, std::mt19937_
     const double z = 30 * unit(random), phi = 2 * 3.14159265358979 * unit(random);
     const double r = cone.radius + t * z;
     const Eigen::Vector3d radial(std::cos(phi), std::sin(phi), 0);
-    const Eigen::Vector3d normal = (radial * std::cos(cone.half_angle) - Eigen::Vector3d::UnitZ() *
-                                                                            std::sin(cone.half_angle));
+    const Eigen::Vector3d normal =
+        (radial * std::cos(cone.half_angle) - Eigen::Vector3d::UnitZ() * std::sin(cone.half_angle));
     x.col(i) = r * radial + z * Eigen::Vector3d::UnitZ() + noise(random) * normal;
   }
   return x;
@@ -136,7 +136,8 @@ TEST(MeasurementUncertainty, LinearAndMonteCarloAgreeForANearLinearMeasurand) {
   ASSERT_EQ(mc.size(), 1u);
   std::printf("cone diameter: linear u %.6g, Monte Carlo u %.6g (ratio %.4f), 95 %% interval [%.6g, %.6g]\n",
               linear.standard_uncertainty, mc[0].standard_uncertainty,
-              mc[0].standard_uncertainty / linear.standard_uncertainty, mc[0].interval_low, mc[0].interval_high);
+              mc[0].standard_uncertainty / linear.standard_uncertainty, mc[0].interval_low,
+              mc[0].interval_high);
   EXPECT_EQ(mc[0].failed_trials, 0);
   EXPECT_NEAR(mc[0].standard_uncertainty / linear.standard_uncertainty, 1.0, 0.10)
       << "linear " << linear.standard_uncertainty << ", Monte Carlo " << mc[0].standard_uncertainty;

@@ -1,18 +1,18 @@
 // Nominal mesh readers (docs/metrology.md section 5): STL (binary, ASCII), OBJ and PLY meshes round trip
 // with their groups, and truncated or corrupt files are rejected with the file and the problem named.
 
-#include <gtest/gtest.h>
+#include "acquisition/mesh_io.h"
 
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <cstring>
 #include <filesystem>
-#include <limits>
 #include <fstream>
+#include <limits>
 #include <string>
 
 #include "acquisition/format_error.h"
-#include "acquisition/mesh_io.h"
 
 namespace s2m {
 namespace {
@@ -95,7 +95,8 @@ TEST(MeshIo, RoundTripsWithGroups) {
   EXPECT_EQ(d.group_names, (std::vector<std::string>{"label 7", "label 9"}));
   EXPECT_EQ(d.units, "mm");
   // OBJ with negative indices, v/vt/vn references and comments.
-  WriteBytes(dir / "e.obj", "# a square\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\ng top\nf -4/1 -3/1 -2/1 -1/1\n");
+  WriteBytes(dir / "e.obj",
+             "# a square\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\ng top\nf -4/1 -3/1 -2/1 -1/1\n");
   EXPECT_EQ(ReadMesh(dir / "e.obj").triangle_count(), 2);
   fs::remove_all(dir);
 }
@@ -123,8 +124,9 @@ TEST(MeshIo, RejectsTruncatedAndCorruptFiles) {
   const std::string ascii = ReadBytes(dir / "good_ascii.stl");
   WriteBytes(dir / "cut_ascii.stl", ascii.substr(0, ascii.size() / 2));
   ExpectRejected(dir / "cut_ascii.stl", "truncated: the file ends inside");
-  WriteBytes(dir / "two.stl",
-             "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid s\n");
+  WriteBytes(
+      dir / "two.stl",
+      "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid s\n");
   ExpectRejected(dir / "two.stl", "has 2 vertices, not 3");
   WriteBytes(dir / "word.stl",
              "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 zero\nvertex 1 0 0\nvertex 0 1 0\nendloop\n"

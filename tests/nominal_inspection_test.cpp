@@ -3,13 +3,14 @@
 // directions with known pose errors: the registration recovers the poses, the deviation map finds the bump
 // with its amplitude and the other faces stay within the noise.
 
+#include "fitting/nominal_inspection.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 #include <random>
 
-#include "fitting/nominal_inspection.h"
 #include "fitting/triangle_mesh.h"
 #include "synthetic/synthetic_cases.h"
 
@@ -18,14 +19,16 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// A box [-a, a] x [-b, b] x [0, c], two triangles per face, counter-clockwise seen from outside, one group per
-// face: +x, -x, +y, -y, top, bottom.
+// A box [-a, a] x [-b, b] x [0, c], two triangles per face, counter-clockwise seen from outside, one group
+// per face: +x, -x, +y, -y, top, bottom.
 TriangleMesh Box(double a, double b, double c) {
   TriangleMesh m;
   m.vertices.resize(3, 8);
-  for (int i = 0; i < 8; ++i) m.vertices.col(i) << ((i & 1) ? a : -a), ((i & 2) ? b : -b), ((i & 4) ? c : 0.0);
+  for (int i = 0; i < 8; ++i)
+    m.vertices.col(i) << ((i & 1) ? a : -a), ((i & 2) ? b : -b), ((i & 4) ? c : 0.0);
   // Faces as quads (v0, v1, v2, v3) counter-clockwise from outside.
-  const int quads[6][4] = {{1, 3, 7, 5}, {0, 4, 6, 2}, {2, 6, 7, 3}, {0, 1, 5, 4}, {4, 5, 7, 6}, {0, 2, 3, 1}};
+  const int quads[6][4] = {{1, 3, 7, 5}, {0, 4, 6, 2}, {2, 6, 7, 3},
+                           {0, 1, 5, 4}, {4, 5, 7, 6}, {0, 2, 3, 1}};
   m.triangles.resize(3, 12);
   for (int f = 0; f < 6; ++f) {
     m.triangles.col(2 * f) << quads[f][0], quads[f][1], quads[f][2];
@@ -48,10 +51,10 @@ TEST(TriangleMeshModel, FeetAndSignsMatchBruteForce) {
     for (Eigen::Index f = 0; f < model.mesh().triangle_count(); ++f) {
       double a, b;
       TriangleRegion region;
-      const Eigen::Vector3d p = ClosestPointOnTriangle(
-          x, model.mesh().vertices.col(model.mesh().triangles(0, f)),
-          model.mesh().vertices.col(model.mesh().triangles(1, f)),
-          model.mesh().vertices.col(model.mesh().triangles(2, f)), a, b, region);
+      const Eigen::Vector3d p =
+          ClosestPointOnTriangle(x, model.mesh().vertices.col(model.mesh().triangles(0, f)),
+                                 model.mesh().vertices.col(model.mesh().triangles(1, f)),
+                                 model.mesh().vertices.col(model.mesh().triangles(2, f)), a, b, region);
       best = std::min(best, (p - x).norm());
     }
     const MeshFoot foot = model.Foot(x);
@@ -74,8 +77,8 @@ TEST(TriangleMeshModel, RejectsInvalidMeshes) {
   EXPECT_THROW(TriangleMeshModel{empty}, std::invalid_argument);
 }
 
-// The part as made: the box with a smooth bump of `height` (cos^2 profile, radius R) on the +x face centred at
-// (y, z) = (0, 10), sampled uniformly by area with outward normals.
+// The part as made: the box with a smooth bump of `height` (cos^2 profile, radius R) on the +x face centred
+// at (y, z) = (0, 10), sampled uniformly by area with outward normals.
 SurfaceSample BumpedBox(double height, double radius, int count, std::uint64_t seed) {
   const double a = 30, b = 20, c = 20;
   std::mt19937_64 random(seed);
@@ -95,7 +98,8 @@ SurfaceSample BumpedBox(double height, double radius, int count, std::uint64_t s
     switch (f) {
       case 0: {
         const double y = -b + 2 * b * p, z = c * q, rho = std::hypot(y, z - 10);
-        const double bump = rho < radius ? height * std::pow(std::cos(kPi * rho / (2 * radius)), 2) : 0.0;  // = Bump
+        const double bump =
+            rho < radius ? height * std::pow(std::cos(kPi * rho / (2 * radius)), 2) : 0.0;  // = Bump
         x << a + bump, y, z;
         n = Eigen::Vector3d::UnitX();
         break;
@@ -175,8 +179,8 @@ void ExpectBumpFound(const NominalInspection& r, double noise, double flat_mean_
   std::printf("bump: %d points, mean deviation %.4f (expected %.4f); +x max %.4f\n", n, sum / n, expected / n,
               r.regions[0].max);
   for (const RegionDeviation& g : r.regions)
-    std::printf("  %-7s %6ld points, mean %+.5f, sd %.5f\n", g.name.c_str(), static_cast<long>(g.count), g.mean,
-                g.standard_deviation);
+    std::printf("  %-7s %6ld points, mean %+.5f, sd %.5f\n", g.name.c_str(), static_cast<long>(g.count),
+                g.mean, g.standard_deviation);
   EXPECT_NEAR(sum / n, expected / n, 4 * noise / std::sqrt(n) + flat_mean_bound) << n << " points";
   // The +x region's largest deviation is the bump's top plus at most a few noise sigmas.
   EXPECT_NEAR(r.regions[0].max, 0.2, 5 * noise);

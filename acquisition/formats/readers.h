@@ -13,9 +13,9 @@ namespace s2m::formats {
 std::string ReadFileBytes(const std::string& path);
 
 Scan ParsePly(const std::string& bytes, const std::string& file);
-// A PLY mesh's faces: face i's vertex indices are indices[offsets[i] .. offsets[i + 1]) (offsets has one entry
-// more than there are faces); labels (one per face) when the face element has a "label", "group" or "region"
-// property.
+// A PLY mesh's faces: face i's vertex indices are indices[offsets[i] .. offsets[i + 1]) (offsets has one
+// entry more than there are faces); labels (one per face) when the face element has a "label", "group" or
+// "region" property.
 struct PlyFaces {
   std::vector<std::int64_t> indices;
   std::vector<std::size_t> offsets;
