@@ -14,10 +14,12 @@
 #include "acquisition/nist_reference.h"
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
+#include "fitting/measurement_uncertainty.h"
 #include "fitting/minimum_zone.h"
 #include "fitting/noise_estimate.h"
 #include "fitting/primitive_compare.h"
 #include "fitting/primitive_fit.h"
+#include "fitting/primitive_measurands.h"
 #include "pipeline/detect.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
@@ -178,6 +180,108 @@ Eigen::Matrix3Xd FootPointsOf(const Shape& shape, const Eigen::Matrix3Xd& points
   return points - gradient * d.asDiagonal();
 }
 
+nlohmann::json FiniteOrNull(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
+// The shapes with measurands (fitting/primitive_measurands.h).
+template <class Shape>
+constexpr bool kHasMeasurands =
+    std::is_same_v<Shape, Sphere> || std::is_same_v<Shape, Cylinder> || std::is_same_v<Shape, Cone> ||
+    std::is_same_v<Shape, Circle3d> || std::is_same_v<Shape, Torus>;
+
+// The derived quantities of a primitive fit with their uncertainties (docs/metrology.md sections 6-8): the
+// shape's measurands and, with a --criterion other than lsq, its zone width (the form error). Linear: the
+// measurands from the fit's covariance (eq. 13 of JCGM 100:2008), the zone from the sensitivities of the
+// re-solved zone to its contacting points times the residuals' standard deviation s (docs/metrology.md eq.
+// 19). Monte Carlo: refits of the feet perturbed by s (JCGM 101:2008). Expanded U with the coverage factor
+// stated.
+template <class Shape>
+nlohmann::json MeasurandsJson(const Shape& shape, const Eigen::Matrix3Xd& points, FitCriterion criterion,
+                              const ChebyshevFit<Shape>* zone, const std::string& model,
+                              const UncertaintyMethod& method, const std::string& units) {
+  std::vector<std::string> names;
+  Eigen::VectorXd values(0);
+  MeasurandContext context;
+  context.station = points.rowwise().mean();
+  if constexpr (kHasMeasurands<Shape>) {
+    names = MeasurandNames(shape);
+    values = Measurands(shape, context);
+  }
+  const double s = ResidualStandardDeviation(shape, points);
+  std::vector<double> u(names.size(), std::nan(""));
+  const bool with_zone = zone != nullptr;
+  double zone_u = std::nan("");
+  std::vector<MonteCarloSummary> mc;
+  if (method.kind == UncertaintyMethod::Kind::kLinear) {
+    if constexpr (kHasMeasurands<Shape>) {
+      const std::vector<LinearPropagation> lp = PropagateMeasurands(shape, points, context);
+      for (std::size_t i = 0; i < lp.size(); ++i) u[i] = lp[i].standard_uncertainty;
+    }
+    if (with_zone) {
+      const double h = 1e-6 * std::max(ComputeBounds(points).diagonal(), 1e-300);
+      double sum = 0;
+      for (const ZoneContact& c : zone->contacts)
+        for (int axis = 0; axis < 3; ++axis) {
+          Eigen::Matrix3Xd plus = points, minus = points;
+          plus(axis, c.index) += h;
+          minus(axis, c.index) -= h;
+          const double dw = (CriterionFit(criterion, plus, zone->shape, model)->zone_width -
+                             CriterionFit(criterion, minus, zone->shape, model)->zone_width) /
+                            (2 * h);
+          sum += dw * dw;
+        }
+      zone_u = s * std::sqrt(sum);
+    }
+  } else if (method.kind == UncertaintyMethod::Kind::kMonteCarlo) {
+    mc = MonteCarloByRefitting<Shape>(
+        shape, points, s, method.trials, method.seed, [&](const Shape& refit, const Eigen::Matrix3Xd& trial) {
+          Eigen::VectorXd y(static_cast<Eigen::Index>(names.size()) + (with_zone ? 1 : 0));
+          if constexpr (kHasMeasurands<Shape>) y.head(values.size()) = Measurands(refit, context);
+          if (with_zone) y[y.size() - 1] = CriterionFit(criterion, trial, refit, model)->zone_width;
+          return y;
+        });
+  }
+  nlohmann::json out = nlohmann::json::array();
+  auto add = [&](const std::string& name, double value, double standard, std::size_t mc_index) {
+    ExpandedUncertainty e = ExpandLinear(standard);
+    nlohmann::json m = {{"name", name}, {"value", value}, {"unit", units}, {"method", method.ToString()}};
+    if (method.kind == UncertaintyMethod::Kind::kMonteCarlo && mc_index < mc.size()) {
+      e = ExpandMonteCarlo(mc[mc_index]);
+      m["monte_carlo"] = {{"trials", mc[mc_index].trials},
+                          {"failed_trials", mc[mc_index].failed_trials},
+                          {"mean", FiniteOrNull(mc[mc_index].mean)},
+                          {"interval_low", FiniteOrNull(mc[mc_index].interval_low)},
+                          {"interval_high", FiniteOrNull(mc[mc_index].interval_high)}};
+    }
+    m["standard_uncertainty"] = FiniteOrNull(e.standard_uncertainty);
+    m["expanded_uncertainty"] = FiniteOrNull(e.expanded);
+    m["coverage_factor"] = FiniteOrNull(e.coverage_factor);
+    m["coverage_probability"] = e.coverage_probability;
+    out.push_back(m);
+  };
+  for (std::size_t i = 0; i < names.size(); ++i) add(names[i], values[static_cast<Eigen::Index>(i)], u[i], i);
+  if (with_zone)
+    add(std::string(FormName(shape)) + " (" + ToString(criterion) + ")", zone->zone_width, zone_u,
+        names.size());
+  return out;
+}
+
+std::string MeasurandsText(const nlohmann::json& measurands) {
+  std::ostringstream text;
+  text << "\n  derived quantities (value, standard uncertainty u, expanded U = k u)\n";
+  for (const auto& m : measurands) {
+    text << "  " << std::left << std::setw(28) << m["name"].get<std::string>()
+         << Format(m["value"].get<double>(), 8) << "  u "
+         << (m["standard_uncertainty"].is_null() ? "-" : Format(m["standard_uncertainty"].get<double>(), 3))
+         << "  U "
+         << (m["expanded_uncertainty"].is_null() ? "-" : Format(m["expanded_uncertainty"].get<double>(), 3))
+         << " (k = " << (m["coverage_factor"].is_null() ? "-" : Format(m["coverage_factor"].get<double>(), 3))
+         << ", " << m["method"].get<std::string>() << ")\n";
+  }
+  return text.str();
+}
+
 template <class Shape, class FitFn>
 FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std::string& format,
                                FitFn fit_fn) {
@@ -248,6 +352,15 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
     form_json[o.criterion] = c;
   }
 
+  // Uncertainties of the derived quantities (docs/metrology.md sections 6-8): the measurands of the shape and
+  // the --criterion zone, by the law of propagation or by Monte Carlo refits.
+  const UncertaintyMethod uncertainty_method = UncertaintyMethod::FromString(o.uncertainty);
+  const nlohmann::json measurands =
+      uncertainty_method.kind == UncertaintyMethod::Kind::kNone
+          ? nlohmann::json(nullptr)
+          : MeasurandsJson(fit.shape, scan.points, criterion, chebyshev ? &*chebyshev : nullptr, o.model,
+                           uncertainty_method, scan.units);
+
   FitOutcome outcome;
   {
     nlohmann::json& j = outcome.document;
@@ -282,6 +395,7 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
     }
     j["deviations"] = DeviationsJson(scan.points, signed_distances, {}, evidence.weights);
     j["adequacy"] = adequacy.ToJson();
+    if (!measurands.is_null()) j["measurands"] = measurands;
     MarkUncertainties(j, trusted);
   }
 
@@ -330,6 +444,7 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
     for (const Row& r : Parameters(chebyshev->shape))
       text << "    " << std::left << std::setw(16) << r.name << r.text << "\n";
   }
+  if (!measurands.is_null()) text << MeasurandsText(measurands);
   text << adequacy.Text();
   if (o.verbose) text << HistoryTable(fit.history);
   if (deviation) {

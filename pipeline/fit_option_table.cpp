@@ -5,6 +5,8 @@
 #include <set>
 #include <stdexcept>
 
+#include "fitting/measurement_uncertainty.h"
+
 namespace s2m::pipeline {
 namespace {
 
@@ -264,6 +266,21 @@ std::vector<FitOptionSpec> MakeTable() {
                -1e300,
                1e300,
                [](FitOptions& o, const std::string& v) { o.criterion = v; }});
+  t.push_back(
+      {"uncertainty",
+       "--uncertainty",
+       K::kText,
+       "none",
+       "Primitives: uncertainties of the derived quantities (diameters, the cone's diameter at the data's "
+       "mid-height, the torus' diameters, the form error of --criterion): none, linear (the GUM's law of "
+       "propagation from the fit's covariance) or monte-carlo:N (GUM Supplement 1, N refits of perturbed "
+       "data); expanded uncertainty U with its coverage factor (docs/metrology.md)",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.uncertainty = v; },
+       [](const std::string& v) { UncertaintyMethod::FromString(v); }});
   t.push_back(
       {"robust",
        "--robust",

@@ -51,6 +51,9 @@ struct FitOptions {
   // Primitives: the criterion of the form evaluation besides least squares (fitting/minimum_zone.h): lsq,
   // minzone, inscribed or circumscribed (docs/metrology.md).
   std::string criterion = "lsq";
+  // Primitives: how the derived quantities' uncertainties are evaluated (fitting/measurement_uncertainty.h):
+  // none, linear or monte-carlo:N (docs/metrology.md sections 6-8).
+  std::string uncertainty = "none";
   // Primitives: detect the dominant instance first (pipeline/detect.h), fit its inliers, count the rest.
   bool robust = false;
   std::uint64_t seed = 1;

@@ -1,6 +1,7 @@
-// PLY (Turk, "The PLY polygon file format", 1994): ascii, binary_little_endian and binary_big_endian. Only
-// the vertex element is kept; every other element (faces, the Stanford range_grid, ...) is parsed to validate
-// the file and dropped.
+// PLY (Turk, "The PLY polygon file format", 1994): ascii, binary_little_endian and binary_big_endian. The
+// vertex element is kept, and for meshes (ParsePlyMesh) the face element's vertex index lists and an optional
+// integer face label; every other element (the Stanford range_grid, ...) is parsed to validate the file and
+// dropped.
 
 #include <algorithm>
 #include <cmath>
@@ -77,7 +78,8 @@ constexpr std::size_t kCountCheckedBeforeReading = std::size_t{1} << 20;
 
 class PlyParser {
  public:
-  PlyParser(const std::string& bytes, const std::string& file) : bytes_(bytes), file_(file) {}
+  PlyParser(const std::string& bytes, const std::string& file, PlyFaces* faces = nullptr)
+      : bytes_(bytes), file_(file), faces_(faces) {}
 
   Scan Parse() {
     ParseHeader();
@@ -93,6 +95,7 @@ class PlyParser {
     }
     if (vertex->count == 0)
       throw FormatError(file_, "header", "empty point set: the vertex element has 0 entries");
+    if (faces_ != nullptr) FindFaceLayout();
     for (const Element& e : elements_) {
       if (encoding_ == Encoding::kAscii)
         ReadAsciiElement(e, &e == vertex);
@@ -169,6 +172,32 @@ class PlyParser {
     if (!have_format) Fail("header", "no 'format' line");
   }
 
+  // The face element's index list ("vertex_indices" or "vertex_index") and label ("label", "group" or
+  // "region", a scalar) when faces are wanted.
+  void FindFaceLayout() {
+    for (const Element& e : elements_) {
+      if (e.name != "face") continue;
+      face_element_ = &e;
+      for (int i = 0; i < static_cast<int>(e.properties.size()); ++i) {
+        const Property& p = e.properties[static_cast<std::size_t>(i)];
+        if (p.is_list && (p.name == "vertex_indices" || p.name == "vertex_index")) face_list_ = i;
+        if (!p.is_list && (p.name == "label" || p.name == "group" || p.name == "region")) face_label_ = i;
+      }
+      if (face_list_ < 0)
+        Fail("header", "the face element has no list property 'vertex_indices' (or 'vertex_index')");
+    }
+    if (face_element_ == nullptr) Fail("header", "no 'face' element: the file holds points, not a mesh");
+    faces_->has_labels = face_label_ >= 0;
+  }
+
+  // Stores one face's index list item (checked to be a whole number) while it is read.
+  void StoreFaceIndex(double value, const std::string& where) {
+    if (!(value >= 0) || value != std::floor(value) || value > 2147483647.0)
+      Fail(where, "face " + std::to_string(faces_->offsets.size() - 1) + ": vertex index " +
+                      std::to_string(value) + " is not a non-negative integer");
+    faces_->indices.push_back(static_cast<std::int64_t>(value));
+  }
+
   void ReadPoseComment(const std::vector<std::string_view>& tok, const std::string& where) {
     Eigen::Matrix<double, 3, 4> m;
     for (int i = 0; i < 12; ++i) {
@@ -216,6 +245,7 @@ class PlyParser {
                                                  std::to_string(left) + " bytes follow");
     }
     if (is_vertex) Allocate(e.count);
+    const bool is_face = faces_ != nullptr && &e == face_element_;
     std::vector<std::string_view> tok;
     std::vector<double> values(e.properties.size());
     Line line;
@@ -240,9 +270,12 @@ class PlyParser {
           if (t + 1 + n > tok.size())
             Fail(where,
                  "list '" + prop.name + "' declares " + std::to_string(n) + " items, the line has fewer");
+          const bool keep = is_face && static_cast<int>(p) == face_list_;
+          if (keep) faces_->offsets.push_back(faces_->indices.size());
           for (std::size_t k = 0; k < n; ++k) {
-            double dummy;
-            if (!ParseDouble(tok[t + 1 + k], dummy)) Fail(where, "not a number: " + Quoted(tok[t + 1 + k]));
+            double item;
+            if (!ParseDouble(tok[t + 1 + k], item)) Fail(where, "not a number: " + Quoted(tok[t + 1 + k]));
+            if (keep) StoreFaceIndex(item, where);
           }
           t += 1 + n;
         } else {
@@ -254,7 +287,16 @@ class PlyParser {
         Fail(where, "expected " + std::to_string(t) + " values for element '" + e.name + "', found " +
                         std::to_string(tok.size()));
       if (is_vertex) StoreVertex(i, values, where);
+      if (is_face && face_label_ >= 0) StoreFaceLabel(values, where);
     }
+  }
+
+  void StoreFaceLabel(const std::vector<double>& values, const std::string& where) {
+    const double label = values[static_cast<std::size_t>(face_label_)];
+    if (!std::isfinite(label) || label != std::floor(label))
+      Fail(where, "face " + std::to_string(faces_->labels.size()) + ": label " + std::to_string(label) +
+                      " is not an integer");
+    faces_->labels.push_back(static_cast<std::int64_t>(label));
   }
 
   void ReadBinaryElement(const Element& e, bool is_vertex) {
@@ -276,6 +318,7 @@ class PlyParser {
                                 " bytes) but only " + std::to_string(left) + " bytes follow");
     }
     if (is_vertex) Allocate(e.count);
+    const bool is_face = faces_ != nullptr && &e == face_element_;
     std::vector<double> values(e.properties.size());
     for (std::size_t i = 0; i < e.count; ++i) {
       const std::size_t record_start = offset_;
@@ -284,13 +327,21 @@ class PlyParser {
         if (prop.is_list) {
           const std::size_t n = static_cast<std::size_t>(Take(prop.count_type, little, e, i));
           const std::size_t need = n * SizeOf(prop.type);
-          if (need > bytes_.size() - offset_) TruncatedAt(e, i);
+          if (need / std::max<std::size_t>(1, SizeOf(prop.type)) != n || need > bytes_.size() - offset_)
+            TruncatedAt(e, i);
+          if (is_face && static_cast<int>(p) == face_list_) {
+            faces_->offsets.push_back(faces_->indices.size());
+            for (std::size_t k = 0; k < n; ++k)
+              StoreFaceIndex(LoadAsDouble(bytes_.data() + offset_ + k * SizeOf(prop.type), prop.type, little),
+                             AtByte(record_start));
+          }
           offset_ += need;
         } else {
           values[p] = Take(prop.type, little, e, i);
         }
       }
       if (is_vertex) StoreVertex(i, values, AtByte(record_start));
+      if (is_face && face_label_ >= 0) StoreFaceLabel(values, AtByte(record_start));
     }
   }
 
@@ -314,12 +365,22 @@ class PlyParser {
   VertexLayout layout_;
   std::size_t offset_ = 0;
   Scan scan_;
+  PlyFaces* faces_ = nullptr;
+  const Element* face_element_ = nullptr;
+  int face_list_ = -1, face_label_ = -1;
 };
 
 }  // namespace
 
 Scan ParsePly(const std::string& bytes, const std::string& file) {
   return PlyParser(bytes, file).Parse();
+}
+
+Scan ParsePlyMesh(const std::string& bytes, const std::string& file, PlyFaces& faces) {
+  faces = PlyFaces();
+  Scan vertices = PlyParser(bytes, file, &faces).Parse();
+  faces.offsets.push_back(faces.indices.size());  // the end of the last face
+  return vertices;
 }
 
 }  // namespace s2m::formats
