@@ -149,7 +149,7 @@ CurveInterrogation InterrogateCurve(const InterrogatedCurve& curve, const Interr
   breaks.push_back(curve.hi);
   std::vector<double> u_table = {curve.lo}, s_table = {0.0};
   Jet jet;
-  double dk2 = 0.0;
+  double dk2 = 0.0, k2 = 0.0;
   for (std::size_t p = 0; p + 1 < breaks.size(); ++p) {
     for (int k = 0; k < kSubintervals; ++k) {
       const double a = breaks[p] + (breaks[p + 1] - breaks[p]) * k / kSubintervals;
@@ -162,6 +162,7 @@ CurveInterrogation InterrogateCurve(const InterrogatedCurve& curve, const Interr
         double kappa = 0.0, dkds = 0.0, tau = 0.0;
         CurvatureOf(jet.col(1), jet.col(2), jet.col(3), kappa, dkds, tau);
         dk2 += kGaussW[q] * (b - a) * speed * dkds * dkds;
+        k2 += kGaussW[q] * (b - a) * speed * kappa * kappa;
       }
       u_table.push_back(b);
       s_table.push_back(s_table.back() + length);
@@ -169,6 +170,7 @@ CurveInterrogation InterrogateCurve(const InterrogatedCurve& curve, const Interr
   }
   out.length = s_table.back();
   out.dkappa_ds_squared = dk2;
+  out.kappa_squared = k2;
   if (!(out.length > 0)) throw std::invalid_argument("interrogation: the curve has zero length");
   // s -> u: the table's sub-interval, then Newton on s(u) = s kept in it.
   auto u_at = [&](double s) {
@@ -270,6 +272,22 @@ CurveInterrogation InterrogateCurve(const InterrogatedCurve& curve, const Interr
       last_s = c.s;
       last_k = c.kappa;
     }
+  }
+  // Curvature extrema: sign changes of dkappa/ds between consecutive samples (a closed curve's last sample is
+  // its first: the seam's change counts once), ignoring values below 1e-6 of the largest.
+  double max_dk = 0.0;
+  for (const CurvatureSample& c : out.samples) max_dk = std::max(max_dk, std::abs(c.dkappa_ds));
+  if (max_dk > 0) {
+    const double zero = 1e-6 * max_dk;
+    int first = 0, last = 0;
+    for (const CurvatureSample& c : out.samples) {
+      const int sign = c.dkappa_ds > zero ? 1 : (c.dkappa_ds < -zero ? -1 : 0);
+      if (sign == 0) continue;
+      if (first == 0) first = sign;
+      if (last != 0 && sign != last) ++out.curvature_extrema;
+      last = sign;
+    }
+    if (curve.closed && first != 0 && last != 0 && first != last) ++out.curvature_extrema;
   }
   return out;
 }

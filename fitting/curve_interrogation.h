@@ -63,8 +63,12 @@ struct CurveInterrogation {
   std::vector<JunctionJump> junctions;
   std::vector<double> inflections;  // normalized arc length of each sign change of kappa (plane curves)
   double max_abs_kappa = 0.0;
-  double zeta = 0.0;                  // Sapidis' global fairness: sum of z_i over the junctions
-  double dkappa_ds_squared = 0.0;     // integral (dkappa/ds)^2 ds (Gauss-Legendre on every piece)
+  double zeta = 0.0;               // Sapidis' global fairness: sum of z_i over the junctions
+  double dkappa_ds_squared = 0.0;  // integral (dkappa/ds)^2 ds (Gauss-Legendre on every piece)
+  double kappa_squared = 0.0;      // integral kappa^2 ds, the bending energy (the same quadrature)
+  // Local extrema of the curvature: sign changes of dkappa/ds between samples (|dkappa/ds| below 1e-6 of
+  // its largest value counts as zero), across a closed curve's seam too; plane curves use the signed kappa.
+  int curvature_extrema = 0;
   double max_g1 = 0.0, max_g2 = 0.0;  // largest jumps
 };
 

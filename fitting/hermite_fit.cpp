@@ -19,17 +19,37 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// ---- Fang's sliding springs as a problem of the minimizer (docs/fair-curves.md eqs. F14-F16)
-// ----------------- State: the curve (in the unit box) and its exact feet. Cost: 1/2 sum d_j^2 + Q^T K Q.
-// Linearization: the geometric Hessian 2 K alone (the springs' Hessian is left out, as in Fang eq. 5.1.4) and
-// the gradient 2 K Q
-// - F, F the spring forces (X_j - w(u_j)) resolved over the elements around each attachment point. The
-// minimizer's Levenberg-Marquardt damping keeps the steps finite where K is singular (rigid translations) and
-// its acceptance test on the true cost replaces the thesis' undamped step.
+// ---- Fang's sliding springs as a problem of the minimizer (docs/fair-curves.md eqs. F14-F16, F28)
+// State: the curve (in the unit box) and its exact feet. Cost: 1/2 sum d_j^2 + Q^T K Q. Linearization: the
+// gradient 2 K Q - F, F the spring forces (X_j - w(u_j)) resolved over the elements around each attachment
+// point (Fang's Method 2); the Hessian 2 K of the fairness, plus (unless `fairness_hessian_only`, Fang's
+// eq. 5.1.4 as printed) the sliding springs' own stiffness: a zero-length spring that slides along the
+// curve resists only motion across it, sum_j Psi_j n_j n_j^T Psi_j^T (eq. F28). The minimizer's
+// Levenberg-Marquardt damping keeps the steps finite where the Hessian is singular (rigid translations with
+// the fairness alone) and its acceptance test on the true cost replaces the thesis' undamped step.
+// The generalized forces of a unit point load at u on all nodal dofs (per coordinate): the shape functions
+// Psi(u) of its element, the exact gradient of 1/2 d^2 at a fixed foot (envelope theorem).
+Eigen::VectorXd PointForce(const HermiteCurve& curve, double u) {
+  const int per = curve.derivatives_per_node();
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(curve.num_nodes()) * per);
+  double t = 0.0;
+  const int e = curve.Locate(u, t);
+  const ElementBasis basis = HermiteElementBasis(curve.degree(), curve.knots()[e + 1] - curve.knots()[e]);
+  const Eigen::VectorXd phi = ElementDerivativeRow(basis, 0, t);
+  for (int l = 0; l < curve.degree() + 1; ++l) out[curve.ElementNode(e, l / per) * per + l % per] += phi[l];
+  return out;
+}
+
 class SpringProblem : public NonlinearProblem {
  public:
-  SpringProblem(HermiteCurve curve, const Eigen::MatrixXd& y, double unit, double diagonal_floor)
-      : curve_(std::move(curve)), trial_(curve_), y_(y), unit_(unit), normal_(diagonal_floor) {
+  SpringProblem(HermiteCurve curve, const Eigen::MatrixXd& y, double unit, double diagonal_floor,
+                bool fairness_hessian_only)
+      : curve_(std::move(curve)),
+        trial_(curve_),
+        y_(y),
+        unit_(unit),
+        fairness_only_(fairness_hessian_only),
+        normal_(diagonal_floor) {
     k_ = curve_.FairnessMatrix({});
     if (k_.size() == 0) k_ = Eigen::MatrixXd::Zero(curve_.num_parameters(), curve_.num_parameters());
     ComputeFootPoints(curve_, y_, feet_);
@@ -48,7 +68,8 @@ class SpringProblem : public NonlinearProblem {
       const FootPoint& foot = feet_[static_cast<std::size_t>(j)];
       curve_.Evaluate(foot.t, 0, g);
       const Eigen::VectorXd pull = y_.col(j) - Eigen::VectorXd(g.point);
-      force += ResolvedUnitForce(curve_, foot.t[0]) * pull.transpose();
+      force += (exact_forces_ ? PointForce(curve_, foot.t[0]) : ResolvedUnitForce(curve_, foot.t[0])) *
+               pull.transpose();
     }
     const Eigen::MatrixXd reduced = curve_.expansion().transpose() * force;
     Eigen::VectorXd f(curve_.num_parameters());
@@ -56,6 +77,26 @@ class SpringProblem : public NonlinearProblem {
       for (int c = 0; c < s; ++c) f[k * s + c] = reduced(k, c);
     normal_.H() = 2.0 * k_;
     normal_.g() = 2.0 * k_ * curve_.parameters() - f;
+    if (!fairness_only_) {
+      // The springs' stiffness across the curve: (Psi_j^T n_j)(Psi_j^T n_j)^T per point, n_j the unit
+      // residual direction (normal to the curve at an interior foot); a point on the curve adds none.
+      std::vector<JacobianEntry> entries;
+      for (Eigen::Index j = 0; j < y_.cols(); ++j) {
+        const FootPoint& foot = feet_[static_cast<std::size_t>(j)];
+        curve_.Evaluate(foot.t, 0, g);
+        const Eigen::VectorXd r = y_.col(j) - Eigen::VectorXd(g.point);
+        const double d = r.norm();
+        if (!(d > 0)) continue;
+        const Eigen::VectorXd n = r / d;
+        curve_.ShapeJacobian(foot.t, false, entries);
+        for (const JacobianEntry& a : entries) {
+          const double an = a.column.head(s).dot(n);
+          if (an == 0.0) continue;
+          for (const JacobianEntry& b : entries)
+            normal_.H()(a.index, b.index) += an * b.column.head(s).dot(n);
+        }
+      }
+    }
     return normal_;
   }
 
@@ -86,6 +127,9 @@ class SpringProblem : public NonlinearProblem {
   }
 
   HermiteCurve& curve() { return curve_; }
+  // The finishing stage: the exact generalized forces Psi(u_j) of the point loads instead of the resolved
+  // ones (eq. F29).
+  void UseExactForces() { exact_forces_ = true; }
 
  private:
   double Objective(const HermiteCurve& c, const std::vector<FootPoint>& feet) const {
@@ -98,6 +142,8 @@ class SpringProblem : public NonlinearProblem {
   HermiteCurve curve_, trial_;
   const Eigen::MatrixXd& y_;
   double unit_;
+  bool fairness_only_;
+  bool exact_forces_ = false;
   Eigen::MatrixXd k_;
   DenseNormalEquations normal_;
   std::vector<FootPoint> feet_, trial_feet_;
@@ -133,8 +179,19 @@ OneFit FitOnce(const HermiteCurve& start, const Eigen::MatrixXd& points, const H
   const Eigen::MatrixXd y = (points.colwise() - Eigen::VectorXd(offset)) / scale;
   HermiteCurve unit = curve;
   unit.ApplySimilarity(1.0 / scale, VecS(-offset / scale));
-  SpringProblem problem(unit, y, scale, options.optimizer.damping.diagonal_floor);
-  const MinimizerSummary summary = TrustRegionMinimizer(options.optimizer).Minimize(problem);
+  SpringProblem problem(unit, y, scale, options.optimizer.damping.diagonal_floor,
+                        options.spring_as_in_thesis);
+  MinimizerSummary summary = TrustRegionMinimizer(options.optimizer).Minimize(problem);
+  if (!options.spring_as_in_thesis && summary.iterations < options.optimizer.max_iterations) {
+    // Where the resolved forces stop decreasing E, finish with the exact point forces (eq. F29).
+    problem.UseExactForces();
+    OptimizerOptions rest = options.optimizer;
+    rest.max_iterations = options.optimizer.max_iterations - summary.iterations;
+    const MinimizerSummary finish = TrustRegionMinimizer(rest).Minimize(problem, summary.iterations);
+    summary.iterations += finish.iterations;
+    summary.stop_reason = finish.stop_reason;
+    summary.history.insert(summary.history.end(), finish.history.begin(), finish.history.end());
+  }
   curve = problem.curve();
   curve.ApplySimilarity(scale, offset);
   (void)s;
@@ -243,7 +300,42 @@ HermiteFitResult Interpolate(const Eigen::MatrixXd& points, const HermiteFitOpti
   return out;
 }
 
+// Arc length by 5-point Gauss-Legendre on 8 sub-intervals of every element.
+double ArcLength(const HermiteCurve& curve) {
+  static const double x[5] = {0.0469100770306680, 0.2307653449471585, 0.5, 0.7692346550528415,
+                              0.9530899229693320};
+  static const double w[5] = {0.1184634425280945, 0.2393143352496832, 0.2844444444444444, 0.2393143352496832,
+                              0.1184634425280945};
+  const std::vector<double>& k = curve.knots();
+  Eigen::MatrixXd jet;
+  double length = 0.0;
+  for (std::size_t e = 0; e + 1 < k.size(); ++e)
+    for (int sub = 0; sub < 8; ++sub) {
+      const double a = k[e] + (k[e + 1] - k[e]) * sub / 8.0, b = k[e] + (k[e + 1] - k[e]) * (sub + 1) / 8.0;
+      for (int q = 0; q < 5; ++q) {
+        curve.EvaluateJet(a + (b - a) * x[q], 1, jet);
+        length += w[q] * (b - a) * jet.col(1).norm();
+      }
+    }
+  return length;
+}
+
 }  // namespace
+
+double FairnessFractionScale(double fraction, int points, double sigma, double length,
+                             const HermiteFairness& mix, double* closeness_reference,
+                             double* fairness_reference) {
+  // C0 = 1/2 N sigma^2: the closeness of a curve at the noise. F0: the alpha terms of a circle of perimeter
+  // L at constant speed on [0, 1], |w^(p)| = L (2 pi)^(p - 1) (the jump terms vanish on it).
+  const double two_pi = 2.0 * M_PI;
+  const double c0 = 0.5 * points * sigma * sigma;
+  const double f0 =
+      length * length * (mix.alpha1 + mix.alpha2 * std::pow(two_pi, 2) + mix.alpha3 * std::pow(two_pi, 4));
+  if (closeness_reference) *closeness_reference = c0;
+  if (fairness_reference) *fairness_reference = f0;
+  if (!(c0 > 0) || !(f0 > 0)) throw std::invalid_argument("fairness fraction: zero noise, length or weights");
+  return fraction / (1.0 - fraction) * c0 / f0;
+}
 
 const char* ToString(HermiteMethod m) {
   switch (m) {
@@ -283,6 +375,14 @@ bool HermiteFitOptions::IsValid(std::string* why) const {
   if (tolerance > 0 && fairness.IsZero()) return fail("a tolerance scales the fairness weights: give one");
   if (interpolate && fairness.IsZero()) return fail("an interpolation minimizes the fairness: give a weight");
   if (interpolate && tolerance > 0) return fail("an interpolation passes through the points: no tolerance");
+  if (!(fairness_fraction >= 0 && fairness_fraction < 1))
+    return fail("the fairness fraction must be in [0, 1) (0: not used)");
+  if (fairness_fraction > 0 && tolerance > 0)
+    return fail("give a fairness fraction or a tolerance, not both (each sets the weights' scale)");
+  if (fairness_fraction > 0 && interpolate)
+    return fail("an interpolation passes through the points: no fairness fraction");
+  if (fairness_fraction > 0 && fairness.alpha1 == 0 && fairness.alpha2 == 0 && fairness.alpha3 == 0)
+    return fail("the fairness fraction normalizes the alpha terms: give at least one alpha weight");
   return optimizer.IsValid(why);
 }
 
@@ -379,6 +479,27 @@ HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFit
   HermiteCurve curve = InitialHermiteCurve(points, options.degree, elements, options.closed, options.c2);
   HermiteFitResult result(curve);
   result.noise = noise;
+  // The weights of the fits: as given, or scaled by the fairness fraction's factor (eq. F27).
+  HermiteFairness base = options.fairness;
+  double scale = 1.0;
+  if (options.fairness_fraction > 0) {
+    HermiteFitResult::Fraction& f = result.fraction;
+    f.fraction = options.fairness_fraction;
+    // The data's length: the initial chain sampled with at least 16 elements (the fit's own curve, once
+    // found, has nearly the same length; the reference must not depend on the result).
+    f.length = ArcLength(
+        elements >= 16 ? curve : InitialHermiteCurve(points, options.degree, 16, options.closed, false));
+    // The noise estimate, floored at 1e-6 of the length (noise-free data: the floor of double-precision
+    // coordinates' resolution at that scale, not a smoothing).
+    if (!std::isfinite(noise))
+      throw std::invalid_argument(
+          "the fairness fraction needs the data's noise estimate, which needs more points along the curve; "
+          "give --tolerance or the raw weights");
+    f.sigma = std::max(noise, 1e-6 * f.length);
+    scale = FairnessFractionScale(f.fraction, static_cast<int>(points.cols()), f.sigma, f.length,
+                                  options.fairness, &f.closeness_reference, &f.fairness_reference);
+    base = Scaled(options.fairness, scale);
+  }
   int fits = 0, total_iterations = 0;
   auto run = [&](const HermiteCurve& from, const HermiteFairness& w) {
     OneFit f = FitOnce(from, points, w, options);
@@ -386,7 +507,7 @@ HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFit
     total_iterations += f.fit.iterations;
     return f;
   };
-  OneFit best = run(curve, options.fairness);
+  OneFit best = run(curve, base);
   if (adaptive && std::isfinite(target)) {
     // Split every element whose points' mean squared distance exceeds the target's square by more than its
     // chi-square spread at 3 sigma (n points: sigma^2 (1 + 3 sqrt(2 / n))), until none does.
@@ -406,13 +527,12 @@ HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFit
         std::sort(split.begin(), split.end(), [&](int a, int b) { return ms[a] > ms[b]; });
         split.resize(static_cast<std::size_t>(room));
       }
-      best = run(best.curve.Refined(split), options.fairness);
+      best = run(best.curve.Refined(split), base);
     }
   } else if (adaptive) {
     result.note = "the data's noise could not be estimated (too few points along the curve): " +
                   std::to_string(elements) + " elements kept; give --elements or --tolerance";
   }
-  double scale = 1.0;
   if (options.tolerance > 0) {
     // The one factor k on all weights with RMS(k) = tolerance: the fairest curve within it. RMS grows with k;
     // bracket by factors of 10, then bisect log k to 1 % of the tolerance.
@@ -480,6 +600,12 @@ HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFit
   result.residuals = best.fit.residuals;
   result.closeness = 0.0;
   for (const FootPoint& f : result.foot_points) result.closeness += 0.5 * f.distance * f.distance;
+  if (options.fairness_fraction > 0) {
+    const HermiteFairness& e = result.energy;
+    result.fraction.closeness = result.closeness / result.fraction.closeness_reference;
+    result.fraction.fairness =
+        (e.alpha1 + e.alpha2 + e.alpha3 + e.beta2 + e.beta3) / (scale * result.fraction.fairness_reference);
+  }
   result.iterations = best.fit.iterations;
   result.stop_reason = best.fit.stop_reason;
   result.history = best.fit.history;

@@ -7,6 +7,7 @@
 // given or adaptive; weights given raw, or scaled to meet a target RMS distance.
 
 #include <Eigen/Core>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -45,6 +46,17 @@ struct HermiteFitOptions {
   // fit's RMS equal to it (the fairest curve within the tolerance, a 1-D search); with adaptive elements,
   // elements are added until the RMS can go below it.
   double tolerance = 0.0;
+  // In (0, 1): the fairness fraction phi, a scale-free control (docs/fair-curves.md eq. F27). The given
+  // weights are then the mix of the terms, and the fit minimizes (1 - phi) C / C0 + phi F / F0: the closeness
+  // C = 1/2 sum d^2 relative to C0 = 1/2 N sigma^2 (sigma the data's noise estimate), and the fairness
+  // F = Q^T K Q relative to F0, the alpha terms' energy of a circle as long as the data traversed at constant
+  // speed. 0: not used. Exclusive with the tolerance.
+  double fairness_fraction = 0.0;
+  // The spring method as printed in the thesis (Fang eq. 5.1.4): the fairness Hessian 2K alone and the
+  // resolved forces throughout. It crawls where the data dominate (docs/fair-curves.md section 7). Default
+  // (false): the Hessian adds the sliding springs' stiffness across the curve (eq. F28), and the iteration
+  // finishes with the exact point forces where the resolved ones stop decreasing the energy (eq. F29).
+  bool spring_as_in_thesis = false;
   // Of each fit (the spring method: at most optimizer.max_iterations steps). The relative decrease tolerance
   // is 1e-8 rather than the engine's 1e-10: the nodal derivatives' tangential parts (the parametrization) are
   // held only by the fairness, and the last digits of E they still gain are not worth a hundred iterations.
@@ -61,7 +73,7 @@ struct HermiteFitResult {
   explicit HermiteFitResult(HermiteCurve c) : curve(std::move(c)) {}
   HermiteCurve curve;
   HermiteFairness weights;    // the weights used (after the tolerance's scaling)
-  double weight_scale = 1.0;  // the tolerance search's factor (1 without a tolerance)
+  double weight_scale = 1.0;  // the tolerance search's or the fairness fraction's factor (else 1)
   HermiteFairness energy;     // each fairness term's value at the result
   double closeness = 0.0;     // 1/2 sum d_j^2, data units
   ResidualStatistics residuals;
@@ -75,7 +87,25 @@ struct HermiteFitResult {
   bool tolerance_met = true;  // false when the tolerance could not be reached (the note says why)
   std::string note;
   double noise = 0.0;  // the data's noise estimate used by adaptive elements (NaN when none)
+  // The fairness fraction's normalization (eq. F27; NaN without a fraction): the noise and length it used,
+  // C0 and F0, and the result's normalized terms C / C0 and F / F0.
+  struct Fraction {
+    double fraction = 0.0;
+    double sigma = std::numeric_limits<double>::quiet_NaN();
+    double length = std::numeric_limits<double>::quiet_NaN();
+    double closeness_reference = std::numeric_limits<double>::quiet_NaN();
+    double fairness_reference = std::numeric_limits<double>::quiet_NaN();
+    double closeness = std::numeric_limits<double>::quiet_NaN();
+    double fairness = std::numeric_limits<double>::quiet_NaN();
+  } fraction;
 };
+
+// The weight factor k of the fairness fraction (docs/fair-curves.md eq. F27): the minimizer of
+// (1 - phi) C / C0 + phi F / F0 is that of C + k F with k = phi / (1 - phi) C0 / F0, C0 = 1/2 N sigma^2,
+// F0 = length^2 sum_p alpha_p (2 pi)^(2p - 2) (the alpha terms of `mix`).
+double FairnessFractionScale(double fraction, int points, double sigma, double length,
+                             const HermiteFairness& mix, double* closeness_reference = nullptr,
+                             double* fairness_reference = nullptr);
 
 // Fits a Hermite curve to the points (s x n, s = 2 or 3; ordered when interpolating). Throws
 // std::invalid_argument for invalid options or unusable data (fewer than 3 distinct points for an

@@ -197,6 +197,19 @@ std::vector<FitOptionSpec> MakeTable() {
                1e300,
                [](FitOptions& o, const std::string& v) { o.tolerance = std::stod(v); }});
   t.push_back(
+      {"fairness_fraction",
+       "--fairness-fraction",
+       K::kNumber,
+       "0",
+       "hermite-curve: scale-free fairness control phi in (0, 1): minimize (1 - phi) C / C0 + phi F / F0, "
+       "the closeness relative to the data's noise and the fairness relative to a circle as long as the "
+       "data (docs/fair-curves.md eq. F27); the alpha/beta weights give the mix. 0: the weights as given",
+       {},
+       false,
+       0,
+       1,
+       [](FitOptions& o, const std::string& v) { o.fairness_fraction = std::stod(v); }});
+  t.push_back(
       {"start",
        "--start",
        K::kChoice,

@@ -70,7 +70,8 @@ struct FitOptions {
   // Whether --alpha3 was given: B-spline curves, surfaces and generatrices take it (and beta2, beta3) as
   // their curvature-variation and jump weights (docs/fair-curves.md section 8), 0 unless given.
   bool alpha3_given = false;
-  double tolerance = 0.0;  // target RMS in data units (0: the weights as given)
+  double tolerance = 0.0;          // target RMS in data units (0: the weights as given)
+  double fairness_fraction = 0.0;  // scale-free fairness fraction in (0, 1) (0: the weights as given)
   // Show the iterations on a terminal as they run (splines); `batch` turns it off for its objects.
   bool interactive = true;
 };

@@ -74,6 +74,7 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
       throw FitFailure(kUsage, std::string("--method: ") + e.what());
     }
     h.tolerance = o.tolerance;
+    h.fairness_fraction = o.fairness_fraction;
     h.optimizer.max_iterations = o.max_iterations;
     std::string why;
     if (!h.IsValid(&why)) throw FitFailure(kUsage, "hermite-curve: " + why);
@@ -96,6 +97,16 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
     j["weights"]["given"] = WeightsJson(h.fairness);
     j["weights"]["scale"] = r.weight_scale;
     j["tolerance"] = {{"target", h.tolerance}, {"met", r.tolerance_met}};
+    if (h.fairness_fraction > 0) {
+      const HermiteFitResult::Fraction& f = r.fraction;
+      j["fairness_fraction"] = {{"fraction", f.fraction},
+                                {"noise", f.sigma},
+                                {"length", f.length},
+                                {"closeness_reference", f.closeness_reference},
+                                {"fairness_reference", f.fairness_reference},
+                                {"normalized_closeness", f.closeness},
+                                {"normalized_fairness", f.fairness}};
+    }
     j["knots"] = curve.knots();
     nlohmann::json nodes = nlohmann::json::array();
     const int per = curve.derivatives_per_node();
@@ -147,6 +158,10 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
          << Format(r.weights.beta3, 4);
     if (h.tolerance > 0)
       text << " (x" << Format(r.weight_scale, 4) << " for the tolerance " << h.tolerance << ")";
+    if (h.fairness_fraction > 0)
+      text << " (x" << Format(r.weight_scale, 4) << " for the fairness fraction " << h.fairness_fraction
+           << "; normalized closeness " << Format(r.fraction.closeness, 4) << ", fairness "
+           << Format(r.fraction.fairness, 4) << ")";
     text << "\n  energy            closeness " << Format(r.closeness, 6) << ", stretch "
          << Format(r.energy.alpha1, 6) << ", bending " << Format(r.energy.alpha2, 6) << ", variation "
          << Format(r.energy.alpha3, 6) << ", jumps " << Format(r.energy.beta2 + r.energy.beta3, 6) << "\n"

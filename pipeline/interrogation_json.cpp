@@ -8,6 +8,8 @@ nlohmann::json InterrogationJson(const CurveInterrogation& q, int dimension) {
                           {"max_abs_kappa", q.max_abs_kappa},
                           {"zeta", q.zeta},
                           {"dkappa_ds_squared", q.dkappa_ds_squared},
+                          {"kappa_squared", q.kappa_squared},
+                          {"curvature_extrema", q.curvature_extrema},
                           {"inflections", q.inflections},
                           {"max_g1", q.max_g1},
                           {"max_g2", q.max_g2}};

@@ -8,8 +8,9 @@
 
 namespace s2m::pipeline {
 
-// length, comb_scale, max_abs_kappa, zeta, dkappa_ds_squared, inflections, max_g1, max_g2, junctions and the
-// samples (s, u, kappa, dkappa_ds, point, comb_tip; torsion for space curves).
+// length, comb_scale, max_abs_kappa, zeta, dkappa_ds_squared, kappa_squared, curvature_extrema, inflections,
+// max_g1, max_g2, junctions and the samples (s, u, kappa, dkappa_ds, point, comb_tip; torsion for space
+// curves).
 nlohmann::json InterrogationJson(const CurveInterrogation& q, int dimension);
 
 }  // namespace s2m::pipeline

@@ -187,8 +187,7 @@ TEST(HermiteFit, SpringMethodReachesTheSdmMinimum) {
   HermiteFitOptions o;
   o.degree = 5;
   o.elements = 5;
-  // Moderate weights: the fairness Hessian 2K the springs' SQP keeps carries the problem. With weak fairness
-  // (1e-7 here) the left-out spring Hessian dominates and the method crawls (bench/fair_curves measures it).
+  // Moderate weights: the fairness carries the problem (weak ones: SpringsReachTheSdmRmsAtWeakFairness).
   o.fairness = {0.0, 0.0, 1e-5, 0.0, 0.0};
   o.optimizer.max_iterations = 500;
   const HermiteFitResult sdm = FitHermiteCurve(points, o);
@@ -200,6 +199,49 @@ TEST(HermiteFit, SpringMethodReachesTheSdmMinimum) {
   // The springs' resolved forces are an approximation of the exact gradient: the spring fixed point is near,
   // not at, the minimum: within 1 % of the energy.
   EXPECT_NEAR(e_spring, e_sdm, 0.01 * e_sdm);
+}
+
+TEST(HermiteFit, SpringsReachTheSdmRmsAtWeakFairness) {
+  // Where the data dominate, the springs' stiffness across the curve (eq. F28) carries the SQP step, and the
+  // exact point forces finish where the resolved ones (not the gradient of E) stop decreasing it (eq. F29).
+  // As printed in the thesis (the fairness Hessian 2K alone, resolved forces throughout) the steps are those
+  // of a near-singular 2K damped into a crawl. Stated factor: the springs' RMS within 5 % of SDM's final
+  // RMS in at most 50 steps.
+  const Eigen::MatrixXd points = NoisySine(80, 1.0, 0.01, 9u);
+  HermiteFitOptions o;
+  o.degree = 5;
+  o.elements = 5;
+  o.optimizer.max_iterations = 200;
+  auto steps_to = [](const HermiteFitResult& r, double rms) {
+    for (const IterationRecord& record : r.history)
+      if (record.rms <= rms) return record.iteration;
+    return std::numeric_limits<int>::max();
+  };
+  for (const double alpha3 : {1e-7, 1e-9}) {
+    o.fairness = {0.0, 0.0, alpha3, 0.0, 0.0};
+    o.method = HermiteMethod::kSdm;
+    const HermiteFitResult sdm = FitHermiteCurve(points, o);
+    o.method = HermiteMethod::kSpring;
+    o.spring_as_in_thesis = false;
+    const HermiteFitResult spring = FitHermiteCurve(points, o);
+    o.spring_as_in_thesis = true;
+    const HermiteFitResult thesis = FitHermiteCurve(points, o);
+    const double target = 1.05 * sdm.residuals.rms;
+    std::printf(
+        "alpha3 %.0e: sdm RMS %.5f; springs RMS %.5f (within 5 %% after %d steps); as printed RMS %.5f after "
+        "%d steps (%s)\n",
+        alpha3, sdm.residuals.rms, spring.residuals.rms, steps_to(spring, target), thesis.residuals.rms,
+        thesis.iterations, ToString(thesis.stop_reason));
+    EXPECT_LE(spring.residuals.rms, target) << alpha3;
+    EXPECT_LE(steps_to(spring, target), 50) << alpha3;
+    // The energy it ends at is SDM's minimum within 1 % (at 1e-9 both creep along the parametrization's
+    // near-free directions, held only by the tiny fairness, to the iteration limit).
+    EXPECT_NEAR(spring.closeness + spring.energy.alpha3, sdm.closeness + sdm.energy.alpha3,
+                0.01 * (sdm.closeness + sdm.energy.alpha3))
+        << alpha3;
+    // The diagnosis: as printed, it does not get there within 200 steps.
+    EXPECT_GT(thesis.residuals.rms, target) << alpha3;
+  }
 }
 
 TEST(HermiteFit, InterpolationPassesThroughOrderedPoints) {
@@ -249,6 +291,60 @@ TEST(HermiteFit, ToleranceFindsTheWeightThatMeetsIt) {
   const HermiteFitResult low = FitHermiteCurve(points, o);
   EXPECT_FALSE(low.tolerance_met);
   EXPECT_FALSE(low.note.empty());
+}
+
+TEST(HermiteFit, FairnessFractionIsScaleFreeAndMonotone) {
+  // The fraction phi weighs the closeness relative to the noise against the fairness relative to a circle as
+  // long as the data (docs/fair-curves.md eq. F27): more phi, a larger RMS and a smaller normalized fairness;
+  // the same phi on the same data in other units gives the same curve; and its factor is exactly the raw
+  // weights' scale the result reports.
+  const Eigen::MatrixXd points = NoisySine(150, 1.0, 0.01, 21u);
+  HermiteFitOptions o;
+  o.degree = 5;
+  o.elements = 6;
+  o.fairness = {0.0, 0.0, 1.0, 0.0, 0.0};
+  double last_rms = 0.0, last_fairness = std::numeric_limits<double>::infinity();
+  for (const double phi : {0.1, 0.5, 0.9, 0.99}) {
+    o.fairness_fraction = phi;
+    const HermiteFitResult r = FitHermiteCurve(points, o);
+    std::printf("fraction %.2f: k %.3g, RMS %.5f, C/C0 %.4f, F/F0 %.4f\n", phi, r.weight_scale,
+                r.residuals.rms, r.fraction.closeness, r.fraction.fairness);
+    EXPECT_GT(r.residuals.rms, last_rms) << phi;
+    EXPECT_LT(r.fraction.fairness, last_fairness) << phi;
+    last_rms = r.residuals.rms;
+    last_fairness = r.fraction.fairness;
+    // The references: C0 = 1/2 N sigma^2 with the noise estimate, F0 = L^2 (2 pi)^4 for alpha3 alone.
+    EXPECT_NEAR(r.fraction.closeness_reference, 0.5 * 150 * r.noise * r.noise, 1e-12);
+    EXPECT_NEAR(r.fraction.fairness_reference, std::pow(r.fraction.length, 2) * std::pow(2 * M_PI, 4),
+                1e-9 * r.fraction.fairness_reference);
+    EXPECT_NEAR(r.weight_scale,
+                phi / (1 - phi) * r.fraction.closeness_reference / r.fraction.fairness_reference,
+                1e-12 * r.weight_scale);
+    EXPECT_NEAR(r.fraction.closeness, r.closeness / r.fraction.closeness_reference, 1e-12);
+    if (phi == 0.5) {
+      // The same fit as the raw weights k times the mix.
+      HermiteFitOptions raw = o;
+      raw.fairness_fraction = 0.0;
+      raw.fairness = r.weights;
+      const HermiteFitResult same = FitHermiteCurve(points, raw);
+      EXPECT_NEAR(same.residuals.rms, r.residuals.rms, 1e-9);
+      // Units: the data scaled by 250 and moved give the same curve, scaled (RMS x 250, same normalized
+      // terms), to the digits the fit's relative objective tolerance 1e-8 fixes (1e-4 of the parameters).
+      const Eigen::MatrixXd moved = (250.0 * points).colwise() + Eigen::Vector2d(-40.0, 7.0);
+      const HermiteFitResult big = FitHermiteCurve(moved, o);
+      EXPECT_NEAR(big.residuals.rms, 250.0 * r.residuals.rms, 1e-4 * big.residuals.rms);
+      EXPECT_NEAR(big.fraction.closeness, r.fraction.closeness, 1e-4 * r.fraction.closeness);
+      EXPECT_NEAR(big.fraction.fairness, r.fraction.fairness, 1e-4 * r.fraction.fairness);
+    }
+  }
+  // Exclusive with the tolerance; phi in [0, 1).
+  o.tolerance = 0.02;
+  std::string why;
+  EXPECT_FALSE(o.IsValid(&why));
+  o.tolerance = 0.0;
+  o.fairness_fraction = 1.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("[0, 1)"), std::string::npos) << why;
 }
 
 TEST(HermiteFit, AdaptiveElementsReachTheNoise) {

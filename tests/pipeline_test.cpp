@@ -78,9 +78,9 @@ TEST(FitDispatch, FailuresCarryTheirExitCodes) {
 TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
   EXPECT_EQ(ManifestOptionKeys(),
             "alpha1, alpha2, alpha3, bending, beta2, beta3, c2, closed, contour, control_points, criterion, "
-            "degree, elements, growth, initial, interpolate, loss, max_iterations, method, order, pitch, "
-            "reference, rejected_output, robust, seed, solver, start, step_control, stretch, tolerance, "
-            "uncertainty, units");
+            "degree, elements, fairness_fraction, growth, initial, interpolate, loss, max_iterations, method, "
+            "order, pitch, reference, rejected_output, robust, seed, solver, start, step_control, stretch, "
+            "tolerance, uncertainty, units");
   for (const FitOptionSpec& spec : FitOptionTable()) {
     EXPECT_TRUE(spec.set) << spec.key << spec.names;
     // Every manifest key but the solver (three flags) is also a command-line option with the dashed name.
