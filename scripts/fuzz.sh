@@ -23,8 +23,12 @@ if [ ${#need[@]} -gt 0 ]; then
 fi
 "$root/scripts/install-deps.sh" >/dev/null
 
-cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
-  -DS2M_FUZZ=ON -DS2M_SANITIZE=address,undefined -DS2M_BUILD_TESTS=OFF -DS2M_BUILD_BENCH=OFF >/dev/null
+# S2M_FUZZ_KEEP_CONFIG=1: a build folder configured for fuzzing already (scripts/ci-sanitize.sh's, with tests).
+if [ "${S2M_FUZZ_KEEP_CONFIG:-0}" != 1 ] || [ ! -f "$build/CMakeCache.txt" ]; then
+  cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang \
+    -DCMAKE_CXX_COMPILER=clang++ -DS2M_FUZZ=ON -DS2M_SANITIZE=address,undefined -DS2M_BUILD_TESTS=OFF \
+    -DS2M_BUILD_BENCH=OFF >/dev/null
+fi
 all_targets=$(sed -n 's/^ *s2m_add_fuzz_target(\([a-z0-9_]*\) .*/\1/p' "$root/fuzz/CMakeLists.txt")
 if [ "$target" = all ]; then targets=$all_targets; else targets=$target; fi
 for t in $targets; do
