@@ -57,6 +57,63 @@ def pcd(data_kind):
     return header.encode() + struct.pack("<II", len(lzf), len(raw)) + bytes(lzf)
 
 
+# A tetrahedron with counter-clockwise faces seen from outside (the nominal meshes' orientation).
+TET_VERTICES = [(0.0, 0.0, 0.0), (10.0, 0.0, 0.0), (0.0, 10.0, 0.0), (0.0, 0.0, 10.0)]
+TET_FACES = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+
+
+def stl_binary():
+    header = b"scan2model fuzz seed".ljust(80, b" ")
+    body = b""
+    for face in TET_FACES:
+        body += struct.pack("<3f", 0.0, 0.0, 0.0)
+        for v in face:
+            body += struct.pack("<3f", *TET_VERTICES[v])
+        body += b"\x00\x00"
+    return header + struct.pack("<I", len(TET_FACES)) + body
+
+
+def stl_ascii():
+    # Two solids: the bottom face and the rest (an ASCII STL file's solids are its face groups).
+    out = ""
+    for name, faces in (("bottom", TET_FACES[:1]), ("sides", TET_FACES[1:])):
+        out += "solid %s\n" % name
+        for face in faces:
+            out += "  facet normal 0 0 0\n    outer loop\n"
+            for v in face:
+                out += "      vertex %g %g %g\n" % TET_VERTICES[v]
+            out += "    endloop\n  endfacet\n"
+        out += "endsolid %s\n" % name
+    return out
+
+
+def obj():
+    # Groups, a comment, normals and texture coordinates, every face-vertex form, a negative (relative) index
+    # and a quad (split into a fan).
+    out = "# tetrahedron and a quad\nmtllib none.mtl\no part\n"
+    out += "".join("v %g %g %g\n" % p for p in TET_VERTICES)
+    out += "v 0 0 20 1\nvt 0 0\nvn 0 0 1\ng bottom\nusemtl grey\nf 1 3 2\ng sides\ns 1\n"
+    out += "f 1/1 2/1 4/1\nf 1//1 4//1 3//1\nf 2/1/1 3/1/1 -2/1/1\ng lid\nf 1 2 5 4\n"
+    return out
+
+
+def ply_mesh_ascii():
+    header = ("ply\nformat ascii 1.0\ncomment units mm\nelement vertex %d\nproperty float x\nproperty float y\n"
+              "property float z\nelement face %d\nproperty list uchar int vertex_indices\nproperty int label\n"
+              "end_header\n" % (len(TET_VERTICES), len(TET_FACES)))
+    return header + "".join("%g %g %g\n" % p for p in TET_VERTICES) + "".join(
+        "3 %d %d %d %d\n" % (a, b, c, 1 if k else 0) for k, (a, b, c) in enumerate(TET_FACES))
+
+
+def ply_mesh_binary():
+    header = ("ply\nformat binary_little_endian 1.0\nelement vertex %d\nproperty double x\nproperty double y\n"
+              "property double z\nelement face %d\nproperty list uchar uint vertex_indices\nend_header\n"
+              % (len(TET_VERTICES), len(TET_FACES))).encode()
+    body = b"".join(struct.pack("<3d", *p) for p in TET_VERTICES)
+    body += b"".join(struct.pack("<B3I", 3, *f) for f in TET_FACES)
+    return header + body
+
+
 def main():
     # point_cloud_fuzz: selector = index into {.ply, .ply.gz, .pcd, .xyz, .csv, .ds}.
     write("point_cloud", "ascii.ply", b"\x00" + ply_ascii().encode())
@@ -136,6 +193,26 @@ def main():
              "objects": [{"id": "a", "file": "a.ply"}, {"id": "b", "file": "b.xyz", "model": "plane", "loss": "huber"}]}
     write("batch_manifest", "batch.json", b"\x00" + json.dumps(batch, indent=1).encode())
     write("batch_manifest", "batch.csv", b"\x01" + b"id,file,model,max_iterations\na,a.ply,sphere,50\nb,b.xyz,plane,20\n")
+
+    # mesh_fuzz: selector = index into {.stl, .obj, .ply, .ply.gz}; .stl is binary or ASCII by its bytes.
+    write("mesh", "binary.stl", b"\x00" + stl_binary())
+    write("mesh", "ascii.stl", b"\x00" + stl_ascii().encode())
+    write("mesh", "groups.obj", b"\x01" + obj().encode())
+    write("mesh", "labels.ply", b"\x02" + ply_mesh_ascii().encode())
+    write("mesh", "binary.ply", b"\x02" + ply_mesh_binary())
+    write("mesh", "gzipped.ply.gz", b"\x03" + gzip_bytes(ply_mesh_ascii().encode()))
+
+    # checks_file_fuzz: no selector. Every check type, datums, a check without a name, a diameter with and
+    # without its nominal.
+    checks = {"schema": "scan2model.checks/1", "part": "block 60 x 40 x 20", "datums": ["bottom", "-x", "-y"],
+              "checks": [{"name": "top profile", "type": "profile", "group": "top", "tolerance": 0.1},
+                         {"type": "flatness", "group": "top", "tolerance": 0.05},
+                         {"name": "bore position", "type": "position", "group": "bore", "tolerance": 0.1},
+                         {"name": "bore diameter", "type": "diameter", "group": "bore", "nominal": 10,
+                          "lower": -0.05, "upper": 0.05},
+                         {"type": "diameter", "group": "pin", "lower": -0.1, "upper": 0}]}
+    write("checks_file", "block.checks.json", json.dumps(checks, indent=1))
+    write("checks_file", "minimal.checks.json", json.dumps({"schema": "scan2model.checks/1", "checks": []}))
 
     calibration = {"horus": {"camera": {"width": 1280, "height": 960, "fx": 1430.0, "fy": 1430.0, "cx": 640.0,
                                         "cy": 480.0, "distortion": [0.1, -0.2, 0.0, 0.0, 0.0]},

@@ -50,6 +50,9 @@ ChecksFile ParseChecksFile(const std::string& text, const std::string& file) {
     j = nlohmann::json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {
     throw FormatError(file, AtByte(e.byte), std::string("not valid JSON: ") + e.what());
+  } catch (const nlohmann::json::exception& e) {
+    // A number beyond double's range ("1e400") is out_of_range, not a parse_error.
+    throw FormatError(file, "", std::string("not valid JSON: ") + e.what());
   }
   auto fail = [&](const std::string& where, const std::string& problem) {
     throw FormatError(file, where, problem);

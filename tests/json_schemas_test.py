@@ -3,10 +3,11 @@
 
     tests/json_schemas_test.py SCAN2MODEL SOURCE_DIR
 
-Runs the command on small shipped or generated data to produce every kind of document (info of a point cloud, an
-E57 file and a recording; fit of each primitive, with a reference and robust; B-spline curve and surface; Hermite curves; surface of
-revolution, helical and spiral surfaces; a constrained part; detect; a batch's records and summary; a views manifest
-written by export; an error; devices) and validates each against its schema (Draft 2020-12, python3-jsonschema).
+Runs the command on small shipped or generated data to produce every kind of document (info of a point cloud, an E57
+file and a recording; fit of each primitive, with a reference and robust, with --criterion and --uncertainty;
+B-spline curve and surface; Hermite curves; surface of revolution, helical and spiral surfaces; a constrained part;
+detect; a batch's records and summary; a views manifest written by export; an inspection against a nominal mesh; an
+error; devices) and validates each against its schema (Draft 2020-12, python3-jsonschema).
 Every schema is first checked against the metaschema. Exits 77 (ctest: skipped) when python3-jsonschema is missing.
 """
 import json
@@ -97,6 +98,76 @@ def make_inputs(work):
     write_points(os.path.join(work, "scene.xyz"), scene)
     with open(os.path.join(work, "objects.csv"), "w") as f:
         f.write("id,input,model\nsphere,scene.xyz,sphere\nmissing,nowhere.ply,sphere\n")
+    # The ISO 10360-6 features besides the four primitives: a circle, a line and a torus with noise.
+    write_points(os.path.join(work, "circle.xyz"),
+                 [(5 * math.cos(t) + rng.gauss(0, 0.01), 5 * math.sin(t) + rng.gauss(0, 0.01), 1 + rng.gauss(0, 0.01))
+                  for t in [2 * math.pi * k / 200 for k in range(200)]])
+    write_points(os.path.join(work, "line.xyz"),
+                 [(t + rng.gauss(0, 0.01), 2 * t + rng.gauss(0, 0.01), -t + rng.gauss(0, 0.01))
+                  for t in [k / 50 for k in range(100)]])
+    torus = []
+    for _ in range(1500):
+        u, v = rng.uniform(0, 2 * math.pi), rng.uniform(0, 2 * math.pi)
+        r = 10 + 3 * math.cos(v) + rng.gauss(0, 0.01)
+        torus.append((r * math.cos(u), r * math.sin(u), 3 * math.sin(v)))
+    write_points(os.path.join(work, "torus.xyz"), torus)
+    make_inspection_inputs(work)
+
+
+def make_inspection_inputs(work):
+    """A nominal (ASCII STL, one solid per face group): a box [-30, 30] x [-20, 20] x [0, 20] and beside it a pin
+    (a 24-sided prism of radius 5 standing from z = 0 to 15 at x = 45), a scan of both moved by a small rigid
+    motion, and a checks file with every check type."""
+    rng = random.Random(11)
+    solids = {}
+    corners = [((i & 1) and 30 or -30, (i & 2) and 20 or -20, (i & 4) and 20 or 0) for i in range(8)]
+    quads = {"px": (1, 3, 7, 5), "mx": (0, 4, 6, 2), "py": (2, 6, 7, 3), "my": (0, 1, 5, 4),
+             "top": (4, 5, 7, 6), "bottom": (0, 2, 3, 1)}
+    for name, (a, b, c, d) in quads.items():
+        solids[name] = [(corners[a], corners[b], corners[c]), (corners[a], corners[c], corners[d])]
+    sides, radius, height, cx = 24, 5.0, 15.0, 45.0
+    ring = [(cx + radius * math.cos(2 * math.pi * k / sides), radius * math.sin(2 * math.pi * k / sides))
+            for k in range(sides)]
+    solids["pin"], solids["pin_ends"] = [], []
+    for k in range(sides):
+        (x0, y0), (x1, y1) = ring[k], ring[(k + 1) % sides]
+        solids["pin"] += [((x0, y0, 0.0), (x1, y1, 0.0), (x1, y1, height)),
+                          ((x0, y0, 0.0), (x1, y1, height), (x0, y0, height))]
+        solids["pin_ends"] += [((cx, 0.0, height), (x0, y0, height), (x1, y1, height)),
+                               ((cx, 0.0, 0.0), (x1, y1, 0.0), (x0, y0, 0.0))]
+    with open(os.path.join(work, "nominal.stl"), "w") as f:
+        for name, triangles in solids.items():
+            f.write("solid %s\n" % name)
+            for t in triangles:
+                f.write("facet normal 0 0 0\nouter loop\n" + "".join("vertex %r %r %r\n" % v for v in t) +
+                        "endloop\nendfacet\n")
+            f.write("endsolid %s\n" % name)
+    # Points on the faces the scanner sees (not the bottoms), noise 0.002 along the normal.
+    points = []
+    for _ in range(500):
+        p, q, e = rng.random(), rng.random(), rng.gauss(0, 0.002)
+        points += [(30 + e, -20 + 40 * p, 20 * q), (-30 - e, -20 + 40 * p, 20 * q), (-30 + 60 * p, 20 + e, 20 * q),
+                   (-30 + 60 * p, -20 - e, 20 * q), (-30 + 60 * p, -20 + 40 * q, 20 + e)]
+        a, z = 2 * math.pi * rng.random(), height * rng.random()
+        # On the prism's facet, not on the circle through its vertices.
+        k = int(a / (2 * math.pi / sides)) % sides
+        (x0, y0), (x1, y1) = ring[k], ring[(k + 1) % sides]
+        nx, ny = (y1 - y0), -(x1 - x0)
+        n = math.hypot(nx, ny)
+        points.append((x0 + p * (x1 - x0) + e * nx / n, y0 + p * (y1 - y0) + e * ny / n, z))
+    angle, shift = 0.01, (0.3, -0.2, 0.1)
+    c, s = math.cos(angle), math.sin(angle)
+    with open(os.path.join(work, "part_scan.xyz"), "w") as f:
+        for x, y, z in points:
+            f.write("%r %r %r\n" % (c * x - s * y + shift[0], s * x + c * y + shift[1], z + shift[2]))
+    checks = {"schema": "scan2model.checks/1", "part": "block with a pin", "datums": ["top", "my", "mx"],
+              "checks": [{"name": "top profile", "type": "profile", "group": "top", "tolerance": 0.1},
+                         {"name": "top flatness", "type": "flatness", "group": "top", "tolerance": 0.05},
+                         {"name": "pin position", "type": "position", "group": "pin", "tolerance": 0.1},
+                         {"name": "pin diameter", "type": "diameter", "group": "pin", "lower": -0.05,
+                          "upper": 0.05}]}
+    with open(os.path.join(work, "part.checks.json"), "w") as f:
+        json.dump(checks, f, indent=1)
 
 
 def main():
@@ -130,6 +201,16 @@ def main():
         ("fit.schema.json", ["fit", "--json", "--model", "cylinder", os.path.join(nist, "cyl1.ds")], None),
         ("fit.schema.json", ["fit", "--json", "--model", "cone", os.path.join(nist, "con1.ds"), "--loss", "huber"], None),
         ("fit.schema.json", ["fit", "--json", "--model", "sphere", "--robust", os.path.join(work, "scene.xyz")], None),
+        ("fit.schema.json", ["fit", "--json", "--model", "cylinder", os.path.join(nist, "cyl1.ds"), "--criterion",
+                             "circumscribed", "--uncertainty", "linear"], None),
+        ("fit.schema.json", ["fit", "--json", "--model", "sphere", os.path.join(nist, "sph1.ds"), "--criterion",
+                             "minzone", "--uncertainty", "monte-carlo:20"], None),
+        ("fit.schema.json", ["fit", "--json", "--model", "circle", os.path.join(work, "circle.xyz"), "--criterion",
+                             "inscribed", "--uncertainty", "linear"], None),
+        ("fit.schema.json", ["fit", "--json", "--model", "line", os.path.join(work, "line.xyz"), "--criterion",
+                             "minzone", "--uncertainty", "monte-carlo:20"], None),
+        ("fit.schema.json", ["fit", "--json", "--model", "torus", os.path.join(work, "torus.xyz"), "--uncertainty",
+                             "linear"], None),
         ("bspline.schema.json", ["fit", "--json", "--model", "bspline-curve", "--closed", "--control-points", "12",
                                  os.path.join(work, "ellipse.xyz")] + quick, None),
         ("bspline.schema.json", ["fit", "--json", "--model", "bspline-surface", "--control-points", "5x5",
@@ -148,6 +229,15 @@ def main():
                                 os.path.join(work, "scene.xyz")], None),
         ("error.schema.json", ["fit", "--json", "--model", "sphere", os.path.join(work, "nowhere.ply")], None),
         ("devices.schema.json", ["devices", "--json"], None),
+        ("inspection.schema.json", ["inspect", "--nominal", os.path.join(work, "nominal.stl"),
+                                    os.path.join(work, "part_scan.xyz"), "--part", os.path.join(work, "part.checks.json"),
+                                    "--operator", "J. Doe", "-o", os.path.join(work, "inspection")],
+         os.path.join(work, "inspection.json")),
+        ("inspection.schema.json", ["inspect", "--json", "--nominal", os.path.join(work, "nominal.stl"),
+                                    os.path.join(work, "part_scan.xyz"), "--part", os.path.join(work, "part.checks.json"),
+                                    "--uncertainty", "monte-carlo:20"], None),
+        ("inspection.schema.json", ["inspect", "--json", "--nominal", os.path.join(work, "nominal.stl"),
+                                    os.path.join(work, "part_scan.xyz"), "--uncertainty", "none"], None),
         ("views.schema.json", ["export", "-q", os.path.join(source, "tests", "data", "e57", "cartesian_mixed.e57"),
                                "-o", os.path.join(work, "views")], os.path.join(work, "views", "views.json")),
         ("batch_summary.schema.json", ["batch", "-q", os.path.join(work, "objects.csv"), "-o",

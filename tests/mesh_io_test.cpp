@@ -150,6 +150,8 @@ TEST(MeshIo, RejectsTruncatedAndCorruptFiles) {
   ExpectRejected(dir / "cut.ply", "truncated");
   WriteBytes(dir / "range.ply", header + "3 0 1 2\n3 0 1 5\n");
   ExpectRejected(dir / "range.ply", "out of range");
+  WriteBytes(dir / "negative.ply", header + "3 0 1 2\n3 0 -1 2\n");
+  ExpectRejected(dir / "negative.ply", "line 14: face 1: vertex index -1.000000 is not a non-negative integer");
   WriteBytes(dir / "cloud.ply",
              "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
              "end_header\n0 0 0\n");
