@@ -52,7 +52,6 @@ Input InputArg(py::handle input, const std::string& name) {
   } else {
     Scan scan;
     scan.points = CopyPoints(input, "input");
-    scan.metadata.device = "python";
     set->scans.push_back(std::move(scan));
   }
   in.file = name;

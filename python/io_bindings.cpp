@@ -74,7 +74,6 @@ std::shared_ptr<Scan> NewScan(py::handle points, py::handle normals, const std::
   }
   scan->units = units;
   if (world_T_scan) scan->world_T_scan = PoseArg(*world_T_scan);
-  scan->metadata.device = "python";
   return scan;
 }
 
