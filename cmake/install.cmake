@@ -5,6 +5,9 @@
 # scan2model::fitting, scan2model::synthetic, scan2model::acquisition and scan2model::pipeline in
 # P/lib.../cmake/scan2model. CPack builds a .deb of the same install (`cpack -G DEB` in the build folder).
 include(CMakePackageConfigHelpers)
+# `cmake --install` and cpack install what is built; they do not build every target first (the tests and
+# benchmarks are not installed).
+set(CMAKE_SKIP_INSTALL_ALL_DEPENDENCY ON)
 
 add_library(s2m_core INTERFACE)
 target_link_libraries(s2m_core INTERFACE s2m_fitting s2m_registration)

@@ -98,8 +98,9 @@ void BindResults(py::module_& m) {
           "text", [](const Result& r) { return r.text; }, "The readable text `scan2model` prints.")
       .def_property_readonly(
           "notes", [](const Result& r) { return r.notes; }, "What the readers did to the data.")
-      .def("__repr__", [](const Result& r) {
-        std::string repr = "<scan2model." + std::string(py::str(py::type::of(py::cast(&r)).attr("__name__")));
+      .def("__repr__", [](py::object self) {
+        const Result& r = self.cast<const Result&>();
+        std::string repr = "<scan2model." + std::string(py::str(py::type::of(self).attr("__name__")));
         if (r.document.contains("schema")) repr += " " + r.document["schema"].get<std::string>();
         if (r.document.contains("model") && r.document["model"].is_string())
           repr += " model=" + r.document["model"].get<std::string>();

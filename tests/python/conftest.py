@@ -49,7 +49,7 @@ def lighter_views(views, step):
     import scan2model
 
     return scan2model.ScanSet(
-        [scan2model.Scan(v.points[::step], units=v.units, world_T_scan=v.world_T_scan) for v in views], views.name)
+        [scan2model.Scan(np.ascontiguousarray(v.points[::step]), units=v.units, world_T_scan=v.world_T_scan) for v in views], views.name)
 
 
 @pytest.fixture(scope="session")

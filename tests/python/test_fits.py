@@ -93,7 +93,9 @@ def test_kinematic_surfaces_with_their_views(vase_views, schema_validator):
     views = lighter_views(scan2model.read_views(vase_views), 20)
     assert len(views) == 4
     for model in ("revolution", "helical", "spiral"):
-        r = scan2model.fit(views, model, control_points="6", max_iterations=3)
+        # start="normals": the normals' start only (the global search, docs/method.md section 19, takes minutes
+        # on this vase, which is neither helical nor spiral; the command's tests cover it).
+        r = scan2model.fit(views, model, control_points="6", max_iterations=3, start="normals")
         schema_validator(r.to_dict(), "multiview.schema.json")
         assert r.model == model and len(r.to_dict()["views"]) == 4
 
@@ -126,18 +128,27 @@ def test_detect(schema_validator):
     assert kinds == ["plane", "sphere"]
 
 
-def test_register_scans_undoes_a_perturbation(vase_views):
-    views = lighter_views(scan2model.read_views(vase_views), 4)
-    aligned = scan2model.register_scans(views, method="tdm")
-    assert len(aligned.world_T_scan) == 4 and aligned.converged
-    moved = views[1].world_T_scan
-    moved[:3, 3] += [1.0, -0.6, 0.4]  # millimetres, on a vase of about 100 mm
-    views[1].world_T_scan = moved
-    again = scan2model.register_scans(views, method="tdm")
-    # View 0 is held fixed: view 1 ends where it ended without the perturbation (within the sampling's level).
-    start = np.linalg.norm(moved[:3, 3] - aligned.world_T_scan[1][:3, 3])
-    end = np.linalg.norm(again.world_T_scan[1][:3, 3] - aligned.world_T_scan[1][:3, 3])
-    assert end < 0.1 * start
+def test_register_scans_recovers_a_known_motion():
+    """Two overlapping samplings of a bumpy sheet; the second recorded with the identity pose although its scanner
+    moved by a known rigid motion: registration finds that motion."""
+
+    def sheet(offset):
+        x, y = np.meshgrid(np.arange(0, 10, 0.25) + offset, np.arange(0, 10, 0.25) + offset)
+        return np.stack([x, y, np.sin(x) * np.cos(y) + 0.02 * x * y], axis=-1).reshape(-1, 3)
+
+    angle = np.radians(2.0)
+    truth = np.eye(4)
+    truth[:2, :2] = [[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]]
+    truth[:3, 3] = [0.3, -0.2, 0.1]
+    world = sheet(0.125)
+    in_scanner = (world - truth[:3, 3]) @ truth[:3, :3]  # truth^-1 applied to the world points
+    views = scan2model.ScanSet([scan2model.Scan(sheet(0.0)), scan2model.Scan(in_scanner)])
+    r = scan2model.register_scans(views, method="tdm")
+    assert len(r.world_T_scan) == 2
+    np.testing.assert_array_equal(r.world_T_scan[0], np.eye(4))  # the fixed view
+    assert np.linalg.norm(r.world_T_scan[1][:3, 3] - truth[:3, 3]) < 0.02
+    assert np.abs(r.world_T_scan[1][:3, :3] - truth[:3, :3]).max() < 1e-3
+    assert r.to_dict()["method"] == "tdm" and r.rms_per_sweep[-1] < r.rms_per_sweep[0]
 
 
 def test_report_and_json(tmp_path, vase_views):
