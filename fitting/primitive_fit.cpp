@@ -256,11 +256,15 @@ PrimitiveFit<typename Model::Shape> Solve(const Eigen::Matrix3Xd& y, const typen
 }
 
 template <class Shape>
-void Finish(PrimitiveFit<Shape>& fit, const NormalizedData& data, const Eigen::Matrix3Xd& points) {
+void Finish(PrimitiveFit<Shape>& fit, const NormalizedData& data, const PointsRef& points) {
   fit.shape = Transformed(fit.shape, data.scale, data.offset);
   if constexpr (requires(Shape s) { MoveAxisPointNear(s, data.offset); })
     MoveAxisPointNear(fit.shape, data.offset);
-  fit.residuals = ComputeResidualStatistics(SignedDistances(fit.shape, points));
+  // Over the caller's buffer (SignedDistances takes a Matrix3Xd and would copy a mapped one).
+  Eigen::VectorXd distances(points.cols());
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    distances[i] = SignedDistance(fit.shape, Eigen::Vector3d(points.col(i)));
+  fit.residuals = ComputeResidualStatistics(distances);
 }
 
 // ---- Initial guesses
@@ -530,7 +534,7 @@ PrimitiveFit<Plane> ClosedFormPlane(const Eigen::Matrix3Xd& y) {
 
 }  // namespace
 
-PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+PrimitiveFit<Plane> FitPlane(const PointsRef& points, const PrimitiveFitOptions& options) {
   CheckOptions(options);
   const NormalizedData data = Normalize(points, 3, "plane");
   PrimitiveFit<Plane> fit;
@@ -567,7 +571,7 @@ Eigen::Vector3d CanonicalSign(const Eigen::Vector3d& v) {
 // A refinement from the caller's start (given in input units; `to_unit_box` maps it into the unit box of the
 // data) or a fit from automatic starts (`starts` in the unit box), then back to input units.
 template <class Local, class ToUnitBox>
-PrimitiveFit<typename Local::Shape> RefineInUnitBox(const Eigen::Matrix3Xd& points,
+PrimitiveFit<typename Local::Shape> RefineInUnitBox(const PointsRef& points,
                                                     const PrimitiveFitOptions& options, int min_points,
                                                     const char* what, const ToUnitBox& to_unit_box) {
   CheckOptions(options);
@@ -579,9 +583,8 @@ PrimitiveFit<typename Local::Shape> RefineInUnitBox(const Eigen::Matrix3Xd& poin
 }
 
 template <class Local, class Starts>
-PrimitiveFit<typename Local::Shape> FitInUnitBox(const Eigen::Matrix3Xd& points,
-                                                 const PrimitiveFitOptions& options, int min_points,
-                                                 const char* what, const Starts& starts) {
+PrimitiveFit<typename Local::Shape> FitInUnitBox(const PointsRef& points, const PrimitiveFitOptions& options,
+                                                 int min_points, const char* what, const Starts& starts) {
   CheckOptions(options);
   CheckErrorTerm<Local>(options, what);
   const NormalizedData data = Normalize(points, min_points, what);
@@ -590,20 +593,20 @@ PrimitiveFit<typename Local::Shape> FitInUnitBox(const Eigen::Matrix3Xd& points,
   return fit;
 }
 
-PrimitiveFit<Sphere> RefineSphere(const Eigen::Matrix3Xd& points, const Sphere& initial,
+PrimitiveFit<Sphere> RefineSphere(const PointsRef& points, const Sphere& initial,
                                   const PrimitiveFitOptions& options) {
   return RefineInUnitBox<SphereLocal>(points, options, 4, "sphere", [&](const NormalizedData& data) {
     return Sphere{(initial.center - data.offset) / data.scale, initial.radius / data.scale};
   });
 }
 
-PrimitiveFit<Sphere> FitSphere(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+PrimitiveFit<Sphere> FitSphere(const PointsRef& points, const PrimitiveFitOptions& options) {
   return FitInUnitBox<SphereLocal>(points, options, 4, "sphere", [](const Eigen::Matrix3Xd& y) {
     return std::vector<Sphere>{AlgebraicSphere(y)};
   });
 }
 
-PrimitiveFit<Cylinder> RefineCylinder(const Eigen::Matrix3Xd& points, const Cylinder& initial,
+PrimitiveFit<Cylinder> RefineCylinder(const PointsRef& points, const Cylinder& initial,
                                       const PrimitiveFitOptions& options) {
   return RefineInUnitBox<CylinderLocal>(points, options, 5, "cylinder", [&](const NormalizedData& data) {
     return Cylinder{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
@@ -611,13 +614,13 @@ PrimitiveFit<Cylinder> RefineCylinder(const Eigen::Matrix3Xd& points, const Cyli
   });
 }
 
-PrimitiveFit<Cylinder> FitCylinder(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+PrimitiveFit<Cylinder> FitCylinder(const PointsRef& points, const PrimitiveFitOptions& options) {
   return FitInUnitBox<CylinderLocal>(points, options, 5, "cylinder", [&](const Eigen::Matrix3Xd& y) {
     return DirectionSearchStarts<Cylinder>(y, options, CylinderForDirection, "cylinder");
   });
 }
 
-PrimitiveFit<Cone> RefineCone(const Eigen::Matrix3Xd& points, const Cone& initial,
+PrimitiveFit<Cone> RefineCone(const PointsRef& points, const Cone& initial,
                               const PrimitiveFitOptions& options) {
   return RefineInUnitBox<ConeLocal>(points, options, 6, "cone", [&](const NormalizedData& data) {
     return Cone{(initial.axis_point - data.offset) / data.scale, initial.axis_direction.normalized(),
@@ -625,7 +628,7 @@ PrimitiveFit<Cone> RefineCone(const Eigen::Matrix3Xd& points, const Cone& initia
   });
 }
 
-PrimitiveFit<Cone> FitCone(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+PrimitiveFit<Cone> FitCone(const PointsRef& points, const PrimitiveFitOptions& options) {
   return FitInUnitBox<ConeLocal>(points, options, 6, "cone", [&](const Eigen::Matrix3Xd& y) {
     return DirectionSearchStarts<Cone>(y, options, ConeForDirection, "cone");
   });
@@ -755,7 +758,7 @@ std::vector<Torus> TorusStarts(const Eigen::Matrix3Xd& points, const PrimitiveFi
 
 }  // namespace
 
-PrimitiveFit<Line3d> FitLine(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+PrimitiveFit<Line3d> FitLine(const PointsRef& points, const PrimitiveFitOptions& options) {
   PrimitiveFit<Line3d> fit = FitInUnitBox<LineLocal>(
       points, options, 2, "line",
       [](const Eigen::Matrix3Xd& y) { return std::vector<Line3d>{ClosedFormLine(y)}; });
@@ -766,7 +769,7 @@ PrimitiveFit<Line3d> FitLine(const Eigen::Matrix3Xd& points, const PrimitiveFitO
   return fit;
 }
 
-PrimitiveFit<Circle3d> RefineCircle(const Eigen::Matrix3Xd& points, const Circle3d& initial,
+PrimitiveFit<Circle3d> RefineCircle(const PointsRef& points, const Circle3d& initial,
                                     const PrimitiveFitOptions& options) {
   PrimitiveFit<Circle3d> fit =
       RefineInUnitBox<CircleLocal>(points, options, 3, "circle", [&](const NormalizedData& data) {
@@ -777,14 +780,14 @@ PrimitiveFit<Circle3d> RefineCircle(const Eigen::Matrix3Xd& points, const Circle
   return fit;
 }
 
-PrimitiveFit<Circle3d> FitCircle(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+PrimitiveFit<Circle3d> FitCircle(const PointsRef& points, const PrimitiveFitOptions& options) {
   PrimitiveFit<Circle3d> fit = FitInUnitBox<CircleLocal>(
       points, options, 3, "circle", [](const auto& y) { return std::vector<Circle3d>{CircleStart(y)}; });
   fit.shape.normal = CanonicalSign(fit.shape.normal);
   return fit;
 }
 
-PrimitiveFit<Torus> RefineTorus(const Eigen::Matrix3Xd& points, const Torus& initial,
+PrimitiveFit<Torus> RefineTorus(const PointsRef& points, const Torus& initial,
                                 const PrimitiveFitOptions& options) {
   PrimitiveFit<Torus> fit =
       RefineInUnitBox<TorusLocal>(points, options, 7, "torus", [&](const NormalizedData& data) {
@@ -795,7 +798,7 @@ PrimitiveFit<Torus> RefineTorus(const Eigen::Matrix3Xd& points, const Torus& ini
   return fit;
 }
 
-PrimitiveFit<Torus> FitTorus(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options) {
+PrimitiveFit<Torus> FitTorus(const PointsRef& points, const PrimitiveFitOptions& options) {
   PrimitiveFit<Torus> fit = FitInUnitBox<TorusLocal>(points, options, 7, "torus",
                                                      [&](const auto& y) { return TorusStarts(y, options); });
   fit.shape.axis = CanonicalSign(fit.shape.axis);

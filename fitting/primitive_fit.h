@@ -95,16 +95,20 @@ struct PrimitiveFit {
   Eigen::Index rejected = 0;
 };
 
+// The points of a fit, one per column: a Matrix3Xd, or a Map over a caller's buffer (e.g. a NumPy array of N
+// rows x, y, z, C-contiguous, which has exactly this layout) read in place without a copy.
+using PointsRef = Eigen::Ref<const Eigen::Matrix3Xd>;
+
 // Thrown for inputs no fit can use: too few points, non-finite coordinates, degenerate configurations.
 class FitError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
 
-PrimitiveFit<Plane> FitPlane(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
-PrimitiveFit<Sphere> FitSphere(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
-PrimitiveFit<Cylinder> FitCylinder(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
-PrimitiveFit<Cone> FitCone(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
+PrimitiveFit<Plane> FitPlane(const PointsRef& points, const PrimitiveFitOptions& options = {});
+PrimitiveFit<Sphere> FitSphere(const PointsRef& points, const PrimitiveFitOptions& options = {});
+PrimitiveFit<Cylinder> FitCylinder(const PointsRef& points, const PrimitiveFitOptions& options = {});
+PrimitiveFit<Cone> FitCone(const PointsRef& points, const PrimitiveFitOptions& options = {});
 
 // The rest of the ISO 10360-6 set (docs/metrology.md section 1). A line's and a circle's residual is the
 // 2-vector across the curve (its length the distance; PrimitiveFit::residuals then holds the non-negative
@@ -113,20 +117,20 @@ PrimitiveFit<Cone> FitCone(const Eigen::Matrix3Xd& points, const PrimitiveFitOpt
 // collinear. Torus: starts from the axis of the points' normal lines and from the least-variance direction,
 // each completed by the algebraic circle in the meridian plane; at least 7 points. Circle and torus take
 // ErrorTerm::kTdm only (std::invalid_argument otherwise).
-PrimitiveFit<Line3d> FitLine(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
-PrimitiveFit<Circle3d> FitCircle(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
-PrimitiveFit<Torus> FitTorus(const Eigen::Matrix3Xd& points, const PrimitiveFitOptions& options = {});
+PrimitiveFit<Line3d> FitLine(const PointsRef& points, const PrimitiveFitOptions& options = {});
+PrimitiveFit<Circle3d> FitCircle(const PointsRef& points, const PrimitiveFitOptions& options = {});
+PrimitiveFit<Torus> FitTorus(const PointsRef& points, const PrimitiveFitOptions& options = {});
 
 // Refinement from a caller's initial shape (no automatic initial guess).
-PrimitiveFit<Sphere> RefineSphere(const Eigen::Matrix3Xd& points, const Sphere& initial,
+PrimitiveFit<Sphere> RefineSphere(const PointsRef& points, const Sphere& initial,
                                   const PrimitiveFitOptions& options = {});
-PrimitiveFit<Cylinder> RefineCylinder(const Eigen::Matrix3Xd& points, const Cylinder& initial,
+PrimitiveFit<Cylinder> RefineCylinder(const PointsRef& points, const Cylinder& initial,
                                       const PrimitiveFitOptions& options = {});
-PrimitiveFit<Cone> RefineCone(const Eigen::Matrix3Xd& points, const Cone& initial,
+PrimitiveFit<Cone> RefineCone(const PointsRef& points, const Cone& initial,
                               const PrimitiveFitOptions& options = {});
-PrimitiveFit<Circle3d> RefineCircle(const Eigen::Matrix3Xd& points, const Circle3d& initial,
+PrimitiveFit<Circle3d> RefineCircle(const PointsRef& points, const Circle3d& initial,
                                     const PrimitiveFitOptions& options = {});
-PrimitiveFit<Torus> RefineTorus(const Eigen::Matrix3Xd& points, const Torus& initial,
+PrimitiveFit<Torus> RefineTorus(const PointsRef& points, const Torus& initial,
                                 const PrimitiveFitOptions& options = {});
 
 // Exposed for the Jacobian property tests: rows d(distance)/d(local parameters) at the zero increment, and

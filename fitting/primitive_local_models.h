@@ -30,7 +30,8 @@ struct NormalizedData {
   Eigen::Matrix3Xd points;
 };
 
-inline NormalizedData Normalize(const Eigen::Matrix3Xd& points, Eigen::Index min_points, const char* what) {
+inline NormalizedData Normalize(const Eigen::Ref<const Eigen::Matrix3Xd>& points, Eigen::Index min_points,
+                                const char* what) {
   if (points.cols() < min_points) {
     throw FitError(std::string("a ") + what + " fit needs at least " + std::to_string(min_points) +
                    " points, got " + std::to_string(points.cols()));

@@ -12,6 +12,7 @@
 #include "fitting/primitive_fit.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/output.h"
+#include "pipeline/views.h"
 
 namespace s2m::pipeline {
 namespace {
@@ -175,9 +176,14 @@ DetectOutcome ComputeDetect(const DetectOptions& o) {
   Scan scan;
   std::string format;
   try {
-    const PointCloudFormat f = DetectFormat(o.file);
-    format = ToString(f);
-    scan = ReadPointCloud(o.file, f);
+    if (o.views) {
+      scan = *InputCloud(o.file, o.views.get());
+      format = "memory";
+    } else {
+      const PointCloudFormat f = DetectFormat(o.file);
+      format = ToString(f);
+      scan = ReadPointCloud(o.file, f);
+    }
   } catch (const FormatError& e) {
     throw FitFailure(kInputError, e.what());
   }

@@ -4,6 +4,7 @@
 // files of the inliers (coloured per instance) and of the rejected points.
 
 #include <cstdint>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -16,6 +17,8 @@ namespace s2m::pipeline {
 
 struct DetectOptions {
   std::string file;
+  // The input in memory instead of `file` (the Python bindings); `file` then only names it.
+  std::shared_ptr<const ScanSet> views;
   std::vector<std::string> models;  // plane, sphere, cylinder, cone, torus
   int max_instances = 10;
   int min_support = 0;  // 0: automatic (max(30, N / 1000))

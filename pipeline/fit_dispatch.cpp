@@ -366,25 +366,11 @@ FitOutcome ComputePrimitiveFit(const FitOptions& o, const Scan& scan, const std:
     nlohmann::json& j = outcome.document;
     j["schema"] = "scan2model.fit/1";
     j["input"] = DescribeScan(scan, o.file, format);
-    j["model"] = o.model;
-    j["method"] = ToString(options.error_term);
-    for (const Row& r : rows) j["parameters"][r.name] = r.value;
-    j["nist_layout"] = ToNistLayout(fit.shape);
+    j.update(PrimitiveFitJson(o.model, options.error_term, fit, scan.units));
     j["form"] = form_json;
-    for (const ParameterUncertainty& u : fit.uncertainties) {
-      j["uncertainties"][u.name] = {{"standard_uncertainty", u.standard_uncertainty},
-                                    {"unit", u.is_angle ? "rad" : scan.units}};
-    }
-    j["residuals"] = {{"count", fit.residuals.count},
-                      {"rms", fit.residuals.rms},
-                      {"max_abs", fit.residuals.max_abs},
-                      {"mean", fit.residuals.mean}};
     j["loss"] = LossJson(o.loss, fit.loss_scale, evidence.weights);
     j["loss"]["reason"] = o.loss_reason;
-    j["iterations"] = fit.iterations;
-    j["stop_reason"] = ToString(fit.stop_reason);
     j["seconds"] = seconds;
-    j["history"] = HistoryJson(fit.history);
     if (deviation) {
       j["reference"] = {{"file", o.reference},
                         {"extent", extent},
@@ -548,6 +534,42 @@ FitOutcome ComputeRobustPrimitiveFit(FitOptions o, const Scan& scan, const std::
 
 }  // namespace
 
+template <class Shape>
+nlohmann::json PrimitiveFitJson(const std::string& model, ErrorTerm method, const PrimitiveFit<Shape>& fit,
+                                const std::string& units) {
+  nlohmann::json j;
+  j["model"] = model;
+  j["method"] = ToString(method);
+  for (const Row& r : Parameters(fit.shape)) j["parameters"][r.name] = r.value;
+  j["nist_layout"] = ToNistLayout(fit.shape);
+  for (const ParameterUncertainty& u : fit.uncertainties) {
+    j["uncertainties"][u.name] = {{"standard_uncertainty", u.standard_uncertainty},
+                                  {"unit", u.is_angle ? "rad" : units}};
+  }
+  j["residuals"] = {{"count", fit.residuals.count},
+                    {"rms", fit.residuals.rms},
+                    {"max_abs", fit.residuals.max_abs},
+                    {"mean", fit.residuals.mean}};
+  j["iterations"] = fit.iterations;
+  j["stop_reason"] = ToString(fit.stop_reason);
+  j["history"] = HistoryJson(fit.history);
+  return j;
+}
+template nlohmann::json PrimitiveFitJson(const std::string&, ErrorTerm, const PrimitiveFit<Plane>&,
+                                         const std::string&);
+template nlohmann::json PrimitiveFitJson(const std::string&, ErrorTerm, const PrimitiveFit<Sphere>&,
+                                         const std::string&);
+template nlohmann::json PrimitiveFitJson(const std::string&, ErrorTerm, const PrimitiveFit<Cylinder>&,
+                                         const std::string&);
+template nlohmann::json PrimitiveFitJson(const std::string&, ErrorTerm, const PrimitiveFit<Cone>&,
+                                         const std::string&);
+template nlohmann::json PrimitiveFitJson(const std::string&, ErrorTerm, const PrimitiveFit<Line3d>&,
+                                         const std::string&);
+template nlohmann::json PrimitiveFitJson(const std::string&, ErrorTerm, const PrimitiveFit<Circle3d>&,
+                                         const std::string&);
+template nlohmann::json PrimitiveFitJson(const std::string&, ErrorTerm, const PrimitiveFit<Torus>&,
+                                         const std::string&);
+
 FitOutcome ComputeFit(const FitOptions& o) {
   if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
   if (o.model == "hermite-curve") return ComputeHermiteFit(o);
@@ -562,19 +584,14 @@ FitOutcome ComputeFit(const FitOptions& o) {
     throw FitFailure(kUsage, "--method " + options.method + " applies to splines; primitives use tdm or sdm");
   }
   try {
-    // A recording or a views manifest: its views merged in the world (a primitive has no poses to fit).
+    // A recording, a views manifest or views in memory: merged in the world (a primitive has no poses to
+    // fit).
     const std::string extension = std::filesystem::path(options.file).extension().string();
-    const bool views = extension == kRecordingExtension || extension == ".json" || extension == ".conf";
     Scan scan;
     std::string f;
-    if (views) {
-      const ScanSet set = ReadViews(options.file);
-      if (set.scans.empty()) throw FormatError(options.file, "", "no views");
-      scan.points = set.MergedWorldPoints();
-      scan.units = set.scans.front().units;
-      scan.metadata = set.scans.front().metadata;
-      scan.metadata.source = options.file;
-      f = extension == kRecordingExtension ? "recording" : "views";
+    if (std::optional<Scan> cloud = InputCloud(options.file, options.views.get())) {
+      scan = std::move(*cloud);
+      f = options.views ? "memory" : extension == kRecordingExtension ? "recording" : "views";
     } else {
       const PointCloudFormat format = DetectFormat(options.file);
       scan = ReadPointCloud(options.file, format);

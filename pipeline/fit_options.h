@@ -3,11 +3,13 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "fitting/primitive_fit.h"
 #include "fitting/robust_loss.h"
 #include "pipeline/exit_code.h"
 #include "registration/scan.h"
@@ -16,6 +18,10 @@ namespace s2m::pipeline {
 
 struct FitOptions {
   std::string file;
+  // The input in memory instead of `file` (the Python bindings, docs/python.md); `file` then only names it
+  // in messages and documents. Primitives, curves and spline surfaces fit its views merged in the world
+  // frame; the multi-view fits take its views with their poses.
+  std::shared_ptr<const ScanSet> views;
   std::string model;
   std::string method;  // default per model family: tdm for primitives, sdm for splines
   std::string reference;
@@ -100,6 +106,14 @@ class FitFailure : public std::runtime_error {
 // Runs the fit `o` describes (any model of `scan2model fit`); throws FitFailure. Writes the files options
 // ask for (-o PREFIX, --history), nothing on standard output or error.
 FitOutcome ComputeFit(const FitOptions& o);
+
+// The members of a scan2model.fit/1 document that a primitive fit alone determines (docs/cli.md): model,
+// method, parameters, nist_layout, uncertainties (lengths in `units`), residuals, iterations, stop_reason,
+// history. ComputeFit's documents and the Python bindings' direct fits (docs/python.md) share it; defined for
+// Plane, Sphere, Cylinder, Cone, Line3d, Circle3d and Torus.
+template <class Shape>
+nlohmann::json PrimitiveFitJson(const std::string& model, ErrorTerm method, const PrimitiveFit<Shape>& fit,
+                                const std::string& units);
 
 // The fits ComputeFit dispatches to; each throws FitFailure.
 // A B-spline curve or surface fit.

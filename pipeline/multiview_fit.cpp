@@ -171,7 +171,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     // Automatic complexity (the default) starts coarse: one span more than a single cubic piece
     // (docs/method.md section 18).
     const ControlPointRequest request = ParseControlPoints(o.control_points, false);
-    const ScanSet set = ReadViews(o.file);
+    ScanSet storage;
+    const ScanSet& set = InputViews(o, storage);
     ResolveDefaultLoss(o, ClassifyInput(o.file, set.scans.empty() ? "" : set.scans.front().metadata.device));
     const std::size_t K = set.scans.size();
     // A given count is reached from a coarse fit by knot insertion too (FitFixedComplexity).

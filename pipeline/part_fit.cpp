@@ -108,7 +108,8 @@ FitOutcome ComputePartFit(const FitOptions& given) {
   }
   try {
     const PartFile file = ReadPartFile(part_path);
-    const ScanSet set = ReadViews(o.file);
+    ScanSet storage;
+    const ScanSet& set = InputViews(o, storage);
     ResolveDefaultLoss(o, ClassifyInput(o.file, set.scans.empty() ? "" : set.scans.front().metadata.device));
     options.optimizer.loss = o.loss;
     const std::string units = ResolveUnits(file, part_path, set, o);

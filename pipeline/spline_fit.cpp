@@ -27,6 +27,7 @@
 #include "pipeline/fit_options.h"
 #include "pipeline/interrogation_json.h"
 #include "pipeline/output.h"
+#include "pipeline/views.h"
 
 namespace s2m::pipeline {
 namespace {
@@ -134,6 +135,14 @@ Eigen::Matrix3Xd Samples(const ParametricModel& model) {
 
 Eigen::MatrixXd ReadFitPoints(const FitOptions& o, std::string& format, std::string& units,
                               std::vector<std::string>& notes, std::string& device) {
+  if (o.views) {
+    const std::optional<Scan> scan = InputCloud(o.file, o.views.get());
+    notes = scan->metadata.notes;
+    device = scan->metadata.device;
+    format = "memory";
+    units = scan->units;
+    return scan->points;
+  }
   if (std::filesystem::path(o.file).extension() == ".glif") {
     const auto contours = ReadGlifContours(o.file);
     if (o.contour < 0 || o.contour >= static_cast<int>(contours.size())) {

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "acquisition/e57_io.h"
+#include "acquisition/format_error.h"
 #include "acquisition/frame_source.h"
 #include "acquisition/point_cloud_io.h"
 #include "acquisition/recording.h"
@@ -27,6 +28,34 @@ ScanSet ReadViews(const std::string& file) {
   ScanSet set;  // a single cloud: one view in world coordinates
   set.scans.push_back(ReadPointCloud(file));
   return set;
+}
+
+const ScanSet& InputViews(const FitOptions& options, ScanSet& storage) {
+  if (options.views) return *options.views;
+  storage = ReadViews(options.file);
+  return storage;
+}
+
+std::optional<Scan> InputCloud(const std::string& file, const ScanSet* views) {
+  ScanSet storage;
+  const ScanSet* set = views;
+  if (!set) {
+    const std::string extension = std::filesystem::path(file).extension().string();
+    if (extension != kRecordingExtension && extension != ".json" && extension != ".conf") return std::nullopt;
+    storage = ReadViews(file);
+    set = &storage;
+  }
+  if (set->scans.empty()) throw FormatError(file, "", "no views");
+  const Scan& first = set->scans.front();
+  // One cloud given in memory in world coordinates: as it is, normals and all.
+  if (views && set->scans.size() == 1 && first.world_T_scan.matrix() == Eigen::Matrix4d::Identity())
+    return first;
+  Scan scan;
+  scan.points = set->MergedWorldPoints();
+  scan.units = first.units;
+  scan.metadata = first.metadata;
+  scan.metadata.source = file;
+  return scan;
 }
 
 JointFitOptions JointOptions(const FitOptions& o) {

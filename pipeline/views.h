@@ -4,6 +4,7 @@
 // run.
 
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -13,9 +14,16 @@
 
 namespace s2m::pipeline {
 
-// A scan2model.views/1 manifest (.json), Stanford .conf, recording or E57 file (each data3D scan a view with its
-// pose); any other file is read as one cloud, one view in world coordinates. Throws FormatError.
+// A scan2model.views/1 manifest (.json), Stanford .conf, recording or E57 file (each data3D scan a view with
+// its pose); any other file is read as one cloud, one view in world coordinates. Throws FormatError.
 ScanSet ReadViews(const std::string& file);
+// The views of a fit: options.views when given in memory, else ReadViews(options.file) kept in `storage`.
+const ScanSet& InputViews(const FitOptions& options, ScanSet& storage);
+// One cloud of an input: the only view of `views` (in memory) as it is when its pose is the identity, else
+// the views merged in the world frame with the first view's units and metadata (a views manifest or recording
+// named by `file` likewise). nullopt when `views` is null and `file` is a point file (E57 included) the
+// caller reads itself.
+std::optional<Scan> InputCloud(const std::string& file, const ScanSet* views);
 
 // The error term (default tdm), iteration cap and solver variant (joint, alternating, register-then-fit).
 // Throws std::invalid_argument for a method the joint solver does not know.
