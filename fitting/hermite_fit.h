@@ -62,7 +62,8 @@ struct HermiteFitOptions {
   // variation along the arc, independent of the parametrization) plus the parametric (1 - g) alpha3
   // integral |w'''|^2 du, which keeps the parametrization regular. Plane curves only; the fit is then the
   // sliding springs with exact point forces (eqs. F28-F29) and the geometric term's Gauss-Newton model,
-  // whatever the method. 0: the parametric energy alone (Fang's).
+  // whatever the method. 0: the parametric energy alone (Fang's). Measured (docs/fair-curves.md section 7):
+  // fairer than the parametric energy and OpenCASCADE on a sine, but not convex on the airfoil.
   double geometric_variation = 0.0;
   // Of each fit (the spring method: at most optimizer.max_iterations steps). The relative decrease tolerance
   // is 1e-8 rather than the engine's 1e-10: the nodal derivatives' tangential parts (the parametrization) are
