@@ -6,7 +6,8 @@
 // B-spline's bending weight searched), so that all curves are compared at equal RMS. The fairness figures
 // (bending energy integral kappa^2 ds, curvature variation integral (dkappa/ds)^2 ds, curvature sign changes
 // and extrema) are measured by the same code on every curve's exact representation (exact feet,
-// docs/fair-curves.md section 6). Prints markdown tables; `build/bench/fair_curves`.
+// docs/fair-curves.md section 6). Prints markdown tables; `build/bench/fair_curves [WORD]` (WORD: only the
+// cases whose name contains it).
 
 #include <algorithm>
 #include <chrono>
@@ -190,6 +191,13 @@ std::vector<Row> RunCase(const Case& c, double target, double& equal_rms) {
   f.method = HermiteMethod::kSpring;
   f.optimizer.max_iterations = 200;
   hermite_row(f, "Hermite quintic, Fang's springs");
+  // 90 % of alpha3 measured geometrically, integral (dkappa/ds)^2 ds (eq. F30; plane curves), adaptive and
+  // with the fixed elements.
+  HermiteFitOptions g = h;
+  g.geometric_variation = 0.9;
+  hermite_row(g, "Hermite quintic, geometric variation 0.9");
+  g.elements = f.elements;
+  hermite_row(g, "Hermite quintic, geometric variation 0.9");
   // Our B-spline SDM fit (cubic), bending weight searched for the same RMS.
   {
     const auto start = Clock::now();
@@ -226,8 +234,11 @@ Eigen::Matrix2Xd AddNoise(Eigen::Matrix2Xd p, double sigma, std::uint32_t seed) 
 }  // namespace
 }  // namespace s2m
 
-int main() {
+// `fair_curves [WORD]`: with WORD, only the equal-RMS cases whose name contains it (and not the closeness
+// table).
+int main(int argc, char** argv) {
   using namespace s2m;
+  const std::string only = argc > 1 ? argv[1] : "";
   std::vector<Case> cases;
   {
     Case c;
@@ -283,7 +294,7 @@ int main() {
   }
   // The four closeness terms at the same weights and elements (the first case): iterations, time, RMS,
   // energy; the springs also with the fairness Hessian alone (Fang's eq. 5.1.4 as printed).
-  {
+  if (only.empty()) {
     const Case& c = cases.front();
     std::printf("\n### Closeness terms at equal weights: %s, 5 quintic elements\n\n", c.name.c_str());
     std::printf(
@@ -315,6 +326,7 @@ int main() {
     std::fflush(stdout);
   }
   for (const Case& c : cases) {
+    if (!only.empty() && c.name.find(only) == std::string::npos) continue;
     // The target: 1.15 sigma, a little above the noise (2D isotropic noise: RMS orthogonal distance sigma),
     // so that every method has room for its smoothing; OpenCASCADE's RMS at it is then everyone's.
     double equal_rms = 0.0;

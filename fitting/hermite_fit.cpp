@@ -42,13 +42,16 @@ Eigen::VectorXd PointForce(const HermiteCurve& curve, double u) {
 
 class SpringProblem : public NonlinearProblem {
  public:
+  // geometric_weight > 0: the cost also has geometric_weight integral (dkappa/ds)^2 ds (eq. F30), with its
+  // Gauss-Newton model in the Hessian.
   SpringProblem(HermiteCurve curve, const Eigen::MatrixXd& y, double unit, double diagonal_floor,
-                bool fairness_hessian_only)
+                bool fairness_hessian_only, double geometric_weight = 0.0)
       : curve_(std::move(curve)),
         trial_(curve_),
         y_(y),
         unit_(unit),
         fairness_only_(fairness_hessian_only),
+        geometric_weight_(geometric_weight),
         normal_(diagonal_floor) {
     k_ = curve_.FairnessMatrix({});
     if (k_.size() == 0) k_ = Eigen::MatrixXd::Zero(curve_.num_parameters(), curve_.num_parameters());
@@ -77,6 +80,13 @@ class SpringProblem : public NonlinearProblem {
       for (int c = 0; c < s; ++c) f[k * s + c] = reduced(k, c);
     normal_.H() = 2.0 * k_;
     normal_.g() = 2.0 * k_ * curve_.parameters() - f;
+    if (geometric_weight_ > 0) {
+      Eigen::VectorXd r;
+      Eigen::MatrixXd j;
+      GeometricCurvatureVariation(curve_, r, &j);
+      normal_.H() += 2.0 * geometric_weight_ * j.transpose() * j;
+      normal_.g() += 2.0 * geometric_weight_ * j.transpose() * r;
+    }
     if (!fairness_only_) {
       // The springs' stiffness across the curve: (Psi_j^T n_j)(Psi_j^T n_j)^T per point, n_j the unit
       // residual direction (normal to the curve at an interior foot); a point on the curve adds none.
@@ -136,13 +146,20 @@ class SpringProblem : public NonlinearProblem {
     double f = 0.0;
     for (const FootPoint& p : feet) f += 0.5 * p.distance * p.distance;
     const Eigen::VectorXd q = c.parameters();
-    return f + q.dot(k_ * q);
+    f += q.dot(k_ * q);
+    if (geometric_weight_ > 0) {
+      Eigen::VectorXd r;
+      GeometricCurvatureVariation(c, r, nullptr);
+      f += geometric_weight_ * r.squaredNorm();
+    }
+    return f;
   }
 
   HermiteCurve curve_, trial_;
   const Eigen::MatrixXd& y_;
   double unit_;
   bool fairness_only_;
+  double geometric_weight_;
   bool exact_forces_ = false;
   Eigen::MatrixXd k_;
   DenseNormalEquations normal_;
@@ -157,11 +174,14 @@ struct OneFit {
 
 // One approximation at fixed elements and weights, from `start`.
 OneFit FitOnce(const HermiteCurve& start, const Eigen::MatrixXd& points, const HermiteFairness& weights,
-               const HermiteFitOptions& options) {
+               const HermiteFitOptions& options, double reference_length) {
   HermiteCurve curve = start;
-  curve.set_fairness(weights);
+  const bool geometric = options.geometric_variation > 0;
+  HermiteFairness own = weights;
+  if (geometric) own.alpha3 *= 1.0 - options.geometric_variation;
+  curve.set_fairness(own);
   GeometricFitResult fit;
-  if (options.method != HermiteMethod::kSpring) {
+  if (options.method != HermiteMethod::kSpring && !geometric) {
     GeometricFitOptions o;
     o.error_term = options.method == HermiteMethod::kSdm   ? ErrorTerm::kSdm
                    : options.method == HermiteMethod::kTdm ? ErrorTerm::kTdm
@@ -179,10 +199,15 @@ OneFit FitOnce(const HermiteCurve& start, const Eigen::MatrixXd& points, const H
   const Eigen::MatrixXd y = (points.colwise() - Eigen::VectorXd(offset)) / scale;
   HermiteCurve unit = curve;
   unit.ApplySimilarity(1.0 / scale, VecS(-offset / scale));
+  // The geometric term's weight in the unit box: alpha3 L0^5 with L0 the reference length in its units.
+  const double geometric_weight =
+      geometric ? weights.alpha3 * options.geometric_variation * std::pow(reference_length / scale, 5) : 0.0;
   SpringProblem problem(unit, y, scale, options.optimizer.damping.diagonal_floor,
-                        options.spring_as_in_thesis);
+                        options.spring_as_in_thesis && !geometric, geometric_weight);
+  // With the geometric term the closeness is always the exact point forces (eq. F29).
+  if (geometric) problem.UseExactForces();
   MinimizerSummary summary = TrustRegionMinimizer(options.optimizer).Minimize(problem);
-  if (!options.spring_as_in_thesis && summary.iterations < options.optimizer.max_iterations) {
+  if (!geometric && !options.spring_as_in_thesis && summary.iterations < options.optimizer.max_iterations) {
     // Where the resolved forces stop decreasing E, finish with the exact point forces (eq. F29).
     problem.UseExactForces();
     OptimizerOptions rest = options.optimizer;
@@ -194,6 +219,7 @@ OneFit FitOnce(const HermiteCurve& start, const Eigen::MatrixXd& points, const H
   }
   curve = problem.curve();
   curve.ApplySimilarity(scale, offset);
+  curve.set_fairness(weights);
   (void)s;
   fit.iterations = summary.iterations;
   fit.stop_reason = summary.stop_reason;
@@ -381,9 +407,76 @@ bool HermiteFitOptions::IsValid(std::string* why) const {
     return fail("give a fairness fraction or a tolerance, not both (each sets the weights' scale)");
   if (fairness_fraction > 0 && interpolate)
     return fail("an interpolation passes through the points: no fairness fraction");
+  if (!(geometric_variation >= 0 && geometric_variation < 1))
+    return fail("the geometric share of the curvature variation must be in [0, 1) (0: parametric only)");
+  if (geometric_variation > 0 && !(fairness.alpha3 > 0))
+    return fail("the geometric curvature variation is a share of alpha3: give an alpha3 weight");
+  if (geometric_variation > 0 && interpolate)
+    return fail("an interpolation minimizes the parametric energy only: no geometric curvature variation");
   if (fairness_fraction > 0 && fairness.alpha1 == 0 && fairness.alpha2 == 0 && fairness.alpha3 == 0)
     return fail("the fairness fraction normalizes the alpha terms: give at least one alpha weight");
   return optimizer.IsValid(why);
+}
+
+// Residuals r_q = kappa_s(u_q) sqrt(|w'(u_q)| W_q), so that |r|^2 is integral (dkappa/ds)^2 ds (eq. F30).
+// Plane curves: kappa_s = Y / n^2 - 3 X D / n^3 (eq. F20), n = |w'|^2, X = w' x w'', Y = w' x w''',
+// D = w' . w''; so r_q = (Y n^(-7/4) - 3 X D n^(-11/4)) sqrt(W_q), differentiated by hand below.
+void GeometricCurvatureVariation(const HermiteCurve& curve, Eigen::VectorXd& r, Eigen::MatrixXd* jacobian) {
+  static const double x[5] = {0.0469100770306680, 0.2307653449471585, 0.5, 0.7692346550528415,
+                              0.9530899229693320};
+  static const double w[5] = {0.1184634425280945, 0.2393143352496832, 0.2844444444444444, 0.2393143352496832,
+                              0.1184634425280945};
+  constexpr int kSub = 8;
+  if (curve.ambient_dimension() != 2)
+    throw std::invalid_argument("the geometric curvature variation is implemented for plane curves only");
+  const int s = curve.ambient_dimension(), per = curve.derivatives_per_node(), n_fun = curve.degree() + 1;
+  const int elements = curve.num_elements();
+  const std::vector<double>& k = curve.knots();
+  r.resize(static_cast<Eigen::Index>(elements) * kSub * 5);
+  if (jacobian) *jacobian = Eigen::MatrixXd::Zero(r.size(), curve.num_parameters());
+  const Eigen::MatrixXd& values = curve.nodal_values();
+  const Eigen::MatrixXd& expansion = curve.expansion();
+  Eigen::Index row = 0;
+  for (int e = 0; e < elements; ++e) {
+    const double h = k[e + 1] - k[e];
+    const ElementBasis basis = HermiteElementBasis(curve.degree(), h);
+    std::vector<int> global(static_cast<std::size_t>(n_fun));
+    Eigen::MatrixXd local(s, n_fun);
+    for (int l = 0; l < n_fun; ++l) {
+      global[l] = curve.ElementNode(e, l / per) * per + l % per;
+      local.col(l) = values.col(global[l]);
+    }
+    for (int sub = 0; sub < kSub; ++sub) {
+      for (int q = 0; q < 5; ++q, ++row) {
+        const double t = (sub + x[q]) / kSub, weight = w[q] * h / kSub;
+        const Eigen::VectorXd p1 = ElementDerivativeRow(basis, 1, t), p2 = ElementDerivativeRow(basis, 2, t),
+                              p3 = ElementDerivativeRow(basis, 3, t);
+        const Eigen::Vector2d a = local * p1, b = local * p2, c = local * p3;
+        const double n = a.squaredNorm(), cross_ab = a.x() * b.y() - a.y() * b.x(),
+                     cross_ac = a.x() * c.y() - a.y() * c.x(), dot_ab = a.dot(b);
+        const double root = std::sqrt(weight), n74 = std::pow(n, -1.75), n114 = std::pow(n, -2.75);
+        r[row] = root * (cross_ac * n74 - 3.0 * cross_ab * dot_ab * n114);
+        if (!jacobian) continue;
+        // Partial derivatives of r_q / sqrt(W_q) with respect to w', w'', w''' at u_q.
+        const Eigen::Vector2d dx_da(b.y(), -b.x()), dx_db(-a.y(), a.x()), dy_da(c.y(), -c.x()),
+            dy_dc(-a.y(), a.x());
+        const Eigen::Vector2d df_da = dy_da * n74 - 3.5 * cross_ac * n114 * a -
+                                      3.0 * n114 * (dx_da * dot_ab + cross_ab * b) +
+                                      16.5 * cross_ab * dot_ab * std::pow(n, -3.75) * a;
+        const Eigen::Vector2d df_db = -3.0 * n114 * (dx_db * dot_ab + cross_ab * a);
+        const Eigen::Vector2d df_dc = dy_dc * n74;
+        // Onto the nodal dofs (per coordinate), then the independent parameters (index * s + coordinate).
+        for (int l = 0; l < n_fun; ++l) {
+          const Eigen::Vector2d g = root * (df_da * p1[l] + df_db * p2[l] + df_dc * p3[l]);
+          for (Eigen::Index i = 0; i < expansion.cols(); ++i) {
+            const double t_li = expansion(global[l], i);
+            if (t_li == 0.0) continue;
+            for (int cc = 0; cc < 2; ++cc) (*jacobian)(row, i * s + cc) += g[cc] * t_li;
+          }
+        }
+      }
+    }
+  }
 }
 
 Eigen::VectorXd LinearLoadVector(int degree, double h, double q_a, double q_b) {
@@ -500,9 +593,18 @@ HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFit
                                   options.fairness, &f.closeness_reference, &f.fairness_reference);
     base = Scaled(options.fairness, scale);
   }
+  // The geometric curvature variation's reference length (eq. F30): the initial chain's, sampled with at
+  // least 16 elements (fixed for the whole fit, so that the energy stays alpha3 times a fixed scale).
+  double reference_length = 0.0;
+  if (options.geometric_variation > 0) {
+    if (points.rows() != 2)
+      throw std::invalid_argument("the geometric curvature variation is implemented for plane curves only");
+    reference_length = ArcLength(
+        elements >= 16 ? curve : InitialHermiteCurve(points, options.degree, 16, options.closed, false));
+  }
   int fits = 0, total_iterations = 0;
   auto run = [&](const HermiteCurve& from, const HermiteFairness& w) {
-    OneFit f = FitOnce(from, points, w, options);
+    OneFit f = FitOnce(from, points, w, options, reference_length);
     ++fits;
     total_iterations += f.fit.iterations;
     return f;

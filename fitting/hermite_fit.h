@@ -57,6 +57,14 @@ struct HermiteFitOptions {
   // (false): the Hessian adds the sliding springs' stiffness across the curve (eq. F28), and the iteration
   // finishes with the exact point forces where the resolved ones stop decreasing the energy (eq. F29).
   bool spring_as_in_thesis = false;
+  // In [0, 1): the share g of the alpha3 weight measured geometrically (docs/fair-curves.md eq. F30): the
+  // fairness has g alpha3 L0^5 integral (dkappa/ds)^2 ds (L0 the initial curve's length; the curvature
+  // variation along the arc, independent of the parametrization) plus the parametric (1 - g) alpha3
+  // integral |w'''|^2 du, which keeps the parametrization regular. Plane curves only; the fit is then the
+  // sliding springs with exact point forces (eqs. F28-F29) and the geometric term's Gauss-Newton model,
+  // whatever the method. 0: the parametric energy alone (Fang's). Measured (docs/fair-curves.md section 7):
+  // fairer than the parametric energy and OpenCASCADE on a sine, but not convex on the airfoil.
+  double geometric_variation = 0.0;
   // Of each fit (the spring method: at most optimizer.max_iterations steps). The relative decrease tolerance
   // is 1e-8 rather than the engine's 1e-10: the nodal derivatives' tangential parts (the parametrization) are
   // held only by the fairness, and the last digits of E they still gain are not worth a hundred iterations.
@@ -125,5 +133,12 @@ Eigen::VectorXd LinearLoadVector(int degree, double h, double q_a, double q_b);
 // resolved as a linear load over its element and the two neighbours (Fang's Method 2, eq. 5.1.9b;
 // docs/fair-curves.md eq. F15); at an open curve's end elements, over the host element alone (Method 1).
 Eigen::VectorXd ResolvedUnitForce(const HermiteCurve& curve, double u);
+
+// The geometric curvature variation integral (dkappa/ds)^2 ds of a plane curve (docs/fair-curves.md eq. F30)
+// as a sum of squares |r|^2: r_q = kappa_s(u_q) sqrt(|w'(u_q)| W_q) at 5-point Gauss-Legendre nodes on 8
+// sub-intervals of every element (W_q the rule's weight times the sub-interval's length in u). With
+// `jacobian`, also dr/dQ (rows: residuals, columns: the curve's parameters), the Gauss-Newton model of the
+// fit. Throws std::invalid_argument for space curves.
+void GeometricCurvatureVariation(const HermiteCurve& curve, Eigen::VectorXd& r, Eigen::MatrixXd* jacobian);
 
 }  // namespace s2m
