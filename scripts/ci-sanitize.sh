@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# CI's sanitizer stage (docs/reliability.md, "In CI"): after the normal tests, one clang build with ASan + UBSan and
-# libFuzzer's coverage instrumentation serves both
+# The sanitizer stage meant for CI (docs/reliability.md; not in .ci/run until its time on 2 cores is measured):
+# one clang build with ASan + UBSan and libFuzzer's coverage instrumentation serves both
 #   1. the tests of every reader, writer and fault path, and the fuzz corpus replays, under the sanitizers, and
 #   2. a short coverage-guided pass over every fuzz target (S2M_CI_FUZZ_SECONDS each, default 20).
 # The whole suite under the sanitizers is `scripts/sanitize.sh` (it does not fit CI's time limit beside the
