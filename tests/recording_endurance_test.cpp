@@ -5,8 +5,8 @@
 // The writer runs as fast as it can, faster than real time, and each frame's write time is measured; a camera
 // delivering every 1/30 s into a queue of one second of frames is then replayed on those measured times (a
 // single writer serving a FIFO: exact for the times measured) to count what a live recording would have
-// dropped. The default records one minute of frames; set S2M_ENDURANCE_SECONDS=600 for the ten-minute run
-// whose figures docs/reliability.md gives.
+// dropped. The default records one minute of frames; set S2M_ENDURANCE_SECONDS=600 for ten minutes
+// (docs/reliability.md gives both runs' figures).
 
 #include <gtest/gtest.h>
 
