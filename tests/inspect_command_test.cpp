@@ -12,6 +12,7 @@
 #include "acquisition/file_hash.h"
 #include "acquisition/mesh_io.h"
 #include "acquisition/point_cloud_io.h"
+#include "test_meshes.h"
 #include "test_support.h"
 
 namespace s2m {
@@ -19,22 +20,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The box [-30, 30] x [-20, 20] x [0, 20], one group per face.
+// The box [-30, 30] x [-20, 20] x [0, 20], one group per face, named as the checks files below name them.
 TriangleMesh Box() {
-  const double a = 30, b = 20, c = 20;
-  TriangleMesh m;
-  m.vertices.resize(3, 8);
-  for (int i = 0; i < 8; ++i)
-    m.vertices.col(i) << ((i & 1) ? a : -a), ((i & 2) ? b : -b), ((i & 4) ? c : 0.0);
-  const int quads[6][4] = {{1, 3, 7, 5}, {0, 4, 6, 2}, {2, 6, 7, 3},
-                           {0, 1, 5, 4}, {4, 5, 7, 6}, {0, 2, 3, 1}};
-  m.triangles.resize(3, 12);
-  for (int f = 0; f < 6; ++f) {
-    m.triangles.col(2 * f) << quads[f][0], quads[f][1], quads[f][2];
-    m.triangles.col(2 * f + 1) << quads[f][0], quads[f][2], quads[f][3];
-    m.groups.push_back(f);
-    m.groups.push_back(f);
-  }
+  TriangleMesh m = test::BoxMesh(30, 20, 20);
   m.group_names = {"px", "mx", "py", "my", "top", "bottom"};
   return m;
 }

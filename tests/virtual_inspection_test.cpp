@@ -16,6 +16,7 @@
 #include "devices/virtual_scanner.h"
 #include "fitting/nominal_inspection.h"
 #include "fitting/triangle_mesh.h"
+#include "test_meshes.h"
 
 namespace s2m {
 namespace {
@@ -30,22 +31,9 @@ double Bump(double y, double z) {
   return rho < kBumpRadius ? kBumpHeight * std::pow(std::cos(kPi * rho / (2 * kBumpRadius)), 2) : 0.0;
 }
 
-// The nominal: the box, two triangles per face, counter-clockwise seen from outside, one group per face.
+// The nominal: the box, one group per face (test_meshes.h), in millimetres.
 TriangleMesh Box() {
-  TriangleMesh m;
-  m.vertices.resize(3, 8);
-  for (int i = 0; i < 8; ++i)
-    m.vertices.col(i) << ((i & 1) ? kA : -kA), ((i & 2) ? kB : -kB), ((i & 4) ? kC : 0.0);
-  const int quads[6][4] = {{1, 3, 7, 5}, {0, 4, 6, 2}, {2, 6, 7, 3},
-                           {0, 1, 5, 4}, {4, 5, 7, 6}, {0, 2, 3, 1}};
-  m.triangles.resize(3, 12);
-  for (int f = 0; f < 6; ++f) {
-    m.triangles.col(2 * f) << quads[f][0], quads[f][1], quads[f][2];
-    m.triangles.col(2 * f + 1) << quads[f][0], quads[f][2], quads[f][3];
-    m.groups.push_back(f);
-    m.groups.push_back(f);
-  }
-  m.group_names = {"+x", "-x", "+y", "-y", "top", "bottom"};
+  TriangleMesh m = test::BoxMesh(kA, kB, kC);
   m.units = "mm";
   return m;
 }
