@@ -11,16 +11,7 @@ build="${S2M_CI_SANITIZE_BUILD_DIR:-$root/build-ci-sanitize}"
 seconds="${S2M_CI_FUZZ_SECONDS:-20}"
 start=$(date +%s)
 
-need=()
-for p in clang libclang-rt-14-dev; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need+=("$p")
-done
-if [ ${#need[@]} -gt 0 ]; then
-  sudo_cmd=()
-  [ "$(id -u)" -ne 0 ] && sudo_cmd=(sudo)
-  echo "[ci-sanitize] installing: ${need[*]}"
-  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${need[@]}"
-fi
+"$root/scripts/install-clang.sh"
 "$root/scripts/install-deps.sh" >/dev/null
 
 # The test programs of the readers, writers and fault paths (each a ctest group of its own test cases).

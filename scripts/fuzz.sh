@@ -11,16 +11,7 @@ target="${1:-all}"
 seconds="${2:-60}"
 build="${S2M_FUZZ_BUILD_DIR:-$root/build-fuzz}"
 
-need=()
-for p in clang libclang-rt-14-dev; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need+=("$p")
-done
-if [ ${#need[@]} -gt 0 ]; then
-  sudo_cmd=()
-  [ "$(id -u)" -ne 0 ] && sudo_cmd=(sudo)
-  echo "[fuzz] installing: ${need[*]}"
-  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${need[@]}"
-fi
+"$root/scripts/install-clang.sh"
 "$root/scripts/install-deps.sh" >/dev/null
 
 # S2M_FUZZ_KEEP_CONFIG=1: a build folder configured for fuzzing already (scripts/ci-sanitize.sh's, with tests).
