@@ -697,7 +697,18 @@ HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFit
   result.weights = Scaled(options.fairness, scale);
   result.weight_scale = scale;
   result.curve.set_fairness(result.weights);
-  result.energy = result.curve.EnergyBreakdown(result.weights);
+  if (options.geometric_variation > 0) {
+    // The parametric (1 - g) share of alpha3 and the geometric g share along the arc (eq. F30).
+    HermiteFairness parametric = result.weights;
+    parametric.alpha3 *= 1.0 - options.geometric_variation;
+    result.energy = result.curve.EnergyBreakdown(parametric);
+    Eigen::VectorXd r;
+    GeometricCurvatureVariation(result.curve, r, nullptr);
+    result.geometric_energy =
+        result.weights.alpha3 * options.geometric_variation * std::pow(reference_length, 5) * r.squaredNorm();
+  } else {
+    result.energy = result.curve.EnergyBreakdown(result.weights);
+  }
   result.foot_points = best.fit.foot_points;
   result.residuals = best.fit.residuals;
   result.closeness = 0.0;
@@ -706,7 +717,8 @@ HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFit
     const HermiteFairness& e = result.energy;
     result.fraction.closeness = result.closeness / result.fraction.closeness_reference;
     result.fraction.fairness =
-        (e.alpha1 + e.alpha2 + e.alpha3 + e.beta2 + e.beta3) / (scale * result.fraction.fairness_reference);
+        (e.alpha1 + e.alpha2 + e.alpha3 + e.beta2 + e.beta3 + result.geometric_energy) /
+        (scale * result.fraction.fairness_reference);
   }
   result.iterations = best.fit.iterations;
   result.stop_reason = best.fit.stop_reason;

@@ -82,8 +82,11 @@ struct HermiteFitResult {
   HermiteCurve curve;
   HermiteFairness weights;    // the weights used (after the tolerance's scaling)
   double weight_scale = 1.0;  // the tolerance search's or the fairness fraction's factor (else 1)
-  HermiteFairness energy;     // each fairness term's value at the result
-  double closeness = 0.0;     // 1/2 sum d_j^2, data units
+  HermiteFairness energy;     // each fairness term's value at the result (alpha3: its parametric share)
+  // With geometric_variation g > 0: g alpha3 L0^5 integral (dkappa/ds)^2 ds at the result (eq. F30), the
+  // part of alpha3 measured along the arc; energy.alpha3 is then the parametric (1 - g) share. Else 0.
+  double geometric_energy = 0.0;
+  double closeness = 0.0;  // 1/2 sum d_j^2, data units
   ResidualStatistics residuals;
   std::vector<FootPoint> foot_points;
   int iterations = 0;        // of the last fit (the spring method's SQP steps or the engine's iterations)

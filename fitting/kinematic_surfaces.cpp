@@ -1,7 +1,9 @@
 #include "fitting/kinematic_surfaces.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <vector>
 
 #include "fitting/fast_atan2.h"
 
@@ -262,6 +264,102 @@ double KinematicSurface::RadiusAtHeight(double height, Eigen::VectorXd* gradient
     }
   }
   return point.x();
+}
+
+double KinematicSurface::EnclosedVolume(bool base_at_start, double fill_height,
+                                        Eigen::VectorXd* gradient) const {
+  if (helical_) throw std::logic_error("an enclosed volume is defined for surfaces of revolution only");
+  if (!(fill_height > 0)) throw std::invalid_argument("the fill height must be positive (or infinite)");
+  // 8-point Gauss-Legendre on [-1, 1]: exact for polynomials of degree <= 15, and r^2 z' has degree 3 d - 1
+  // on a span (d the generatrix's degree); higher degrees split each piece in four.
+  static const double kNodes[4] = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267,
+                                   0.9602898564975363};
+  static const double kWeights[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745,
+                                     0.1012285362903763};
+  const int subdivisions = 3 * basis_.degree() - 1 <= 15 ? 1 : 4;
+  const double u_base = base_at_start ? basis_.lo() : basis_.hi();
+  const double z_base = ProfilePoint(u_base).y();
+  const double side = ProfilePoint(base_at_start ? basis_.hi() : basis_.lo()).y() >= z_base ? 1.0 : -1.0;
+  const bool limited = std::isfinite(fill_height);
+  // g(u) <= 0 on the filled part: within fill_height of the base plane, on the rim's side (eq. A2).
+  auto g = [&](double u) { return side * (ProfilePoint(u).y() - z_base) - fill_height; };
+  if (gradient) gradient->setZero(num_parameters());
+  BSplineBasis::Values values;
+  double integral = 0.0;  // of r^2 z' du over the filled part
+  // Adds w r(u)^2 z'(u) and its gradient (dI/dr_k = 2 r z' B_k, dI/dz_k = r^2 B_k').
+  auto add = [&](double u, double w) {
+    basis_.Evaluate(u, 1, values);
+    double r = 0.0, dz = 0.0;
+    for (int i = 0; i < basis_.order(); ++i) {
+      const int k = basis_.ControlIndex(values.first, i);
+      r += values.values[0][static_cast<std::size_t>(i)] * profile_(0, k);
+      dz += values.values[1][static_cast<std::size_t>(i)] * profile_(1, k);
+    }
+    integral += w * r * r * dz;
+    if (!gradient) return;
+    for (int i = 0; i < basis_.order(); ++i) {
+      const int k = basis_.ControlIndex(values.first, i);
+      (*gradient)[2 * k] += w * 2.0 * r * dz * values.values[0][static_cast<std::size_t>(i)];
+      (*gradient)[2 * k + 1] += w * r * r * values.values[1][static_cast<std::size_t>(i)];
+    }
+  };
+  std::vector<double> crossings;
+  const std::vector<double>& knots = basis_.knots();
+  for (std::size_t i = 0; i + 1 < knots.size(); ++i) {
+    const double a = std::max(knots[i], basis_.lo()), b = std::min(knots[i + 1], basis_.hi());
+    if (!(b > a)) continue;
+    std::vector<double> cuts = {a};
+    if (limited) {
+      // Sign changes of g on 16 sub-intervals, each refined by bisection to rounding.
+      double lo = a, g_lo = g(a);
+      for (int j = 1; j <= 16; ++j) {
+        const double hi = a + (b - a) * j / 16, g_hi = g(hi);
+        if ((g_lo <= 0) != (g_hi <= 0)) {
+          double x0 = lo, x1 = hi;
+          const bool rising = g_hi > 0;
+          for (int it = 0; it < 100 && x1 - x0 > 1e-15 * (b - a); ++it) {
+            const double m = 0.5 * (x0 + x1);
+            ((g(m) > 0) == rising ? x1 : x0) = m;
+          }
+          cuts.push_back(0.5 * (x0 + x1));
+          crossings.push_back(cuts.back());
+        }
+        lo = hi;
+        g_lo = g_hi;
+      }
+    }
+    cuts.push_back(b);
+    for (std::size_t c = 0; c + 1 < cuts.size(); ++c) {
+      if (limited && g(0.5 * (cuts[c] + cuts[c + 1])) > 0) continue;  // above the fill plane
+      const double h = (cuts[c + 1] - cuts[c]) / subdivisions;
+      for (int part = 0; part < subdivisions; ++part) {
+        const double mid = cuts[c] + (part + 0.5) * h, half = 0.5 * h;
+        for (int q = 0; q < 4; ++q) {
+          add(mid - half * kNodes[q], half * kWeights[q]);
+          add(mid + half * kNodes[q], half * kWeights[q]);
+        }
+      }
+    }
+  }
+  if (gradient && !crossings.empty()) {
+    // The fill plane moves with the base (eq. A3): at a crossing u*, dI/dP gains -sign(g'(u*)) r(u*)^2
+    // (dz(u*)/dP - dz_base/dP), dz/dP being the basis functions at the z entries.
+    Eigen::VectorXd dz_base = Eigen::VectorXd::Zero(num_parameters());
+    basis_.Evaluate(u_base, 0, values);
+    for (int i = 0; i < basis_.order(); ++i)
+      dz_base[2 * basis_.ControlIndex(values.first, i) + 1] = values.values[0][static_cast<std::size_t>(i)];
+    for (const double u : crossings) {
+      const Eigen::Matrix<double, 2, 3> rz = ProfileAt(u, 1);
+      const double r = rz(0, 0), sign = side * rz(1, 1) > 0 ? 1.0 : -1.0;
+      Eigen::VectorXd dz = -dz_base;
+      basis_.Evaluate(u, 0, values);
+      for (int i = 0; i < basis_.order(); ++i)
+        dz[2 * basis_.ControlIndex(values.first, i) + 1] += values.values[0][static_cast<std::size_t>(i)];
+      *gradient -= sign * r * r * dz;
+    }
+  }
+  if (gradient) *gradient *= M_PI * (integral < 0 ? -1.0 : 1.0);
+  return M_PI * std::abs(integral);
 }
 
 ParameterDomain KinematicSurface::domain() const {

@@ -1,7 +1,10 @@
 #pragma once
-// Kinematic surfaces with a B-spline generatrix (docs/method.md section 7; Liu, Pottmann, Wang, CAD 38(6) 2006,
-// section 4): surfaces of revolution (pots) and helical surfaces (drills), in their own adapted frame whose z
-// axis is the axis:  x(u, v) = sum_k (r_k cos v, r_k sin v, z_k) B_k(u) + (0, 0, p v),  p = 0 for revolution.
+// Kinematic surfaces with a B-spline generatrix (docs/method.md section 7; Liu, Pottmann, Wang, CAD 38(6)
+// 2006, section 4): surfaces of revolution (pots) and helical surfaces (drills), in their own adapted frame
+// whose z axis is the axis:  x(u, v) = sum_k (r_k cos v, r_k sin v, z_k) B_k(u) + (0, 0, p v),  p = 0 for
+// revolution.
+
+#include <limits>
 
 #include "fitting/bspline_basis.h"
 #include "fitting/bspline_models.h"
@@ -28,6 +31,16 @@ class KinematicSurface final : public ParametricModel {
   // dz/dP), which propagates a parameter covariance to the radius. Throws std::domain_error when the height
   // is not reached.
   double RadiusAtHeight(double height, Eigen::VectorXd* gradient = nullptr) const;
+  // The volume of the solid bounded by the surface of revolution and the planes across the axis through the
+  // generatrix's ends, V = pi |integral r(u)^2 z'(u) du| (docs/archaeology.md eq. A1): disc integration
+  // written along the generatrix, exact also where the profile turns back in height (the end planes and the
+  // axis add nothing to the integral). The base is the generatrix's start (u = lo) when `base_at_start`, else
+  // its end; a finite `fill_height` keeps only the part within that distance of the base plane (eq. A2).
+  // Gauss-Legendre on each knot span split where z(u) crosses the fill plane: exact to rounding for degree
+  // <= 5. With `gradient`, dV/dP over the shape parameters, the fill plane's motion with the base included
+  // (eq. A3). Surfaces of revolution only (std::logic_error for helical ones); fill_height > 0 or infinite.
+  double EnclosedVolume(bool base_at_start, double fill_height = std::numeric_limits<double>::infinity(),
+                        Eigen::VectorXd* gradient = nullptr) const;
 
   std::unique_ptr<ParametricModel> Clone() const override {
     return std::make_unique<KinematicSurface>(*this);
@@ -77,9 +90,9 @@ class KinematicSurface final : public ParametricModel {
   SpanPowerForm generatrix_;  // of profile_; rebuilt in the constructor, set_parameters and ApplySimilarity
 };
 
-// Spiral surface (shells; docs/method.md section 7): x(u, v) = e^{p v} sum_k (r_k cos v, r_k sin v, z_k) B_k(u)
-// for v in [v_lo, v_hi] (the whorls, unwrapped), growth parameter p. The growth enters non-linearly; its
-// Jacobian at fixed (u, v) is v x(u, v), the linearization at the current value (section 6). The whorl
+// Spiral surface (shells; docs/method.md section 7): x(u, v) = e^{p v} sum_k (r_k cos v, r_k sin v, z_k)
+// B_k(u) for v in [v_lo, v_hi] (the whorls, unwrapped), growth parameter p. The growth enters non-linearly;
+// its Jacobian at fixed (u, v) is v x(u, v), the linearization at the current value (section 6). The whorl
 // expansion rate is exp(2 pi p).
 class SpiralSurface final : public ParametricModel {
  public:

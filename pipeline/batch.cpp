@@ -535,6 +535,11 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
       out.push_back(
           Flat("base_diameter", v["base_diameter"].get<double>(), v["base_diameter_uncertainty"], units));
       out.push_back(Flat("max_diameter", v["max_diameter"].get<double>(), nullptr, units));
+      if (v.contains("volume") && v["volume"].is_number())
+        out.push_back(Flat("volume", v["volume"].get<double>(), v["volume_uncertainty"], units + "^3"));
+      if (v.contains("fill_volume") && v["fill_volume"].is_number())
+        out.push_back(
+            Flat("fill_volume", v["fill_volume"].get<double>(), v["fill_volume_uncertainty"], units + "^3"));
     }
   } else if (schema == "scan2model.hermite/1") {
     const nlohmann::json& q = d["interrogation"];

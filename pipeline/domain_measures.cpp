@@ -458,6 +458,11 @@ nlohmann::json VesselMeasures::ToJson() const {
           {"rim_diameter_uncertainty", NumberOrNull(rim_diameter.uncertainty)},
           {"max_diameter", max_diameter.value},
           {"max_diameter_height", max_diameter_height},
+          {"volume", NumberOrNull(volume.value)},
+          {"volume_uncertainty", NumberOrNull(volume.uncertainty)},
+          {"fill_height", NumberOrNull(fill_height)},
+          {"fill_volume", NumberOrNull(fill_volume.value)},
+          {"fill_volume_uncertainty", NumberOrNull(fill_volume.uncertainty)},
           {"profile_columns", {"height_above_base", "radius", "radius_uncertainty"}},
           {"profile", rows},
           {"convention", "axis towards the world's +z; base = lower end of the profile, rim = upper end"}};
@@ -478,6 +483,10 @@ VesselMeasures VesselMeasures::FromJson(const nlohmann::json& j) {
   v.rim_diameter = {j.at("rim_diameter").get<double>(), uncertainty("rim_diameter_uncertainty"), v.units};
   v.max_diameter = {j.at("max_diameter").get<double>(), std::nan(""), v.units};
   v.max_diameter_height = j.at("max_diameter_height").get<double>();
+  const std::string cubic = v.units + "^3";
+  v.volume = {uncertainty("volume"), uncertainty("volume_uncertainty"), cubic};
+  v.fill_height = uncertainty("fill_height");
+  v.fill_volume = {uncertainty("fill_volume"), uncertainty("fill_volume_uncertainty"), cubic};
   for (const nlohmann::json& row : j.at("profile")) {
     v.profile.push_back(
         {row.at(0).get<double>(), row.at(1).get<double>(), NumberOr(row.at(2), std::nan(""))});
@@ -498,6 +507,12 @@ std::string VesselMeasures::Text(std::optional<bool> trusted) const {
     << "  base diameter     " << with_u(base_diameter) << " " << units << "\n"
     << "  largest diameter  " << Format(max_diameter.value, 6) << " " << units << " at "
     << Format(max_diameter_height, 4) << " above the base\n";
+  if (std::isfinite(volume.value))
+    t << "  volume            " << with_u(volume) << " " << volume.unit
+      << " (inside the fitted surface, base plane to rim plane)\n";
+  if (std::isfinite(fill_volume.value))
+    t << "  filled volume     " << with_u(fill_volume) << " " << fill_volume.unit << " up to "
+      << Format(fill_height, 6) << " " << units << " above the base\n";
   return t.str();
 }
 

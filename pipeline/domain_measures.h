@@ -166,6 +166,13 @@ struct VesselMeasures {
   Measure height, base_diameter, rim_diameter, max_diameter;
   double max_diameter_height = 0.0;  // above the base
   std::vector<ProfileSample> profile;
+  // The volume enclosed by the fitted surface between the base plane and the rim plane (units^3), with its
+  // standard uncertainty propagated from the shape covariance (docs/archaeology.md eqs. A1-A4): the capacity
+  // when the fitted surface is the vessel's inner one. NaN when not computed.
+  Measure volume{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(), ""};
+  // The same up to a fill height above the base (`--fill-height`; NaN: not asked).
+  double fill_height = std::numeric_limits<double>::quiet_NaN();
+  Measure fill_volume{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(), ""};
 
   // The "vessel" member of scan2model.multiview/1 (docs/cli.md).
   nlohmann::json ToJson() const;

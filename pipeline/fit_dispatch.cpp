@@ -571,6 +571,11 @@ template nlohmann::json PrimitiveFitJson(const std::string&, ErrorTerm, const Pr
                                          const std::string&);
 
 FitOutcome ComputeFit(const FitOptions& o) {
+  // Options of one model family given to another would be ignored silently: refused instead.
+  if (o.fill_height > 0 && o.model != "revolution")
+    throw FitFailure(kUsage, "--fill-height applies to --model revolution (a vessel's volume)");
+  if (o.geometric_variation > 0 && o.model != "hermite-curve")
+    throw FitFailure(kUsage, "--geometric-variation applies to --model hermite-curve");
   if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
   if (o.model == "hermite-curve") return ComputeHermiteFit(o);
   if (o.model == "revolution" || o.model == "helical" || o.model == "spiral") return ComputeMultiViewFit(o);

@@ -210,6 +210,20 @@ std::vector<FitOptionSpec> MakeTable() {
        1,
        [](FitOptions& o, const std::string& v) { o.fairness_fraction = std::stod(v); }});
   t.push_back(
+      {"geometric_variation",
+       "--geometric-variation",
+       K::kNumber,
+       "0",
+       "hermite-curve, plane curves: the share g in [0, 1) of alpha3 that weighs the curvature variation "
+       "along the arc, g alpha3 L0^5 integral (dkappa/ds)^2 ds, instead of the parametric integral |w'''|^2 "
+       "du (docs/fair-curves.md eq. F30); fairer where the parametrization absorbs curvature variation, "
+       "slower. 0: Fang's parametric energy alone",
+       {},
+       false,
+       0,
+       1,
+       [](FitOptions& o, const std::string& v) { o.geometric_variation = std::stod(v); }});
+  t.push_back(
       {"start",
        "--start",
        K::kChoice,
@@ -247,6 +261,17 @@ std::vector<FitOptionSpec> MakeTable() {
                -1e300,
                1e300,
                [](FitOptions& o, const std::string& v) { o.growth = std::stod(v); }});
+  t.push_back({"fill_height",
+               "--fill-height",
+               K::kNumber,
+               "",
+               "Revolution: the vessel's volume also up to this height above the base, in the data's units, "
+               "with its uncertainty (docs/archaeology.md eq. A2); the volume to the rim is always reported",
+               {},
+               false,
+               0,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.fill_height = std::stod(v); }});
   t.push_back(
       {"loss",
        "--loss",

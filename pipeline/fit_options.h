@@ -48,6 +48,8 @@ struct FitOptions {
   // normals' estimate; 0: none.
   double pitch = 0.0;
   double growth = 0.0;
+  // Revolution: the vessel's volume also up to this height above the base (data units); 0: only to the rim.
+  double fill_height = 0.0;
   std::string step_control = "lm";
   RobustLoss loss;  // --loss: the robust loss of every fit (fitting/robust_loss.h)
   // Whether --loss (or a manifest's "loss") was given; otherwise ComputeFit chooses the default for the
@@ -76,8 +78,9 @@ struct FitOptions {
   // Whether --alpha3 was given: B-spline curves, surfaces and generatrices take it (and beta2, beta3) as
   // their curvature-variation and jump weights (docs/fair-curves.md section 8), 0 unless given.
   bool alpha3_given = false;
-  double tolerance = 0.0;          // target RMS in data units (0: the weights as given)
-  double fairness_fraction = 0.0;  // scale-free fairness fraction in (0, 1) (0: the weights as given)
+  double tolerance = 0.0;            // target RMS in data units (0: the weights as given)
+  double fairness_fraction = 0.0;    // scale-free fairness fraction in (0, 1) (0: the weights as given)
+  double geometric_variation = 0.0;  // share of alpha3 on the arc-length curvature variation (plane curves)
   // Show the iterations on a terminal as they run (splines); `batch` turns it off for its objects.
   bool interactive = true;
 };

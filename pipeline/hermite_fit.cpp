@@ -75,9 +75,13 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
     }
     h.tolerance = o.tolerance;
     h.fairness_fraction = o.fairness_fraction;
+    h.geometric_variation = o.geometric_variation;
     h.optimizer.max_iterations = o.max_iterations;
     std::string why;
     if (!h.IsValid(&why)) throw FitFailure(kUsage, "hermite-curve: " + why);
+    if (h.geometric_variation > 0 && data.rows() != 2)
+      throw FitFailure(kUsage, "hermite-curve: --geometric-variation is implemented for plane curves only; " +
+                                   o.file + " holds a space curve (z not constant)");
     const HermiteFitResult r = FitHermiteCurve(data, h);
     const HermiteCurve& curve = r.curve;
     const CurveInterrogation q = InterrogateCurve(ToInterrogated(curve), {256, 0.0});
@@ -96,6 +100,7 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
     j["weights"] = WeightsJson(r.weights);
     j["weights"]["given"] = WeightsJson(h.fairness);
     j["weights"]["scale"] = r.weight_scale;
+    j["weights"]["geometric_variation"] = h.geometric_variation;
     j["tolerance"] = {{"target", h.tolerance}, {"met", r.tolerance_met}};
     if (h.fairness_fraction > 0) {
       const HermiteFitResult::Fraction& f = r.fraction;
@@ -120,9 +125,10 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
     j["nodes"] = nodes;
     j["evaluation"] = kEvaluation;
     j["energy"] = WeightsJson(r.energy);
+    j["energy"]["geometric_variation"] = r.geometric_energy;
     j["energy"]["closeness"] = r.closeness;
-    j["energy"]["total"] =
-        r.closeness + r.energy.alpha1 + r.energy.alpha2 + r.energy.alpha3 + r.energy.beta2 + r.energy.beta3;
+    j["energy"]["total"] = r.closeness + r.energy.alpha1 + r.energy.alpha2 + r.energy.alpha3 +
+                           r.energy.beta2 + r.energy.beta3 + r.geometric_energy;
     j["residuals"] = {
         {"count", r.residuals.count}, {"rms", r.residuals.rms}, {"max_abs", r.residuals.max_abs}};
     j["noise"] = std::isfinite(r.noise) ? nlohmann::json(r.noise) : nlohmann::json(nullptr);
@@ -162,9 +168,13 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
       text << " (x" << Format(r.weight_scale, 4) << " for the fairness fraction " << h.fairness_fraction
            << "; normalized closeness " << Format(r.fraction.closeness, 4) << ", fairness "
            << Format(r.fraction.fairness, 4) << ")";
+    if (h.geometric_variation > 0)
+      text << ", " << Format(h.geometric_variation, 4) << " of alpha3 along the arc";
     text << "\n  energy            closeness " << Format(r.closeness, 6) << ", stretch "
          << Format(r.energy.alpha1, 6) << ", bending " << Format(r.energy.alpha2, 6) << ", variation "
-         << Format(r.energy.alpha3, 6) << ", jumps " << Format(r.energy.beta2 + r.energy.beta3, 6) << "\n"
+         << Format(r.energy.alpha3, 6);
+    if (h.geometric_variation > 0) text << " + " << Format(r.geometric_energy, 6) << " along the arc";
+    text << ", jumps " << Format(r.energy.beta2 + r.energy.beta3, 6) << "\n"
          << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "
          << Format(r.residuals.max_abs, 6);
     if (std::isfinite(r.noise)) text << " (noise estimate " << Format(r.noise, 4) << ")";

@@ -517,6 +517,28 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       std::vector<Eigen::Vector2d> height_radius;
       for (const std::vector<double>& sample : samples) height_radius.emplace_back(sample[0], sample[1]);
       vessel = MeasureVessel(axis_point, axis_direction, height_radius, radius_uncertainty, units);
+      // The enclosed volume from the base (the generatrix's end lower in the world, as in MeasureVessel) and
+      // its standard uncertainty u = sqrt(g^T V g) from the shape covariance (docs/archaeology.md eq. A4).
+      const double up_sign = axis_direction.z() < 0 ? -1.0 : 1.0;
+      const bool base_at_start = up_sign * samples.front()[0] <= up_sign * samples.back()[0];
+      const std::string cubic = units + "^3";
+      auto volume = [&](double fill_height) {
+        Eigen::VectorXd gradient;
+        Measure m{kinematic->EnclosedVolume(base_at_start, fill_height, &gradient), std::nan(""), cubic};
+        if (r.shape_covariance.rows() == gradient.size())
+          m.uncertainty = std::sqrt(std::max(0.0, gradient.dot(r.shape_covariance * gradient)));
+        return m;
+      };
+      vessel->volume = volume(std::numeric_limits<double>::infinity());
+      if (o.fill_height > 0 && o.fill_height > vessel->height.value) {
+        // Said, not fitted again: the volume to the rim is there.
+        outcome.notes.push_back("--fill-height " + Format(o.fill_height, 6) +
+                                " is above the rim (the vessel is " + Format(vessel->height.value, 6) + " " +
+                                units + " high): no filled volume, only the volume to the rim");
+      } else if (o.fill_height > 0) {
+        vessel->fill_height = o.fill_height;
+        vessel->fill_volume = volume(o.fill_height);
+      }
       j["vessel"] = vessel->ToJson();
     }
     MarkUncertainties(j, trusted);

@@ -175,8 +175,16 @@ std::string Vessel(const nlohmann::json& v) {
     << Row({"base diameter", Number(v["base_diameter"], 6) + " &#177; " +
                                  Number(v["base_diameter_uncertainty"], 2) + " " + Escape(units)})
     << Row({"largest diameter", Number(v["max_diameter"], 6) + " " + Escape(units) + " at " +
-                                    Number(v["max_diameter_height"], 4) + " above the base"})
-    << "</table>\n<figure>" << ProfileSvg(VesselMeasures::FromJson(v))
+                                    Number(v["max_diameter_height"], 4) + " above the base"});
+  if (v.contains("volume") && v["volume"].is_number())
+    s << Row({"volume (base to rim, inside the fitted surface)", Number(v["volume"], 6) + " &#177; " +
+                                                                     Number(v["volume_uncertainty"], 2) +
+                                                                     " " + Escape(units) + "&#179;"});
+  if (v.contains("fill_volume") && v["fill_volume"].is_number())
+    s << Row({"volume up to " + Number(v["fill_height"], 6) + " " + Escape(units) + " above the base",
+              Number(v["fill_volume"], 6) + " &#177; " + Number(v["fill_volume_uncertainty"], 2) + " " +
+                  Escape(units) + "&#179;"});
+  s << "</table>\n<figure>" << ProfileSvg(VesselMeasures::FromJson(v))
     << "<figcaption class=\"note\">Section left of the axis, outline right; "
     << Escape(v.value("convention", "")) << ".</figcaption></figure>\n";
   return s.str();

@@ -219,6 +219,8 @@ def main():
                                  os.path.join(work, "ellipse.xyz")] + quick, None),
         ("hermite.schema.json", ["fit", "--json", "--model", "hermite-curve", "--closed", "--elements", "6",
                                  "--fairness-fraction", "0.5", os.path.join(work, "ellipse.xyz")] + quick, None),
+        ("hermite.schema.json", ["fit", "--json", "--model", "hermite-curve", "--closed", "--elements", "6",
+                                 "--geometric-variation", "0.5", os.path.join(work, "ellipse.xyz")] + quick, None),
         ("hermite.schema.json", ["fit", "--json", "--model", "hermite-curve", "--degree", "3", "--c2",
                                  "--interpolate", "--alpha3", "1", os.path.join(work, "ellipse.xyz")], None),
         ("multiview.schema.json", ["fit", "--json", "--model", "revolution", "--control-points", "8", vase] + quick, None),

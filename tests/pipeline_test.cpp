@@ -78,7 +78,8 @@ TEST(FitDispatch, FailuresCarryTheirExitCodes) {
 TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
   EXPECT_EQ(ManifestOptionKeys(),
             "alpha1, alpha2, alpha3, bending, beta2, beta3, c2, closed, contour, control_points, criterion, "
-            "degree, elements, fairness_fraction, growth, initial, interpolate, loss, max_iterations, method, "
+            "degree, elements, fairness_fraction, fill_height, geometric_variation, growth, initial, "
+            "interpolate, loss, max_iterations, method, "
             "order, pitch, reference, rejected_output, robust, seed, solver, start, step_control, stretch, "
             "tolerance, uncertainty, units");
   for (const FitOptionSpec& spec : FitOptionTable()) {
@@ -420,6 +421,52 @@ TEST(FitDispatch, HermiteCurveDocumentIsSelfContained) {
     EXPECT_EQ(e.exit_code(), kUsage) << e.what();
   }
   EXPECT_THROW(ParseFitOption(*FindManifestOption("elements"), "many"), std::invalid_argument);
+
+  // --geometric-variation g: recorded with the weights; its energy g alpha3 L0^5 integral (dkappa/ds)^2 ds
+  // (docs/fair-curves.md eq. F30, L0 the initial curve's length, here the circle's 4 pi to well under 1 %)
+  // is in the breakdown and the total, and agrees with the document's own interrogation.
+  FitOptions geo = o;
+  ApplyFitOption(*FindManifestOption("geometric_variation"), "0.5", geo);
+  const nlohmann::json g = ComputeFit(geo).document;
+  EXPECT_EQ(g["weights"]["geometric_variation"].get<double>(), 0.5);
+  const nlohmann::json& e = g["energy"];
+  const double along_arc = e["geometric_variation"].get<double>();
+  const double expected = 0.5 * g["weights"]["alpha3"].get<double>() * std::pow(4 * M_PI, 5) *
+                          g["interrogation"]["dkappa_ds_squared"].get<double>();
+  EXPECT_GT(along_arc, 0.0);
+  EXPECT_NEAR(along_arc, expected, 0.03 * expected);
+  double sum = along_arc + e["closeness"].get<double>();
+  for (const char* term : {"alpha1", "alpha2", "alpha3", "beta2", "beta3"}) sum += e[term].get<double>();
+  EXPECT_NEAR(e["total"].get<double>(), sum, 1e-12 * sum);
+  EXPECT_NE(ComputeFit(geo).text.find("along the arc"), std::string::npos);
+  // Without it, the key is 0 and so is the energy along the arc.
+  EXPECT_EQ(d["weights"]["geometric_variation"].get<double>(), 0.0);
+  EXPECT_EQ(d["energy"]["geometric_variation"].get<double>(), 0.0);
+  // Usage errors: g = 1 (nothing left to hold the parametrization), with interpolation, on a space curve.
+  auto usage = [](const FitOptions& bad_options, const std::string& says) {
+    try {
+      ComputeFit(bad_options);
+      ADD_FAILURE() << "no error: " << says;
+    } catch (const FitFailure& failure) {
+      EXPECT_EQ(failure.exit_code(), kUsage) << failure.what();
+      EXPECT_NE(std::string(failure.what()).find(says), std::string::npos) << failure.what();
+    }
+  };
+  FitOptions whole = geo;
+  ApplyFitOption(*FindManifestOption("geometric_variation"), "1", whole);
+  usage(whole, "[0, 1)");
+  FitOptions interpolated = geo;
+  ApplyFitOption(*FindManifestOption("interpolate"), "true", interpolated);
+  usage(interpolated, "interpolation");
+  {
+    std::ofstream out(dir / "helix.xyz");
+    for (int i = 0; i < 60; ++i)
+      out << std::cos(0.2 * i) << " " << std::sin(0.2 * i) << " " << 0.05 * i << "\n";
+  }
+  FitOptions space = geo;
+  space.file = (dir / "helix.xyz").string();
+  ApplyFitOption(*FindManifestOption("closed"), "false", space);
+  usage(space, "plane curves only");
 }
 
 }  // namespace
