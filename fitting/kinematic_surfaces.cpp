@@ -266,10 +266,9 @@ double KinematicSurface::RadiusAtHeight(double height, Eigen::VectorXd* gradient
   return point.x();
 }
 
-double KinematicSurface::EnclosedVolume(bool base_at_start, double fill_height,
-                                        Eigen::VectorXd* gradient) const {
+double KinematicSurface::EnclosedVolume(double z_lo, double z_hi, Eigen::VectorXd* gradient) const {
   if (helical_) throw std::logic_error("an enclosed volume is defined for surfaces of revolution only");
-  if (!(fill_height > 0)) throw std::invalid_argument("the fill height must be positive (or infinite)");
+  if (!(z_lo < z_hi)) throw std::invalid_argument("the planes of an enclosed volume need z_lo < z_hi");
   // 8-point Gauss-Legendre on [-1, 1]: exact for polynomials of degree <= 15, and r^2 z' has degree 3 d - 1
   // on a span (d the generatrix's degree); higher degrees split each piece in four.
   static const double kNodes[4] = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267,
@@ -277,15 +276,14 @@ double KinematicSurface::EnclosedVolume(bool base_at_start, double fill_height,
   static const double kWeights[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745,
                                      0.1012285362903763};
   const int subdivisions = 3 * basis_.degree() - 1 <= 15 ? 1 : 4;
-  const double u_base = base_at_start ? basis_.lo() : basis_.hi();
-  const double z_base = ProfilePoint(u_base).y();
-  const double side = ProfilePoint(base_at_start ? basis_.hi() : basis_.lo()).y() >= z_base ? 1.0 : -1.0;
-  const bool limited = std::isfinite(fill_height);
-  // g(u) <= 0 on the filled part: within fill_height of the base plane, on the rim's side (eq. A2).
-  auto g = [&](double u) { return side * (ProfilePoint(u).y() - z_base) - fill_height; };
+  // g(u) <= 0 where the generatrix is between the planes (eq. A2); a plane through an end leaves it inside.
+  auto g = [&](double u) {
+    const double z = ProfilePoint(u).y();
+    return std::max(z_lo - z, z - z_hi);
+  };
   if (gradient) gradient->setZero(num_parameters());
   BSplineBasis::Values values;
-  double integral = 0.0;  // of r^2 z' du over the filled part
+  double integral = 0.0;  // of r^2 z' du over the pieces between the planes
   // Adds w r(u)^2 z'(u) and its gradient (dI/dr_k = 2 r z' B_k, dI/dz_k = r^2 B_k').
   auto add = [&](double u, double w) {
     basis_.Evaluate(u, 1, values);
@@ -303,34 +301,41 @@ double KinematicSurface::EnclosedVolume(bool base_at_start, double fill_height,
       (*gradient)[2 * k + 1] += w * r * r * values.values[1][static_cast<std::size_t>(i)];
     }
   };
-  std::vector<double> crossings;
+  // The planes stay where they are (eq. A3): each piece [a, b] of the generatrix that is integrated gives
+  // back r^2 dz/dP at its ends, -[r(u)^2 B_k(u)]_a^b on the z entries (inner ends of adjacent pieces cancel).
+  auto hold_planes = [&](double u, double sign) {
+    basis_.Evaluate(u, 0, values);
+    double r = 0.0;
+    for (int i = 0; i < basis_.order(); ++i)
+      r += values.values[0][static_cast<std::size_t>(i)] * profile_(0, basis_.ControlIndex(values.first, i));
+    for (int i = 0; i < basis_.order(); ++i)
+      (*gradient)[2 * basis_.ControlIndex(values.first, i) + 1] +=
+          sign * r * r * values.values[0][static_cast<std::size_t>(i)];
+  };
   const std::vector<double>& knots = basis_.knots();
   for (std::size_t i = 0; i + 1 < knots.size(); ++i) {
     const double a = std::max(knots[i], basis_.lo()), b = std::min(knots[i + 1], basis_.hi());
     if (!(b > a)) continue;
+    // Sign changes of g on 16 sub-intervals, each refined by bisection to rounding.
     std::vector<double> cuts = {a};
-    if (limited) {
-      // Sign changes of g on 16 sub-intervals, each refined by bisection to rounding.
-      double lo = a, g_lo = g(a);
-      for (int j = 1; j <= 16; ++j) {
-        const double hi = a + (b - a) * j / 16, g_hi = g(hi);
-        if ((g_lo <= 0) != (g_hi <= 0)) {
-          double x0 = lo, x1 = hi;
-          const bool rising = g_hi > 0;
-          for (int it = 0; it < 100 && x1 - x0 > 1e-15 * (b - a); ++it) {
-            const double m = 0.5 * (x0 + x1);
-            ((g(m) > 0) == rising ? x1 : x0) = m;
-          }
-          cuts.push_back(0.5 * (x0 + x1));
-          crossings.push_back(cuts.back());
+    double lo = a, g_lo = g(a);
+    for (int j = 1; j <= 16; ++j) {
+      const double hi = a + (b - a) * j / 16, g_hi = g(hi);
+      if ((g_lo <= 0) != (g_hi <= 0)) {
+        double x0 = lo, x1 = hi;
+        const bool rising = g_hi > 0;
+        for (int it = 0; it < 100 && x1 - x0 > 1e-15 * (b - a); ++it) {
+          const double m = 0.5 * (x0 + x1);
+          ((g(m) > 0) == rising ? x1 : x0) = m;
         }
-        lo = hi;
-        g_lo = g_hi;
+        cuts.push_back(0.5 * (x0 + x1));
       }
+      lo = hi;
+      g_lo = g_hi;
     }
     cuts.push_back(b);
     for (std::size_t c = 0; c + 1 < cuts.size(); ++c) {
-      if (limited && g(0.5 * (cuts[c] + cuts[c + 1])) > 0) continue;  // above the fill plane
+      if (g(0.5 * (cuts[c] + cuts[c + 1])) > 0) continue;  // outside the planes
       const double h = (cuts[c + 1] - cuts[c]) / subdivisions;
       for (int part = 0; part < subdivisions; ++part) {
         const double mid = cuts[c] + (part + 0.5) * h, half = 0.5 * h;
@@ -339,23 +344,10 @@ double KinematicSurface::EnclosedVolume(bool base_at_start, double fill_height,
           add(mid + half * kNodes[q], half * kWeights[q]);
         }
       }
-    }
-  }
-  if (gradient && !crossings.empty()) {
-    // The fill plane moves with the base (eq. A3): at a crossing u*, dI/dP gains -sign(g'(u*)) r(u*)^2
-    // (dz(u*)/dP - dz_base/dP), dz/dP being the basis functions at the z entries.
-    Eigen::VectorXd dz_base = Eigen::VectorXd::Zero(num_parameters());
-    basis_.Evaluate(u_base, 0, values);
-    for (int i = 0; i < basis_.order(); ++i)
-      dz_base[2 * basis_.ControlIndex(values.first, i) + 1] = values.values[0][static_cast<std::size_t>(i)];
-    for (const double u : crossings) {
-      const Eigen::Matrix<double, 2, 3> rz = ProfileAt(u, 1);
-      const double r = rz(0, 0), sign = side * rz(1, 1) > 0 ? 1.0 : -1.0;
-      Eigen::VectorXd dz = -dz_base;
-      basis_.Evaluate(u, 0, values);
-      for (int i = 0; i < basis_.order(); ++i)
-        dz[2 * basis_.ControlIndex(values.first, i) + 1] += values.values[0][static_cast<std::size_t>(i)];
-      *gradient -= sign * r * r * dz;
+      if (gradient) {
+        hold_planes(cuts[c], 1.0);
+        hold_planes(cuts[c + 1], -1.0);
+      }
     }
   }
   if (gradient) *gradient *= M_PI * (integral < 0 ? -1.0 : 1.0);

@@ -4,8 +4,6 @@
 // whose z axis is the axis:  x(u, v) = sum_k (r_k cos v, r_k sin v, z_k) B_k(u) + (0, 0, p v),  p = 0 for
 // revolution.
 
-#include <limits>
-
 #include "fitting/bspline_basis.h"
 #include "fitting/bspline_models.h"
 #include "fitting/parametric_model.h"
@@ -31,16 +29,14 @@ class KinematicSurface final : public ParametricModel {
   // dz/dP), which propagates a parameter covariance to the radius. Throws std::domain_error when the height
   // is not reached.
   double RadiusAtHeight(double height, Eigen::VectorXd* gradient = nullptr) const;
-  // The volume of the solid bounded by the surface of revolution and the planes across the axis through the
-  // generatrix's ends, V = pi |integral r(u)^2 z'(u) du| (docs/archaeology.md eq. A1): disc integration
-  // written along the generatrix, exact also where the profile turns back in height (the end planes and the
-  // axis add nothing to the integral). The base is the generatrix's start (u = lo) when `base_at_start`, else
-  // its end; a finite `fill_height` keeps only the part within that distance of the base plane (eq. A2).
-  // Gauss-Legendre on each knot span split where z(u) crosses the fill plane: exact to rounding for degree
-  // <= 5. With `gradient`, dV/dP over the shape parameters, the fill plane's motion with the base included
-  // (eq. A3). Surfaces of revolution only (std::logic_error for helical ones); fill_height > 0 or infinite.
-  double EnclosedVolume(bool base_at_start, double fill_height = std::numeric_limits<double>::infinity(),
-                        Eigen::VectorXd* gradient = nullptr) const;
+  // The volume inside the surface of revolution between the planes z = z_lo and z = z_hi across its axis
+  // (z_lo < z_hi; where the generatrix ends between them, the plane through its end closes the solid):
+  // V = pi |integral r(u)^2 z'(u) [z_lo <= z(u) <= z_hi] du| (docs/archaeology.md eqs. A1-A2), disc
+  // integration written along the generatrix, exact also where the profile turns back in height (the planes
+  // and the axis add nothing to the integral). Gauss-Legendre on each knot span split where z(u) crosses a
+  // plane: exact to rounding for degree <= 5. With `gradient`, dV/dP over the shape parameters with the
+  // planes held where they are (eq. A3). Surfaces of revolution only (std::logic_error for helical ones).
+  double EnclosedVolume(double z_lo, double z_hi, Eigen::VectorXd* gradient = nullptr) const;
 
   std::unique_ptr<ParametricModel> Clone() const override {
     return std::make_unique<KinematicSurface>(*this);

@@ -537,6 +537,13 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
       out.push_back(Flat("max_diameter", v["max_diameter"].get<double>(), nullptr, units));
       if (v.contains("volume") && v["volume"].is_number())
         out.push_back(Flat("volume", v["volume"].get<double>(), v["volume_uncertainty"], units + "^3"));
+      if (v.contains("roundness") && v["roundness"].is_object()) {
+        // The largest resolved ovality over the bands, with its uncertainty.
+        const nlohmann::json* worst = nullptr;
+        for (const nlohmann::json& b : v["roundness"]["bands"])
+          if (b[6].is_number() && (!worst || b[6].get<double>() > (*worst)[6].get<double>())) worst = &b;
+        if (worst) out.push_back(Flat("max_ovality", (*worst)[6].get<double>(), (*worst)[7], units));
+      }
       if (v.contains("fill_volume") && v["fill_volume"].is_number())
         out.push_back(
             Flat("fill_volume", v["fill_volume"].get<double>(), v["fill_volume_uncertainty"], units + "^3"));

@@ -444,6 +444,30 @@ VesselMeasures MeasureVessel(const Eigen::Vector3d& axis_point, const Eigen::Vec
   return v;
 }
 
+namespace {
+
+// The "roundness" member of "vessel": a row per band (heights above the base; null where not resolved).
+nlohmann::json RoundnessJson(const std::vector<RoundnessBand>& bands) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (const RoundnessBand& b : bands) {
+    rows.push_back({b.z_lo, b.z_hi, b.points, b.largest_gap * 180.0 / M_PI, NumberOrNull(b.centre_offset),
+                    NumberOrNull(b.centre_offset_uncertainty), NumberOrNull(b.ovality),
+                    NumberOrNull(b.ovality_uncertainty), NumberOrNull(b.out_of_round),
+                    NumberOrNull(b.residual_rms)});
+  }
+  return {{"columns",
+           {"height_lo", "height_hi", "points", "largest_gap_deg", "centre_offset",
+            "centre_offset_uncertainty", "ovality", "ovality_uncertainty", "out_of_round", "residual_rms"}},
+          {"bands", rows},
+          {"method",
+           "per band, the signed deviations fitted by a0 + sum_{k=1..4} a_k cos k t + b_k sin k t; "
+           "centre_offset = |(a1, b1)|, ovality = 4 |(a2, b2)| (largest minus smallest diameter), "
+           "out_of_round = peak-to-valley of harmonics 2-4; a band with a gap over 60 degrees or "
+           "under 40 points is not resolved (docs/archaeology.md section 4)"}};
+}
+
+}  // namespace
+
 nlohmann::json VesselMeasures::ToJson() const {
   nlohmann::json rows = nlohmann::json::array();
   for (const ProfileSample& s : profile)
@@ -463,6 +487,7 @@ nlohmann::json VesselMeasures::ToJson() const {
           {"fill_height", NumberOrNull(fill_height)},
           {"fill_volume", NumberOrNull(fill_volume.value)},
           {"fill_volume_uncertainty", NumberOrNull(fill_volume.uncertainty)},
+          {"roundness", RoundnessJson(roundness)},
           {"profile_columns", {"height_above_base", "radius", "radius_uncertainty"}},
           {"profile", rows},
           {"convention", "axis towards the world's +z; base = lower end of the profile, rim = upper end"}};
@@ -513,6 +538,23 @@ std::string VesselMeasures::Text(std::optional<bool> trusted) const {
   if (std::isfinite(fill_volume.value))
     t << "  filled volume     " << with_u(fill_volume) << " " << fill_volume.unit << " up to "
       << Format(fill_height, 6) << " " << units << " above the base\n";
+  if (!roundness.empty()) {
+    const RoundnessBand* worst = nullptr;
+    int resolved = 0;
+    for (const RoundnessBand& b : roundness) {
+      if (!b.resolved) continue;
+      ++resolved;
+      if (!worst || b.ovality > worst->ovality) worst = &b;
+    }
+    t << "  out of round      ";
+    if (worst) {
+      t << "ovality up to " << with_u({worst->ovality, worst->ovality_uncertainty, units}) << " " << units
+        << " (largest minus smallest diameter) at " << Format(worst->z_lo, 4) << "-" << Format(worst->z_hi, 4)
+        << " above the base; " << resolved << " of " << roundness.size() << " bands resolved\n";
+    } else {
+      t << "not resolved: no band is seen all round (a sherd) or has enough points\n";
+    }
+  }
   return t.str();
 }
 

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "fitting/noise_estimate.h"
+#include "fitting/out_of_round.h"
 #include "fitting/residual_structure.h"
 #include "fitting/robust_loss.h"
 #include "fitting/signed_distance.h"
@@ -173,6 +174,9 @@ struct VesselMeasures {
   // The same up to a fill height above the base (`--fill-height`; NaN: not asked).
   double fill_height = std::numeric_limits<double>::quiet_NaN();
   Measure fill_volume{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(), ""};
+  // Out-of-roundness band by band from base to rim (docs/archaeology.md eqs. A5-A8), heights above the base;
+  // empty when not measured.
+  std::vector<RoundnessBand> roundness;
 
   // The "vessel" member of scan2model.multiview/1 (docs/cli.md).
   nlohmann::json ToJson() const;

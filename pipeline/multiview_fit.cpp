@@ -16,6 +16,7 @@
 #include "fitting/kinematic_starts.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/model_complexity.h"
+#include "fitting/out_of_round.h"
 #include "fitting/primitive_fit.h"
 #include "fitting/residual_structure.h"
 #include "pipeline/complexity.h"
@@ -479,6 +480,9 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     // others.
     Eigen::VectorXd judged = deviations;
     Eigen::Matrix3Xd judged_feet = feet;
+    // Across the axis at each point's height, for the out-of-roundness (docs/archaeology.md eq. A9).
+    const Eigen::VectorXd radial = RadialDeviations(registered, feet, deviations);
+    Eigen::VectorXd judged_radial = radial;
     if (!report.left_out_masks.empty()) {
       std::vector<Eigen::Index> kept;
       Eigen::Index at = 0;
@@ -487,8 +491,10 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
           if (!report.left_out_masks[k][static_cast<std::size_t>(p)]) kept.push_back(at);
       judged.resize(static_cast<Eigen::Index>(kept.size()));
       judged_feet.resize(3, judged.size());
+      judged_radial.resize(judged.size());
       for (std::size_t i = 0; i < kept.size(); ++i) {
         judged[static_cast<Eigen::Index>(i)] = deviations[kept[i]];
+        judged_radial[static_cast<Eigen::Index>(i)] = radial[kept[i]];
         judged_feet.col(static_cast<Eigen::Index>(i)) = feet.col(kept[i]);
       }
     }
@@ -517,19 +523,25 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       std::vector<Eigen::Vector2d> height_radius;
       for (const std::vector<double>& sample : samples) height_radius.emplace_back(sample[0], sample[1]);
       vessel = MeasureVessel(axis_point, axis_direction, height_radius, radius_uncertainty, units);
-      // The enclosed volume from the base (the generatrix's end lower in the world, as in MeasureVessel) and
-      // its standard uncertainty u = sqrt(g^T V g) from the shape covariance (docs/archaeology.md eq. A4).
+      // The volume the fitted surface encloses, closed by the planes through the generatrix's ends, and up
+      // to a fill plane above the base (the end lower in the world, as in MeasureVessel), with standard
+      // uncertainties u = sqrt(g^T V g) from the shape covariance, the planes held (docs/archaeology.md eqs.
+      // A1-A4).
       const double up_sign = axis_direction.z() < 0 ? -1.0 : 1.0;
       const bool base_at_start = up_sign * samples.front()[0] <= up_sign * samples.back()[0];
+      const double z_start = kinematic->ProfilePoint(kinematic->basis().lo()).y();
+      const double z_end = kinematic->ProfilePoint(kinematic->basis().hi()).y();
+      const double z_base = base_at_start ? z_start : z_end, z_rim = base_at_start ? z_end : z_start;
+      const double infinity = std::numeric_limits<double>::infinity();
       const std::string cubic = units + "^3";
-      auto volume = [&](double fill_height) {
+      auto volume = [&](double z_lo, double z_hi) {
         Eigen::VectorXd gradient;
-        Measure m{kinematic->EnclosedVolume(base_at_start, fill_height, &gradient), std::nan(""), cubic};
+        Measure m{kinematic->EnclosedVolume(z_lo, z_hi, &gradient), std::nan(""), cubic};
         if (r.shape_covariance.rows() == gradient.size())
           m.uncertainty = std::sqrt(std::max(0.0, gradient.dot(r.shape_covariance * gradient)));
         return m;
       };
-      vessel->volume = volume(std::numeric_limits<double>::infinity());
+      vessel->volume = volume(-infinity, infinity);
       if (o.fill_height > 0 && o.fill_height > vessel->height.value) {
         // Said, not fitted again: the volume to the rim is there.
         outcome.notes.push_back("--fill-height " + Format(o.fill_height, 6) +
@@ -537,7 +549,16 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
                                 units + " high): no filled volume, only the volume to the rim");
       } else if (o.fill_height > 0) {
         vessel->fill_height = o.fill_height;
-        vessel->fill_volume = volume(o.fill_height);
+        vessel->fill_volume = z_rim >= z_base ? volume(-infinity, z_base + o.fill_height)
+                                              : volume(z_base - o.fill_height, infinity);
+      }
+      // Out-of-roundness from base to rim in 10 bands (docs/archaeology.md section 4), from the judged
+      // residuals across the axis at their feet, heights turned into heights above the base.
+      if (vessel->height.value > 0) {
+        const double base_height = up_sign * z_base;
+        Eigen::Matrix3Xd above = judged_feet;
+        above.row(2) = (up_sign * judged_feet.row(2).array() - base_height).matrix();
+        vessel->roundness = MeasureRoundnessBands(above, judged_radial, 0.0, vessel->height.value, 10);
       }
       j["vessel"] = vessel->ToJson();
     }

@@ -184,7 +184,26 @@ std::string Vessel(const nlohmann::json& v) {
     s << Row({"volume up to " + Number(v["fill_height"], 6) + " " + Escape(units) + " above the base",
               Number(v["fill_volume"], 6) + " &#177; " + Number(v["fill_volume_uncertainty"], 2) + " " +
                   Escape(units) + "&#179;"});
-  s << "</table>\n<figure>" << ProfileSvg(VesselMeasures::FromJson(v))
+  s << "</table>\n";
+  if (v.contains("roundness") && v["roundness"].is_object() && !v["roundness"]["bands"].empty()) {
+    // Out-of-roundness per band (docs/archaeology.md section 4).
+    s << "<h3>Out of round, base to rim</h3>\n<table>\n"
+      << Row({"height above the base", "points", "centre off the axis", "ovality (max - min diameter)",
+              "out of round (harmonics 2-4)", "residual RMS"},
+             true);
+    for (const nlohmann::json& b : v["roundness"]["bands"]) {
+      if (b[4].is_null()) {
+        s << Row({Number(b[0], 4) + " - " + Number(b[1], 4), Number(b[2], 8),
+                  "not resolved (largest gap " + Number(b[3], 3) + "&#176;)", "", "", ""});
+        continue;
+      }
+      s << Row({Number(b[0], 4) + " - " + Number(b[1], 4), Number(b[2], 8),
+                Number(b[4], 3) + " &#177; " + Number(b[5], 2),
+                Number(b[6], 3) + " &#177; " + Number(b[7], 2), Number(b[8], 3), Number(b[9], 3)});
+    }
+    s << "</table>\n";
+  }
+  s << "<figure>" << ProfileSvg(VesselMeasures::FromJson(v))
     << "<figcaption class=\"note\">Section left of the axis, outline right; "
     << Escape(v.value("convention", "")) << ".</figcaption></figure>\n";
   return s.str();
