@@ -460,7 +460,8 @@ nlohmann::json RoundnessJson(const std::vector<RoundnessBand>& bands) {
             "centre_offset_uncertainty", "ovality", "ovality_uncertainty", "out_of_round", "residual_rms"}},
           {"bands", rows},
           {"method",
-           "per band, the signed deviations fitted by a0 + sum_{k=1..4} a_k cos k t + b_k sin k t; "
+           "per band, the deviations across the axis (d / n_rho, eq. A9) fitted by a0 + sum_{k=1..4} a_k "
+           "cos k t + b_k sin k t; "
            "centre_offset = |(a1, b1)|, ovality = 4 |(a2, b2)| (largest minus smallest diameter), "
            "out_of_round = peak-to-valley of harmonics 2-4; a band with a gap over 60 degrees or "
            "under 40 points is not resolved (docs/archaeology.md section 4)"}};
