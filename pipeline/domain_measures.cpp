@@ -513,6 +513,23 @@ VesselMeasures VesselMeasures::FromJson(const nlohmann::json& j) {
   v.volume = {uncertainty("volume"), uncertainty("volume_uncertainty"), cubic};
   v.fill_height = uncertainty("fill_height");
   v.fill_volume = {uncertainty("fill_volume"), uncertainty("fill_volume_uncertainty"), cubic};
+  if (j.contains("roundness") && j.at("roundness").is_object()) {
+    for (const nlohmann::json& row : j.at("roundness").at("bands")) {
+      RoundnessBand b;
+      b.z_lo = row.at(0).get<double>();
+      b.z_hi = row.at(1).get<double>();
+      b.points = row.at(2).get<Eigen::Index>();
+      b.largest_gap = row.at(3).get<double>() * M_PI / 180.0;
+      b.resolved = row.at(4).is_number();
+      b.centre_offset = NumberOr(row.at(4), std::nan(""));
+      b.centre_offset_uncertainty = NumberOr(row.at(5), std::nan(""));
+      b.ovality = NumberOr(row.at(6), std::nan(""));
+      b.ovality_uncertainty = NumberOr(row.at(7), std::nan(""));
+      b.out_of_round = NumberOr(row.at(8), std::nan(""));
+      b.residual_rms = NumberOr(row.at(9), std::nan(""));
+      v.roundness.push_back(b);
+    }
+  }
   for (const nlohmann::json& row : j.at("profile")) {
     v.profile.push_back(
         {row.at(0).get<double>(), row.at(1).get<double>(), NumberOr(row.at(2), std::nan(""))});

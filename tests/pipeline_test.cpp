@@ -213,6 +213,36 @@ TEST(DomainMeasures, VesselFromAnAxisPointingDown) {
   EXPECT_FALSE(j.contains("height_uncertainty"));  // the schema of docs/cli.md, unchanged
   // The JSON reads back to the same measures (batch records, reports).
   EXPECT_EQ(VesselMeasures::FromJson(j).ToJson(), j);
+  // With a volume, a fill and two roundness bands (one not resolved), too.
+  VesselMeasures full = v;
+  full.volume = {123.5, 0.25, "mm^3"};
+  full.fill_height = 4.0;
+  full.fill_volume = {50.0, 0.125, "mm^3"};
+  RoundnessBand resolved;
+  resolved.z_hi = 5.0;
+  resolved.points = 120;
+  resolved.largest_gap = 0.5;
+  resolved.resolved = true;
+  resolved.centre_offset = 0.01;
+  resolved.centre_offset_uncertainty = 0.002;
+  resolved.ovality = 0.4;
+  resolved.ovality_uncertainty = 0.01;
+  resolved.out_of_round = 0.25;
+  resolved.residual_rms = 0.05;
+  RoundnessBand sparse;
+  sparse.z_lo = 5.0;
+  sparse.z_hi = 10.0;
+  sparse.points = 3;
+  sparse.largest_gap = 3.0;
+  sparse.centre_offset = sparse.centre_offset_uncertainty = sparse.ovality = sparse.ovality_uncertainty =
+      sparse.out_of_round = sparse.residual_rms = std::nan("");
+  full.roundness = {resolved, sparse};
+  const nlohmann::json jf = full.ToJson();
+  EXPECT_EQ(jf["roundness"]["bands"].size(), 2u);
+  EXPECT_TRUE(jf["roundness"]["bands"][1][6].is_null());
+  EXPECT_EQ(VesselMeasures::FromJson(jf).ToJson(), jf);
+  EXPECT_NE(full.Text().find("ovality up to 0.4"), std::string::npos) << full.Text();
+  EXPECT_NE(full.Text().find("1 of 2 bands resolved"), std::string::npos) << full.Text();
   EXPECT_NE(ProfileCsv(v).find("height_above_base,radius,radius_uncertainty\n0,"), std::string::npos);
   EXPECT_NE(ProfileSvg(v).find("rim &#216; 6 mm"), std::string::npos) << ProfileSvg(v);
   EXPECT_THROW(MeasureVessel(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), {{0, 1}}, {}, "mm"),
