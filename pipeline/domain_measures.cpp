@@ -52,7 +52,8 @@ nlohmann::json DeviationsJson(const Eigen::Matrix3Xd& world_points, const Eigen:
   double range = std::min(largest, o.range_in_rms * rms);
   if (!(range > 0)) range = 1.0;
   const int bins = std::max(o.bins, 1);
-  std::vector<double> edges, counts(static_cast<std::size_t>(bins), 0.0);
+  std::vector<double> edges;
+  std::vector<long long> counts(static_cast<std::size_t>(bins), 0);  // integers in the JSON
   for (int b = 0; b <= bins; ++b) edges.push_back(-range + 2 * range * b / bins);
   long long below = 0, above = 0;
   for (Eigen::Index i = 0; i < n; ++i) {
