@@ -480,9 +480,6 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     // others.
     Eigen::VectorXd judged = deviations;
     Eigen::Matrix3Xd judged_feet = feet;
-    // Across the axis at each point's height, for the out-of-roundness (docs/archaeology.md eq. A9).
-    const Eigen::VectorXd radial = RadialDeviations(registered, feet, deviations);
-    Eigen::VectorXd judged_radial = radial;
     if (!report.left_out_masks.empty()) {
       std::vector<Eigen::Index> kept;
       Eigen::Index at = 0;
@@ -491,10 +488,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
           if (!report.left_out_masks[k][static_cast<std::size_t>(p)]) kept.push_back(at);
       judged.resize(static_cast<Eigen::Index>(kept.size()));
       judged_feet.resize(3, judged.size());
-      judged_radial.resize(judged.size());
       for (std::size_t i = 0; i < kept.size(); ++i) {
         judged[static_cast<Eigen::Index>(i)] = deviations[kept[i]];
-        judged_radial[static_cast<Eigen::Index>(i)] = radial[kept[i]];
         judged_feet.col(static_cast<Eigen::Index>(i)) = feet.col(kept[i]);
       }
     }
@@ -552,13 +547,20 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
         vessel->fill_volume = z_rim >= z_base ? volume(-infinity, z_base + o.fill_height)
                                               : volume(z_base - o.fill_height, infinity);
       }
-      // Out-of-roundness from base to rim in 10 bands (docs/archaeology.md section 4), from the judged
-      // residuals across the axis at their feet, heights turned into heights above the base.
+      // Out-of-roundness from base to rim in 10 bands (docs/archaeology.md section 4), from the residuals
+      // across the axis at their feet (eq. A9; the points left out as off the surface are NaN, which the
+      // bands skip), heights turned into heights above the base.
       if (vessel->height.value > 0) {
-        const double base_height = up_sign * z_base;
-        Eigen::Matrix3Xd above = judged_feet;
-        above.row(2) = (up_sign * judged_feet.row(2).array() - base_height).matrix();
-        vessel->roundness = MeasureRoundnessBands(above, judged_radial, 0.0, vessel->height.value, 10);
+        Eigen::VectorXd radial = RadialDeviations(registered, feet, deviations);
+        Eigen::Index at = 0;
+        for (std::size_t k = 0; k < report.left_out_masks.size(); ++k)
+          for (const bool left_out : report.left_out_masks[k]) {
+            if (left_out) radial[at] = std::numeric_limits<double>::quiet_NaN();
+            ++at;
+          }
+        Eigen::Matrix3Xd above = feet;
+        above.row(2) = (up_sign * feet.row(2).array() - up_sign * z_base).matrix();
+        vessel->roundness = MeasureRoundnessBands(above, radial, 0.0, vessel->height.value, 10);
       }
       j["vessel"] = vessel->ToJson();
     }
