@@ -8,6 +8,7 @@
 #include <sstream>
 #include <vector>
 
+#include "acquisition/depth_frame.h"
 #include "acquisition/e57_io.h"
 #include "acquisition/format_error.h"
 #include "acquisition/formats/readers.h"
@@ -29,12 +30,13 @@ std::string LowerExtension(const std::filesystem::path& path) {
 }  // namespace
 
 const char* ToString(PointCloudFormat format) {
-  static constexpr std::array<EnumName<PointCloudFormat>, 5> kFormatNames = {{
+  static constexpr std::array<EnumName<PointCloudFormat>, 6> kFormatNames = {{
       {PointCloudFormat::kPly, "ply"},
       {PointCloudFormat::kPcd, "pcd"},
       {PointCloudFormat::kText, "text"},
       {PointCloudFormat::kNistDs, "nist-ds"},
       {PointCloudFormat::kE57, "e57"},
+      {PointCloudFormat::kDepthFrame, "depth-frame"},
   }};
   return NameOf(kFormatNames, format);
 }
@@ -49,9 +51,11 @@ PointCloudFormat DetectFormat(const std::filesystem::path& path) {
   }
   if (ext == ".ds") return PointCloudFormat::kNistDs;
   if (ext == kE57Extension) return PointCloudFormat::kE57;
+  if (ext == ".tiff" || ext == ".tif") return PointCloudFormat::kDepthFrame;
   throw FormatError(path.string(), "",
                     "unknown point-cloud format '" + ext +
-                        "' (supported: .ply, .ply.gz, .pcd, .xyz, .txt, .csv, .pts, .ds, .e57)");
+                        "' (supported: .ply, .ply.gz, .pcd, .xyz, .txt, .csv, .pts, .ds, .e57, and a depth "
+                        "frame .tiff with its intrinsics .xml)");
 }
 
 Scan ReadPointCloud(const std::filesystem::path& path) {
@@ -64,6 +68,7 @@ Scan ReadPointCloud(const std::filesystem::path& path, PointCloudFormat format) 
   if (std::filesystem::is_directory(path, ec))
     throw FormatError(file, "", "is a directory, not a point-cloud file");
   if (format == PointCloudFormat::kE57) return ToOneCloud(ReadE57(path), path);
+  if (format == PointCloudFormat::kDepthFrame) return ReadDepthFrame(path);
   const std::string bytes = formats::ReadFileBytes(file);
   if (bytes.empty()) throw FormatError(file, "", "empty file");
   switch (format) {
@@ -76,6 +81,7 @@ Scan ReadPointCloud(const std::filesystem::path& path, PointCloudFormat format) 
     case PointCloudFormat::kNistDs:
       return formats::ParseNistDs(bytes, file);
     case PointCloudFormat::kE57:
+    case PointCloudFormat::kDepthFrame:
       break;
   }
   throw FormatError(file, "", "unknown format");

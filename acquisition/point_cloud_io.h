@@ -12,11 +12,13 @@
 
 namespace s2m {
 
-enum class PointCloudFormat { kPly, kPcd, kText, kNistDs, kE57 };
+// kDepthFrame: a 16-bit depth image (.tiff/.tif) with its intrinsics file beside it (acquisition/depth_frame.h),
+// back-projected to one organized cloud in metres.
+enum class PointCloudFormat { kPly, kPcd, kText, kNistDs, kE57, kDepthFrame };
 const char* ToString(PointCloudFormat format);
 
-// From the file name: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds, .e57. Throws FormatError for anything
-// else.
+// From the file name: .ply, .ply.gz, .pcd, .xyz/.txt/.csv/.pts, .ds, .e57, .tiff/.tif (a depth frame). Throws
+// FormatError for anything else.
 PointCloudFormat DetectFormat(const std::filesystem::path& path);
 
 Scan ReadPointCloud(const std::filesystem::path& path);

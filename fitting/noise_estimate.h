@@ -15,8 +15,9 @@ double ChiSquareMedian(int dof);
 
 // The scanner noise of the views, without a model: per view, local quadrics (registration/local_quadric.h)
 // over the 8 nearest neighbours of up to 500 points spread over the view; each gives SS / dof scaled to have
-// the noise variance as its median; the square root of the median over all of them (docs/batch.md). NaN when
-// fewer than 10 neighbourhoods could be fitted.
+// the noise variance as its median; the square root of the median over all of them (docs/batch.md). On
+// layered data (depth quantized into steps: more than 5 % of those quadrics fit exactly) over the 40 nearest
+// neighbours instead (docs/method.md section 17). NaN when fewer than 10 neighbourhoods could be fitted.
 double EstimateNoise(const ScanSet& set);
 
 // EstimateNoise with what its precision depends on: the number of neighbourhoods m whose median it is, and
@@ -28,6 +29,12 @@ struct NoiseEstimate {
   double sigma = 0.0;  // NaN when unknown
   int neighbourhoods = 0;
   double dof = 0.0;
+  // The neighbourhoods' size (8, or 40 for layered data) and the fraction of 8-point neighbourhoods the
+  // quadric fitted exactly; `layered` when that fraction says the data are quantized into layers (depth
+  // cameras) and the estimate came from the larger neighbourhoods (EstimateNoiseWithDof).
+  int neighbours = 8;
+  double exact_fraction = 0.0;
+  bool layered = false;
 };
 NoiseEstimate EstimateNoiseWithDof(const ScanSet& set);
 
