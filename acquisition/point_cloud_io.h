@@ -12,8 +12,8 @@
 
 namespace s2m {
 
-// kDepthFrame: a 16-bit depth image (.tiff/.tif) with its intrinsics file beside it (acquisition/depth_frame.h),
-// back-projected to one organized cloud in metres.
+// kDepthFrame: a 16-bit depth image (.tiff/.tif) with its intrinsics file beside it
+// (acquisition/depth_frame.h), back-projected to one organized cloud in metres.
 enum class PointCloudFormat { kPly, kPcd, kText, kNistDs, kE57, kDepthFrame };
 const char* ToString(PointCloudFormat format);
 

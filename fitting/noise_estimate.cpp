@@ -98,7 +98,8 @@ NoiseEstimate EstimateNoiseWithDof(const ScanSet& set) {
   NeighbourhoodVariances v = LocalQuadricVariances(set, kNeighbours);
   NoiseEstimate out;
   out.neighbours = kNeighbours;
-  if (!v.scaled.empty()) out.exact_fraction = static_cast<double>(v.exact) / static_cast<double>(v.scaled.size());
+  if (!v.scaled.empty())
+    out.exact_fraction = static_cast<double>(v.exact) / static_cast<double>(v.scaled.size());
   if (out.exact_fraction > kLayeredFraction) {
     NeighbourhoodVariances wide = LocalQuadricVariances(set, kLayeredNeighbours);
     if (wide.scaled.size() >= 10) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <utility>
 
 namespace s2m {
 namespace {
@@ -46,6 +47,22 @@ double Hit(const Plane& p, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
   return t > 0 ? t : kNoHit;
 }
 
+// The first hit of the ray from `o` along `d` among the scene's objects: (t, object index), or (infinity,
+// -1).
+std::pair<double, int> FirstHit(const std::vector<SceneObject>& scene, const Eigen::Vector3d& o,
+                                const Eigen::Vector3d& d) {
+  double best = kNoHit;
+  int label = -1;
+  for (std::size_t k = 0; k < scene.size(); ++k) {
+    const double t = std::visit([&](const auto& object) { return Hit(object, o, d); }, scene[k]);
+    if (t < best) {
+      best = t;
+      label = static_cast<int>(k);
+    }
+  }
+  return {best, label};
+}
+
 }  // namespace
 
 LabelledCloud CastRays(const std::vector<SceneObject>& scene, const RayGrid& grid) {
@@ -56,30 +73,41 @@ LabelledCloud CastRays(const std::vector<SceneObject>& scene, const RayGrid& gri
   const int rows = static_cast<int>(std::floor(2 * grid.half_height / grid.step)) + 1;
   std::mt19937_64 rng(grid.seed);
   std::normal_distribution<double> noise(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  // Constant angular steps in azimuth and elevation about the centre ray.
+  auto direction = [&](double azimuth, double elevation) {
+    return (std::cos(elevation) * (std::cos(azimuth) * forward + std::sin(azimuth) * right) +
+            std::sin(elevation) * up)
+        .normalized();
+  };
   std::vector<Eigen::Vector3d> points;
   LabelledCloud cloud;
   for (int r = 0; r < rows; ++r) {
     for (int c = 0; c < columns; ++c) {
-      // Constant angular steps in azimuth and elevation about the centre ray.
       const double azimuth = -grid.half_width + c * grid.step, elevation = -grid.half_height + r * grid.step;
-      const Eigen::Vector3d d =
-          (std::cos(elevation) * (std::cos(azimuth) * forward + std::sin(azimuth) * right) +
-           std::sin(elevation) * up)
-              .normalized();
-      double best = kNoHit;
-      int label = -1;
-      for (std::size_t k = 0; k < scene.size(); ++k) {
-        const double t =
-            std::visit([&](const auto& object) { return Hit(object, grid.origin, d); }, scene[k]);
-        if (t < best) {
-          best = t;
-          label = static_cast<int>(k);
+      const Eigen::Vector3d d = direction(azimuth, elevation);
+      const auto [best, label] = FirstHit(scene, grid.origin, d);
+      if (label < 0) continue;
+      double t = best;
+      int point_label = label;
+      if (grid.flying_pixel_probability > 0) {
+        // The footprint's other object, if any: the first of the four half-step rays that meets one.
+        const double h = 0.5 * grid.step;
+        for (const auto& [da, de] :
+             {std::pair{-h, 0.0}, std::pair{h, 0.0}, std::pair{0.0, -h}, std::pair{0.0, h}}) {
+          const auto [t_other, other] = FirstHit(scene, grid.origin, direction(azimuth + da, elevation + de));
+          if (other < 0 || other == label) continue;
+          if (uniform(rng) < grid.flying_pixel_probability) {
+            const double w = uniform(rng);
+            t = w * best + (1 - w) * t_other;
+            point_label = kFlyingPixel;
+          }
+          break;
         }
       }
-      if (label < 0) continue;
-      const double t = best + grid.range_noise * noise(rng);
+      t += grid.range_noise * noise(rng);
       points.push_back(grid.origin + t * d);
-      cloud.labels.push_back(label);
+      cloud.labels.push_back(point_label);
     }
   }
   cloud.points.resize(3, static_cast<Eigen::Index>(points.size()));
@@ -87,7 +115,8 @@ LabelledCloud CastRays(const std::vector<SceneObject>& scene, const RayGrid& gri
   return cloud;
 }
 
-SphereOnStandScene MakeSphereOnStandScene(double range, double noise, std::uint64_t seed) {
+SphereOnStandScene MakeSphereOnStandScene(double range, double noise, std::uint64_t seed,
+                                          double flying_pixels) {
   SphereOnStandScene s;
   s.truth = Sphere{Eigen::Vector3d::Zero(), 25.0};
   s.objects.push_back(s.truth);
@@ -103,12 +132,13 @@ SphereOnStandScene MakeSphereOnStandScene(double range, double noise, std::uint6
   grid.half_width = 28.0 / range;
   grid.half_height = 47.0 / range;
   grid.range_noise = noise;
+  grid.flying_pixel_probability = flying_pixels;
   grid.seed = seed;
   s.cloud = CastRays(s.objects, grid);
   return s;
 }
 
-SpheresAndCylinderScene MakeSpheresAndCylinderScene(std::uint64_t seed) {
+SpheresAndCylinderScene MakeSpheresAndCylinderScene(std::uint64_t seed, double flying_pixels) {
   SpheresAndCylinderScene s;
   // Side by side across the view, so that no object hides a part of another (an occluded object would be
   // seen as two disconnected patches: two instances).
@@ -124,6 +154,7 @@ SpheresAndCylinderScene MakeSpheresAndCylinderScene(std::uint64_t seed) {
   grid.half_width = 0.17;
   grid.half_height = 0.13;
   grid.range_noise = 0.3;
+  grid.flying_pixel_probability = flying_pixels;
   grid.seed = seed;
   s.cloud = CastRays(s.objects, grid);
   return s;

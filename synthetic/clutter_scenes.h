@@ -3,7 +3,8 @@
 // scanner at one position casts a regular grid of rays (constant angular steps, as a terrestrial laser
 // scanner or a depth camera does) into a scene of spheres, finite cylinders and planes; each ray keeps its
 // first hit (occlusion is exact), with Gaussian noise along the ray. Every point carries the index of the
-// object it came from.
+// object it came from. Optionally, rays whose footprint straddles two objects return mixed ranges ("flying
+// pixels" between a foreground and a background edge, as depth cameras and laser scanners do).
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -30,12 +31,18 @@ struct RayGrid {
   double half_height = 0.1;  // radians, vertical
   double step = 1e-3;        // radians between neighbouring rays
   double range_noise = 0.0;  // standard deviation along the ray
+  // Mixed pixels: a ray whose footprint (the rays half a step to either side, in both directions) meets two
+  // objects returns, with this probability, a range between the two hits, w t_a + (1 - w) t_b with w
+  // uniform in (0, 1), and the label kFlyingPixel. 0: off.
+  double flying_pixel_probability = 0.0;
   std::uint64_t seed = 1;
 };
 
+constexpr int kFlyingPixel = -1;  // the label of a mixed pixel: on no object
+
 struct LabelledCloud {
   Eigen::Matrix3Xd points;
-  std::vector<int> labels;  // index into the scene's objects
+  std::vector<int> labels;  // index into the scene's objects, or kFlyingPixel
 };
 
 LabelledCloud CastRays(const std::vector<SceneObject>& scene, const RayGrid& grid);
@@ -50,7 +57,9 @@ struct SphereOnStandScene {
   std::vector<SceneObject> objects;
   LabelledCloud cloud;
 };
-SphereOnStandScene MakeSphereOnStandScene(double range, double noise, std::uint64_t seed);
+// `flying_pixels`: RayGrid::flying_pixel_probability.
+SphereOnStandScene MakeSphereOnStandScene(double range, double noise, std::uint64_t seed,
+                                          double flying_pixels = 0.0);
 
 // Three spheres (radii 30, 40, 50 mm) and a column (radius 40 mm, 1 m tall: its top is out of view) on a
 // floor (z = 0), seen from about 1.7 m with 2.5 mm spacing and 0.3 mm range noise (millimetres). Objects: 0-2
@@ -59,6 +68,6 @@ struct SpheresAndCylinderScene {
   std::vector<SceneObject> objects;
   LabelledCloud cloud;
 };
-SpheresAndCylinderScene MakeSpheresAndCylinderScene(std::uint64_t seed);
+SpheresAndCylinderScene MakeSpheresAndCylinderScene(std::uint64_t seed, double flying_pixels = 0.0);
 
 }  // namespace s2m

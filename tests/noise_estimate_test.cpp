@@ -3,6 +3,8 @@
 // their quadric fits them exactly (docs/method.md section 17, "Layered data"). The reference in every case is
 // the RMS orthogonal distance of the points from the true surface: the RMS a perfect model leaves.
 
+#include "fitting/noise_estimate.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,7 +12,6 @@
 #include <random>
 
 #include "acquisition/depth_frame.h"
-#include "fitting/noise_estimate.h"
 #include "test_paths.h"
 
 namespace s2m {
@@ -70,10 +71,11 @@ TEST(NoiseEstimate, DepthLayersAreRecognizedAndSpanned) {
   for (const Eigen::Vector3d& normal : {Eigen::Vector3d(0.3, -0.5, 1.0), Eigen::Vector3d(0.05, 0.1, 1.0)}) {
     const PlaneView view = ViewOfAPlane(normal, 2e-4, step, 2);
     const NoiseEstimate e = EstimateNoiseWithDof(view.set);
-    std::printf("[ layered ] normal (%.2f %.2f %.2f): true RMS %.6f (step / sqrt(12) = %.6f), estimate %.6f "
-                "from %d neighbours, exact fraction %.3f\n",
-                normal.x(), normal.y(), normal.z(), view.true_rms, step / std::sqrt(12.0), e.sigma,
-                e.neighbours, e.exact_fraction);
+    std::printf(
+        "[ layered ] normal (%.2f %.2f %.2f): true RMS %.6f (step / sqrt(12) = %.6f), estimate %.6f "
+        "from %d neighbours, exact fraction %.3f\n",
+        normal.x(), normal.y(), normal.z(), view.true_rms, step / std::sqrt(12.0), e.sigma, e.neighbours,
+        e.exact_fraction);
     EXPECT_TRUE(e.layered);
     EXPECT_EQ(e.neighbours, 40);
     EXPECT_GT(e.exact_fraction, 0.05);
@@ -86,8 +88,8 @@ TEST(NoiseEstimate, DepthLayersAreRecognizedAndSpanned) {
 
 // A real Kinect frame (OpenNI, depth in whole millimetres over disparity steps of 1/8 pixel): 59 % of the
 // eight-point quadrics fit exactly and their median was 1e-18 m before layered data were recognized. The
-// frame spans 0.67-1.71 m, where a Kinect's depth step (z^2 / 8 / (f b), f = 525 px, b = 75 mm) is 1.4-9.3 mm,
-// i.e. a rounding RMS of 0.4-2.7 mm.
+// frame spans 0.67-1.71 m, where a Kinect's depth step (z^2 / 8 / (f b), f = 525 px, b = 75 mm) is 1.4-9.3
+// mm, i.e. a rounding RMS of 0.4-2.7 mm.
 TEST(NoiseEstimate, RealKinectFrameIsLayered) {
   if (!test::HaveSharedData()) GTEST_SKIP() << "../shared/data is absent";
   ScanSet set;

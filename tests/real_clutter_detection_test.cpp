@@ -1,9 +1,9 @@
 // Robust extraction on real cluttered depth scenes (../shared/data/real_clutter_scenes, skipped when absent):
 // the labelled mOSD scenes test36 (three cylindrical objects on a table) and test45 (seven mixed objects),
 // scored point by point against the per-point ground-truth labels (1-2 table, 20, 30, ... one object each),
-// the mug on PCL's stereo table scene, and three raw Kinect depth frames. Issue 22's bar: inlier precision at least 0.9 for the table plane
-// and every cylinder; recall is printed (the tops of cylinders are planes, not cylinder inliers). Metres,
-// Kinect noise.
+// the mug on PCL's stereo table scene, and three raw Kinect depth frames. Issue 22's bar: inlier precision at
+// least 0.9 for the table plane and every cylinder; recall is printed (the tops of cylinders are planes, not
+// cylinder inliers). Metres, Kinect noise.
 
 #include <gtest/gtest.h>
 
@@ -122,13 +122,13 @@ TEST(RealClutterDetection, Test45MixedObjects) {
 // half). Read as depth frames, the noise is recognized as layered (it was 1e-18 m before, and nothing was
 // detected). In every frame the two largest planes are the large surface behind the boxes and the large
 // box's face towards the camera; the angle between them does not depend on where the camera is, so the three
-// frames must agree on it. Within 1 degree: a Kinect's depth distortion bends planes by millimetres near the image border (test36's table
-// above), and 3 mm over the box face's 0.3 m is 0.6 degree.
+// frames must agree on it. Within 1 degree: a Kinect's depth distortion bends planes by millimetres near the
+// image border (test36's table above), and 3 mm over the box face's 0.3 m is 0.6 degree.
 TEST(RealClutterDetection, KinectFramesAgreeOnTheAngleOfTheBox) {
   if (!test::HaveSharedData()) GTEST_SKIP() << "../shared/data is absent";
   std::vector<double> angles;
-  for (const char* frame : {"frame_20121214T142255.814212", "frame_20121214T142256.068683",
-                            "frame_20121214T142256.332395"}) {
+  for (const char* frame :
+       {"frame_20121214T142255.814212", "frame_20121214T142256.068683", "frame_20121214T142256.332395"}) {
     const Scan scan =
         ReadPointCloud(test::SharedData(std::string("pcl_kinect_frames/") + frame + "_depth.tiff"));
     DetectionOptions options;
@@ -140,11 +140,12 @@ TEST(RealClutterDetection, KinectFramesAgreeOnTheAngleOfTheBox) {
     const DetectedPrimitive& face = result.instances[1];
     const double angle = std::acos(
         std::min(1.0, std::abs(std::get<Plane>(floor.shape).normal.dot(std::get<Plane>(face.shape).normal))));
-    std::printf("[ kinect ] %s: noise %.5f m, epsilon %.5f m; surface %ld of %ld points (RMS %.5f m), box face "
-                "%ld (RMS %.5f m), %.2f deg between them\n",
-                frame, result.noise_sigma, result.epsilon, static_cast<long>(floor.support()),
-                static_cast<long>(scan.size()), floor.rms, static_cast<long>(face.support()), face.rms,
-                angle * 180 / M_PI);
+    std::printf(
+        "[ kinect ] %s: noise %.5f m, epsilon %.5f m; surface %ld of %ld points (RMS %.5f m), box face "
+        "%ld (RMS %.5f m), %.2f deg between them\n",
+        frame, result.noise_sigma, result.epsilon, static_cast<long>(floor.support()),
+        static_cast<long>(scan.size()), floor.rms, static_cast<long>(face.support()), face.rms,
+        angle * 180 / M_PI);
     EXPECT_GT(result.noise_sigma, 0.3e-3) << frame;  // Kinect depth steps here are millimetres
     EXPECT_GT(floor.support(), scan.size() / 3) << frame;
     EXPECT_GT(face.support(), scan.size() / 20) << frame;
