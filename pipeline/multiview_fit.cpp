@@ -64,6 +64,10 @@ struct StartReport {
   std::string mode;                      // --start
   std::string reason;                    // why the global search ran or not
   std::optional<bool> normals_adequate;  // the RMS of the fit from the normals' start within the band
+  // Helical and spiral, --start auto: the spectrum's best-scored start (eqs. 72-74), looked at before any
+  // joint fit, and whether it lies within the +-20 % the normals' start searches (docs/method.md section 19).
+  std::optional<double> spectrum_value;
+  std::optional<bool> spectrum_agrees;
   bool searched = false;
   double normals_value = 0.0;          // the pitch or growth from the normals
   double estimate = 0.0;               // --pitch / --growth
@@ -100,6 +104,8 @@ nlohmann::json StartJson(const StartReport& s, KinematicKind kind) {
   if (kind != KinematicKind::kRevolution) {
     j["normals_value"] = s.normals_value;
     j["estimate"] = s.estimate != 0.0 ? nlohmann::json(s.estimate) : nlohmann::json(nullptr);
+    j["spectrum_value"] = s.spectrum_value ? nlohmann::json(*s.spectrum_value) : nlohmann::json(nullptr);
+    j["spectrum_agrees"] = s.spectrum_agrees ? nlohmann::json(*s.spectrum_agrees) : nlohmann::json(nullptr);
   }
   if (!s.searched) {
     j["source"] = kind == KinematicKind::kRevolution ? "best cylinder"
@@ -281,13 +287,40 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     report.mode = o.start;
     report.normals_value = normals_start.normals_value;
     report.estimate = estimate;
-    if (o.start != "global") {
+    KinematicStartOptions start_options;
+    start_options.num_control = n;
+    start_options.order = o.order;
+    start_options.estimate = estimate;
+    // Helical and spiral surfaces (--start auto): the spectrum first. Its starts cost a fraction of one joint
+    // fit; a normals' start in a wrong basin costs a whole complexity search that runs every step to the
+    // iteration cap (measured on the shallow thread: 75 s of the command's 80). When the spectrum's
+    // best-scored start lies within the +-20 % the normals' start searches itself (section 8), both are one
+    // basin and the normals' path runs as before; when it does not, the normals' start is only one candidate
+    // of the coarse fits below.
+    std::optional<std::vector<KinematicStart>> early_starts;
+    double early_seconds = 0.0;
+    if (o.start == "auto" && kind != KinematicKind::kRevolution) {
+      const auto early_start = std::chrono::steady_clock::now();
+      try {
+        early_starts = FindKinematicStarts(merged, EstimateNormals(merged, 12), kind, start_options);
+      } catch (const std::invalid_argument&) {  // no searched start: the normals' path decides alone
+      }
+      early_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - early_start).count();
+      if (early_starts && !early_starts->empty()) {
+        const double ratio = early_starts->front().searched_value / normals_start.searched_value;
+        report.spectrum_value = early_starts->front().searched_value;
+        report.spectrum_agrees = ratio >= 1.0 / 1.2 && ratio <= 1.2;
+      }
+    }
+    if (o.start != "global" && report.spectrum_agrees != false) {
       from_normals = search_complexity(normals_start.model->Clone(), poses_from(normals_start.world_T_model),
                                        normals_start.world_T_model, {});
       const ComplexityStep& chosen = from_normals->complexity.steps.at(from_normals->complexity.chosen);
       report.normals_adequate = chosen.adequate;
     }
-    const bool search = o.start == "global" || (o.start == "auto" && report.normals_adequate != true);
+    const bool search =
+        o.start == "global" ||
+        (o.start == "auto" && (report.spectrum_agrees == false || report.normals_adequate != true));
     Searched fitted;
     if (!search) {
       fitted = std::move(*from_normals);
@@ -296,18 +329,23 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     } else {
       report.searched = true;
       report.reason = o.start == "global" ? "--start global"
+                      : report.spectrum_agrees == false
+                          ? std::string(kind == KinematicKind::kHelical ? "the pitch" : "the growth") +
+                                " spectrum's best start (" + Format(*report.spectrum_value, 6) +
+                                ") is outside the +-20 % of the normals' start (" +
+                                Format(normals_start.searched_value, 6) + ")"
                       : report.normals_adequate.has_value()
                           ? "the fit from the normals' start stays above the noise band"
                           : "no noise estimate to judge the normals' start by";
-      KinematicStartOptions start_options;
-      start_options.num_control = n;
-      start_options.order = o.order;
-      start_options.estimate = estimate;
       const auto search_start = std::chrono::steady_clock::now();
-      try {
-        report.starts = FindKinematicStarts(merged, EstimateNormals(merged, 12), kind, start_options);
-      } catch (const std::invalid_argument& e) {  // no searched start: the normals' start stands alone
-        report.reason += std::string(report.reason.empty() ? "" : "; ") + "no searched start: " + e.what();
+      if (early_starts) {
+        report.starts = std::move(*early_starts);
+      } else {
+        try {
+          report.starts = FindKinematicStarts(merged, EstimateNormals(merged, 12), kind, start_options);
+        } catch (const std::invalid_argument& e) {  // no searched start: the normals' start stands alone
+          report.reason += std::string(report.reason.empty() ? "" : "; ") + "no searched start: " + e.what();
+        }
       }
       // The normals' start is one candidate among the others (the global search must not lose what it had).
       normals_start.score =
@@ -370,6 +408,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       }
       report.chosen = report.kept_normals ? report.starts.size() - 1 : started.chosen;
       report.search_seconds =
+          early_seconds +
           std::chrono::duration<double>(std::chrono::steady_clock::now() - search_start).count();
     }
     report.turn = fitted.turn;
