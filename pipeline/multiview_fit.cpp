@@ -291,19 +291,22 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     start_options.num_control = n;
     start_options.order = o.order;
     start_options.estimate = estimate;
-    // Helical and spiral surfaces (--start auto): the spectrum first. Its starts cost a fraction of one joint
-    // fit; a normals' start in a wrong basin costs a whole complexity search that runs every step to the
+    // Helical and spiral surfaces (--start auto): the spectrum first. Its starts need no joint fit; a
+    // normals' start in a wrong basin costs a whole complexity search that runs every step to the
     // iteration cap (measured on the shallow thread: 75 s of the command's 80). When the spectrum's
     // best-scored start lies within the +-20 % the normals' start searches itself (section 8), both are one
     // basin and the normals' path runs as before; when it does not, the normals' start is only one candidate
     // of the coarse fits below.
     std::optional<std::vector<KinematicStart>> early_starts;
+    std::string early_failure;  // why the early search found no start (it is not run again)
     double early_seconds = 0.0;
     if (o.start == "auto" && kind != KinematicKind::kRevolution) {
       const auto early_start = std::chrono::steady_clock::now();
       try {
         early_starts = FindKinematicStarts(merged, EstimateNormals(merged, 12), kind, start_options);
-      } catch (const std::invalid_argument&) {  // no searched start: the normals' path decides alone
+      } catch (const std::invalid_argument& e) {  // no searched start: the normals' path decides alone
+        early_starts.emplace();
+        early_failure = e.what();
       }
       early_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - early_start).count();
       if (early_starts && !early_starts->empty()) {
@@ -340,6 +343,9 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       const auto search_start = std::chrono::steady_clock::now();
       if (early_starts) {
         report.starts = std::move(*early_starts);
+        if (!early_failure.empty())
+          report.reason +=
+              std::string(report.reason.empty() ? "" : "; ") + "no searched start: " + early_failure;
       } else {
         try {
           report.starts = FindKinematicStarts(merged, EstimateNormals(merged, 12), kind, start_options);
