@@ -1,8 +1,12 @@
 #include "devices/horus_scan.h"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -244,7 +248,13 @@ HorusScanResult RunHorusScan(TurntableBoard& board, ImageCamera& camera, const H
           ": exists already (a recording is never overwritten; resume it if it holds an "
           "interrupted scan)");
     }
-    writer.emplace(RecordingWriter::Create(out));
+    // The header (device, calibration, options, stream) is written to a staging file that is renamed into
+    // place: a scan killed at any moment leaves either no recording or one that --resume accepts, never a
+    // recording without its options. A staging file left by an earlier kill holds no frame and is replaced.
+    const fs::path staging = fs::path(file + ".creating");
+    std::error_code ignored;
+    fs::remove(staging, ignored);
+    writer.emplace(RecordingWriter::Create(staging));
     json device = json::object();
     if (!options.device_json.empty()) {
       device = json::parse(options.device_json, nullptr, false);
@@ -258,6 +268,15 @@ HorusScanResult RunHorusScan(TurntableBoard& board, ImageCamera& camera, const H
     writer->SetMeta("name", out.stem().string());
     writer->SetMeta(kOptionsMeta, options_json);
     stream = writer->AddStream(kStreamName, "profile", kPointsEncoding, "mm");
+    writer->Close();
+    writer.reset();
+    // link(2), not rename: it refuses to replace a file that appeared at `out` meanwhile.
+    if (::link(staging.c_str(), out.c_str()) != 0) {
+      const int error = errno;
+      throw FormatError(file, "", std::string("cannot create the recording: ") + std::strerror(error));
+    }
+    fs::remove(staging, ignored);
+    writer.emplace(RecordingWriter::OpenForAppend(out));
   }
   writer->SetMeta(kStatusMeta, kStatusInProgress);
   if (options.store_images) fs::create_directories(HorusImageFolder(out));

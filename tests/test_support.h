@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <string>
 #include <thread>
@@ -70,8 +71,10 @@ struct SignalledRun {
   bool signalled = false;  // the signal was sent (the child was still running at the delay)
   std::string log;
 };
-inline SignalledRun RunAndSignal(const std::vector<std::string>& argv, int delay_ms, int signal_number,
-                                 const std::filesystem::path& log) {
+// As RunAndSignal below, but the signal goes when `ready()` first returns true (polled every 0.2 ms), or
+// after `timeout_ms` if it never does.
+inline SignalledRun RunAndSignalWhen(const std::vector<std::string>& argv, const std::function<bool()>& ready,
+                                     int timeout_ms, int signal_number, const std::filesystem::path& log) {
   SignalledRun r;
   const pid_t pid = fork();
   if (pid == 0) {
@@ -86,21 +89,26 @@ inline SignalledRun RunAndSignal(const std::vector<std::string>& argv, int delay
   }
   if (pid < 0) return r;
   int status = 0;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(delay_ms);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
   while (waitpid(pid, &status, WNOHANG) == 0) {
-    if (std::chrono::steady_clock::now() >= deadline) {
+    if (ready() || std::chrono::steady_clock::now() >= deadline) {
       kill(pid, signal_number);
       r.signalled = true;
       waitpid(pid, &status, 0);
       break;
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
   }
   if (WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
   if (WIFSIGNALED(status)) r.signal = WTERMSIG(status);
   std::ifstream in(log);
   r.log.assign(std::istreambuf_iterator<char>(in), {});
   return r;
+}
+inline SignalledRun RunAndSignal(const std::vector<std::string>& argv, int delay_ms, int signal_number,
+                                 const std::filesystem::path& log) {
+  return RunAndSignalWhen(
+      argv, [] { return false; }, delay_ms, signal_number, log);
 }
 
 }  // namespace s2m::test
