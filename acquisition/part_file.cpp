@@ -231,7 +231,11 @@ class Reader {
                       std::to_string(nu) + " x " + std::to_string(nv));
     }
     std::optional<Eigen::Vector3d> free_along;
-    if (fj.contains("free_along")) free_along = Direction(fj["free_along"], where + " free_along");
+    if (fj.contains("free_along")) {
+      free_along = Direction(fj["free_along"], where + " free_along");
+      patch.free_along = *free_along;
+      patch.first_displacement = static_cast<int>(free_parameters.size());
+    }
     for (std::size_t i = 0; i < nu; ++i) {
       if (!net[i].is_array() || net[i].size() != nv)
         Fail(net_where,

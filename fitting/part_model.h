@@ -1,7 +1,8 @@
 #pragma once
-// Constrained parts (docs/method.md section 7, last item; Liu, Pottmann, Wang, CAD 38(6) 2006, section 6): several
-// faces (plane, cylinder, cone, sphere, torus, B-spline patch) placed in ONE adapted part frame and sharing
-// named parameters, e.g. a block whose top face lies at z = height and whose counterbore floor at z = height
+// Constrained parts (docs/method.md section 7, last item; Liu, Pottmann, Wang, CAD 38(6) 2006, section 6):
+// several faces (plane, cylinder, cone, sphere, torus, B-spline patch) placed in ONE adapted part frame and
+// sharing named parameters, e.g. a block whose top face lies at z = height and whose counterbore floor at z =
+// height
 // - depth. Every face quantity is a linear expression in the named parameters, so the part's shape Jacobian
 // is exact and cheap; the orientation of each face in the part frame is fixed (it is the design), the part's
 // pose is what the joint solver's per-scan motions find.
@@ -51,6 +52,11 @@ struct SplinePatch {
   BSplineBasis v = BSplineBasis::ClampedUniform(4, 4);
   // u-major: P_ij at index i * v.num_control() + j.
   std::vector<std::array<LinearExpression, 3>> control_points;
+  // Free-form patches (docs/parts.md, "free_along"): every control point P_ij has its own free displacement
+  // along `free_along` (unit), the part parameter first_displacement + i * v.num_control() + j (u-major, in
+  // one block). -1: none (the patch only moves and stretches with the named parameters).
+  Eigen::Vector3d free_along = Eigen::Vector3d::Zero();
+  int first_displacement = -1;
 };
 
 struct PartFace {

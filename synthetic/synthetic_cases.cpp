@@ -100,24 +100,67 @@ PartFace PlaneFace(const std::string& name, const Eigen::Vector3d& normal, Linea
   return f;
 }
 
-// The free-form plate: width x depth, its bottom at z = 0, its top a bicubic Bezier patch over the whole
-// plate whose control points lie on a uniform grid in x and y (so x = (u - 1/2) width and y = (v - 1/2)
-// depth exactly: a B-spline reproduces linear functions from control points at its Greville abscissae) at
-// heights kPlateHeight + the free displacements.
+// The free-form plate's top lies at kPlateHeight + the free displacements (synthetic_cases.h).
 constexpr double kPlateHeight = 10.0;
 
-PartDefinition FreeformPlate(double width, double depth, const Eigen::Matrix4d& displacement) {
+// The plate's top height at (x, y) (part frame) over its height at the centre, on a fitted plate, with the
+// uncertainty from the gradient w.r.t. the parameters. The top at (x, y) is z(u, v) at u = x / width + 1/2,
+// v = y / depth + 1/2, so d/dwidth = z_u * (-x / width^2); the displacements enter by their basis products.
+// A difference of heights: the plate's absolute height is the case's gauge (see "freeform" below).
+MeasuredQuantity PlateTopRelief(const PartModel& truth, const PartModel& fitted, const JointFitResult& r,
+                                double x, double y) {
+  auto height = [](const PartModel& m, double px, double py, Eigen::VectorXd& gradient) {
+    const double w = m.parameters()[0], d = m.parameters()[1];
+    const ParamT t{px / w + 0.5, py / d + 0.5, 0.0};
+    LocalGeometry g;
+    m.Evaluate(t, 1, g);
+    gradient = Eigen::VectorXd::Zero(m.num_parameters());
+    gradient[0] = g.d1(2, 0) * (-px / (w * w));
+    gradient[1] = g.d1(2, 1) * (-py / (d * d));
+    std::vector<JacobianEntry> entries;
+    m.ShapeJacobian(t, false, entries);
+    for (const JacobianEntry& e : entries)
+      if (e.index >= 2) gradient[e.index] += e.column.z();
+    return g.point.z();
+  };
+  Eigen::VectorXd at_point, at_centre;
+  MeasuredQuantity q;
+  q.name = "top at (" + std::to_string(static_cast<int>(x)) + ", " + std::to_string(static_cast<int>(y)) +
+           ") over centre";
+  q.truth = height(truth, x, y, at_point) - height(truth, 0.0, 0.0, at_centre);
+  q.value = height(fitted, x, y, at_point) - height(fitted, 0.0, 0.0, at_centre);
+  const Eigen::VectorXd gradient = at_point - at_centre;
+  q.uncertainty =
+      r.shape_covariance.size() > 0 ? std::sqrt(gradient.dot(r.shape_covariance * gradient)) : std::nan("");
+  return q;
+}
+
+}  // namespace
+
+PartDefinition FreeformPlate(double width, double depth, const Eigen::MatrixXd& displacement) {
   PartDefinition d;
   d.name = "plate with a free-form top";
   d.parameters = {{"width", width, false}, {"depth", depth, false}};
-  SplinePatch patch{BSplineBasis::ClampedUniform(4, 4), BSplineBasis::ClampedUniform(4, 4), {}};
-  for (int i = 0; i < 4; ++i) {
-    for (int j = 0; j < 4; ++j) {
+  const int nu = static_cast<int>(displacement.rows()), nv = static_cast<int>(displacement.cols());
+  if (nu < 4 || nv < 4) throw std::invalid_argument("FreeformPlate: at least 4 x 4 control points");
+  SplinePatch patch{BSplineBasis::ClampedUniform(4, nu), BSplineBasis::ClampedUniform(4, nv), {}};
+  patch.free_along = Eigen::Vector3d::UnitZ();
+  patch.first_displacement = static_cast<int>(d.parameters.size());
+  // Control points at the Greville abscissae (the mean of a control point's `order - 1` inner knots): a
+  // B-spline reproduces a linear function from them, so x = (u - 1/2) width and y = (v - 1/2) depth exactly.
+  const auto greville = [](const BSplineBasis& b, int i) {
+    const std::vector<double>& t = b.knots();
+    return (t[static_cast<std::size_t>(i) + 1] + t[static_cast<std::size_t>(i) + 2] +
+            t[static_cast<std::size_t>(i) + 3]) /
+           3.0;
+  };
+  for (int i = 0; i < nu; ++i) {
+    for (int j = 0; j < nv; ++j) {
       const int index = static_cast<int>(d.parameters.size());
       d.parameters.push_back(
           {"top[" + std::to_string(i) + "," + std::to_string(j) + "]", displacement(i, j), false});
-      patch.control_points.push_back({LinearExpression{0.0, {{0, i / 3.0 - 0.5}}},
-                                      LinearExpression{0.0, {{1, j / 3.0 - 0.5}}},
+      patch.control_points.push_back({LinearExpression{0.0, {{0, greville(patch.u, i) - 0.5}}},
+                                      LinearExpression{0.0, {{1, greville(patch.v, j) - 0.5}}},
                                       LinearExpression{kPlateHeight, {{index, 1.0}}}});
     }
   }
@@ -172,40 +215,6 @@ SurfaceSample SampleFreeformPlate(const PartModel& plate, int count, std::uint64
   }
   return s;
 }
-
-// The plate's top height at (x, y) (part frame) over its height at the centre, on a fitted plate, with the
-// uncertainty from the gradient w.r.t. the parameters. The top at (x, y) is z(u, v) at u = x / width + 1/2,
-// v = y / depth + 1/2, so d/dwidth = z_u * (-x / width^2); the displacements enter by their basis products.
-// A difference of heights: the plate's absolute height is the case's gauge (see "freeform" below).
-MeasuredQuantity PlateTopRelief(const PartModel& truth, const PartModel& fitted, const JointFitResult& r,
-                                double x, double y) {
-  auto height = [](const PartModel& m, double px, double py, Eigen::VectorXd& gradient) {
-    const double w = m.parameters()[0], d = m.parameters()[1];
-    const ParamT t{px / w + 0.5, py / d + 0.5, 0.0};
-    LocalGeometry g;
-    m.Evaluate(t, 1, g);
-    gradient = Eigen::VectorXd::Zero(m.num_parameters());
-    gradient[0] = g.d1(2, 0) * (-px / (w * w));
-    gradient[1] = g.d1(2, 1) * (-py / (d * d));
-    std::vector<JacobianEntry> entries;
-    m.ShapeJacobian(t, false, entries);
-    for (const JacobianEntry& e : entries)
-      if (e.index >= 2) gradient[e.index] += e.column.z();
-    return g.point.z();
-  };
-  Eigen::VectorXd at_point, at_centre;
-  MeasuredQuantity q;
-  q.name = "top at (" + std::to_string(static_cast<int>(x)) + ", " + std::to_string(static_cast<int>(y)) +
-           ") over centre";
-  q.truth = height(truth, x, y, at_point) - height(truth, 0.0, 0.0, at_centre);
-  q.value = height(fitted, x, y, at_point) - height(fitted, 0.0, 0.0, at_centre);
-  const Eigen::VectorXd gradient = at_point - at_centre;
-  q.uncertainty =
-      r.shape_covariance.size() > 0 ? std::sqrt(gradient.dot(r.shape_covariance * gradient)) : std::nan("");
-  return q;
-}
-
-}  // namespace
 
 SurfaceSample SampleAroundAxis(const ParametricModel& model, double u0, double u1, double v0, double v1,
                                int count, std::uint64_t seed) {

@@ -16,6 +16,7 @@
 #include "fitting/bspline_models.h"
 #include "fitting/joint_fit.h"
 #include "fitting/parametric_model.h"
+#include "fitting/part_model.h"
 #include "registration/rigid_motion.h"
 #include "registration/scan.h"
 
@@ -35,6 +36,15 @@ SurfaceSample SampleAroundAxis(const ParametricModel& model, double u0, double u
 // uniformly by area on all its faces: values = width, depth, height, bore diameter, counterbore diameter,
 // counterbore depth.
 SurfaceSample SampleCounterboredBlock(const Eigen::VectorXd& values, int count, std::uint64_t seed);
+
+// A plate width x depth, 10 thick, its bottom at z = 0 (part parameters "width", "depth"), whose top is a
+// clamped uniform bicubic B-spline patch over the whole plate ("top", free_along z) with control points on
+// the Greville grid in x and y (so x = (u - 1/2) width and y = (v - 1/2) depth exactly) at heights 10 +
+// `displacement(i, j)`, each a free parameter "top[i,j]"; at least 4 x 4.
+PartDefinition FreeformPlate(double width, double depth, const Eigen::MatrixXd& displacement);
+// `count` points about uniform by area on the plate's six faces (the top by its (u, v): its slopes are
+// small).
+SurfaceSample SampleFreeformPlate(const PartModel& plate, int count, std::uint64_t seed);
 
 struct ViewOptions {
   double noise = 0.0;               // standard deviation along the normal, model units
