@@ -47,18 +47,20 @@ std::vector<FitOptionSpec> MakeTable() {
        -1e300,
        1e300,
        [](FitOptions& o, const std::string& v) { o.method = v; }});
-  t.push_back({"control_points",
-               "--control-points",
-               K::kText,
-               "auto",
-               "Splines and generatrices: control points, auto (chosen by knot insertion until the fit is "
-               "adequate and the information criterion stops improving), auto:MAX, N for a curve or a "
-               "generatrix, NUxNV for a surface",
-               {},
-               false,
-               -1e300,
-               1e300,
-               [](FitOptions& o, const std::string& v) { o.control_points = v; }});
+  t.push_back(
+      {"control_points",
+       "--control-points",
+       K::kText,
+       "auto",
+       "Splines and generatrices: control points, auto (chosen by knot insertion until the fit is "
+       "adequate and the information criterion stops improving), auto:MAX, N for a curve or a "
+       "generatrix, NUxNV for a surface; a part's free-form patches: auto, auto:MAX or file (the part "
+       "file's nets)",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.control_points = v; }});
   t.push_back({"order",
                "--order",
                K::kInteger,

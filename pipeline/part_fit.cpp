@@ -8,12 +8,16 @@
 #include <iomanip>
 #include <iostream>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "acquisition/format_error.h"
 #include "acquisition/part_file.h"
 #include "fitting/joint_fit.h"
+#include "fitting/noise_estimate.h"
+#include "fitting/part_complexity.h"
 #include "fitting/part_model.h"
+#include "pipeline/complexity.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_option_table.h"
@@ -121,9 +125,41 @@ FitOutcome ComputePartFit(const FitOptions& given) {
       scans.push_back(s.points);
       initial.push_back(s.world_T_scan);
     }
+    // Free-form spline patches (docs/cli.md, "Automatic model complexity"): `auto` (the default) grows their
+    // nets from the file's where the residuals are largest until the fit is adequate (docs/method.md
+    // section 18); `file` keeps the file's nets. A part without free-form patches is fitted once either way.
+    bool search = false;
+    int max_control_points = 0;
+    if (o.control_points != "file") {
+      const std::string refused =
+          "--control-points '" + o.control_points +
+          "': a part's spline patches start from its file's nets; give auto, auto:MAX "
+          "or file";
+      ControlPointRequest request;
+      try {
+        request = ParseControlPoints(o.control_points, true);
+      } catch (const std::invalid_argument&) {
+        throw FitFailure(kUsage, refused);
+      }
+      if (!request.automatic) throw FitFailure(kUsage, refused);
+      search = RefinablePartFit::HasFreeFormPatches(file.definition);
+      max_control_points = request.max > 0 ? request.max : 30;
+    }
     PartModel part(file.definition);
     const auto start = std::chrono::steady_clock::now();
-    const JointFitResult r = FitPartJointly(part, scans, initial, options);
+    JointFitResult r;
+    std::optional<ComplexityChoice> complexity;
+    ComplexityOptions complexity_options;
+    if (search) {
+      const NoiseEstimate noise = EstimateNoiseWithDof(set);
+      complexity_options.noise = noise.sigma;
+      complexity_options.noise_dof = noise.dof;
+      RefinablePartFit refinable(part, scans, initial, options, max_control_points);
+      complexity = ChooseComplexity(refinable, complexity_options);
+      r = refinable.result();
+    } else {
+      r = FitPartJointly(part, scans, initial, options);
+    }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
     // Parameters, uncertainties, correlations.
@@ -146,8 +182,14 @@ FitOutcome ComputePartFit(const FitOptions& given) {
     for (std::size_t i = 0; i < d.parameters.size(); ++i) {
       const Eigen::Index n = static_cast<Eigen::Index>(i);
       names.push_back(d.parameters[i].name);
-      reported.push_back(Report(file.definition.parameters[i], values[n],
-                                have_uncertainty ? r.shape_uncertainty[n] : std::nan(""), units));
+      // A refined patch's displacements replace the file's block (their nominal, as every displacement's, 0).
+      const bool from_file =
+          i < file.definition.parameters.size() && file.definition.parameters[i].name == d.parameters[i].name;
+      const PartParameter nominal = from_file
+                                        ? file.definition.parameters[i]
+                                        : PartParameter{d.parameters[i].name, 0.0, d.parameters[i].angle};
+      reported.push_back(
+          Report(nominal, values[n], have_uncertainty ? r.shape_uncertainty[n] : std::nan(""), units));
     }
     const Eigen::MatrixXd correlation = Correlation(r.shape_covariance, reported);
 
@@ -166,6 +208,8 @@ FitOutcome ComputePartFit(const FitOptions& given) {
     j["input"] = {{"file", o.file}, {"views", K}, {"points", set.TotalPoints()}, {"units", units}};
     j["model"] = o.model;
     j["part"] = {{"file", part_path}, {"name", d.name}, {"units", units}, {"faces", d.faces.size()}};
+    if (const std::string nets = PatchControlPoints(d); !nets.empty()) j["part"]["control_points"] = nets;
+    if (complexity) j["complexity"] = ComplexityJson(*complexity, complexity_options);
     j["method"] = ToString(options.error_term);
     j["solver"] = SolverName(options);
     j["loss"] = LossJson(o.loss, r.loss_scale, Eigen::VectorXd());
@@ -281,6 +325,7 @@ FitOutcome ComputePartFit(const FitOptions& given) {
            << ToString(d.faces[f].type) << std::right << std::setw(8) << faces[f].count << std::setw(13)
            << Format(faces[f].rms, 4) << std::setw(13) << Format(faces[f].max_abs, 4) << "\n";
     }
+    if (complexity) text << "\n" << ComplexityText(*complexity);
     text << ViewsTable(j["views"]) << UnobservableText(r);
     if (o.verbose) text << HistoryTable(r.history);
     text << adequacy.Text();

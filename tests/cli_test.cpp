@@ -455,6 +455,62 @@ TEST(Cli, PartFitTextOutputAndFiles) {
   EXPECT_EQ(RunCli("fit --model part: " + views).exit_code, 2);
 }
 
+// docs/examples/freeform_plate.part.json (a flat 4 x 4 free-form top) fitted to views of a plate whose top
+// needs 7 x 5 control points (synthetic_cases.h, FreeformPlate; 8 views, noise 0.02 mm, poses off by 1
+// degree and 1 mm): by default the top's net grows until the fit is adequate; `--control-points file` keeps
+// the file's 4 x 4, which is not adequate; a fixed count is refused for a part.
+TEST(Cli, PartFitGrowsAFreeFormTopToTheData) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "s2m_cli_part_auto";
+  std::filesystem::create_directories(dir);
+  Eigen::MatrixXd relief(7, 5);
+  for (int i = 0; i < 7; ++i)
+    for (int j = 0; j < 5; ++j) relief(i, j) = 0.5 * std::sin(1.7 * i + 0.4) * std::cos(1.3 * j - 0.3);
+  const PartModel truth(FreeformPlate(50.0, 30.0, relief));
+  SyntheticCase c;
+  c.name = "relief plate";
+  std::vector<Eigen::Vector3d> directions = RingOfDirections(6, 45 * M_PI / 180, 30 * M_PI / 180);
+  for (const Eigen::Vector3d& steep : RingOfDirections(2, 70 * M_PI / 180, 0.0)) directions.push_back(steep);
+  ViewOptions view_options;
+  view_options.noise = 0.02;
+  view_options.rotation_error = 1.0 * M_PI / 180;
+  view_options.translation_error = 1.0;
+  view_options.seed = 62;
+  c.views = ScanFromDirections(SampleFreeformPlate(truth, 8000, 61), directions, view_options);
+  const std::filesystem::path manifest = dir / "views.json";
+  WriteScanSet(manifest, RecordedViews(c));
+  const std::string part = SourcePath("docs/examples/freeform_plate.part.json");
+
+  const Result automatic = RunCli("fit --json --model part:" + part + " " + manifest.string(), false);
+  ASSERT_EQ(automatic.exit_code, 0) << automatic.out;
+  const auto doc = nlohmann::json::parse(automatic.out);
+  std::printf("auto: %s, RMS %.5f (%s)\n", doc["part"]["control_points"].get<std::string>().c_str(),
+              doc["residuals"]["rms"].get<double>(),
+              doc["complexity"]["stop_reason"].get<std::string>().c_str());
+  EXPECT_EQ(doc["complexity"]["mode"], "auto");
+  EXPECT_EQ(doc["complexity"]["chosen"], doc["part"]["control_points"]);
+  EXPECT_NE(doc["part"]["control_points"], "top 4x4");
+  EXPECT_TRUE(doc["adequacy"]["adequate"].get<bool>()) << doc["adequacy"].dump();
+  EXPECT_LT(doc["residuals"]["rms"].get<double>(), 1.05 * 0.02);
+  EXPECT_NEAR(doc["parameters"][0]["value"].get<double>(), 50.0, 0.05);  // width
+  EXPECT_NEAR(doc["parameters"][1]["value"].get<double>(), 30.0, 0.05);  // depth
+  EXPECT_EQ(doc["parameters"].back()["nominal"], 0.0);                   // a refined displacement
+
+  const Result file =
+      RunCli("fit --json --model part:" + part + " " + manifest.string() + " --control-points file", false);
+  ASSERT_EQ(file.exit_code, 0) << file.out;
+  const auto kept = nlohmann::json::parse(file.out);
+  std::printf("file: %s, RMS %.5f\n", kept["part"]["control_points"].get<std::string>().c_str(),
+              kept["residuals"]["rms"].get<double>());
+  EXPECT_EQ(kept["part"]["control_points"], "top 4x4");
+  EXPECT_FALSE(kept.contains("complexity"));
+  EXPECT_FALSE(kept["adequacy"]["adequate"].get<bool>());
+
+  const Result fixed = RunCli("fit --model part:" + part + " " + manifest.string() + " --control-points 8");
+  EXPECT_EQ(fixed.exit_code, 2) << fixed.out;
+  EXPECT_NE(fixed.out.find("file's nets"), std::string::npos) << fixed.out;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Cli, PartFitNamesAnUnobservableHeight) {
   // The demo block with its height free: no view sees the bottom, so the height trades with a common vertical
   // shift of the views (docs/parts.md).
