@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <optional>
 
 namespace s2m {
 namespace {
@@ -220,6 +221,19 @@ FootPointContext::FootPointContext(const ParametricModel& m)
 namespace {
 
 // Newton's foot on `model` (no closed form) from the warm start as `mode` says (FootPointOf).
+// A foot on an open boundary where the model's sheet continues elsewhere (ParametricModel::
+// ContinuationSeed): Newton again from the continuation, the closer foot kept (g at the returned foot).
+FootPoint ContinueAcrossBoundary(const ParametricModel& model, const ParameterDomain& domain, const VecS& x,
+                                 const FootPoint& foot, LocalGeometry& g) {
+  if (!foot.on_boundary) return foot;
+  const std::optional<ParamT> seed = model.ContinuationSeed(foot.t);
+  if (!seed) return foot;
+  const FootPoint other = RefineFootPoint(model, domain, x, *seed, g);
+  if (other.distance < foot.distance) return other;
+  model.Evaluate(foot.t, 2, g);
+  return foot;
+}
+
 FootPoint NewtonFoot(const ParametricModel& model, const ParameterDomain& domain,
                      const LazyFootPointSeeds& seeds, const VecS& x, const ParamT* previous, WarmStart mode,
                      LocalGeometry& g, bool g_at_previous) {
@@ -227,9 +241,9 @@ FootPoint NewtonFoot(const ParametricModel& model, const ParameterDomain& domain
     const FootPoint warm = RefineFootPoint(model, domain, x, *previous, g, g_at_previous);
     if (!warm.on_boundary) return warm;
     const FootPoint cold = RefineFootPoint(model, domain, x, seeds.get().Nearest(x), g);
-    if (cold.distance < warm.distance) return cold;
+    if (cold.distance < warm.distance) return ContinueAcrossBoundary(model, domain, x, cold, g);
     model.Evaluate(warm.t, 2, g);  // g at the returned foot
-    return warm;
+    return ContinueAcrossBoundary(model, domain, x, warm, g);
   }
   ParamT start = seeds.get().Nearest(x);
   if (previous != nullptr) {
@@ -238,7 +252,7 @@ FootPoint NewtonFoot(const ParametricModel& model, const ParameterDomain& domain
     model.Evaluate(*previous, 0, g);
     if ((g.point - x).squaredNorm() <= d_seed) start = *previous;
   }
-  return RefineFootPoint(model, domain, x, start, g);
+  return ContinueAcrossBoundary(model, domain, x, RefineFootPoint(model, domain, x, start, g), g);
 }
 
 }  // namespace

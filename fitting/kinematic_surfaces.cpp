@@ -490,6 +490,25 @@ std::vector<ParamT> KinematicSurface::SampleParameters() const {
   return out;
 }
 
+std::optional<ParamT> KinematicSurface::ContinuationSeed(const ParamT& t) const {
+  if (!helical_) return std::nullopt;
+  // H(u, v + 2 pi) = H(u, v) + 2 pi p a: one turn on, the same generatrix one lead further along the axis.
+  // When the generatrix spans about one lead, its end at v lies where its start lies at v + 2 pi.
+  const double span = basis_.hi() - basis_.lo(), tolerance = 1e-9 * span;
+  ParamT seed = t;
+  if (t[0] >= basis_.hi() - tolerance) {
+    seed[0] = basis_.lo();
+    seed[1] = t[1] + 2 * M_PI;
+  } else if (t[0] <= basis_.lo() + tolerance) {
+    seed[0] = basis_.hi();
+    seed[1] = t[1] - 2 * M_PI;
+  } else {
+    return std::nullopt;
+  }
+  if (seed[1] < -M_PI * turns_ || seed[1] > M_PI * turns_) return std::nullopt;
+  return seed;
+}
+
 std::unique_ptr<FootPointReduction> KinematicSurface::MakeFootPointReduction() const {
   if (helical_ || !(profile_.row(0).minCoeff() >= 0.0)) return nullptr;
   return std::make_unique<RevolutionFootPoints>(GeneratrixCurve(basis_, profile_));

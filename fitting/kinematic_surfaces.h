@@ -70,6 +70,8 @@ class KinematicSurface final : public ParametricModel {
   // surfaces and profiles that may cross the axis; feet where r(u) = 0 (on the axis) are left to the 2-D
   // Newton.
   std::unique_ptr<FootPointReduction> MakeFootPointReduction() const override;
+  // Helical: a foot at the generatrix's end continues at its start one turn on, and vice versa.
+  std::optional<ParamT> ContinuationSeed(const ParamT& t) const override;
 
  private:
   KinematicSurface(BSplineBasis basis, Eigen::Matrix2Xd profile, bool helical, double pitch, double turns);

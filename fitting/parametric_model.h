@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -169,6 +170,15 @@ class ParametricModel {
   // for their current shape; null (the default) when there is none. The engine then runs its warm starts,
   // sample search and safeguarded Newton on the reduced model and lifts the result.
   virtual std::unique_ptr<FootPointReduction> MakeFootPointReduction() const { return nullptr; }
+  // Surfaces whose sheet continues across an open boundary of the parameter box in another place of it (a
+  // helical surface whose generatrix spans about one lead: its end at angle v meets its start at v + 2 pi).
+  // For a foot t on such a boundary, the parameter where the neighbouring sheet continues: NewtonFoot
+  // searches again from there and keeps the closer foot (a cold search from the nearest sample can stop on
+  // the boundary of one turn while the point lies on the next). Default: none.
+  virtual std::optional<ParamT> ContinuationSeed(const ParamT& t) const {
+    (void)t;
+    return std::nullopt;
+  }
   // Models with their own feet: true when the foot point t of x lies on an open boundary, where the
   // orthogonality condition need not hold (the end rule applies, docs/method.md section 4).
   virtual bool FootPointOnBoundary(const VecS& x, const ParamT& t) const {

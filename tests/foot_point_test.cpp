@@ -12,6 +12,7 @@
 
 #include "fitting/bspline_models.h"
 #include "fitting/initial_models.h"
+#include "fitting/kinematic_surfaces.h"
 #include "fitting/model_registration.h"
 #include "fitting/part_model.h"
 #include "fitting/primitive_models.h"
@@ -201,6 +202,53 @@ TEST(FootPointFastPaths, ModelRegistrationWithFusedPassRecoversThePose) {
     EXPECT_LT(r.residuals.rms, 1e-7) << ToString(term);
     EXPECT_LE(r.iterations, 10) << ToString(term);
   }
+}
+
+// A helical surface whose generatrix spans 1.3 leads (as a fitted thread's can: its sheets overlap where one
+// turn's end runs past the next turn's start). Plain Newton from the nearest sample pins some points on the
+// end of one turn although they lie on the next; the continuation across that seam (docs/method.md eq. 30a,
+// KinematicSurface::ContinuationSeed) finds every point at its noise.
+TEST(FootPointFastPaths, HelicalFeetContinueAcrossTheGeneratrixSeam) {
+  const double pitch = 4.0, lead = 2 * M_PI * pitch;
+  const int m = 16;
+  Eigen::Matrix2Xd profile(2, m);
+  for (int k = 0; k < m; ++k) {
+    const double z = -0.65 * lead + 1.3 * lead * k / (m - 1);
+    profile.col(k) << 28.0 + 0.15 * std::cos(2 * M_PI * z / lead), z;
+  }
+  const KinematicSurface helix = KinematicSurface::Helical(UnitSpacedClamped(4, m), profile, pitch, 3.5);
+  const double noise = 0.02;
+  const Eigen::Matrix3Xd points = test::PointsOverInnerDomain(
+      helix, 3000, 0.0, 1.0, std::normal_distribution<double>(0.0, noise / std::sqrt(3.0)), 7);
+  // Plain Newton from the nearest of the model's samples (what the driver did before the continuation).
+  const std::vector<ParamT> samples = helix.SampleParameters();
+  const ParameterDomain domain = helix.domain();
+  LocalGeometry g;
+  std::vector<Eigen::Vector3d> sample_points;
+  for (const ParamT& t : samples) {
+    helix.Evaluate(t, 0, g);
+    sample_points.push_back(To3(g.point));
+  }
+  int pinned = 0;
+  for (Eigen::Index j = 0; j < points.cols(); ++j) {
+    std::size_t nearest = 0;
+    for (std::size_t i = 1; i < samples.size(); ++i)
+      if ((sample_points[i] - points.col(j)).squaredNorm() <
+          (sample_points[nearest] - points.col(j)).squaredNorm())
+        nearest = i;
+    const FootPoint plain = RefineFootPoint(helix, domain, points.col(j), samples[nearest], g);
+    pinned += plain.on_boundary && plain.distance > 5 * noise;
+  }
+  std::vector<FootPoint> feet;
+  ComputeFootPoints(helix, points, feet);
+  double largest = 0.0;
+  for (const FootPoint& f : feet) largest = std::max(largest, f.distance);
+  std::printf(
+      "[ seam     ] plain Newton pins %d of %ld points on a turn's end beyond 5 sigma; with the continuation "
+      "the largest distance is %.4f\n",
+      pinned, static_cast<long>(points.cols()), largest);
+  EXPECT_GT(pinned, 0);  // the construction exercises the seam
+  EXPECT_LT(largest, 5 * noise);
 }
 
 }  // namespace
