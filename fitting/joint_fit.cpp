@@ -607,11 +607,6 @@ JointFitResult JointFitProblem::Finish(ParametricModel& model, MinimizerSummary 
   }
   result.residuals = ComputeResidualStatistics(all);
   result.excluded_points = total_ - st.used;
-  if (options_.keep_foot_parameters) {
-    result.foot_parameters.resize(K_);
-    for (std::size_t k = 0; k < K_; ++k)
-      for (const FootPoint& f : st.feet[k]) result.foot_parameters[k].push_back(f.t);
-  }
 
   // Unobservable directions (docs/method.md section 6): the null space of the full normal matrix built with
   // the whole normal space (GTDM), so that SDM's tangential terms cannot mask a motion that slides scans

@@ -65,11 +65,6 @@ struct JointFitOptions {
   // model's own per-iteration choice (AmbiguousFootPoint), which can settle differently from different
   // starts.
   std::vector<std::vector<bool>> left_out;
-  // Return the feet's parameters at the solution (JointFitResult::foot_parameters): a caller that needs the
-  // points' distances to the fitted model afterwards warm-starts from them, on the sheet the fit tracked (a
-  // cold search from the nearest sample can land on an open boundary of a neighbouring turn of a helical
-  // surface instead).
-  bool keep_foot_parameters = false;
   // Assemble the next iteration's normal equations in the foot point pass that evaluates a trial, from the
   // model's geometry Newton ends with at each foot (default). Off: a separate assembly pass evaluates the
   // model at every foot again (the reference path; same results to rounding).
@@ -116,9 +111,6 @@ struct JointFitResult {
   Eigen::VectorXd shape_uncertainty;
   Eigen::MatrixXd shape_covariance;  // of the shape parameters, input units squared (for derived quantities)
   std::vector<ScanPoseUncertainty> pose_uncertainty;
-  // Per scan and point (left-out points included, their parameters unspecified) the foot's parameter at the
-  // solution, with JointFitOptions::keep_foot_parameters; empty otherwise.
-  std::vector<std::vector<ParamT>> foot_parameters;
 };
 
 // The joint fit's normal equations (docs/method.md eqs. 19-20) at the given model and poses, at exact foot

@@ -400,27 +400,6 @@ RefinableGeneratrixFit::RefinableGeneratrixFit(ParametricModel& model,
       max_control_points_(max_control_points) {
   if (!GeneratrixBasis(model))
     throw std::invalid_argument("not a surface with a generatrix: " + model.name());
-  options_.keep_foot_parameters = true;
-}
-
-void RefinableGeneratrixFit::WarmFromResult() {
-  warm_feet_.clear();
-  if (result_.foot_parameters.size() != scans_.size()) return;
-  for (std::size_t k = 0; k < scans_.size(); ++k) {
-    const bool masked = k < options_.left_out.size() && !options_.left_out[k].empty();
-    const std::vector<ParamT>& t = result_.foot_parameters[k];
-    if (static_cast<Eigen::Index>(t.size()) != scans_[k].cols()) {
-      warm_feet_.clear();
-      return;
-    }
-    for (std::size_t j = 0; j < t.size(); ++j) {
-      if (masked && options_.left_out[k][j]) continue;
-      FootPoint f;
-      f.t = t[j];
-      warm_feet_.push_back(f);
-    }
-  }
-  result_.foot_parameters.clear();  // kept once, here (the steps' kept states copy the result)
 }
 
 void RefinableGeneratrixFit::ComputeFeet() {
@@ -442,14 +421,8 @@ void RefinableGeneratrixFit::ComputeFeet() {
     for (Eigen::Index j = 0; j < placed.cols(); ++j)
       if (!masked || !options_.left_out[k][static_cast<std::size_t>(j)]) registered.col(at++) = placed.col(j);
   }
-  // Warm from the fit's own feet: a cold search from the nearest sample can end on an open boundary of the
-  // generatrix (a neighbouring turn's sheet of a helical surface) far from the foot the fit tracked, and the
-  // criterion would judge a distance the fit never had (measured on the shallow thread: RMS 0.026 to 0.10
-  // for fits at 0.0198).
   std::vector<FootPoint> feet;
-  const bool warm = static_cast<Eigen::Index>(warm_feet_.size()) == total;
-  ComputeFootPoints(model_, registered, feet, warm ? &warm_feet_ : nullptr, WarmStart::kVerified);
-  warm_feet_ = feet;
+  ComputeFootPoints(model_, registered, feet);
   feet_u_.resize(feet.size());
   feet_d2_.resize(feet.size());
   for (std::size_t j = 0; j < feet.size(); ++j) {
@@ -470,7 +443,6 @@ Eigen::MatrixXd RefinableGeneratrixFit::InsertKnotAtLargestResidual() {
   const BasisRefinement r = RefineBasis(basis, {0.5 * (s.breakpoints[b] + s.breakpoints[b + 1])});
   model_.CopyFrom(*WithGeneratrix(model_, r.basis, *GeneratrixProfile(model_) * r.transform.transpose()));
   for (double& u : feet_u_) u = r.Map(u);
-  for (FootPoint& f : warm_feet_) f.t[0] = r.Map(f.t[0]);
   return r.transform;
 }
 
@@ -536,7 +508,6 @@ bool RefinableGeneratrixFit::ApplyEndRule(Eigen::MatrixXd* transform, double tol
   const BasisRefinement r = RefineBasis(basis, {}, trim_lo ? lo : basis.lo(), trim_hi ? hi : basis.hi());
   model_.CopyFrom(*WithGeneratrix(model_, r.basis, profile * r.transform.transpose()));
   for (double& u : feet_u_) u = std::clamp(r.Map(u), r.basis.lo(), r.basis.hi());
-  for (FootPoint& f : warm_feet_) f.t[0] = std::clamp(r.Map(f.t[0]), r.basis.lo(), r.basis.hi());
   ++end_rule_cuts_;
   Eigen::MatrixXd total = r.transform;
   // Keep the count: a trimmed-off span's control point goes back where the residuals are largest.
@@ -549,7 +520,6 @@ RefinableFit::Outcome RefinableGeneratrixFit::Fit() {
   // Refits start from the last poses with per-view motions (their shared stage is over).
   result_ = FitJointly(model_, scans_, model_T_scan_, options_);
   model_T_scan_ = result_.model_T_scan;
-  WarmFromResult();
   options_.shared_motion_iterations = 0;
   total_iterations_ += result_.iterations;
   int iterations = result_.iterations;
@@ -557,7 +527,6 @@ RefinableFit::Outcome RefinableGeneratrixFit::Fit() {
   if (ApplyEndRule()) {
     result_ = FitJointly(model_, scans_, model_T_scan_, options_);
     model_T_scan_ = result_.model_T_scan;
-    WarmFromResult();
     total_iterations_ += result_.iterations;
     iterations += result_.iterations;
     ComputeFeet();
@@ -648,7 +617,7 @@ bool RefinableGeneratrixFit::Refine() {
 
 void RefinableGeneratrixFit::Keep(std::size_t index) {
   kept_.resize(std::max(kept_.size(), index + 1));
-  kept_[index] = {model_.Clone(), result_, model_T_scan_, warm_feet_};
+  kept_[index] = {model_.Clone(), result_, model_T_scan_};
 }
 
 void RefinableGeneratrixFit::Restore(std::size_t index) {
@@ -656,7 +625,6 @@ void RefinableGeneratrixFit::Restore(std::size_t index) {
   model_.CopyFrom(*s.model);
   result_ = s.result;
   model_T_scan_ = s.poses;
-  warm_feet_ = s.warm_feet;
   ComputeFeet();
 }
 

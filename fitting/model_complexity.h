@@ -17,7 +17,6 @@
 #include <vector>
 
 #include "fitting/bspline_basis.h"
-#include "fitting/foot_point.h"
 #include "fitting/geometric_fit.h"
 #include "fitting/joint_fit.h"
 #include "fitting/parametric_model.h"
@@ -196,10 +195,6 @@ class RefinableGeneratrixFit final : public RefinableFit {
   int max_control_points_;
   JointFitResult result_;
   std::vector<double> feet_u_, feet_d2_;  // of the points used (not left out), scan after scan
-  // The same points' feet, warm starts of the next ComputeFeet: first the fit's own (its foot parameters),
-  // then the last computed, mapped with every change of the generatrix's domain.
-  std::vector<FootPoint> warm_feet_;
-  void WarmFromResult();
   std::vector<Eigen::Index> used_per_scan_;
   int total_iterations_ = 0;
   int end_rule_cuts_ = 0;
@@ -207,7 +202,6 @@ class RefinableGeneratrixFit final : public RefinableFit {
     std::unique_ptr<ParametricModel> model;
     JointFitResult result;
     std::vector<RigidMotion> poses;
-    std::vector<FootPoint> warm_feet;
   };
   std::vector<KeptState> kept_;
 };

@@ -383,11 +383,14 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
                                          fitted.result.model_T_scan[k].rotation() * view_normals[k],
                                          start_options.off_distance, start_options.off_angle_deg);
         if (masks != started.left_out_masks) {
-          // The search's steps were judged on the coarse mask's points; the criterion must compare steps on
-          // one set of points, so the search runs again on the new set, from the chosen count.
+          JointFitOptions opts = options;
+          opts.fairness = fitted.fairness;
+          opts.left_out = masks;
+          RefinableGeneratrixFit refit(*fitted.model, scans, fitted.result.model_T_scan, opts,
+                                       max_control_points);
+          refit.Fit();
           const int before = fitted.result.iterations;
-          const RigidMotion world_T_fitted = world_T_scan[0] * fitted.result.model_T_scan[0].inverse();
-          fitted = search_complexity(fitted.model, fitted.result.model_T_scan, world_T_fitted, masks);
+          fitted.result = refit.result();
           fitted.result.iterations += before;
         }
         report.left_out = 0;
