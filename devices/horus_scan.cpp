@@ -270,10 +270,20 @@ HorusScanResult RunHorusScan(TurntableBoard& board, ImageCamera& camera, const H
     stream = writer->AddStream(kStreamName, "profile", kPointsEncoding, "mm");
     writer->Close();
     writer.reset();
-    // link(2), not rename: it refuses to replace a file that appeared at `out` meanwhile.
+    // link(2), not rename: it refuses to replace a file that appeared at `out` meanwhile. File systems
+    // without hard links (FAT and exFAT memory sticks) refuse link itself: there the rename follows a check,
+    // whose window only another writer racing for the same name could use.
     if (::link(staging.c_str(), out.c_str()) != 0) {
       const int error = errno;
-      throw FormatError(file, "", std::string("cannot create the recording: ") + std::strerror(error));
+      if (error == EEXIST || fs::exists(out))
+        throw FormatError(file, "", "exists already (a recording is never overwritten)");
+      std::error_code renamed;
+      fs::rename(staging, out, renamed);
+      if (renamed) {
+        throw FormatError(
+            file, "",
+            std::string("cannot create the recording: ") + std::strerror(error) + "; " + renamed.message());
+      }
     }
     fs::remove(staging, ignored);
     writer.emplace(RecordingWriter::OpenForAppend(out));
