@@ -135,6 +135,13 @@ MeasuredQuantity PlateTopRelief(const PartModel& truth, const PartModel& fitted,
   return q;
 }
 
+// A part lying on a table seen by 8 views: 6 from 45 degrees above, 2 from 70 (the bottom is never seen).
+std::vector<Eigen::Vector3d> TableViewDirections() {
+  std::vector<Eigen::Vector3d> directions = RingOfDirections(6, 45 * kDegree, 30 * kDegree);
+  for (const Eigen::Vector3d& steep : RingOfDirections(2, 70 * kDegree, 0.0)) directions.push_back(steep);
+  return directions;
+}
+
 }  // namespace
 
 PartDefinition FreeformPlate(double width, double depth, const Eigen::MatrixXd& displacement) {
@@ -214,6 +221,23 @@ SurfaceSample SampleFreeformPlate(const PartModel& plate, int count, std::uint64
     s.normals.col(j) = n;
   }
   return s;
+}
+
+PartDefinition ReliefPlate() {
+  Eigen::MatrixXd relief(7, 5);
+  for (int i = 0; i < 7; ++i)
+    for (int j = 0; j < 5; ++j) relief(i, j) = 0.5 * std::sin(1.7 * i + 0.4) * std::cos(1.3 * j - 0.3);
+  return FreeformPlate(50.0, 30.0, relief);
+}
+
+SyntheticViews ReliefPlateViews() {
+  ViewOptions options;
+  options.noise = 0.02;
+  options.rotation_error = 1.0 * kDegree;
+  options.translation_error = 1.0;
+  options.seed = 62;
+  return ScanFromDirections(SampleFreeformPlate(PartModel(ReliefPlate()), 8000, 61), TableViewDirections(),
+                            options);
 }
 
 SurfaceSample SampleAroundAxis(const ParametricModel& model, double u0, double u1, double v0, double v1,
@@ -530,8 +554,7 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
     auto truth = std::make_unique<PartModel>(d);
     const SurfaceSample s = SampleCounterboredBlock(values, 16000, 41);
     // The block lies on a table: 6 views from 45 degrees above, 2 from 70 degrees; the bottom is never seen.
-    std::vector<Eigen::Vector3d> directions = RingOfDirections(6, 45 * kDegree, 30 * kDegree);
-    for (const Eigen::Vector3d& steep : RingOfDirections(2, 70 * kDegree, 0.0)) directions.push_back(steep);
+    const std::vector<Eigen::Vector3d> directions = TableViewDirections();
     c.views = ScanFromDirections(s, directions, StandardErrors(42));
     // The nominal design, off by 0.5 mm in every dimension, as a drawing would start it.
     PartDefinition start = d;
@@ -558,8 +581,7 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
     const PartDefinition d = FreeformPlate(50.0, 30.0, bump);
     auto truth = std::make_unique<PartModel>(d);
     const SurfaceSample s = SampleFreeformPlate(*truth, 12000, 51);
-    std::vector<Eigen::Vector3d> directions = RingOfDirections(6, 45 * kDegree, 30 * kDegree);
-    for (const Eigen::Vector3d& steep : RingOfDirections(2, 70 * kDegree, 0.0)) directions.push_back(steep);
+    const std::vector<Eigen::Vector3d> directions = TableViewDirections();
     c.views = ScanFromDirections(s, directions, StandardErrors(52));
     c.gauge_directions = 1;
     // The design: a flat top, the plate 0.5 mm off in width and depth.

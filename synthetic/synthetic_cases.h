@@ -64,6 +64,13 @@ struct SyntheticViews {
 // One view per unit direction (from the model towards the scanner).
 SyntheticViews ScanFromDirections(const SurfaceSample& surface,
                                   const std::vector<Eigen::Vector3d>& directions, const ViewOptions& options);
+
+// A FreeformPlate (50 x 30) whose top needs 7 x 5 control points (clamped uniform: inner knots at 1/4, 1/2,
+// 3/4 along u and 1/2 along v, which knot insertion at span middles reaches from a 4 x 4 net), relief up to
+// 0.5 mm; and 8 views of it (8000 points; 6 from 45 degrees above, 2 from 70), noise 0.02, recorded poses
+// off by 1 degree and 1 mm (deterministic).
+PartDefinition ReliefPlate();
+SyntheticViews ReliefPlateViews();
 // `count` directions at `elevation` (radians above the xy plane), equally spaced in azimuth from `azimuth0`.
 std::vector<Eigen::Vector3d> RingOfDirections(int count, double elevation, double azimuth0 = 0.0);
 

@@ -456,26 +456,15 @@ TEST(Cli, PartFitTextOutputAndFiles) {
 }
 
 // docs/examples/freeform_plate.part.json (a flat 4 x 4 free-form top) fitted to views of a plate whose top
-// needs 7 x 5 control points (synthetic_cases.h, FreeformPlate; 8 views, noise 0.02 mm, poses off by 1
+// needs 7 x 5 control points (synthetic_cases.h, ReliefPlateViews; 8 views, noise 0.02 mm, poses off by 1
 // degree and 1 mm): by default the top's net grows until the fit is adequate; `--control-points file` keeps
 // the file's 4 x 4, which is not adequate; a fixed count is refused for a part.
 TEST(Cli, PartFitGrowsAFreeFormTopToTheData) {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "s2m_cli_part_auto";
   std::filesystem::create_directories(dir);
-  Eigen::MatrixXd relief(7, 5);
-  for (int i = 0; i < 7; ++i)
-    for (int j = 0; j < 5; ++j) relief(i, j) = 0.5 * std::sin(1.7 * i + 0.4) * std::cos(1.3 * j - 0.3);
-  const PartModel truth(FreeformPlate(50.0, 30.0, relief));
   SyntheticCase c;
   c.name = "relief plate";
-  std::vector<Eigen::Vector3d> directions = RingOfDirections(6, 45 * M_PI / 180, 30 * M_PI / 180);
-  for (const Eigen::Vector3d& steep : RingOfDirections(2, 70 * M_PI / 180, 0.0)) directions.push_back(steep);
-  ViewOptions view_options;
-  view_options.noise = 0.02;
-  view_options.rotation_error = 1.0 * M_PI / 180;
-  view_options.translation_error = 1.0;
-  view_options.seed = 62;
-  c.views = ScanFromDirections(SampleFreeformPlate(truth, 8000, 61), directions, view_options);
+  c.views = ReliefPlateViews();
   const std::filesystem::path manifest = dir / "views.json";
   WriteScanSet(manifest, RecordedViews(c));
   const std::string part = SourcePath("docs/examples/freeform_plate.part.json");

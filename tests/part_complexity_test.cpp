@@ -90,19 +90,8 @@ TEST(PartComplexity, RefinePatchKeepsThePartAndRenumbersLaterParameters) {
 // adequate; the automatic search adds control points until it is, and the relief comes out at a fraction of
 // the fixed count's error.
 TEST(PartComplexity, AutomaticSearchGrowsATopTheFileCannotHold) {
-  Eigen::MatrixXd relief(7, 5);
-  for (int i = 0; i < 7; ++i)
-    for (int j = 0; j < 5; ++j) relief(i, j) = 0.5 * std::sin(1.7 * i + 0.4) * std::cos(1.3 * j - 0.3);
-  const PartModel truth(FreeformPlate(50.0, 30.0, relief));
-  const SurfaceSample s = SampleFreeformPlate(truth, 8000, 61);
-  std::vector<Eigen::Vector3d> directions = RingOfDirections(6, 45 * M_PI / 180, 30 * M_PI / 180);
-  for (const Eigen::Vector3d& steep : RingOfDirections(2, 70 * M_PI / 180, 0.0)) directions.push_back(steep);
-  ViewOptions view_options;
-  view_options.noise = 0.02;
-  view_options.rotation_error = 1.0 * M_PI / 180;
-  view_options.translation_error = 1.0;
-  view_options.seed = 62;
-  const SyntheticViews views = ScanFromDirections(s, directions, view_options);
+  const PartModel truth(ReliefPlate());
+  const SyntheticViews views = ReliefPlateViews();
 
   JointFitOptions options;
   options.error_term = ErrorTerm::kSdm;
