@@ -6,6 +6,7 @@
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <stdexcept>
 
 #include "acquisition/format_error.h"
 #include "acquisition/formats/readers.h"
@@ -124,7 +125,15 @@ ScanSet ReadScanSet(const fs::path& manifest) {
                     "unknown multi-view format '" + ext + "' (.json manifest or Stanford .conf)");
 }
 
-void WriteScanSet(const fs::path& manifest, const ScanSet& set) {
+void WriteScanSet(const fs::path& manifest, const ScanSet& set, const nlohmann::json& document_extra,
+                  const std::vector<nlohmann::json>& view_extra) {
+  if (!view_extra.empty() && view_extra.size() != set.scans.size())
+    throw std::invalid_argument("WriteScanSet: one extra entry per view is needed");
+  if (manifest.has_parent_path()) {
+    std::error_code error;
+    fs::create_directories(manifest.parent_path(), error);
+    if (error) throw FormatError(manifest.string(), "", "cannot create its folder: " + error.message());
+  }
   nlohmann::json j;
   j["schema"] = "scan2model.views/1";
   j["name"] = set.name;
@@ -140,8 +149,10 @@ void WriteScanSet(const fs::path& manifest, const ScanSet& set) {
     nlohmann::json view{{"file", name.str()}, {"world_T_scan", rows}};
     if (set.scans[i].metadata.turntable_angle_rad)
       view["turntable_angle_rad"] = *set.scans[i].metadata.turntable_angle_rad;
+    if (!view_extra.empty()) view.update(view_extra[i]);
     j["views"].push_back(view);
   }
+  j.update(document_extra);
   const std::string tmp = manifest.string() + ".partial";
   {
     std::ofstream out(tmp);

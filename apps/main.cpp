@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   const s2m::app::Runner batch = s2m::app::AddBatchCommand(app);
   const s2m::app::Runner report = s2m::app::AddReportCommand(app);
   const s2m::app::Runner inspect = s2m::app::AddInspectCommand(app);
+  const s2m::app::Runner register_views = s2m::app::AddRegisterCommand(app);
   const s2m::app::Runner scan = s2m::app::AddScanCommand(app);
   const s2m::app::Runner devices = s2m::app::AddDevicesCommand(app);
 #ifdef S2M_HAVE_HORUS
@@ -51,6 +52,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("batch")) return batch();
     if (app.got_subcommand("report")) return report();
     if (app.got_subcommand("inspect")) return inspect();
+    if (app.got_subcommand("register")) return register_views();
     if (app.got_subcommand("scan")) return scan();
     if (app.got_subcommand("devices")) return devices();
 #ifdef S2M_HAVE_HORUS

@@ -45,4 +45,15 @@ std::unique_ptr<IcpBaseline> MakePclPointToPoint(const IcpProblem& problem);
 std::unique_ptr<IcpBaseline> MakePclPointToPlane(const IcpProblem& problem);
 std::unique_ptr<IcpBaseline> MakeOpen3dPointToPlane(const IcpProblem& problem);
 
+// Open3D's multiway registration (its tutorial's pipeline, the anchor of the global scan-to-scan comparison):
+// normals by EstimateNormals (12 nearest neighbours), point-to-plane ICP of every pair of views (each view's
+// `samples` evenly spaced points against the other's full cloud, from the relative pose of `world_T_scan`),
+// edges between consecutive views certain and the others uncertain, each weighted by
+// GetInformationMatrixFromPointClouds, then GlobalOptimization (Levenberg-Marquardt with line processes,
+// edge prune threshold 0.25, view 0 the reference). Returns every view's world_T_scan; empty when Open3D is
+// absent from this build.
+std::vector<RigidMotion> Open3dMultiway(const std::vector<Eigen::Matrix3Xd>& views,
+                                        const std::vector<RigidMotion>& world_T_scan, int samples,
+                                        double max_correspondence_distance);
+
 }  // namespace s2m::bench

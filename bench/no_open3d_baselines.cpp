@@ -8,4 +8,8 @@ bool HaveOpen3d() {
 std::unique_ptr<IcpBaseline> MakeOpen3dPointToPlane(const IcpProblem&) {
   return nullptr;
 }
+std::vector<RigidMotion> Open3dMultiway(const std::vector<Eigen::Matrix3Xd>&, const std::vector<RigidMotion>&,
+                                        int, double) {
+  return {};
+}
 }  // namespace s2m::bench

@@ -256,6 +256,7 @@ void BindFits(py::module_& m) {
         j["sweeps"] = r.sweeps;
         j["converged"] = r.converged;
         j["rms_per_sweep"] = r.rms_per_sweep;
+        j["unregistered_views"] = r.unconstrained_views;
         return result;
       },
       py::arg("views"), py::kw_only(), py::arg("method") = "tdm", py::arg("max_sweeps") = 50,
@@ -264,7 +265,8 @@ void BindFits(py::module_& m) {
       "others from its pose, one view held fixed. method: pdm (point-to-point ICP), tdm (point-to-plane), "
       "sdm "
       "(Pottmann et al.'s squared-distance approximant). Returns the corrected poses; assign them to the "
-      "scans' world_T_scan to use them.");
+      "scans' world_T_scan to use them. Views listed in unregistered_views overlap none of the views linked "
+      "to the fixed one: their poses are not registered.");
 
   m.def(
       "run_batch",

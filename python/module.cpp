@@ -155,7 +155,10 @@ void BindResults(py::module_& m) {
           },
           "One 4 x 4 pose per view (maps scan coordinates to world coordinates).")
       .def_property_readonly("rms_per_sweep", member("rms_per_sweep"))
-      .def_property_readonly("converged", member("converged"));
+      .def_property_readonly("converged", member("converged"))
+      .def_property_readonly(
+          "unregistered_views", member("unregistered_views"),
+          "Views whose poses the overlap does not determine (empty when all are registered).");
   py::class_<BatchResult, Result>(m, "BatchResult",
                                   "The result of run_batch(): its summary (scan2model.batch_summary/1, as "
                                   "written to OUTPUT/summary.json) and what this run did.")

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <limits>
-#include <numeric>
 
 namespace s2m {
 
@@ -11,28 +10,34 @@ constexpr int kLeafSize = 8;
 }
 
 NearestIndex::NearestIndex(Eigen::Matrix3Xd points) : points_(std::move(points)) {
-  order_.resize(static_cast<std::size_t>(points_.cols()));
-  std::iota(order_.begin(), order_.end(), Eigen::Index{0});
-  if (!order_.empty()) Build(0, static_cast<int>(order_.size()));
+  if (points_.cols() == 0) return;
+  entries_.resize(static_cast<std::size_t>(points_.cols()));
+  for (Eigen::Index i = 0; i < points_.cols(); ++i)
+    entries_[static_cast<std::size_t>(i)] = {points_.col(i), i};
+  nodes_.reserve(2 * entries_.size() / kLeafSize + 1);
+  lower_ = points_.rowwise().minCoeff();
+  upper_ = points_.rowwise().maxCoeff();
+  Build(0, static_cast<int>(entries_.size()), lower_, upper_);
 }
 
-int NearestIndex::Build(int begin, int end) {
+// Splits at the median along the longest side of the cell. The cell is the parent's cut at the split (not the
+// children's tight boxes): the same choice of axis to within a cell's slack, at no extra pass over the
+// points.
+int NearestIndex::Build(int begin, int end, Eigen::Vector3d lo, Eigen::Vector3d hi) {
   const int id = static_cast<int>(nodes_.size());
   nodes_.push_back({begin, end});
   if (end - begin <= kLeafSize) return id;
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (int i = begin; i < end; ++i) {
-    lo = lo.cwiseMin(points_.col(order_[static_cast<std::size_t>(i)]));
-    hi = hi.cwiseMax(points_.col(order_[static_cast<std::size_t>(i)]));
-  }
   int axis;
   (hi - lo).maxCoeff(&axis);
   const int mid = (begin + end) / 2;
-  std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
-                   [&](Eigen::Index a, Eigen::Index b) { return points_(axis, a) < points_(axis, b); });
-  const double split = points_(axis, order_[static_cast<std::size_t>(mid)]);
-  const int left = Build(begin, mid);
-  const int right = Build(mid, end);
+  std::nth_element(entries_.begin() + begin, entries_.begin() + mid, entries_.begin() + end,
+                   [axis](const Entry& a, const Entry& b) { return a.point[axis] < b.point[axis]; });
+  const double split = entries_[static_cast<std::size_t>(mid)].point[axis];
+  Eigen::Vector3d left_hi = hi, right_lo = lo;
+  left_hi[axis] = split;
+  right_lo[axis] = split;
+  const int left = Build(begin, mid, lo, left_hi);
+  const int right = Build(mid, end, right_lo, hi);
   Node& node = nodes_[static_cast<std::size_t>(id)];
   node.axis = axis;
   node.split = split;
@@ -41,33 +46,46 @@ int NearestIndex::Build(int begin, int end) {
   return id;
 }
 
-void NearestIndex::Search(int id, const Eigen::Vector3d& q, Eigen::Index& best, double& best_d2) const {
+NearestIndex::CellDistance NearestIndex::RootDistance(const Eigen::Vector3d& q) const {
+  CellDistance cell;
+  cell.offset = (lower_ - q).cwiseMax(q - upper_).cwiseMax(0.0);
+  cell.squared = cell.offset.squaredNorm();
+  return cell;
+}
+
+// Every point of the left child has coordinate <= split on the axis and every point of the right child >=
+// split, so the far child's region lies beyond the splitting plane: its distance along the axis is |q -
+// split|, which replaces the parent's (smaller) offset on that axis in the sum of squares.
+void NearestIndex::Search(int id, const Eigen::Vector3d& q, CellDistance cell, Eigen::Index& best,
+                          double& best_d2) const {
   const Node& node = nodes_[static_cast<std::size_t>(id)];
   if (node.axis < 0) {
     for (int i = node.begin; i < node.end; ++i) {
-      const Eigen::Index p = order_[static_cast<std::size_t>(i)];
-      const double d2 = (points_.col(p) - q).squaredNorm();
+      const Entry& e = entries_[static_cast<std::size_t>(i)];
+      const double d2 = (e.point - q).squaredNorm();
       if (d2 < best_d2) {
         best_d2 = d2;
-        best = p;
+        best = e.index;
       }
     }
     return;
   }
   const double diff = q[node.axis] - node.split;
-  const int near = diff < 0 ? node.left : node.right;
-  const int far = diff < 0 ? node.right : node.left;
-  Search(near, q, best, best_d2);
-  if (diff * diff < best_d2) Search(far, q, best, best_d2);
+  Search(diff < 0 ? node.left : node.right, q, cell, best, best_d2);
+  const double old_offset = cell.offset[node.axis];
+  cell.squared += diff * diff - old_offset * old_offset;
+  cell.offset[node.axis] = std::abs(diff);
+  if (cell.squared < best_d2) Search(diff < 0 ? node.right : node.left, q, cell, best, best_d2);
 }
 
-void NearestIndex::SearchK(int id, const Eigen::Vector3d& q, std::size_t k,
+void NearestIndex::SearchK(int id, const Eigen::Vector3d& q, CellDistance cell, std::size_t k,
                            std::vector<std::pair<double, Eigen::Index>>& heap) const {
   const Node& node = nodes_[static_cast<std::size_t>(id)];
   if (node.axis < 0) {
     for (int i = node.begin; i < node.end; ++i) {
-      const Eigen::Index p = order_[static_cast<std::size_t>(i)];
-      const double d2 = (points_.col(p) - q).squaredNorm();
+      const Entry& e = entries_[static_cast<std::size_t>(i)];
+      const double d2 = (e.point - q).squaredNorm();
+      const Eigen::Index p = e.index;
       if (heap.size() < k) {
         heap.emplace_back(d2, p);
         std::push_heap(heap.begin(), heap.end());
@@ -80,24 +98,40 @@ void NearestIndex::SearchK(int id, const Eigen::Vector3d& q, std::size_t k,
     return;
   }
   const double diff = q[node.axis] - node.split;
-  SearchK(diff < 0 ? node.left : node.right, q, k, heap);
-  if (heap.size() < k || diff * diff < heap.front().first)
-    SearchK(diff < 0 ? node.right : node.left, q, k, heap);
+  SearchK(diff < 0 ? node.left : node.right, q, cell, k, heap);
+  const double old_offset = cell.offset[node.axis];
+  cell.squared += diff * diff - old_offset * old_offset;
+  cell.offset[node.axis] = std::abs(diff);
+  if (heap.size() < k || cell.squared < heap.front().first)
+    SearchK(diff < 0 ? node.right : node.left, q, cell, k, heap);
 }
 
 std::vector<Eigen::Index> NearestIndex::KNearest(const Eigen::Vector3d& q, int k) const {
   std::vector<std::pair<double, Eigen::Index>> heap;  // max-heap on distance
-  if (k > 0 && !nodes_.empty()) SearchK(0, q, static_cast<std::size_t>(k), heap);
+  if (k > 0 && !nodes_.empty()) {
+    heap.reserve(static_cast<std::size_t>(k));
+    SearchK(0, q, RootDistance(q), static_cast<std::size_t>(k), heap);
+  }
   std::sort_heap(heap.begin(), heap.end());
   std::vector<Eigen::Index> out;
+  out.reserve(heap.size());
   for (const auto& h : heap) out.push_back(h.second);
   return out;
+}
+
+bool NearestIndex::NearestWithin(const Eigen::Vector3d& q, Eigen::Index& best, double& best_d2) const {
+  if (nodes_.empty()) return false;
+  const CellDistance root = RootDistance(q);
+  if (!(root.squared < best_d2)) return false;
+  const double bound = best_d2;
+  Search(0, q, root, best, best_d2);
+  return best_d2 < bound;
 }
 
 Eigen::Index NearestIndex::Nearest(const Eigen::Vector3d& q) const {
   Eigen::Index best = 0;
   double best_d2 = std::numeric_limits<double>::infinity();
-  Search(0, q, best, best_d2);
+  NearestWithin(q, best, best_d2);
   return best;
 }
 

@@ -1,13 +1,14 @@
 #pragma once
 // Scan-to-scan registration without a model: every view is aligned to all the others, all poses solved
-// together in each sweep (docs/method.md section 5 with both views of a pair moving). One view is held fixed: the
-// registration determines the views only relative to each other. Error terms per pair (docs/method.md section 2):
-// point-to-plane (TDM; Chen & Medioni 1992), point-to-point (PDM; Besl & McKay 1992, classic ICP), or the
-// second-order approximant of the squared distance to the other view's surface (SDM; Pottmann, Leopoldseder &
-// Hofer, "Registration without ICP", CVIU 95(1) 2004), with principal curvatures from local quadric fits
-// (registration/local_quadric.h).
+// together in each sweep (docs/method.md section 5 with both views of a pair moving). One view is held fixed:
+// the registration determines the views only relative to each other. Error terms per pair (docs/method.md
+// section 2): point-to-plane (TDM; Chen & Medioni 1992), point-to-point (PDM; Besl & McKay 1992, classic
+// ICP), or the second-order approximant of the squared distance to the other view's surface (SDM; Pottmann,
+// Leopoldseder & Hofer, "Registration without ICP", CVIU 95(1) 2004), with principal curvatures from local
+// quadric fits (registration/local_quadric.h).
 
 #include <Eigen/Core>
+#include <functional>
 #include <vector>
 
 #include "registration/rigid_motion.h"
@@ -32,13 +33,27 @@ struct ScanToScanOptions {
   // instead of the PCA plane through the nearest sample itself (the normal term of SDM without its tangential
   // terms).
   bool tdm_to_quadric = false;
-  double max_correspondence = 0.0;  // pairs farther apart are ignored; 0: 3 x the median pair distance, per
-                                    // view (each sample pairs with its nearest point over all other views)
+  // Pairs farther apart are ignored; 0: 3 x the median pair distance of the sample's view or a quarter of
+  // the largest view's extent, whichever is smaller (each sample pairs with its nearest point over all other
+  // views).
+  double max_correspondence = 0.0;
   // Stop when no view moved more than this (rad) and this (relative to the views' extent) in a sweep. Pairs
   // are re-found every sweep, so the steps settle at the level the sampling allows rather than at rounding.
   double rotation_tolerance = 1e-5;
   double translation_tolerance = 1e-5;
   std::size_t fixed_view = 0;
+  // Called after every sweep with the sweep's number (from 1) and its RMS (rms_per_sweep's entry); may be
+  // empty.
+  std::function<void(int sweep, double rms)> progress;
+};
+
+// One view's pairs in the last sweep, as the source of pairs (its samples paired with the other views).
+struct ScanToScanViewResidual {
+  Eigen::Index samples = 0;  // samples that looked for a partner
+  Eigen::Index pairs = 0;    // of them, those within the correspondence distance (used in the step)
+  double rms = 0.0;          // RMS distance of those pairs to the target's local plane or quadric
+  double max = 0.0;          // and the largest
+  double correspondence_distance = 0.0;  // the sweep's rejection distance for this view
 };
 
 struct ScanToScanResult {
@@ -50,6 +65,15 @@ struct ScanToScanResult {
   std::vector<double> rms_per_sweep;
   // world_T_scan after each sweep (convergence studies).
   std::vector<std::vector<RigidMotion>> poses_per_sweep;
+  // Measured in the last sweep, before its step (below the tolerances when converged).
+  std::vector<ScanToScanViewResidual> view_residuals;
+  // overlap(k, l): pairs of the last sweep from view k's samples to view l's surface (the overlap graph).
+  Eigen::MatrixXi overlap;
+  // Views whose pose relative to the fixed view the last sweep's pairs do not determine: not linked to it
+  // through views with at least six pairs between them. In every sweep such views are left out of the step
+  // (their poses do not move then, and their pairs do not pull on the others). Their poses are not
+  // registered; empty when the overlap graph is connected.
+  std::vector<std::size_t> unconstrained_views;
 };
 
 // `scans` in their own coordinates, `world_T_scan` their initial poses (within a few degrees and a few

@@ -99,6 +99,41 @@ int SweepsTo(const SyntheticCase& c, const ScanToScanResult& r, double target) {
   return 0;
 }
 
+// A fifth view far from the others (a copy of view 1 moved by 100 sizes): no pair reaches it, so nothing
+// determines its pose; it is reported, keeps its start pose, and the four overlapping views register as
+// before.
+TEST(ScanToScan, AViewThatOverlapsNothingIsReportedAndKeepsItsPose) {
+  const SyntheticCase c = SmoothSurfaceViews();
+  std::vector<Eigen::Matrix3Xd> scans = c.scans;
+  std::vector<RigidMotion> start = c.start;
+  scans.push_back(c.scans[1]);
+  start.push_back(RigidMotion(Eigen::Matrix3d::Identity(), Eigen::Vector3d(200, 0, 0)) * c.start[1]);
+  std::vector<int> progress_sweeps;
+  std::vector<double> progress_rms;
+  ScanToScanOptions options;
+  options.progress = [&](int sweep, double rms) {
+    progress_sweeps.push_back(sweep);
+    progress_rms.push_back(rms);
+  };
+  const ScanToScanResult r = RegisterScansToEachOther(scans, start, options);
+  ASSERT_EQ(r.unconstrained_views, std::vector<std::size_t>{4});
+  EXPECT_LT((r.world_T_scan[4].matrix() - start[4].matrix()).norm(), 1e-12);  // up to re-orthonormalization
+  EXPECT_EQ(r.view_residuals[4].pairs, 0);
+  EXPECT_EQ(r.overlap.col(4).sum(), 0);
+  const std::vector<RigidMotion> four(r.world_T_scan.begin(), r.world_T_scan.begin() + 4);
+  EXPECT_LT(c.Rms(four), 0.01 * c.Rms(c.start));
+  for (std::size_t k = 0; k < 4; ++k) {
+    EXPECT_GT(r.view_residuals[k].pairs, 0) << k;
+    EXPECT_EQ(r.view_residuals[k].samples, 2000) << k;  // every second point: stride 4000 / 1500 = 2
+  }
+  // Progress after every sweep, with the sweep's RMS.
+  ASSERT_EQ(progress_sweeps.size(), static_cast<std::size_t>(r.sweeps));
+  for (std::size_t s = 0; s < progress_sweeps.size(); ++s) {
+    EXPECT_EQ(progress_sweeps[s], static_cast<int>(s) + 1);
+    EXPECT_EQ(progress_rms[s], r.rms_per_sweep[s]);
+  }
+}
+
 TEST(ScanToScan, SdmNeedsFarFewerSweepsThanPointToPointIcpOnASmoothSurface) {
   const SyntheticCase c = SmoothSurfaceViews();
   const double start = c.Rms(c.start), target = 1e-3;  // 0.1% of the size, 1.3% of the start

@@ -1,0 +1,276 @@
+#include "pipeline/view_registration.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <sstream>
+#include <stdexcept>
+
+#include "acquisition/format_error.h"
+#include "acquisition/mesh_io.h"
+#include "acquisition/scan_set_io.h"
+#include "fitting/nominal_inspection.h"
+#include "pipeline/fit_options.h"
+#include "pipeline/output.h"
+#include "pipeline/views.h"
+#include "registration/scan_to_scan.h"
+
+namespace s2m::pipeline {
+
+namespace {
+
+constexpr double kDegree = M_PI / 180.0;
+
+// One view's entry of the document: where it came from, its corrected pose, the correction relative to the
+// pose it was read with, and its residuals (`residuals`: rms, max and how they were measured).
+nlohmann::json ViewEntry(const Scan& scan, const RigidMotion& world_T_scan, nlohmann::json residuals) {
+  const RigidMotion correction = world_T_scan * scan.world_T_scan.inverse();
+  nlohmann::json v = {
+      {"source", scan.metadata.source},
+      {"points", scan.size()},
+      {"world_T_scan", ToJson(world_T_scan.matrix())},
+      {"correction",
+       {{"rotation_deg", correction.angle() / kDegree}, {"translation", correction.translation().norm()}}}};
+  v.update(residuals);
+  return v;
+}
+
+std::string ViewTable(const nlohmann::json& views, const std::string& units) {
+  std::ostringstream t;
+  t << "\n  view   points        RMS        max    pairs   correction (deg, " << units << ")\n";
+  for (std::size_t k = 0; k < views.size(); ++k) {
+    const nlohmann::json& v = views[k];
+    t << "  " << std::setw(4) << k << std::setw(9) << v["points"].get<long long>() << std::setw(11)
+      << Format(v["rms"].get<double>(), 4) << std::setw(11) << Format(v["max"].get<double>(), 4)
+      << std::setw(9) << v["pairs"].get<long long>() << "   "
+      << Format(v["correction"]["rotation_deg"].get<double>(), 3) << ", "
+      << Format(v["correction"]["translation"].get<double>(), 3)
+      << (v.value("registered", true) ? "" : "   NOT REGISTERED") << "\n";
+  }
+  return t.str();
+}
+
+ScanErrorTerm ScanTerm(const std::string& method) {
+  if (method == "pdm") return ScanErrorTerm::kPdm;
+  if (method == "tdm") return ScanErrorTerm::kTdm;
+  if (method == "sdm") return ScanErrorTerm::kSdm;
+  throw FitFailure(kUsage, "--method: registration takes pdm, tdm or sdm, not '" + method + "'");
+}
+
+void ScanToScan(const RegisterOptions& o, const ScanSet& views, const RegisterProgress& progress,
+                RegisterOutcome& outcome, std::vector<RigidMotion>& world_T_scan) {
+  const std::size_t K = views.scans.size();
+  if (K < 2)
+    throw FitFailure(kInputError, o.input + " holds " + std::to_string(K) +
+                                      " view: registering views to each other needs two or more (give --to "
+                                      "NOMINAL to register one view to a mesh)");
+  if (o.fixed_view >= K)
+    throw FitFailure(kUsage, "--fixed-view " + std::to_string(o.fixed_view) + ": " + o.input +
+                                 " has views 0-" + std::to_string(K - 1));
+  ScanToScanOptions options;
+  options.error_term = ScanTerm(o.method);
+  options.samples_per_view = o.samples_per_view;
+  options.max_sweeps = o.max_sweeps;
+  options.fixed_view = o.fixed_view;
+  const std::string units = views.scans[0].units;
+  if (progress) {
+    options.progress = [&](int sweep, double rms) {
+      std::ostringstream line;
+      line << "sweep " << sweep << ": RMS " << Format(rms, 4) << " " << units;
+      progress(line.str());
+    };
+  }
+  std::vector<Eigen::Matrix3Xd> scans;
+  std::vector<RigidMotion> start;
+  for (std::size_t k = 0; k < K; ++k) {
+    const Scan& s = views.scans[k];
+    if (s.empty()) throw FitFailure(kInputError, o.input + ": view " + std::to_string(k) + " has no points");
+    scans.push_back(s.points);
+    start.push_back(s.world_T_scan);
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  ScanToScanResult r;
+  try {
+    r = RegisterScansToEachOther(scans, start, options);
+  } catch (const std::invalid_argument& e) {
+    throw FitFailure(kInputError, o.input + ": " + e.what());
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  world_T_scan = r.world_T_scan;
+  outcome.unregistered_views = r.unconstrained_views;
+
+  nlohmann::json entries = nlohmann::json::array();
+  for (std::size_t k = 0; k < K; ++k) {
+    const ScanToScanViewResidual& res = r.view_residuals[k];
+    nlohmann::json overlaps = nlohmann::json::array();
+    for (std::size_t l = 0; l < K; ++l) {
+      const int n = r.overlap(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(l));
+      if (n > 0) overlaps.push_back({{"view", l}, {"pairs", n}});
+    }
+    const bool registered = std::find(r.unconstrained_views.begin(), r.unconstrained_views.end(), k) ==
+                            r.unconstrained_views.end();
+    entries.push_back(ViewEntry(views.scans[k], r.world_T_scan[k],
+                                {{"rms", res.rms},
+                                 {"max", res.max},
+                                 {"pairs", res.pairs},
+                                 {"samples", res.samples},
+                                 {"correspondence_distance", res.correspondence_distance},
+                                 {"overlaps", overlaps},
+                                 {"fixed", k == o.fixed_view},
+                                 {"registered", registered}}));
+  }
+  nlohmann::json& j = outcome.document;
+  j["mode"] = "scan-to-scan";
+  j["sweeps"] = r.sweeps;
+  j["converged"] = r.converged;
+  j["rms_per_sweep"] = r.rms_per_sweep;
+  j["fixed_view"] = o.fixed_view;
+  j["samples_per_view"] = o.samples_per_view;
+  j["seconds"] = seconds;
+  j["views"] = entries;
+
+  std::ostringstream text;
+  text << "scan2model register: " << K << " views of " << o.input << " to each other (" << o.method
+       << ", view " << o.fixed_view << " fixed), " << r.sweeps << " sweeps, "
+       << (r.converged ? "converged" : "stopped at the sweep cap") << ", " << Format(seconds, 3) << " s\n";
+  text << ViewTable(entries, units);
+  text << "\n  RMS and max: distances of each view's accepted pairs to the other views' local "
+       << (options.error_term == ScanErrorTerm::kSdm ? "quadrics" : "planes") << " (" << units
+       << "), measured in the last sweep\n";
+  outcome.text = text.str();
+  if (!r.converged)
+    outcome.notes.push_back("the poses still moved by more than the tolerances after " +
+                            std::to_string(r.sweeps) + " sweeps (--max-sweeps): check the views' overlap");
+}
+
+void ToNominal(const RegisterOptions& o, const ScanSet& views, const RegisterProgress& progress,
+               RegisterOutcome& outcome, std::vector<RigidMotion>& world_T_scan) {
+  NominalInspectionOptions options;
+  options.registration.error_term = ErrorTermFromString(o.method);
+  options.per_view = o.per_view;
+  TriangleMesh mesh;
+  MeshFormat format{};
+  const std::string units = !o.units.empty() ? o.units : views.scans[0].units;
+  try {
+    mesh = ReadMesh(o.to, units, &format);
+  } catch (const FormatError& e) {
+    throw FitFailure(kInputError, e.what());
+  }
+  if (mesh.units != "unknown" && views.scans[0].units != "unknown" && mesh.units != views.scans[0].units)
+    throw FitFailure(kInputError, "the nominal " + o.to + " is in " + mesh.units + " but the views " +
+                                      o.input + " are in " + views.scans[0].units +
+                                      " (give --units to override the nominal's)");
+  std::vector<Eigen::Matrix3Xd> scans;
+  std::vector<RigidMotion> start;
+  for (std::size_t k = 0; k < views.scans.size(); ++k) {
+    if (views.scans[k].empty())
+      throw FitFailure(kInputError, o.input + ": view " + std::to_string(k) + " has no points");
+    scans.push_back(views.scans[k].points);
+    start.push_back(views.scans[k].world_T_scan);
+  }
+  if (progress)
+    progress("registering " + std::to_string(scans.size()) + " views to " + o.to + " (" +
+             std::to_string(mesh.triangle_count()) + " triangles)");
+  const auto t0 = std::chrono::steady_clock::now();
+  NominalInspection r;
+  try {
+    r = InspectAgainstNominal(TriangleMeshModel(mesh), scans, start, options);
+  } catch (const std::invalid_argument& e) {
+    throw FitFailure(kFitError, std::string("registration to the nominal failed: ") + e.what());
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  world_T_scan = r.nominal_T_scan;
+  nlohmann::json entries = nlohmann::json::array();
+  for (std::size_t k = 0; k < scans.size(); ++k) {
+    const ModelRegistrationResult& res = r.registration[o.per_view ? k : 0];
+    entries.push_back(ViewEntry(views.scans[k], r.nominal_T_scan[k],
+                                {{"rms", res.residuals.rms},
+                                 {"max", res.residuals.max_abs},
+                                 {"pairs", res.residuals.count},
+                                 {"iterations", res.iterations},
+                                 {"stop_reason", ToString(res.stop_reason)},
+                                 {"registered", true}}));
+  }
+  nlohmann::json& j = outcome.document;
+  j["mode"] = "to-nominal";
+  j["nominal"] = {{"file", o.to}, {"format", ToString(format)}, {"triangles", mesh.triangle_count()}};
+  j["per_view"] = o.per_view;
+  j["views_on_common_pose"] = r.views_on_common_pose;
+  j["seconds"] = seconds;
+  j["views"] = entries;
+  std::ostringstream text;
+  text << "scan2model register: " << scans.size() << " views of " << o.input << " to the nominal " << o.to
+       << " (" << o.method << (o.per_view ? ", common then per view" : ", as one rigid body") << "), "
+       << Format(seconds, 3) << " s\n"
+       << ViewTable(entries, views.scans[0].units)
+       << "\n  RMS and max: distances of each view's points to the nominal's triangles ("
+       << views.scans[0].units << ")"
+       << (o.per_view ? "" : "; with --no-per-view every view shows the common fit's residuals") << "\n";
+  outcome.text = text.str();
+  if (r.views_on_common_pose > 0)
+    outcome.notes.push_back(std::to_string(r.views_on_common_pose) +
+                            " view(s) kept the common pose: their own points leave a motion free");
+}
+
+}  // namespace
+
+RegisterOutcome ComputeRegistration(const RegisterOptions& o, const RegisterProgress& progress) {
+  if (o.method != "pdm" && o.method != "tdm" && o.method != "sdm")
+    throw FitFailure(kUsage, "--method: registration takes pdm, tdm or sdm, not '" + o.method + "'");
+  if (o.samples_per_view < 1) throw FitFailure(kUsage, "--samples must be positive");
+  if (o.max_sweeps < 1) throw FitFailure(kUsage, "--max-sweeps must be positive");
+  ScanSet views;
+  try {
+    views = ReadViews(o.input);
+  } catch (const FormatError& e) {
+    throw FitFailure(kInputError, e.what());
+  }
+  if (views.scans.empty()) throw FitFailure(kInputError, o.input + ": no views");
+
+  RegisterOutcome outcome;
+  outcome.document["schema"] = "scan2model.registration/1";
+  outcome.document["input"] = {
+      {"file", o.input}, {"views", views.scans.size()}, {"units", views.scans[0].units}};
+  outcome.document["method"] = o.method;
+  std::vector<RigidMotion> world_T_scan;
+  if (o.to.empty())
+    ScanToScan(o, views, progress, outcome, world_T_scan);
+  else
+    ToNominal(o, views, progress, outcome, world_T_scan);
+
+  if (!outcome.unregistered_views.empty()) {
+    std::string list;
+    for (std::size_t k : outcome.unregistered_views) list += (list.empty() ? "" : ", ") + std::to_string(k);
+    outcome.notes.push_back("view(s) " + list +
+                            " do not overlap the fixed view's group of views: their poses are " +
+                            "not registered" + (o.output.empty() ? "" : ", and no manifest was written"));
+    outcome.document["unregistered_views"] = outcome.unregistered_views;
+    return outcome;
+  }
+  if (!o.output.empty()) {
+    ScanSet registered = views;
+    std::vector<nlohmann::json> view_extra;
+    for (std::size_t k = 0; k < registered.scans.size(); ++k) {
+      registered.scans[k].world_T_scan = world_T_scan[k];
+      const nlohmann::json& v = outcome.document["views"][k];
+      view_extra.push_back({{"registration", {{"rms", v["rms"]}, {"max", v["max"]}, {"pairs", v["pairs"]}}}});
+    }
+    const nlohmann::json extra = {
+        {"registration",
+         {{"source", o.input},
+          {"mode", outcome.document["mode"]},
+          {"method", o.method},
+          {"nominal", o.to.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.to)}}}};
+    try {
+      WriteScanSet(o.output, registered, extra, view_extra);
+    } catch (const std::exception& e) {
+      throw FitFailure(kInputError, std::string("cannot write the manifest: ") + e.what());
+    }
+    outcome.document["output"] = o.output;
+    outcome.text += "\n  wrote " + o.output + " (one PLY per view beside it)\n";
+  }
+  return outcome;
+}
+
+}  // namespace s2m::pipeline

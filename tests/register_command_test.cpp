@@ -1,0 +1,238 @@
+// `scan2model register` end to end (docs/cli.md): the views of a synthetic part registered to each other from
+// poses off by 2 degrees and 2 mm, the written manifest read back; the Stanford bunny's ten real views from
+// perturbed poses (skipped without the shared data); views registered to a nominal box mesh; and the errors:
+// one view, views that do not overlap, bad options, unreadable files.
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "acquisition/mesh_io.h"
+#include "acquisition/scan_set_io.h"
+#include "synthetic/synthetic_cases.h"
+#include "test_meshes.h"
+#include "test_paths.h"
+#include "test_support.h"
+
+namespace s2m {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kDegree = M_PI / 180.0;
+
+test::ShellResult Register(const std::vector<std::string>& args, bool with_stderr = false) {
+  std::vector<std::string> argv = {S2M_CLI_PATH, "register"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return test::Shell(test::Quote(argv), with_stderr);
+}
+
+RigidMotion PoseOf(const nlohmann::json& rows) {
+  Eigen::Matrix4d m;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c)
+      m(r, c) = rows[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)].get<double>();
+  return RigidMotion::FromMatrix(m);
+}
+
+// The worst error of the views' poses relative to view 0 against the truth's: rotation (rad) and the RMS
+// displacement of each view's points (the registration error a user sees in the merged cloud).
+struct RelativeError {
+  double rotation = 0, displacement = 0;
+};
+RelativeError WorstRelativeError(const std::vector<Eigen::Matrix3Xd>& scans,
+                                 const std::vector<RigidMotion>& fitted,
+                                 const std::vector<RigidMotion>& truth) {
+  RelativeError worst;
+  for (std::size_t k = 1; k < scans.size(); ++k) {
+    const RigidMotion a = fitted[0].inverse() * fitted[k], b = truth[0].inverse() * truth[k];
+    worst.rotation = std::max(worst.rotation, (a * b.inverse()).angle());
+    const double rms = std::sqrt((a.apply(scans[k]) - b.apply(scans[k])).colwise().squaredNorm().mean());
+    worst.displacement = std::max(worst.displacement, rms);
+  }
+  return worst;
+}
+
+TEST(RegisterCommand, PartViewsFromPosesOffByTwoDegreesAreRegisteredToEachOther) {
+  const fs::path dir = test::FreshTempDir("register_part");
+  const SyntheticCase c = MakeSyntheticCase("part");
+  WriteScanSet(dir / "in" / "views.json", RecordedViews(c));
+  const test::ShellResult r =
+      Register({(dir / "in" / "views.json").string(), "-o", (dir / "out" / "views.json").string(), "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["schema"], "scan2model.registration/1");
+  EXPECT_EQ(j["mode"], "scan-to-scan");
+  EXPECT_TRUE(j["converged"].get<bool>());
+  ASSERT_EQ(j["views"].size(), c.views.scans.size());
+  std::vector<RigidMotion> fitted;
+  for (const auto& v : j["views"]) {
+    fitted.push_back(PoseOf(v["world_T_scan"]));
+    EXPECT_GT(v["pairs"].get<long long>(), 100);
+    EXPECT_TRUE(v["registered"].get<bool>());
+    // Residuals at the noise level (0.02 mm along the normal), not at the pose errors' (about 2 mm).
+    EXPECT_LT(v["rms"].get<double>(), 0.05);
+  }
+  // Relative poses: the recorded ones are off by about 2 degrees and 2 mm; the registered ones by a small
+  // fraction of that (the views see the part's faces with 0.02 mm noise).
+  const RelativeError before =
+      WorstRelativeError(c.views.scans, c.views.model_T_scan_recorded, c.views.model_T_scan_true);
+  const RelativeError after = WorstRelativeError(c.views.scans, fitted, c.views.model_T_scan_true);
+  EXPECT_GT(before.rotation, 1.0 * kDegree);
+  EXPECT_LT(after.rotation, 0.05 * kDegree);
+  EXPECT_LT(after.displacement, 0.05);
+  // The manifest holds the same poses, the per-view residuals and how they were found.
+  const ScanSet written = ReadScanSet(dir / "out" / "views.json");
+  ASSERT_EQ(written.scans.size(), fitted.size());
+  for (std::size_t k = 0; k < fitted.size(); ++k) {
+    EXPECT_LT((written.scans[k].world_T_scan.matrix() - fitted[k].matrix()).norm(), 1e-12);
+    EXPECT_EQ(written.scans[k].size(), c.views.scans[k].cols());
+  }
+  const nlohmann::json manifest = nlohmann::json::parse(std::ifstream(dir / "out" / "views.json"));
+  EXPECT_EQ(manifest["registration"]["mode"], "scan-to-scan");
+  EXPECT_EQ(manifest["registration"]["method"], "tdm");
+  EXPECT_EQ(manifest["views"][1]["registration"]["rms"], j["views"][1]["rms"]);
+  fs::remove_all(dir);
+}
+
+TEST(RegisterCommand, BunnyViewsFromPerturbedPosesAreRecoveredWithProgress) {
+  const fs::path conf = test::SharedData("stanford_bunny_scans/bun.conf");
+  if (!fs::exists(conf)) GTEST_SKIP() << conf << " is absent";
+  const fs::path dir = test::FreshTempDir("register_bunny");
+  ScanSet set = ReadScanSet(conf);
+  std::vector<RigidMotion> truth;
+  std::vector<Eigen::Matrix3Xd> scans;
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> gauss(0, 1);
+  for (std::size_t k = 0; k < set.scans.size(); ++k) {
+    Scan& s = set.scans[k];
+    truth.push_back(s.world_T_scan);
+    scans.push_back(s.points);
+    if (k == 0) continue;
+    // 2 degrees about a random axis through the view's centroid, 2 mm along a random direction.
+    const Eigen::Vector3d centre = s.world_T_scan * Eigen::Vector3d(s.points.rowwise().mean());
+    const Eigen::Vector3d axis = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+    const Eigen::Vector3d shift = 0.002 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+    const Eigen::Matrix3d rot = Eigen::AngleAxisd(2 * kDegree, axis).toRotationMatrix();
+    s.world_T_scan = RigidMotion(rot, centre - rot * centre + shift) * s.world_T_scan;
+  }
+  WriteScanSet(dir / "views.json", set);
+  const test::ShellResult r = Register({(dir / "views.json").string(), "--json"}, true);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("scan2model register: sweep 1: RMS"), std::string::npos);  // progress on stderr
+  const nlohmann::json j = nlohmann::json::parse(r.out.substr(r.out.find("{\n")));
+  std::vector<RigidMotion> fitted;
+  for (const auto& v : j["views"]) fitted.push_back(PoseOf(v["world_T_scan"]));
+  // The target for all ten views: every view within 0.5 mm and 0.5 degrees of the reference poses.
+  const RelativeError after = WorstRelativeError(scans, fitted, truth);
+  EXPECT_LT(after.rotation, 0.5 * kDegree);
+  EXPECT_LT(after.displacement, 0.0005);
+  fs::remove_all(dir);
+}
+
+// The box [-30, 30] x [-20, 20] x [0, 20] seen by two views, each its own points of three faces, noise 0.002,
+// both recorded 0.5 degrees and 0.3 mm off the nominal's frame in different ways.
+TEST(RegisterCommand, ViewsAreRegisteredToANominalMesh) {
+  const fs::path dir = test::FreshTempDir("register_nominal");
+  WriteStl(dir / "box.stl", test::BoxMesh(30, 20, 20), false);
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::normal_distribution<double> noise(0, 0.002);
+  ScanSet set;
+  std::vector<RigidMotion> truth;
+  for (int view = 0; view < 2; ++view) {
+    Eigen::Matrix3Xd p(3, 3000);
+    for (Eigen::Index i = 0; i < p.cols(); ++i) {
+      const double a = u(rng), b = u(rng), e = noise(rng);
+      const double side =
+          view == 0 ? 1.0 : -1.0;  // view 0 sees +x, +y and the top; view 1 -x, -y and the top
+      switch (i % 3) {
+        case 0:
+          p.col(i) << side * (30 + e), -20 + 40 * a, 20 * b;
+          break;
+        case 1:
+          p.col(i) << -30 + 60 * a, side * (20 + e), 20 * b;
+          break;
+        default:
+          p.col(i) << -30 + 60 * a, -20 + 40 * b, 20 + e;
+      }
+    }
+    // The view's scanner frame: the nominal frame moved by `scanner`; its recorded pose is off by `error`.
+    const RigidMotion scanner(RotationAboutAxis(Eigen::Vector3d(1, view, 2).normalized(), 0.3 + view),
+                              Eigen::Vector3d(5, -3, 40));
+    const RigidMotion error(RotationAboutAxis(Eigen::Vector3d(view, 1, 1).normalized(), 0.5 * kDegree),
+                            Eigen::Vector3d(0.3, -0.2 * view, 0.1));
+    Scan s;
+    s.points = scanner.inverse().apply(p);
+    s.world_T_scan = error * scanner;
+    s.units = "mm";
+    set.scans.push_back(s);
+    truth.push_back(scanner);
+  }
+  WriteScanSet(dir / "views.json", set);
+  const test::ShellResult r = Register(
+      {(dir / "views.json").string(), "--to", (dir / "box.stl").string(), "--method", "sdm", "--json", "-q"});
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["mode"], "to-nominal");
+  EXPECT_EQ(j["nominal"]["triangles"], 12);
+  for (std::size_t k = 0; k < 2; ++k) {
+    const RigidMotion fitted = PoseOf(j["views"][k]["world_T_scan"]);
+    const RigidMotion error = fitted * truth[k].inverse();
+    // Each view's own three faces fix all six motions: the pose to well within the noise.
+    EXPECT_LT(error.angle(), 0.005 * kDegree) << k;
+    EXPECT_LT(std::sqrt((fitted.apply(set.scans[k].points) - truth[k].apply(set.scans[k].points))
+                            .colwise()
+                            .squaredNorm()
+                            .mean()),
+              0.002)
+        << k;
+    EXPECT_LT(j["views"][k]["rms"].get<double>(), 0.003) << k;
+  }
+  fs::remove_all(dir);
+}
+
+TEST(RegisterCommand, ErrorsNameTheProblemAndWriteNothing) {
+  const fs::path dir = test::FreshTempDir("register_errors");
+  const SyntheticCase c = MakeSyntheticCase("part");
+  ScanSet set = RecordedViews(c);
+  // Two views of the part, the second moved 1000 mm away: no pair links them.
+  ScanSet apart;
+  apart.scans = {set.scans[0], set.scans[1]};
+  apart.scans[1].world_T_scan =
+      RigidMotion(Eigen::Matrix3d::Identity(), Eigen::Vector3d(1000, 0, 0)) * apart.scans[1].world_T_scan;
+  WriteScanSet(dir / "apart" / "views.json", apart);
+  test::ShellResult r =
+      Register({(dir / "apart" / "views.json").string(), "-o", (dir / "out.json").string()}, true);
+  EXPECT_EQ(r.exit_code, 4) << r.out;
+  EXPECT_NE(r.out.find("view(s) 1 do not overlap"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("NOT REGISTERED"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "out.json"));
+  // One view.
+  ScanSet one;
+  one.scans = {set.scans[0]};
+  WriteScanSet(dir / "one" / "views.json", one);
+  r = Register({(dir / "one" / "views.json").string()}, true);
+  EXPECT_EQ(r.exit_code, 3) << r.out;
+  EXPECT_NE(r.out.find("needs two or more"), std::string::npos) << r.out;
+  // Bad options and files.
+  r = Register({(dir / "apart" / "views.json").string(), "--method", "gn"}, true);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  r = Register({(dir / "apart" / "views.json").string(), "--fixed-view", "5"}, true);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  r = Register({(dir / "missing.json").string()}, true);
+  EXPECT_EQ(r.exit_code, 3) << r.out;
+  EXPECT_NE(r.out.find("missing.json"), std::string::npos) << r.out;
+  std::ofstream(dir / "broken.stl") << "solid x\n facet normal 0 0 1\n";
+  r = Register({(dir / "apart" / "views.json").string(), "--to", (dir / "broken.stl").string()}, true);
+  EXPECT_EQ(r.exit_code, 3) << r.out;
+  EXPECT_NE(r.out.find("broken.stl"), std::string::npos) << r.out;
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace s2m
