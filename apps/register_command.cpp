@@ -13,14 +13,14 @@ Runner AddRegisterCommand(CLI::App& app) {
   auto quiet = std::make_shared<bool>(false);
   CLI::App* cmd = app.add_subcommand(
       "register",
-      "Register the views of a part to each other (all views globally, no model) or to a nominal mesh, and "
-      "write the corrected poses as a views manifest");
+      "Register the views of a part to each other (all views globally, no model), to a nominal mesh or to a "
+      "fitted part, and write the corrected poses as a views manifest");
   cmd->add_option("views", o->input,
                   "The views: a views.json manifest, a Stanford .conf, a recording (.s2mrec) or an E57 file")
       ->required();
   cmd->add_option("--to", o->to,
-                  "A nominal mesh (.stl binary or ASCII, .obj, .ply) to register the views to (default: to "
-                  "each other)");
+                  "Register the views to a nominal mesh (.stl binary or ASCII, .obj, .ply) or to the part a "
+                  "'fit --model part:' result measured (its -o PREFIX.json); default: to each other");
   cmd->add_option("--method", o->method,
                   "Error term: tdm (point-to-plane, default), sdm (squared distance), pdm (point-to-point)");
   cmd->add_option(

@@ -3,14 +3,19 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <iomanip>
 #include <sstream>
 #include <stdexcept>
 
 #include "acquisition/format_error.h"
+#include "acquisition/formats/readers.h"
 #include "acquisition/mesh_io.h"
+#include "acquisition/part_file.h"
 #include "acquisition/scan_set_io.h"
+#include "fitting/model_registration.h"
 #include "fitting/nominal_inspection.h"
+#include "fitting/part_model.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
 #include "pipeline/views.h"
@@ -213,6 +218,98 @@ void ToNominal(const RegisterOptions& o, const ScanSet& views, const RegisterPro
                             " view(s) kept the common pose: their own points leave a motion free");
 }
 
+// The part a `fit --model part:` document measured: its part file (found as the document names it, else
+// beside the document) with the fitted values of the free parameters (angles in the document in degrees).
+PartModel FittedPart(const nlohmann::json& fit, const std::string& fit_file, std::string& part_path) {
+  part_path = fit.at("part").at("file").get<std::string>();
+  if (!std::filesystem::exists(part_path)) {
+    const std::filesystem::path beside = std::filesystem::path(fit_file).parent_path() / part_path;
+    if (std::filesystem::exists(beside)) part_path = beside.string();
+  }
+  PartFile file;
+  try {
+    file = ReadPartFile(part_path);
+  } catch (const FormatError& e) {
+    throw FitFailure(kInputError, fit_file + ": its part file: " + e.what());
+  }
+  PartDefinition definition = file.definition;
+  for (PartParameter& p : definition.parameters) {
+    bool found = false;
+    for (const nlohmann::json& fitted : fit.at("parameters")) {
+      if (fitted.at("name").get<std::string>() != p.name) continue;
+      p.value = fitted.at("value").get<double>() * (p.angle ? M_PI / 180.0 : 1.0);
+      found = true;
+    }
+    if (!found)
+      throw FitFailure(kInputError, fit_file + ": no fitted value of the part's parameter '" + p.name +
+                                        "' (" + part_path + " is not the part this fit measured)");
+  }
+  try {
+    return PartModel(std::move(definition));
+  } catch (const std::invalid_argument& e) {
+    throw FitFailure(kInputError, fit_file + ": the fitted part is not valid: " + e.what());
+  }
+}
+
+void ToFittedPart(const RegisterOptions& o, const nlohmann::json& fit, const ScanSet& views,
+                  const RegisterProgress& progress, RegisterOutcome& outcome,
+                  std::vector<RigidMotion>& world_T_scan) {
+  std::string part_path;
+  PartModel part = [&] {
+    try {
+      return FittedPart(fit, o.to, part_path);
+    } catch (const nlohmann::json::exception& e) {
+      throw FitFailure(kInputError, o.to + ": malformed part fit document: " + e.what());
+    }
+  }();
+  const std::string fit_units = fit.value("/part/units"_json_pointer, std::string("unknown"));
+  const std::string units = views.scans[0].units;
+  if (fit_units != "unknown" && !fit_units.empty() && units != "unknown" && fit_units != units)
+    throw FitFailure(kInputError, "the fitted part " + o.to + " is in " + fit_units + " but the views " +
+                                      o.input + " are in " + units);
+  ModelRegistrationOptions options;
+  options.error_term = ErrorTermFromString(o.method);
+  ScanSet registered = views;
+  for (std::size_t k = 0; k < registered.scans.size(); ++k) {
+    if (registered.scans[k].empty())
+      throw FitFailure(kInputError, o.input + ": view " + std::to_string(k) + " has no points");
+  }
+  if (progress)
+    progress("registering " + std::to_string(views.scans.size()) + " views to the part measured in " + o.to);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<ModelRegistrationResult> results;
+  try {
+    results = RegisterScansToModel(part, RigidMotion(), registered, options);
+  } catch (const std::invalid_argument& e) {
+    throw FitFailure(kFitError, std::string("registration to the fitted part failed: ") + e.what());
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  nlohmann::json entries = nlohmann::json::array();
+  for (std::size_t k = 0; k < registered.scans.size(); ++k) {
+    world_T_scan.push_back(registered.scans[k].world_T_scan);
+    const ModelRegistrationResult& res = results[k];
+    entries.push_back(ViewEntry(views.scans[k], world_T_scan.back(),
+                                {{"rms", res.residuals.rms},
+                                 {"max", res.residuals.max_abs},
+                                 {"pairs", res.residuals.count},
+                                 {"iterations", res.iterations},
+                                 {"stop_reason", ToString(res.stop_reason)},
+                                 {"registered", true}}));
+  }
+  nlohmann::json& j = outcome.document;
+  j["mode"] = "to-part-fit";
+  j["part_fit"] = {{"file", o.to}, {"part", part_path}, {"parameters", part.num_parameters()}};
+  j["seconds"] = seconds;
+  j["views"] = entries;
+  std::ostringstream text;
+  text << "scan2model register: " << views.scans.size() << " views of " << o.input
+       << " to the part measured in " << o.to << " (" << part_path << ", " << o.method
+       << ", each view on its own), " << Format(seconds, 3) << " s\n"
+       << ViewTable(entries, units) << "\n  RMS and max: distances of each view's points to the fitted part ("
+       << units << ")\n";
+  outcome.text = text.str();
+}
+
 }  // namespace
 
 RegisterOutcome ComputeRegistration(const RegisterOptions& o, const RegisterProgress& progress) {
@@ -234,10 +331,32 @@ RegisterOutcome ComputeRegistration(const RegisterOptions& o, const RegisterProg
       {"file", o.input}, {"views", views.scans.size()}, {"units", views.scans[0].units}};
   outcome.document["method"] = o.method;
   std::vector<RigidMotion> world_T_scan;
-  if (o.to.empty())
+  if (o.to.empty()) {
     ScanToScan(o, views, progress, outcome, world_T_scan);
-  else
+  } else if (std::filesystem::path(o.to).extension() == ".json") {
+    // A result document: the part a constrained-part fit measured. Other fits are refused: a primitive's or
+    // a surface of revolution's symmetry leaves rotations of every view free (about a sphere's centre, about
+    // an axis), so they cannot place views.
+    nlohmann::json fit;
+    try {
+      fit = nlohmann::json::parse(formats::ReadFileBytes(o.to));
+    } catch (const nlohmann::json::parse_error& e) {
+      throw FitFailure(kInputError, o.to + ": invalid JSON (" + e.what() + ")");
+    } catch (const FormatError& e) {
+      throw FitFailure(kInputError, e.what());
+    }
+    const std::string schema = fit.is_object() ? fit.value("schema", "") : "";
+    if (schema != "scan2model.part_fit/1")
+      throw FitFailure(
+          kInputError,
+          o.to + ": --to takes a constrained part's fit (scan2model.part_fit/1) or a nominal mesh, not " +
+              (schema.empty() ? std::string("this document") : schema) +
+              " (a primitive's or a surface of revolution's symmetry leaves the views' rotations "
+              "about it free)");
+    ToFittedPart(o, fit, views, progress, outcome, world_T_scan);
+  } else {
     ToNominal(o, views, progress, outcome, world_T_scan);
+  }
 
   if (!outcome.unregistered_views.empty()) {
     std::string list;
@@ -256,12 +375,11 @@ RegisterOutcome ComputeRegistration(const RegisterOptions& o, const RegisterProg
       const nlohmann::json& v = outcome.document["views"][k];
       view_extra.push_back({{"registration", {{"rms", v["rms"]}, {"max", v["max"]}, {"pairs", v["pairs"]}}}});
     }
-    const nlohmann::json extra = {
-        {"registration",
-         {{"source", o.input},
-          {"mode", outcome.document["mode"]},
-          {"method", o.method},
-          {"nominal", o.to.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.to)}}}};
+    const nlohmann::json extra = {{"registration",
+                                   {{"source", o.input},
+                                    {"mode", outcome.document["mode"]},
+                                    {"method", o.method},
+                                    {"to", o.to.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.to)}}}};
     try {
       WriteScanSet(o.output, registered, extra, view_extra);
     } catch (const std::exception& e) {

@@ -1,8 +1,9 @@
 #pragma once
 // `scan2model register` (docs/cli.md, docs/method.md section 5): the views of a part registered from the
-// command line, either to each other (all views globally, no model: registration/scan_to_scan.h) or to a
-// nominal mesh (fitting/nominal_inspection.h's registration steps), written as a views manifest whose poses
-// are the corrected world_T_scan, with every view's residuals.
+// command line, either to each other (all views globally, no model: registration/scan_to_scan.h), to a
+// nominal mesh (fitting/nominal_inspection.h's registration steps) or to a part a fit measured
+// (fitting/model_registration.h), written as a views manifest whose poses are the corrected world_T_scan,
+// with every view's residuals.
 
 #include <cstddef>
 #include <functional>
@@ -13,8 +14,10 @@
 namespace s2m::pipeline {
 
 struct RegisterOptions {
-  std::string input;            // the views: views.json, Stanford .conf, recording (.s2mrec) or E57
-  std::string to;               // empty: scan-to-scan; else a nominal mesh (.stl, .obj, .ply)
+  std::string input;  // the views: views.json, Stanford .conf, recording (.s2mrec) or E57
+  // Empty: scan-to-scan; a constrained part's fit document (.json, scan2model.part_fit/1: the part file with
+  // the fitted values); else a nominal mesh (.stl, .obj, .ply).
+  std::string to;
   std::string method = "tdm";   // pdm, tdm or sdm
   std::string output;           // a views manifest (.json) to write, with one PLY per view beside it
   std::string units;            // the nominal's units when its file states none (default: the views')

@@ -63,7 +63,8 @@ void NearestIndex::Search(int id, const Eigen::Vector3d& q, CellDistance cell, E
     for (int i = node.begin; i < node.end; ++i) {
       const Entry& e = entries_[static_cast<std::size_t>(i)];
       const double d2 = (e.point - q).squaredNorm();
-      if (d2 < best_d2) {
+      // Among equally near points the lowest index: the answer does not depend on the tree's shape.
+      if (d2 < best_d2 || (d2 == best_d2 && e.index < best)) {
         best_d2 = d2;
         best = e.index;
       }
@@ -75,7 +76,7 @@ void NearestIndex::Search(int id, const Eigen::Vector3d& q, CellDistance cell, E
   const double old_offset = cell.offset[node.axis];
   cell.squared += diff * diff - old_offset * old_offset;
   cell.offset[node.axis] = std::abs(diff);
-  if (cell.squared < best_d2) Search(diff < 0 ? node.right : node.left, q, cell, best, best_d2);
+  if (cell.squared <= best_d2) Search(diff < 0 ? node.right : node.left, q, cell, best, best_d2);
 }
 
 void NearestIndex::SearchK(int id, const Eigen::Vector3d& q, CellDistance cell, std::size_t k,
@@ -123,9 +124,14 @@ bool NearestIndex::NearestWithin(const Eigen::Vector3d& q, Eigen::Index& best, d
   if (nodes_.empty()) return false;
   const CellDistance root = RootDistance(q);
   if (!(root.squared < best_d2)) return false;
-  const double bound = best_d2;
-  Search(0, q, root, best, best_d2);
-  return best_d2 < bound;
+  // A private search state: a tie with the caller's best at exactly the bound is not an answer.
+  Eigen::Index found = std::numeric_limits<Eigen::Index>::max();
+  double found_d2 = best_d2;
+  Search(0, q, root, found, found_d2);
+  if (!(found_d2 < best_d2)) return false;
+  best = found;
+  best_d2 = found_d2;
+  return true;
 }
 
 Eigen::Index NearestIndex::Nearest(const Eigen::Vector3d& q) const {

@@ -17,7 +17,8 @@ class NearestIndex {
  public:
   NearestIndex() = default;
   explicit NearestIndex(Eigen::Matrix3Xd points);
-  // Index of the nearest point to q (the tree must not be empty).
+  // Index of the nearest point to q, the lowest index among equally near points (the tree must not be
+  // empty).
   Eigen::Index Nearest(const Eigen::Vector3d& q) const;
   // The nearest point to q closer than sqrt(best_d2): returns true and sets `best` and `best_d2` to it, or
   // returns false and leaves both unchanged. Pass a previous answer's squared distance to bound the search

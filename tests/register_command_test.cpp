@@ -196,6 +196,50 @@ TEST(RegisterCommand, ViewsAreRegisteredToANominalMesh) {
   fs::remove_all(dir);
 }
 
+// The demo block's eight views (recordings/demo_block, poses off by about 2 degrees and 2 mm): the part fit
+// measures the block and corrects the poses jointly; registering the same views, each on its own, to the part
+// that fit measured gives the same poses to within a few of the fit's standard uncertainties of them.
+TEST(RegisterCommand, ViewsAreRegisteredToThePartAFitMeasured) {
+  const fs::path dir = test::FreshTempDir("register_part_fit");
+  const std::string views = std::string(S2M_SOURCE_DIR) + "/recordings/demo_block/views.json";
+  const std::string part = std::string(S2M_SOURCE_DIR) + "/docs/examples/counterbored_block.part.json";
+  const test::ShellResult fit = test::Shell(
+      test::Quote({S2M_CLI_PATH, "fit", "--model", "part:" + part, views, "-o", (dir / "fit").string()}),
+      false);
+  ASSERT_EQ(fit.exit_code, 0) << fit.out;
+  const nlohmann::json measured = nlohmann::json::parse(std::ifstream(dir / "fit.json"));
+  const test::ShellResult r = Register({views, "--to", (dir / "fit.json").string(), "--json", "-q"});
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["mode"], "to-part-fit");
+  EXPECT_EQ(j["part_fit"]["parameters"], 5);
+  ASSERT_EQ(j["views"].size(), measured["views"].size());
+  const ScanSet input = ReadScanSet(views);
+  for (std::size_t k = 0; k < j["views"].size(); ++k) {
+    const RigidMotion joint = PoseOf(measured["views"][k]["world_T_scan"]);
+    const RigidMotion alone = PoseOf(j["views"][k]["world_T_scan"]);
+    const RigidMotion difference = alone * joint.inverse();
+    const nlohmann::json& u = measured["views"][k]["pose_uncertainty"];
+    double u_rotation = 0, u_translation = 0;
+    for (int i = 0; i < 3; ++i) {
+      u_rotation = std::max(u_rotation, u["rotation_deg"][i].get<double>());
+      u_translation = std::max(u_translation, u["translation"][i].get<double>());
+    }
+    EXPECT_LT(difference.angle() / kDegree, 5 * u_rotation) << k;
+    // The translation compared at the view's centroid (the pose's translation alone mixes in the rotation).
+    const Eigen::Matrix3Xd& points = input.scans[k].points;
+    const Eigen::Vector3d centre = joint * Eigen::Vector3d(points.rowwise().mean());
+    EXPECT_LT((difference * centre - centre).norm(), 5 * u_translation) << k;
+    EXPECT_LT(j["views"][k]["rms"].get<double>(), 2 * measured["views"][k]["rms"].get<double>()) << k;
+  }
+  // A primitive's fit cannot place views: refused with the reason.
+  std::ofstream(dir / "plane.json") << R"({"schema": "scan2model.fit/1", "model": "plane"})";
+  const test::ShellResult refused = Register({views, "--to", (dir / "plane.json").string()}, true);
+  EXPECT_EQ(refused.exit_code, 3) << refused.out;
+  EXPECT_NE(refused.out.find("scan2model.fit/1"), std::string::npos) << refused.out;
+  fs::remove_all(dir);
+}
+
 TEST(RegisterCommand, ErrorsNameTheProblemAndWriteNothing) {
   const fs::path dir = test::FreshTempDir("register_errors");
   const SyntheticCase c = MakeSyntheticCase("part");
