@@ -237,6 +237,16 @@ TEST(RegisterCommand, ViewsAreRegisteredToThePartAFitMeasured) {
   const test::ShellResult refused = Register({views, "--to", (dir / "plane.json").string()}, true);
   EXPECT_EQ(refused.exit_code, 3) << refused.out;
   EXPECT_NE(refused.out.find("scan2model.fit/1"), std::string::npos) << refused.out;
+  // A part fit document without its members, or naming a part file that is not there.
+  std::ofstream(dir / "empty_part_fit.json") << R"({"schema": "scan2model.part_fit/1"})";
+  test::ShellResult bad = Register({views, "--to", (dir / "empty_part_fit.json").string()}, true);
+  EXPECT_EQ(bad.exit_code, 3) << bad.out;
+  EXPECT_NE(bad.out.find("malformed part fit document"), std::string::npos) << bad.out;
+  std::ofstream(dir / "lost_part.json")
+      << R"({"schema": "scan2model.part_fit/1", "part": {"file": "no_such.part.json"}, "parameters": []})";
+  bad = Register({views, "--to", (dir / "lost_part.json").string()}, true);
+  EXPECT_EQ(bad.exit_code, 3) << bad.out;
+  EXPECT_NE(bad.out.find("no_such.part.json"), std::string::npos) << bad.out;
   fs::remove_all(dir);
 }
 
