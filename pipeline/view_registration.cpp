@@ -41,6 +41,16 @@ nlohmann::json ViewEntry(const Scan& scan, const RigidMotion& world_T_scan, nloh
   return v;
 }
 
+// A view's residuals after registering it to a fixed model (a nominal mesh, a fitted part).
+nlohmann::json ModelRegistrationJson(const ModelRegistrationResult& res) {
+  return {{"rms", res.residuals.rms},
+          {"max", res.residuals.max_abs},
+          {"pairs", res.residuals.count},
+          {"iterations", res.iterations},
+          {"stop_reason", ToString(res.stop_reason)},
+          {"registered", true}};
+}
+
 std::string ViewTable(const nlohmann::json& views, const std::string& units) {
   std::ostringstream t;
   t << "\n  view   points        RMS        max    pairs   correction (deg, " << units << ")\n";
@@ -189,13 +199,7 @@ void ToNominal(const RegisterOptions& o, const ScanSet& views, const RegisterPro
   nlohmann::json entries = nlohmann::json::array();
   for (std::size_t k = 0; k < scans.size(); ++k) {
     const ModelRegistrationResult& res = r.registration[o.per_view ? k : 0];
-    entries.push_back(ViewEntry(views.scans[k], r.nominal_T_scan[k],
-                                {{"rms", res.residuals.rms},
-                                 {"max", res.residuals.max_abs},
-                                 {"pairs", res.residuals.count},
-                                 {"iterations", res.iterations},
-                                 {"stop_reason", ToString(res.stop_reason)},
-                                 {"registered", true}}));
+    entries.push_back(ViewEntry(views.scans[k], r.nominal_T_scan[k], ModelRegistrationJson(res)));
   }
   nlohmann::json& j = outcome.document;
   j["mode"] = "to-nominal";
@@ -288,13 +292,7 @@ void ToFittedPart(const RegisterOptions& o, const nlohmann::json& fit, const Sca
   for (std::size_t k = 0; k < registered.scans.size(); ++k) {
     world_T_scan.push_back(registered.scans[k].world_T_scan);
     const ModelRegistrationResult& res = results[k];
-    entries.push_back(ViewEntry(views.scans[k], world_T_scan.back(),
-                                {{"rms", res.residuals.rms},
-                                 {"max", res.residuals.max_abs},
-                                 {"pairs", res.residuals.count},
-                                 {"iterations", res.iterations},
-                                 {"stop_reason", ToString(res.stop_reason)},
-                                 {"registered", true}}));
+    entries.push_back(ViewEntry(views.scans[k], world_T_scan.back(), ModelRegistrationJson(res)));
   }
   nlohmann::json& j = outcome.document;
   j["mode"] = "to-part-fit";
