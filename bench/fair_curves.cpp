@@ -198,6 +198,13 @@ std::vector<Row> RunCase(const Case& c, double target, double& equal_rms) {
   hermite_row(g, "Hermite quintic, geometric variation 0.9");
   g.elements = f.elements;
   hermite_row(g, "Hermite quintic, geometric variation 0.9");
+  // The same share measured relative to the curvature (eq. F34), adaptive and fixed.
+  HermiteFitOptions relative = h;
+  relative.geometric_variation = 0.9;
+  relative.relative_variation = true;
+  hermite_row(relative, "Hermite quintic, relative variation 0.9");
+  relative.elements = f.elements;
+  hermite_row(relative, "Hermite quintic, relative variation 0.9");
   // Our B-spline SDM fit (cubic), bending weight searched for the same RMS.
   {
     const auto start = Clock::now();

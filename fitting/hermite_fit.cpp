@@ -45,13 +45,14 @@ class SpringProblem : public NonlinearProblem {
   // geometric_weight > 0: the cost also has geometric_weight integral (dkappa/ds)^2 ds (eq. F30), with its
   // Gauss-Newton model in the Hessian.
   SpringProblem(HermiteCurve curve, const Eigen::MatrixXd& y, double unit, double diagonal_floor,
-                bool fairness_hessian_only, double geometric_weight = 0.0)
+                bool fairness_hessian_only, double geometric_weight = 0.0, double reference_curvature = 0.0)
       : curve_(std::move(curve)),
         trial_(curve_),
         y_(y),
         unit_(unit),
         fairness_only_(fairness_hessian_only),
         geometric_weight_(geometric_weight),
+        reference_curvature_(reference_curvature),
         normal_(diagonal_floor) {
     k_ = curve_.FairnessMatrix({});
     if (k_.size() == 0) k_ = Eigen::MatrixXd::Zero(curve_.num_parameters(), curve_.num_parameters());
@@ -83,7 +84,7 @@ class SpringProblem : public NonlinearProblem {
     if (geometric_weight_ > 0) {
       Eigen::VectorXd r;
       Eigen::MatrixXd j;
-      GeometricCurvatureVariation(curve_, r, &j);
+      GeometricCurvatureVariation(curve_, r, &j, reference_curvature_);
       normal_.H() += 2.0 * geometric_weight_ * j.transpose() * j;
       normal_.g() += 2.0 * geometric_weight_ * j.transpose() * r;
     }
@@ -149,7 +150,7 @@ class SpringProblem : public NonlinearProblem {
     f += q.dot(k_ * q);
     if (geometric_weight_ > 0) {
       Eigen::VectorXd r;
-      GeometricCurvatureVariation(c, r, nullptr);
+      GeometricCurvatureVariation(c, r, nullptr, reference_curvature_);
       f += geometric_weight_ * r.squaredNorm();
     }
     return f;
@@ -160,12 +161,21 @@ class SpringProblem : public NonlinearProblem {
   double unit_;
   bool fairness_only_;
   double geometric_weight_;
+  double reference_curvature_;  // > 0: the curvature-relative form (eq. F34), in the problem's units
   bool exact_forces_ = false;
   Eigen::MatrixXd k_;
   DenseNormalEquations normal_;
   std::vector<FootPoint> feet_, trial_feet_;
   double cost_ = 0.0, trial_cost_ = 0.0;
 };
+
+// The reference curvature of the curvature-relative variation (eq. F34): pi / L0, the curvature of a half
+// circle as long as the data. The form is the absolute one where the curve is flatter, the variation of
+// log kappa where it is much sharper (the choice among 0.1 to 10 times 2 pi / L0 is measured in
+// docs/fair-curves.md section 7).
+double RelativeVariationCurvature(double reference_length) {
+  return M_PI / reference_length;
+}
 
 struct OneFit {
   HermiteCurve curve;
@@ -202,8 +212,10 @@ OneFit FitOnce(const HermiteCurve& start, const Eigen::MatrixXd& points, const H
   // The geometric term's weight in the unit box: alpha3 L0^5 with L0 the reference length in its units.
   const double geometric_weight =
       geometric ? weights.alpha3 * options.geometric_variation * std::pow(reference_length / scale, 5) : 0.0;
+  const double reference_curvature =
+      geometric && options.relative_variation ? RelativeVariationCurvature(reference_length / scale) : 0.0;
   SpringProblem problem(unit, y, scale, options.optimizer.damping.diagonal_floor,
-                        options.spring_as_in_thesis && !geometric, geometric_weight);
+                        options.spring_as_in_thesis && !geometric, geometric_weight, reference_curvature);
   // With the geometric term the closeness is always the exact point forces (eq. F29).
   if (geometric) problem.UseExactForces();
   MinimizerSummary summary = TrustRegionMinimizer(options.optimizer).Minimize(problem);
@@ -413,6 +425,9 @@ bool HermiteFitOptions::IsValid(std::string* why) const {
     return fail("the geometric curvature variation is a share of alpha3: give an alpha3 weight");
   if (geometric_variation > 0 && interpolate)
     return fail("an interpolation minimizes the parametric energy only: no geometric curvature variation");
+  if (relative_variation && !(geometric_variation > 0))
+    return fail(
+        "the curvature-relative variation weighs the geometric share: give a geometric variation > 0");
   if (fairness_fraction > 0 && fairness.alpha1 == 0 && fairness.alpha2 == 0 && fairness.alpha3 == 0)
     return fail("the fairness fraction normalizes the alpha terms: give at least one alpha weight");
   return optimizer.IsValid(why);
@@ -421,7 +436,8 @@ bool HermiteFitOptions::IsValid(std::string* why) const {
 // Residuals r_q = kappa_s(u_q) sqrt(|w'(u_q)| W_q), so that |r|^2 is integral (dkappa/ds)^2 ds (eq. F30).
 // Plane curves: kappa_s = Y / n^2 - 3 X D / n^3 (eq. F20), n = |w'|^2, X = w' x w'', Y = w' x w''',
 // D = w' . w''; so r_q = (Y n^(-7/4) - 3 X D n^(-11/4)) sqrt(W_q), differentiated by hand below.
-void GeometricCurvatureVariation(const HermiteCurve& curve, Eigen::VectorXd& r, Eigen::MatrixXd* jacobian) {
+void GeometricCurvatureVariation(const HermiteCurve& curve, Eigen::VectorXd& r, Eigen::MatrixXd* jacobian,
+                                 double reference_curvature) {
   static const double x[5] = {0.0469100770306680, 0.2307653449471585, 0.5, 0.7692346550528415,
                               0.9530899229693320};
   static const double w[5] = {0.1184634425280945, 0.2393143352496832, 0.2844444444444444, 0.2393143352496832,
@@ -455,16 +471,34 @@ void GeometricCurvatureVariation(const HermiteCurve& curve, Eigen::VectorXd& r, 
         const double n = a.squaredNorm(), cross_ab = a.x() * b.y() - a.y() * b.x(),
                      cross_ac = a.x() * c.y() - a.y() * c.x(), dot_ab = a.dot(b);
         const double root = std::sqrt(weight), n74 = std::pow(n, -1.75), n114 = std::pow(n, -2.75);
-        r[row] = root * (cross_ac * n74 - 3.0 * cross_ab * dot_ab * n114);
+        const double f = cross_ac * n74 - 3.0 * cross_ab * dot_ab * n114;
+        // The curvature-relative form (eq. F34): f m with m = (1 + (kappa / kappa_r)^2)^(-1/2).
+        double m = 1.0, kappa = 0.0;
+        if (reference_curvature > 0) {
+          kappa = cross_ab * std::pow(n, -1.5);
+          const double ratio = kappa / reference_curvature;
+          m = 1.0 / std::sqrt(1.0 + ratio * ratio);
+        }
+        r[row] = root * f * m;
         if (!jacobian) continue;
         // Partial derivatives of r_q / sqrt(W_q) with respect to w', w'', w''' at u_q.
         const Eigen::Vector2d dx_da(b.y(), -b.x()), dx_db(-a.y(), a.x()), dy_da(c.y(), -c.x()),
             dy_dc(-a.y(), a.x());
-        const Eigen::Vector2d df_da = dy_da * n74 - 3.5 * cross_ac * n114 * a -
-                                      3.0 * n114 * (dx_da * dot_ab + cross_ab * b) +
-                                      16.5 * cross_ab * dot_ab * std::pow(n, -3.75) * a;
-        const Eigen::Vector2d df_db = -3.0 * n114 * (dx_db * dot_ab + cross_ab * a);
-        const Eigen::Vector2d df_dc = dy_dc * n74;
+        Eigen::Vector2d df_da = dy_da * n74 - 3.5 * cross_ac * n114 * a -
+                                3.0 * n114 * (dx_da * dot_ab + cross_ab * b) +
+                                16.5 * cross_ab * dot_ab * std::pow(n, -3.75) * a;
+        Eigen::Vector2d df_db = -3.0 * n114 * (dx_db * dot_ab + cross_ab * a);
+        Eigen::Vector2d df_dc = dy_dc * n74;
+        if (reference_curvature > 0) {
+          // d(f m) = m df + f dm/dkappa dkappa, dm/dkappa = -kappa m^3 / kappa_r^2, kappa = X n^(-3/2).
+          const double f_dm = -f * kappa * m * m * m / (reference_curvature * reference_curvature);
+          const double n15 = std::pow(n, -1.5);
+          const Eigen::Vector2d dk_da = dx_da * n15 - 3.0 * cross_ab * std::pow(n, -2.5) * a,
+                                dk_db = dx_db * n15;
+          df_da = m * df_da + f_dm * dk_da;
+          df_db = m * df_db + f_dm * dk_db;
+          df_dc *= m;
+        }
         // Onto the nodal dofs (per coordinate), then the independent parameters (index * s + coordinate).
         for (int l = 0; l < n_fun; ++l) {
           const Eigen::Vector2d g = root * (df_da * p1[l] + df_db * p2[l] + df_dc * p3[l]);
@@ -609,6 +643,18 @@ HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFit
     total_iterations += f.fit.iterations;
     return f;
   };
+  if (options.geometric_variation > 0) {
+    // The geometric term does not depend on the parametrization and is not defined where the speed
+    // vanishes: started from an initial chain whose speed nearly does somewhere (a near-cusp), its
+    // Gauss-Newton model stays there. The parametric energy alone regularizes the speed first (one fit at
+    // the same weights), and the geometric fit starts from that curve (docs/fair-curves.md section 5).
+    HermiteFitOptions parametric = options;
+    parametric.geometric_variation = 0.0;
+    const OneFit regular = FitOnce(curve, points, base, parametric, 0.0);
+    curve = regular.curve;
+    ++fits;
+    total_iterations += regular.fit.iterations;
+  }
   OneFit best = run(curve, base);
   if (adaptive && std::isfinite(target)) {
     // Split every element whose points' mean squared distance exceeds the target's square by more than its
@@ -703,7 +749,9 @@ HermiteFitResult FitHermiteCurve(const Eigen::MatrixXd& points, const HermiteFit
     parametric.alpha3 *= 1.0 - options.geometric_variation;
     result.energy = result.curve.EnergyBreakdown(parametric);
     Eigen::VectorXd r;
-    GeometricCurvatureVariation(result.curve, r, nullptr);
+    GeometricCurvatureVariation(
+        result.curve, r, nullptr,
+        options.relative_variation ? RelativeVariationCurvature(reference_length) : 0.0);
     result.geometric_energy =
         result.weights.alpha3 * options.geometric_variation * std::pow(reference_length, 5) * r.squaredNorm();
   } else {

@@ -62,9 +62,16 @@ struct HermiteFitOptions {
   // variation along the arc, independent of the parametrization) plus the parametric (1 - g) alpha3
   // integral |w'''|^2 du, which keeps the parametrization regular. Plane curves only; the fit is then the
   // sliding springs with exact point forces (eqs. F28-F29) and the geometric term's Gauss-Newton model,
-  // whatever the method. 0: the parametric energy alone (Fang's). Measured (docs/fair-curves.md section 7):
-  // fairer than the parametric energy and OpenCASCADE on a sine, but not convex on the airfoil.
+  // whatever the method, started from the parametric fit at the same weights. 0: the parametric energy alone
+  // (Fang's). Measured (docs/fair-curves.md section 7): fairer than the parametric energy and OpenCASCADE on
+  // a sine and on glyphs, but not convex on the airfoil (see relative_variation).
   double geometric_variation = 0.0;
+  // With geometric_variation > 0: measure the variation relative to the curvature (docs/fair-curves.md eq.
+  // F34), integral (dkappa/ds)^2 / (1 + (kappa L0 / pi)^2) ds: the absolute form where the curve is flatter
+  // than a half circle as long as the data, the variation of log kappa where it is much sharper, so that
+  // a sharp end (an airfoil's trailing edge) does not cost kappa^3 and is not rounded off at the expense of
+  // dents elsewhere.
+  bool relative_variation = false;
   // Of each fit (the spring method: at most optimizer.max_iterations steps). The relative decrease tolerance
   // is 1e-8 rather than the engine's 1e-10: the nodal derivatives' tangential parts (the parametrization) are
   // held only by the fairness, and the last digits of E they still gain are not worth a hundred iterations.
@@ -141,7 +148,10 @@ Eigen::VectorXd ResolvedUnitForce(const HermiteCurve& curve, double u);
 // as a sum of squares |r|^2: r_q = kappa_s(u_q) sqrt(|w'(u_q)| W_q) at 5-point Gauss-Legendre nodes on 8
 // sub-intervals of every element (W_q the rule's weight times the sub-interval's length in u). With
 // `jacobian`, also dr/dQ (rows: residuals, columns: the curve's parameters), the Gauss-Newton model of the
-// fit. Throws std::invalid_argument for space curves.
-void GeometricCurvatureVariation(const HermiteCurve& curve, Eigen::VectorXd& r, Eigen::MatrixXd* jacobian);
+// fit. reference_curvature kappa_r > 0: the curvature-relative form (eq. F34), every residual times
+// (1 + (kappa / kappa_r)^2)^(-1/2), so that |r|^2 is integral (dkappa/ds)^2 / (1 + (kappa / kappa_r)^2) ds.
+// Throws std::invalid_argument for space curves.
+void GeometricCurvatureVariation(const HermiteCurve& curve, Eigen::VectorXd& r, Eigen::MatrixXd* jacobian,
+                                 double reference_curvature = 0.0);
 
 }  // namespace s2m

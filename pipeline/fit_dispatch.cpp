@@ -576,6 +576,8 @@ FitOutcome ComputeFit(const FitOptions& o) {
     throw FitFailure(kUsage, "--fill-height applies to --model revolution (a vessel's volume)");
   if (o.geometric_variation > 0 && o.model != "hermite-curve")
     throw FitFailure(kUsage, "--geometric-variation applies to --model hermite-curve");
+  if (o.relative_variation && o.model != "hermite-curve")
+    throw FitFailure(kUsage, "--relative-variation applies to --model hermite-curve");
   if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
   if (o.model == "hermite-curve") return ComputeHermiteFit(o);
   if (o.model == "revolution" || o.model == "helical" || o.model == "spiral") return ComputeMultiViewFit(o);

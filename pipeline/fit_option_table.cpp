@@ -226,6 +226,19 @@ std::vector<FitOptionSpec> MakeTable() {
        1,
        [](FitOptions& o, const std::string& v) { o.geometric_variation = std::stod(v); }});
   t.push_back(
+      {"relative_variation",
+       "--relative-variation",
+       K::kFlag,
+       "",
+       "hermite-curve, with --geometric-variation: weigh the curvature variation relative to the "
+       "curvature, integral (dkappa/ds)^2 / (1 + (kappa L0 / pi)^2) ds (docs/fair-curves.md eq. F34), "
+       "so that a sharp end is kept instead of rounded off at the price of dents elsewhere",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.relative_variation = v == "true"; }});
+  t.push_back(
       {"start",
        "--start",
        K::kChoice,

@@ -78,9 +78,11 @@ struct FitOptions {
   // Whether --alpha3 was given: B-spline curves, surfaces and generatrices take it (and beta2, beta3) as
   // their curvature-variation and jump weights (docs/fair-curves.md section 8), 0 unless given.
   bool alpha3_given = false;
-  double tolerance = 0.0;            // target RMS in data units (0: the weights as given)
-  double fairness_fraction = 0.0;    // scale-free fairness fraction in (0, 1) (0: the weights as given)
-  double geometric_variation = 0.0;  // share of alpha3 on the arc-length curvature variation (plane curves)
+  double tolerance = 0.0;          // target RMS in data units (0: the weights as given)
+  double fairness_fraction = 0.0;  // scale-free fairness fraction in (0, 1) (0: the weights as given)
+  double geometric_variation = 0.0;
+  bool relative_variation = false;  // the geometric share measured relative to the curvature (eq. F34)  //
+                                    // share of alpha3 on the arc-length curvature variation (plane curves)
   // Show the iterations on a terminal as they run (splines); `batch` turns it off for its objects.
   bool interactive = true;
 };

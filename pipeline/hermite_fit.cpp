@@ -76,6 +76,7 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
     h.tolerance = o.tolerance;
     h.fairness_fraction = o.fairness_fraction;
     h.geometric_variation = o.geometric_variation;
+    h.relative_variation = o.relative_variation;
     h.optimizer.max_iterations = o.max_iterations;
     std::string why;
     if (!h.IsValid(&why)) throw FitFailure(kUsage, "hermite-curve: " + why);
@@ -101,6 +102,7 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
     j["weights"]["given"] = WeightsJson(h.fairness);
     j["weights"]["scale"] = r.weight_scale;
     j["weights"]["geometric_variation"] = h.geometric_variation;
+    j["weights"]["relative_variation"] = h.relative_variation;
     j["tolerance"] = {{"target", h.tolerance}, {"met", r.tolerance_met}};
     if (h.fairness_fraction > 0) {
       const HermiteFitResult::Fraction& f = r.fraction;
@@ -169,7 +171,8 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
            << "; normalized closeness " << Format(r.fraction.closeness, 4) << ", fairness "
            << Format(r.fraction.fairness, 4) << ")";
     if (h.geometric_variation > 0)
-      text << ", " << Format(h.geometric_variation, 4) << " of alpha3 along the arc";
+      text << ", " << Format(h.geometric_variation, 4) << " of alpha3 along the arc"
+           << (h.relative_variation ? " (relative to the curvature)" : "");
     text << "\n  energy            closeness " << Format(r.closeness, 6) << ", stretch "
          << Format(r.energy.alpha1, 6) << ", bending " << Format(r.energy.alpha2, 6) << ", variation "
          << Format(r.energy.alpha3, 6);

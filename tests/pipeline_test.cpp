@@ -80,7 +80,8 @@ TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
             "alpha1, alpha2, alpha3, bending, beta2, beta3, c2, closed, contour, control_points, criterion, "
             "degree, elements, fairness_fraction, fill_height, geometric_variation, growth, initial, "
             "interpolate, loss, max_iterations, method, "
-            "order, pitch, reference, rejected_output, robust, seed, solver, start, step_control, stretch, "
+            "order, pitch, reference, rejected_output, relative_variation, robust, seed, solver, start, "
+            "step_control, stretch, "
             "tolerance, uncertainty, units");
   for (const FitOptionSpec& spec : FitOptionTable()) {
     EXPECT_TRUE(spec.set) << spec.key << spec.names;
@@ -497,6 +498,21 @@ TEST(FitDispatch, HermiteCurveDocumentIsSelfContained) {
   space.file = (dir / "helix.xyz").string();
   ApplyFitOption(*FindManifestOption("closed"), "false", space);
   usage(space, "plane curves only");
+  // --relative-variation: recorded, said in the text, and refused without a geometric share or on another
+  // model.
+  FitOptions relative = geo;
+  ApplyFitOption(*FindManifestOption("relative_variation"), "true", relative);
+  const FitOutcome rel = ComputeFit(relative);
+  EXPECT_TRUE(rel.document["weights"]["relative_variation"].get<bool>());
+  EXPECT_GT(rel.document["energy"]["geometric_variation"].get<double>(), 0.0);
+  EXPECT_NE(rel.text.find("relative to the curvature"), std::string::npos);
+  EXPECT_FALSE(g["weights"]["relative_variation"].get<bool>());
+  FitOptions no_share = o;
+  ApplyFitOption(*FindManifestOption("relative_variation"), "true", no_share);
+  usage(no_share, "geometric variation > 0");
+  FitOptions other_model = no_share;
+  other_model.model = "bspline-curve";
+  usage(other_model, "applies to --model hermite-curve");
 }
 
 }  // namespace
