@@ -816,6 +816,9 @@ Eigen::MatrixXd JacobianOf(const typename Model::Shape& s, const Eigen::Matrix3X
 }
 }  // namespace
 
+Eigen::MatrixXd DistanceJacobian(const Plane& s, const Eigen::Matrix3Xd& p) {
+  return JacobianOf<PlaneLocal>(s, p);
+}
 Eigen::MatrixXd DistanceJacobian(const Sphere& s, const Eigen::Matrix3Xd& p) {
   return JacobianOf<SphereLocal>(s, p);
 }
@@ -848,6 +851,9 @@ Circle3d ApplyIncrement(const Circle3d& s, const Eigen::VectorXd& delta) {
 }
 Torus ApplyIncrement(const Torus& s, const Eigen::VectorXd& delta) {
   return TorusLocal::Update(s, delta);
+}
+Plane ApplyIncrement(const Plane& s, const Eigen::VectorXd& delta) {
+  return PlaneLocal::Update(s, delta);
 }
 Sphere ApplyIncrement(const Sphere& s, const Eigen::VectorXd& delta) {
   return SphereLocal::Update(s, delta);

@@ -138,9 +138,11 @@ PrimitiveFit<Torus> RefineTorus(const PointsRef& points, const Torus& initial,
 // r); cone (u1, u2, a1, b1, psi, s); line (u1, u2, a1, b1); circle (c1, c2, c3, t1, t2, r); torus (u1, u2,
 // w, a1, b1, R, r), all in the shape's local axis frame (docs/metrology.md eqs. 1-3). The line's and the
 // circle's rows are those of the stacked 2-vector residuals (ResidualVector), two per point.
+Eigen::MatrixXd DistanceJacobian(const Plane& s, const Eigen::Matrix3Xd& points);  // (w, t1, t2): PlaneLocal
 Eigen::MatrixXd DistanceJacobian(const Sphere& s, const Eigen::Matrix3Xd& points);
 Eigen::MatrixXd DistanceJacobian(const Cylinder& s, const Eigen::Matrix3Xd& points);
 Eigen::MatrixXd DistanceJacobian(const Cone& s, const Eigen::Matrix3Xd& points);
+Plane ApplyIncrement(const Plane& s, const Eigen::VectorXd& delta);
 Sphere ApplyIncrement(const Sphere& s, const Eigen::VectorXd& delta);
 Cylinder ApplyIncrement(const Cylinder& s, const Eigen::VectorXd& delta);
 Cone ApplyIncrement(const Cone& s, const Eigen::VectorXd& delta);

@@ -65,6 +65,9 @@ Eigen::MatrixXd CovarianceOf(const Shape& shape, const Eigen::Matrix3Xd& points)
 
 }  // namespace
 
+Eigen::MatrixXd LocalParameterCovariance(const Plane& shape, const Eigen::Matrix3Xd& points) {
+  return CovarianceOf(shape, points);
+}
 Eigen::MatrixXd LocalParameterCovariance(const Sphere& shape, const Eigen::Matrix3Xd& points) {
   return CovarianceOf(shape, points);
 }

@@ -38,6 +38,7 @@ Eigen::VectorXd Measurands(const Torus& s, const MeasurandContext& context);
 
 // V = s^2 (J^T J)^+ of the local parameters at `shape` (the least-squares solution for `points`), with
 // s^2 = sum r^2 / (m - p) over the m residuals (2 per point for circles). Empty when m <= p.
+Eigen::MatrixXd LocalParameterCovariance(const Plane& shape, const Eigen::Matrix3Xd& points);
 Eigen::MatrixXd LocalParameterCovariance(const Sphere& shape, const Eigen::Matrix3Xd& points);
 Eigen::MatrixXd LocalParameterCovariance(const Cylinder& shape, const Eigen::Matrix3Xd& points);
 Eigen::MatrixXd LocalParameterCovariance(const Cone& shape, const Eigen::Matrix3Xd& points);

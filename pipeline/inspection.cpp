@@ -100,16 +100,22 @@ ChecksFile ParseChecksFile(const std::string& text, const std::string& file) {
       const std::optional<double> t = number_member("tolerance");
       if (!t || !(*t > 0)) fail(where, "\"tolerance\" (a positive zone width) is required for " + s.type);
       s.tolerance = *t;
-    } else if (s.type == "diameter") {
+    } else if (s.type == "diameter" || s.type == "distance") {
+      if (s.type == "distance") {
+        s.to = text_member("to", true);
+        if (s.to == s.group)
+          fail(where, "a distance check needs two different face groups (\"group\", \"to\")");
+        if (!c.contains("name")) s.name = "distance from " + s.group + " to " + s.to;
+      }
       s.nominal = number_member("nominal");
       const std::optional<double> lo = number_member("lower"), hi = number_member("upper");
       if (!lo || !hi)
-        fail(where, "a diameter check needs \"lower\" and \"upper\" (deviations from the nominal)");
+        fail(where, "a " + s.type + " check needs \"lower\" and \"upper\" (deviations from the nominal)");
       if (*lo > *hi) fail(where, "\"lower\" exceeds \"upper\"");
       s.lower = *lo;
       s.upper = *hi;
     } else {
-      fail(where, "unknown check type \"" + s.type + "\" (profile, flatness, position, diameter)");
+      fail(where, "unknown check type \"" + s.type + "\" (profile, flatness, position, diameter, distance)");
     }
     out.checks.push_back(s);
   }
@@ -133,9 +139,8 @@ GroupPoints PointsOfGroup(const NominalInspection& r, int group) {
   return g;
 }
 
-// The nominal bore of a face group: the least-squares cylinder through the group's vertices (exact for a
-// prism whose vertices lie on the cylinder).
-Cylinder NominalCylinder(const TriangleMesh& mesh, int group, const std::string& check) {
+// The vertices of a face group's triangles, each once.
+Eigen::Matrix3Xd GroupVertices(const TriangleMesh& mesh, int group) {
   std::vector<int> used(static_cast<std::size_t>(mesh.vertices.cols()), 0);
   for (Eigen::Index f = 0; f < mesh.triangle_count(); ++f)
     if (mesh.GroupOf(f) == group)
@@ -143,12 +148,19 @@ Cylinder NominalCylinder(const TriangleMesh& mesh, int group, const std::string&
   std::vector<Eigen::Index> which;
   for (std::size_t i = 0; i < used.size(); ++i)
     if (used[i]) which.push_back(static_cast<Eigen::Index>(i));
-  if (which.size() < 6)
-    throw FitFailure(kInputError,
-                     "check '" + check + "': the nominal's group has too few vertices for a cylinder");
   Eigen::Matrix3Xd v(3, static_cast<Eigen::Index>(which.size()));
   for (std::size_t i = 0; i < which.size(); ++i)
     v.col(static_cast<Eigen::Index>(i)) = mesh.vertices.col(which[i]);
+  return v;
+}
+
+// The nominal bore of a face group: the least-squares cylinder through the group's vertices (exact for a
+// prism whose vertices lie on the cylinder).
+Cylinder NominalCylinder(const TriangleMesh& mesh, int group, const std::string& check) {
+  const Eigen::Matrix3Xd v = GroupVertices(mesh, group);
+  if (v.cols() < 6)
+    throw FitFailure(kInputError,
+                     "check '" + check + "': the nominal's group has too few vertices for a cylinder");
   try {
     return FitCylinder(v).shape;
   } catch (const std::exception& e) {
@@ -171,6 +183,96 @@ double AxisPosition(const Cylinder& actual, const Cylinder& nominal, double t_lo
   return 2 * worst;
 }
 
+// One feature of a distance check (docs/metrology.md eq. 17a): a plane, or a cylinder's axis. `anchor` is
+// the nominal group's area centroid; the feature's reference point is its foot on the plane, or on the axis.
+struct Feature {
+  bool is_plane = true;
+  Plane plane;
+  Cylinder cylinder;
+  Eigen::Vector3d anchor = Eigen::Vector3d::Zero();
+};
+
+// The nominal group as a feature: its vertices on one plane, else on one cylinder, to 1e-6 of the mesh's
+// size (a CAD mesh's planar face or a prism approximating a bore); anything else is refused.
+Feature NominalFeature(const TriangleMesh& mesh, int group, const std::string& check) {
+  Feature f;
+  double area = 0;
+  for (Eigen::Index t = 0; t < mesh.triangle_count(); ++t) {
+    if (mesh.GroupOf(t) != group) continue;
+    const Eigen::Vector3d a = mesh.vertices.col(mesh.triangles(0, t)),
+                          b = mesh.vertices.col(mesh.triangles(1, t)),
+                          c = mesh.vertices.col(mesh.triangles(2, t));
+    const double w = 0.5 * (b - a).cross(c - a).norm();
+    f.anchor += w * (a + b + c) / 3.0;
+    area += w;
+  }
+  const Eigen::Matrix3Xd v = GroupVertices(mesh, group);
+  if (!(area > 0) || v.cols() < 3)
+    throw FitFailure(kInputError, "check '" + check + "': face group '" + mesh.GroupName(group) +
+                                      "' of the nominal has no area");
+  f.anchor /= area;
+  const double tolerance = 1e-6 * std::max(ComputeBounds(mesh.vertices).diagonal(), 1e-300);
+  f.plane = FitPlane(v).shape;
+  f.plane.normal.normalize();
+  if (SignedDistances(f.plane, v).cwiseAbs().maxCoeff() <= tolerance) return f;
+  f.is_plane = false;
+  if (v.cols() >= 6) {
+    try {
+      f.cylinder = FitCylinder(v).shape;
+      f.cylinder.axis_direction.normalize();
+      if (SignedDistances(f.cylinder, v).cwiseAbs().maxCoeff() <= tolerance) return f;
+    } catch (const std::exception&) {
+    }
+  }
+  throw FitFailure(kInputError, "check '" + check + "': face group '" + mesh.GroupName(group) +
+                                    "' of the nominal is neither a plane nor a cylinder (a distance is "
+                                    "measured between planes and cylinders' axes)");
+}
+
+Eigen::Vector3d ReferencePoint(const Feature& f) {
+  if (f.is_plane) return f.anchor - f.plane.normal * f.plane.normal.dot(f.anchor - f.plane.point);
+  const Eigen::Vector3d a = f.cylinder.axis_direction.normalized();
+  return f.cylinder.axis_point + a * a.dot(f.anchor - f.cylinder.axis_point);
+}
+
+// docs/metrology.md eq. 17a: from a plane, the other feature's reference point's distance along its normal;
+// between two axes, the distance of the second's reference point from the first axis.
+double FeatureDistance(const Feature& a, const Feature& b) {
+  if (a.is_plane) return std::abs(a.plane.normal.normalized().dot(ReferencePoint(b) - a.plane.point));
+  if (b.is_plane) return std::abs(b.plane.normal.normalized().dot(ReferencePoint(a) - b.plane.point));
+  const Eigen::Vector3d d = a.cylinder.axis_direction.normalized(),
+                        v = ReferencePoint(b) - a.cylinder.axis_point;
+  return (v - d * d.dot(v)).norm();
+}
+
+// The feature fitted to scanned points: the least-squares plane, or the cylinder refined from the nominal's.
+Feature FitFeature(const Feature& nominal, const Eigen::Matrix3Xd& points) {
+  Feature f = nominal;
+  PrimitiveFitOptions quiet;
+  quiet.record_history = false;
+  if (f.is_plane) {
+    f.plane = FitPlane(points, quiet).shape;
+    f.plane.normal.normalize();
+  } else {
+    f.cylinder = RefineCylinder(points, nominal.cylinder, quiet).shape;
+  }
+  return f;
+}
+
+Eigen::MatrixXd FeatureCovariance(const Feature& f, const Eigen::Matrix3Xd& points) {
+  return f.is_plane ? LocalParameterCovariance(f.plane, points)
+                    : LocalParameterCovariance(f.cylinder, points);
+}
+
+Feature IncrementFeature(const Feature& f, const Eigen::VectorXd& delta) {
+  Feature out = f;
+  if (f.is_plane)
+    out.plane = ApplyIncrement(f.plane, delta);
+  else
+    out.cylinder = ApplyIncrement(f.cylinder, delta);
+  return out;
+}
+
 struct Evaluated {
   double value = NaN();
   double nominal = 0.0;
@@ -183,14 +285,50 @@ struct Evaluated {
 
 // One characteristic from the inspected points; with `linear`, also its standard uncertainty by the law of
 // propagation. `sigma`: the points' noise; `u_pose`: each point's deviation uncertainty from its view's pose.
-Evaluated Evaluate(const CheckSpec& c, int group, const TriangleMesh& mesh, const NominalInspection& r,
-                   double sigma, const Eigen::VectorXd& u_pose, bool linear, const Evaluated* start) {
+Evaluated Evaluate(const CheckSpec& c, int group, int to_group, const TriangleMesh& mesh,
+                   const NominalInspection& r, double sigma, const Eigen::VectorXd& u_pose, bool linear,
+                   const Evaluated* start) {
   const GroupPoints g = PointsOfGroup(r, group);
   Evaluated e;
   if (g.points.cols() < 10)
     throw FitFailure(kFitError, "check '" + c.name + "': only " + std::to_string(g.points.cols()) +
                                     " scanned points lie on face group '" + c.group + "'");
-  if (c.type == "profile") {
+  if (c.type == "distance") {
+    // The features' kinds come from the nominal: a group that is neither a plane nor a cylinder is refused
+    // before its points are counted.
+    const Feature nominal_a = NominalFeature(mesh, group, c.name),
+                  nominal_b = NominalFeature(mesh, to_group, c.name);
+    const GroupPoints h = PointsOfGroup(r, to_group);
+    if (h.points.cols() < 10)
+      throw FitFailure(kFitError, "check '" + c.name + "': only " + std::to_string(h.points.cols()) +
+                                      " scanned points lie on face group '" + c.to + "'");
+    const Feature a = FitFeature(nominal_a, g.points), b = FitFeature(nominal_b, h.points);
+    e.nominal = c.nominal ? *c.nominal : FeatureDistance(nominal_a, nominal_b);
+    e.value = FeatureDistance(a, b);
+    if (linear) {
+      // The two fits use disjoint points: their parameters' covariance is block diagonal (eq. 18).
+      const Eigen::MatrixXd va = FeatureCovariance(a, g.points), vb = FeatureCovariance(b, h.points);
+      if (va.size() > 0 && vb.size() > 0) {
+        const Eigen::Index na = va.rows(), nb = vb.rows();
+        Eigen::MatrixXd v = Eigen::MatrixXd::Zero(na + nb, na + nb);
+        v.topLeftCorner(na, na) = va;
+        v.bottomRightCorner(nb, nb) = vb;
+        e.u_linear = PropagateLinear(
+                         [&](const Eigen::VectorXd& delta) {
+                           return FeatureDistance(IncrementFeature(a, delta.head(na)),
+                                                  IncrementFeature(b, delta.tail(nb)));
+                         },
+                         Eigen::VectorXd::Zero(na + nb), v)
+                         .standard_uncertainty;
+      }
+    }
+    auto kind = [](const Feature& f) { return f.is_plane ? "plane" : "axis"; };
+    e.details = {{"points", g.points.cols()},
+                 {"to_points", h.points.cols()},
+                 {"features", {kind(a), kind(b)}},
+                 {"reference_points", {ToJson(ReferencePoint(a)), ToJson(ReferencePoint(b))}},
+                 {"nominal_from_mesh", FeatureDistance(nominal_a, nominal_b)}};
+  } else if (c.type == "profile") {
     // ISO 1101 profile of a surface (symmetric zone about the nominal): the zone width 2 max |d| that holds
     // every point.
     Eigen::Index worst = 0;
@@ -282,7 +420,7 @@ Evaluated Evaluate(const CheckSpec& c, int group, const TriangleMesh& mesh, cons
 
 Specification SpecOf(const CheckSpec& c, double nominal) {
   Specification s;
-  if (c.type == "diameter") {
+  if (c.type == "diameter" || c.type == "distance") {
     s.lower = nominal + c.lower;
     s.upper = nominal + c.upper;
   } else {
@@ -368,13 +506,17 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
     }
     options.datum_groups.push_back(g);
   }
-  std::vector<int> check_groups;
+  std::vector<int> check_groups, to_groups;
   for (const CheckSpec& c : checks.checks) {
-    const int g = mesh.FindGroup(c.group);
-    if (g < 0)
-      throw FitFailure(kInputError, "check '" + c.name + "' names face group '" + c.group + "', which " +
-                                        o.nominal + " does not have");
-    check_groups.push_back(g);
+    auto find = [&](const std::string& name) {
+      const int g = mesh.FindGroup(name);
+      if (g < 0)
+        throw FitFailure(kInputError, "check '" + c.name + "' names face group '" + name + "', which " +
+                                          o.nominal + " does not have");
+      return g;
+    };
+    check_groups.push_back(find(c.group));
+    to_groups.push_back(c.to.empty() ? -1 : find(c.to));
   }
 
   const TriangleMeshModel nominal(mesh);
@@ -405,7 +547,7 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
   for (std::size_t k = 0; k < checks.checks.size(); ++k) {
     try {
       measured.push_back(
-          Evaluate(checks.checks[k], check_groups[k], mesh, r, sigma, u_pose, linear, nullptr));
+          Evaluate(checks.checks[k], check_groups[k], to_groups[k], mesh, r, sigma, u_pose, linear, nullptr));
     } catch (const FitError& e) {
       throw FitFailure(kFitError, "check '" + checks.checks[k].name + "': " + e.what());
     }
@@ -429,9 +571,9 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
                 InspectAgainstNominal(nominal, perturbed, r.nominal_T_scan, options);
             Eigen::VectorXd y(static_cast<Eigen::Index>(checks.checks.size()));
             for (std::size_t k = 0; k < checks.checks.size(); ++k)
-              y[static_cast<Eigen::Index>(k)] =
-                  Evaluate(checks.checks[k], check_groups[k], mesh, trial, sigma, u_pose, false, &measured[k])
-                      .value;
+              y[static_cast<Eigen::Index>(k)] = Evaluate(checks.checks[k], check_groups[k], to_groups[k],
+                                                         mesh, trial, sigma, u_pose, false, &measured[k])
+                                                    .value;
             return y;
           } catch (const std::exception&) {
             return std::nullopt;
@@ -507,23 +649,24 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
       expanded = ExpandMonteCarlo(mc[k]);
     const Specification spec = SpecOf(c, e.nominal);
     const ConformityDecision decision = DecideConformity(e.value, expanded.expanded, spec);
-    nlohmann::json ch = {{"name", c.name},
-                         {"type", c.type},
-                         {"group", c.group},
-                         {"nominal", e.nominal},
-                         {"actual", e.value},
-                         {"deviation", e.value - e.nominal},
-                         {"lower_limit", spec.lower ? nlohmann::json(*spec.lower) : nlohmann::json(nullptr)},
-                         {"upper_limit", spec.upper ? nlohmann::json(*spec.upper) : nlohmann::json(nullptr)},
-                         {"tolerance", c.type == "diameter" ? c.upper - c.lower : c.tolerance},
-                         {"standard_uncertainty", NumberOrNull(expanded.standard_uncertainty)},
-                         {"expanded_uncertainty", NumberOrNull(expanded.expanded)},
-                         {"coverage_factor", NumberOrNull(expanded.coverage_factor)},
-                         {"uncertainty_method", method.ToString()},
-                         {"verdict", PlainVerdict(e.value, spec)},
-                         {"decision", ToString(decision)},
-                         {"unit", units},
-                         {"details", e.details}};
+    nlohmann::json ch = {
+        {"name", c.name},
+        {"type", c.type},
+        {"group", c.group},
+        {"nominal", e.nominal},
+        {"actual", e.value},
+        {"deviation", e.value - e.nominal},
+        {"lower_limit", spec.lower ? nlohmann::json(*spec.lower) : nlohmann::json(nullptr)},
+        {"upper_limit", spec.upper ? nlohmann::json(*spec.upper) : nlohmann::json(nullptr)},
+        {"tolerance", c.type == "diameter" || c.type == "distance" ? c.upper - c.lower : c.tolerance},
+        {"standard_uncertainty", NumberOrNull(expanded.standard_uncertainty)},
+        {"expanded_uncertainty", NumberOrNull(expanded.expanded)},
+        {"coverage_factor", NumberOrNull(expanded.coverage_factor)},
+        {"uncertainty_method", method.ToString()},
+        {"verdict", PlainVerdict(e.value, spec)},
+        {"decision", ToString(decision)},
+        {"unit", units},
+        {"details", e.details}};
     if (method.kind == UncertaintyMethod::Kind::kMonteCarlo)
       ch["monte_carlo"] = {{"trials", mc[k].trials},
                            {"failed_trials", mc[k].failed_trials},

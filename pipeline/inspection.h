@@ -33,11 +33,12 @@ struct InspectOptions {
 // One characteristic of a checks file.
 struct CheckSpec {
   std::string name;
-  std::string type;                 // profile, flatness, position, diameter
+  std::string type;                 // profile, flatness, position, diameter, distance
   std::string group;                // the nominal's face group it applies to
+  std::string to;                   // distance: the other feature's face group
   double tolerance = 0.0;           // profile, flatness, position: the zone's width
-  std::optional<double> nominal;    // diameter: the nominal size (default: the nominal mesh's)
-  double lower = 0.0, upper = 0.0;  // diameter: deviations allowed from the nominal
+  std::optional<double> nominal;    // diameter, distance: the nominal size (default: the nominal mesh's)
+  double lower = 0.0, upper = 0.0;  // diameter, distance: deviations allowed from the nominal
 };
 
 struct ChecksFile {

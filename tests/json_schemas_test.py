@@ -164,6 +164,8 @@ def make_inspection_inputs(work):
               "checks": [{"name": "top profile", "type": "profile", "group": "top", "tolerance": 0.1},
                          {"name": "top flatness", "type": "flatness", "group": "top", "tolerance": 0.05},
                          {"name": "pin position", "type": "position", "group": "pin", "tolerance": 0.1},
+                         {"name": "pin to px", "type": "distance", "group": "px", "to": "pin", "lower": -0.1,
+                          "upper": 0.1},
                          {"name": "pin diameter", "type": "diameter", "group": "pin", "lower": -0.05,
                           "upper": 0.05}]}
     with open(os.path.join(work, "part.checks.json"), "w") as f:
