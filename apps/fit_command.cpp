@@ -80,9 +80,17 @@ Runner AddFitCommand(CLI::App& app) {
   return [o]() { return RunFit(*o); };
 }
 
-int RunFit(const FitOptions& o) {
+int RunFit(const FitOptions& given) {
+  FitOptions o = given;
+  // Progress of long work on standard error, one line rewritten in place.
+  bool progressed = false;
+  o.progress = [&progressed](const std::string& line) {
+    std::cerr << "\rscan2model fit: " << line << std::flush;
+    progressed = true;
+  };
   try {
     const FitOutcome outcome = ComputeFit(o);
+    if (progressed) std::cerr << "\n";
     for (const std::string& note : outcome.notes) std::cerr << "scan2model fit: note: " << note << "\n";
     if (o.json) {
       std::cout << outcome.document.dump(2) << "\n";
@@ -91,6 +99,7 @@ int RunFit(const FitOptions& o) {
     }
     return kOk;
   } catch (const FitFailure& e) {
+    if (progressed) std::cerr << "\n";
     return ReportError("fit", e.what(), e.exit_code(), o.json);
   }
 }

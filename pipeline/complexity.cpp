@@ -24,10 +24,6 @@ int PositiveCount(const std::string& text, const std::string& whole) {
   return n;
 }
 
-nlohmann::json NumberOrNull(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-}
-
 }  // namespace
 
 ControlPointRequest ParseControlPoints(const std::string& text, bool surface) {

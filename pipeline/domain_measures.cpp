@@ -15,10 +15,6 @@
 namespace s2m::pipeline {
 namespace {
 
-nlohmann::json NumberOrNull(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-}
-
 double NumberOr(const nlohmann::json& j, double fallback) {
   return j.is_number() ? j.get<double>() : fallback;
 }

@@ -180,10 +180,6 @@ Eigen::Matrix3Xd FootPointsOf(const Shape& shape, const Eigen::Matrix3Xd& points
   return points - gradient * d.asDiagonal();
 }
 
-nlohmann::json FiniteOrNull(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-}
-
 // The shapes with measurands (fitting/primitive_measurands.h).
 template <class Shape>
 constexpr bool kHasMeasurands =
@@ -244,42 +240,16 @@ nlohmann::json MeasurandsJson(const Shape& shape, const Eigen::Matrix3Xd& points
   }
   nlohmann::json out = nlohmann::json::array();
   auto add = [&](const std::string& name, double value, double standard, std::size_t mc_index) {
-    ExpandedUncertainty e = ExpandLinear(standard);
-    nlohmann::json m = {{"name", name}, {"value", value}, {"unit", units}, {"method", method.ToString()}};
-    if (method.kind == UncertaintyMethod::Kind::kMonteCarlo && mc_index < mc.size()) {
-      e = ExpandMonteCarlo(mc[mc_index]);
-      m["monte_carlo"] = {{"trials", mc[mc_index].trials},
-                          {"failed_trials", mc[mc_index].failed_trials},
-                          {"mean", FiniteOrNull(mc[mc_index].mean)},
-                          {"interval_low", FiniteOrNull(mc[mc_index].interval_low)},
-                          {"interval_high", FiniteOrNull(mc[mc_index].interval_high)}};
-    }
-    m["standard_uncertainty"] = FiniteOrNull(e.standard_uncertainty);
-    m["expanded_uncertainty"] = FiniteOrNull(e.expanded);
-    m["coverage_factor"] = FiniteOrNull(e.coverage_factor);
-    m["coverage_probability"] = e.coverage_probability;
-    out.push_back(m);
+    out.push_back(MeasurandJson(name, value, units, method, standard,
+                                method.kind == UncertaintyMethod::Kind::kMonteCarlo && mc_index < mc.size()
+                                    ? &mc[mc_index]
+                                    : nullptr));
   };
   for (std::size_t i = 0; i < names.size(); ++i) add(names[i], values[static_cast<Eigen::Index>(i)], u[i], i);
   if (with_zone)
     add(std::string(FormName(shape)) + " (" + ToString(criterion) + ")", zone->zone_width, zone_u,
         names.size());
   return out;
-}
-
-std::string MeasurandsText(const nlohmann::json& measurands) {
-  std::ostringstream text;
-  text << "\n  derived quantities (value, standard uncertainty u, expanded U = k u)\n";
-  for (const auto& m : measurands) {
-    text << "  " << std::left << std::setw(28) << m["name"].get<std::string>()
-         << Format(m["value"].get<double>(), 8) << "  u "
-         << (m["standard_uncertainty"].is_null() ? "-" : Format(m["standard_uncertainty"].get<double>(), 3))
-         << "  U "
-         << (m["expanded_uncertainty"].is_null() ? "-" : Format(m["expanded_uncertainty"].get<double>(), 3))
-         << " (k = " << (m["coverage_factor"].is_null() ? "-" : Format(m["coverage_factor"].get<double>(), 3))
-         << ", " << m["method"].get<std::string>() << ")\n";
-  }
-  return text.str();
 }
 
 template <class Shape, class FitFn>

@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -29,7 +30,10 @@ struct FitOptions {
   std::string units;
   int max_iterations = 200;
   bool json = false;
-  bool verbose = false;            // print the per-iteration history table
+  bool verbose = false;  // print the per-iteration history table
+  // Told the progress of long work (the Monte Carlo trials of a multi-view fit) as a line that replaces the
+  // previous one; empty: silent.
+  std::function<void(const std::string&)> progress;
   bool joint = false;              // multi-view: the joint method, stated explicitly (it is the default)
   bool alternating = false;        // multi-view: the alternating baseline instead of the joint method
   bool register_then_fit = false;  // multi-view: one shared motion only (fit the pre-registered cloud)

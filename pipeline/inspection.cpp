@@ -38,10 +38,6 @@ double NaN() {
   return std::numeric_limits<double>::quiet_NaN();
 }
 
-nlohmann::json NumberOrNull(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-}
-
 }  // namespace
 
 ChecksFile ParseChecksFile(const std::string& text, const std::string& file) {

@@ -84,10 +84,6 @@ struct StartReport {
   FairnessWeights fairness;
 };
 
-nlohmann::json NumberOrNull(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-}
-
 nlohmann::json StartJson(const StartReport& s, KinematicKind kind) {
   nlohmann::json j = {{"mode", s.mode},
                       {"searched", s.searched},
@@ -189,6 +185,13 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     const int n = request.automatic ? o.order + 1
                                     : (coarse_first ? std::min(request.first, o.order + 2) : request.first);
     const int max_control_points = request.max > 0 ? request.max : std::max(40, request.first);
+    UncertaintyMethod method;
+    try {
+      method = UncertaintyMethod::FromString(o.uncertainty);
+      method.seed = o.seed;
+    } catch (const std::invalid_argument& e) {
+      throw FitFailure(kUsage, std::string("--uncertainty: ") + e.what());
+    }
     const KinematicKind kind = o.model == "revolution" ? KinematicKind::kRevolution
                                : o.model == "helical"  ? KinematicKind::kHelical
                                                        : KinematicKind::kSpiral;
@@ -609,6 +612,113 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       }
       j["vessel"] = vessel->ToJson();
     }
+    // The derived quantities with the asked uncertainty method (docs/metrology.md section 7a): linear from
+    // the joint fit's shape covariance (as above), or Monte Carlo by refitting the whole joint fit (every
+    // view's pose and the surface) to perturbed feet, at the chosen complexity.
+    std::string measurands_text;
+    if (method.kind != UncertaintyMethod::Kind::kNone) {
+      struct Derived {
+        std::string name;
+        double value, linear_u;
+        std::string unit;
+      };
+      std::vector<Derived> derived;
+      // The same quantities of a refitted model (the base end as decided for the fit).
+      const double up_sign = axis_direction.z() < 0 ? -1.0 : 1.0;
+      const bool base_at_start = up_sign * samples.front()[0] <= up_sign * samples.back()[0];
+      auto quantities_of = [&](const ParametricModel& m) {
+        std::vector<double> y;
+        if (const auto* k = dynamic_cast<const KinematicSurface*>(&m)) {
+          if (vessel) {
+            const double r_lo = k->ProfilePoint(k->basis().lo()).x(),
+                         r_hi = k->ProfilePoint(k->basis().hi()).x();
+            y.push_back(2 * (base_at_start ? r_hi : r_lo));
+            y.push_back(2 * (base_at_start ? r_lo : r_hi));
+            y.push_back(k->EnclosedVolume(-std::numeric_limits<double>::infinity(),
+                                          std::numeric_limits<double>::infinity()));
+          }
+          if (k->helical()) y.push_back(k->pitch());
+        } else if (const auto* sp = dynamic_cast<const SpiralSurface*>(&m)) {
+          y.push_back(sp->growth());
+          y.push_back(sp->WhorlExpansionRate());
+        }
+        return y;
+      };
+      if (vessel) {
+        derived.push_back(
+            {"rim diameter", vessel->rim_diameter.value, vessel->rim_diameter.uncertainty, units});
+        derived.push_back(
+            {"base diameter", vessel->base_diameter.value, vessel->base_diameter.uncertainty, units});
+        derived.push_back({"volume", vessel->volume.value, vessel->volume.uncertainty, units + "^3"});
+      }
+      if (kinematic && kinematic->helical())
+        derived.push_back({"pitch", kinematic->pitch(), UncertaintyOf(*model, r, "pitch"), units + "/rad"});
+      if (spiral) {
+        const ShellMeasures shell =
+            MeasureShell(spiral->growth(), UncertaintyOf(*model, r, "growth"), spiral->WhorlExpansionRate());
+        derived.push_back({"growth", shell.growth.value, shell.growth.uncertainty, "1/rad"});
+        derived.push_back({"whorl expansion rate", shell.whorl_expansion_rate.value,
+                           shell.whorl_expansion_rate.uncertainty, ""});
+      }
+      std::vector<MonteCarloSummary> mc;
+      if (method.kind == UncertaintyMethod::Kind::kMonteCarlo) {
+        if (!(std::isfinite(noise.sigma) && noise.sigma > 0))
+          throw FitFailure(kFitError,
+                           o.file + ": --uncertainty " + method.ToString() +
+                               ": the views' noise could not be estimated (too few neighbourhoods)");
+        // Trial data: every point's foot on the fitted surface, in its view's coordinates, moved along the
+        // view's normal there by the views' noise (eq. 21); points left out as off the surface stay as they
+        // are (they stay left out).
+        const std::vector<Eigen::Matrix3Xd> view_normals = ViewNormals(set);
+        std::vector<Eigen::Matrix3Xd> view_feet;
+        Eigen::Index at = 0;
+        for (std::size_t k = 0; k < K; ++k) {
+          view_feet.push_back(r.model_T_scan[k].inverse().apply(feet.middleCols(at, scans[k].cols())));
+          at += scans[k].cols();
+        }
+        JointFitOptions trial_options = options;
+        trial_options.fairness = fitted.fairness;
+        trial_options.left_out = report.left_out_masks;
+        int done = 0;
+        mc = RunMonteCarlo(
+            method.trials, method.seed, [&](int, std::mt19937_64& random) -> std::optional<Eigen::VectorXd> {
+              std::normal_distribution<double> normal(0.0, noise.sigma);
+              std::vector<Eigen::Matrix3Xd> trial = scans;
+              for (std::size_t k = 0; k < K; ++k) {
+                const bool has_normals = view_normals[k].cols() == scans[k].cols();
+                for (Eigen::Index i = 0; i < scans[k].cols(); ++i) {
+                  if (!report.left_out_masks.empty() && report.left_out_masks[k][static_cast<std::size_t>(i)])
+                    continue;
+                  Eigen::Vector3d along = has_normals
+                                              ? Eigen::Vector3d(view_normals[k].col(i))
+                                              : Eigen::Vector3d(scans[k].col(i) - view_feet[k].col(i));
+                  if (along.norm() > 0) along.normalize();
+                  trial[k].col(i) = view_feet[k].col(i) + normal(random) * along;
+                }
+              }
+              std::optional<Eigen::VectorXd> y;
+              try {
+                std::unique_ptr<ParametricModel> m = model->Clone();
+                RefinableGeneratrixFit refit(*m, trial, r.model_T_scan, trial_options, max_control_points);
+                refit.Fit();
+                const std::vector<double> q = quantities_of(*m);
+                y = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size()));
+              } catch (const std::exception&) {
+              }
+              ++done;
+              if (o.progress)
+                o.progress("Monte Carlo: trial " + std::to_string(done) + " of " +
+                           std::to_string(method.trials));
+              return y;
+            });
+      }
+      nlohmann::json measurands = nlohmann::json::array();
+      for (std::size_t i = 0; i < derived.size(); ++i)
+        measurands.push_back(MeasurandJson(derived[i].name, derived[i].value, derived[i].unit, method,
+                                           derived[i].linear_u, i < mc.size() ? &mc[i] : nullptr));
+      j["measurands"] = measurands;
+      measurands_text = MeasurandsText(measurands);
+    }
     MarkUncertainties(j, trusted);
     WriteRequestedFiles(o, j, r);
     if (vessel && !o.output.empty()) WriteProfileFiles(o.output, *vessel);
@@ -645,7 +755,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     text << ViewsTable(j["views"]) << UnobservableText(r);
     if (o.verbose) text << HistoryTable(r.history);
     if (vessel) text << vessel->Text(trusted);
-    text << adequacy.Text();
+    text << measurands_text << adequacy.Text();
     outcome.text = text.str();
     return outcome;
   } catch (const FormatError& e) {

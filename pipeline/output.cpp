@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -154,6 +155,45 @@ int ReportError(const std::string& command, const std::string& message, int exit
               << "\n";
   }
   return exit_code;
+}
+
+nlohmann::json NumberOrNull(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
+nlohmann::json MeasurandJson(const std::string& name, double value, const std::string& unit,
+                             const UncertaintyMethod& method, double linear_standard_uncertainty,
+                             const MonteCarloSummary* monte_carlo) {
+  ExpandedUncertainty e = ExpandLinear(linear_standard_uncertainty);
+  nlohmann::json m = {{"name", name}, {"value", value}, {"unit", unit}, {"method", method.ToString()}};
+  if (monte_carlo) {
+    e = ExpandMonteCarlo(*monte_carlo);
+    m["monte_carlo"] = {{"trials", monte_carlo->trials},
+                        {"failed_trials", monte_carlo->failed_trials},
+                        {"mean", NumberOrNull(monte_carlo->mean)},
+                        {"interval_low", NumberOrNull(monte_carlo->interval_low)},
+                        {"interval_high", NumberOrNull(monte_carlo->interval_high)}};
+  }
+  m["standard_uncertainty"] = NumberOrNull(e.standard_uncertainty);
+  m["expanded_uncertainty"] = NumberOrNull(e.expanded);
+  m["coverage_factor"] = NumberOrNull(e.coverage_factor);
+  m["coverage_probability"] = e.coverage_probability;
+  return m;
+}
+
+std::string MeasurandsText(const nlohmann::json& measurands) {
+  std::ostringstream text;
+  text << "\n  derived quantities (value, standard uncertainty u, expanded U = k u)\n";
+  for (const auto& m : measurands) {
+    text << "  " << std::left << std::setw(28) << m["name"].get<std::string>()
+         << Format(m["value"].get<double>(), 8) << "  u "
+         << (m["standard_uncertainty"].is_null() ? "-" : Format(m["standard_uncertainty"].get<double>(), 3))
+         << "  U "
+         << (m["expanded_uncertainty"].is_null() ? "-" : Format(m["expanded_uncertainty"].get<double>(), 3))
+         << " (k = " << (m["coverage_factor"].is_null() ? "-" : Format(m["coverage_factor"].get<double>(), 3))
+         << ", " << m["method"].get<std::string>() << ")\n";
+  }
+  return text.str();
 }
 
 }  // namespace s2m::pipeline

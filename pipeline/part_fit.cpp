@@ -58,10 +58,6 @@ Reported Report(const PartParameter& p, double value, double uncertainty, const 
   return {value * k, uncertainty * k, p.value * k, p.angle ? "deg" : units};
 }
 
-nlohmann::json NumberOrNull(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-}
-
 // The correlation matrix of the shape parameters; empty when there is no covariance (too few points). Rows
 // and columns of parameters without a finite uncertainty (unobservable) are NaN.
 Eigen::MatrixXd Correlation(const Eigen::MatrixXd& covariance, const std::vector<Reported>& parameters) {

@@ -138,6 +138,50 @@ TEST(VesselVolume, StandardizedErrorsOverTwoHundredPotsHaveUnitSpread) {
   EXPECT_LT(std::abs(mean), 4.0 * sd / std::sqrt(static_cast<double>(trials)));
 }
 
+TEST(VesselVolume, MonteCarloAgreesWithTheLinearUncertaintiesOfTheDerivedQuantities) {
+  // --uncertainty monte-carlo:N refits the whole joint fit N times to perturbed feet (docs/metrology.md
+  // section 7a). On the noisy pot the volume is near-linear in the data: the two standard uncertainties agree
+  // within 10 % plus the Monte Carlo estimate's own sampling error (1 / sqrt(2 N), 5 % at N = 200), the bound
+  // of docs/metrology.md section 7's primitive test.
+  const fs::path pot = WritePot("mc", 6000, 0.05, 7u);
+  auto fit = [&](const std::string& method) {
+    pipeline::FitOptions o;
+    o.file = pot.string();
+    o.model = "revolution";
+    o.interactive = false;
+    pipeline::ApplyFitOption(*pipeline::FindManifestOption("uncertainty"), method, o);
+    return pipeline::ComputeFit(o);
+  };
+  const pipeline::FitOutcome linear = fit("linear"), mc = fit("monte-carlo:200");
+  const nlohmann::json &l = linear.document.at("measurands"), &m = mc.document.at("measurands");
+  ASSERT_EQ(l.size(), 3u);
+  ASSERT_EQ(m.size(), 3u);
+  const char* names[3] = {"rim diameter", "base diameter", "volume"};
+  const char* keys[3] = {"rim_diameter", "base_diameter", "volume"};
+  for (int k = 0; k < 3; ++k) {
+    SCOPED_TRACE(names[k]);
+    EXPECT_EQ(l[k].at("name"), names[k]);
+    EXPECT_EQ(m[k].at("name"), names[k]);
+    // The values are the vessel's, the linear u its reported one (k = 2).
+    EXPECT_EQ(l[k].at("value").get<double>(), linear.document.at("vessel").at(keys[k]).get<double>());
+    EXPECT_EQ(l[k].at("standard_uncertainty").get<double>(),
+              linear.document.at("vessel").at(std::string(keys[k]) + "_uncertainty").get<double>());
+    EXPECT_EQ(l[k].at("coverage_factor").get<double>(), 2.0);
+    EXPECT_EQ(m[k].at("monte_carlo").at("trials").get<int>() +
+                  m[k].at("monte_carlo").at("failed_trials").get<int>(),
+              200);
+    EXPECT_GT(m[k].at("standard_uncertainty").get<double>(), 0.0);
+    std::cout << names[k] << ": linear u " << l[k].at("standard_uncertainty") << ", Monte Carlo u "
+              << m[k].at("standard_uncertainty") << "\n";
+  }
+  const double ratio =
+      m[2].at("standard_uncertainty").get<double>() / l[2].at("standard_uncertainty").get<double>();
+  EXPECT_GT(ratio, 1.0 - 0.1 - 2 * 0.05);
+  EXPECT_LT(ratio, 1.0 + 0.1 + 2 * 0.05);
+  EXPECT_NE(mc.text.find("derived quantities"), std::string::npos);
+  EXPECT_NE(mc.text.find("monte-carlo:200"), std::string::npos);
+}
+
 TEST(VesselVolume, OtherModelsRefuseTheFillHeight) {
   pipeline::FitOptions o;
   o.file = WritePot("exact", 600, 0.0, 1u).string();
