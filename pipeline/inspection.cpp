@@ -604,9 +604,23 @@ InspectOutcome ComputeInspection(const InspectOptions& o) {
   }
   nlohmann::json datums = nlohmann::json::array();
   for (const std::string& d : datum_names) datums.push_back(d);
+  // The scanned points on each datum face: a datum the scan barely sees holds the registration weakly in
+  // the directions only it constrains (its points' noise then moves the whole part), which the result
+  // must say. 10 points: the fewest a check measures a face group by (Evaluate).
+  nlohmann::json datum_points = nlohmann::json::object();
+  for (std::size_t k = 0; k < datum_names.size(); ++k) {
+    const int g = options.datum_groups[k];
+    const auto count = std::count(r.group.begin(), r.group.end(), g);
+    datum_points[datum_names[k]] = count;
+    if (count < 10)
+      outcome.notes.push_back("datum '" + datum_names[k] + "' has only " + std::to_string(count) +
+                              " scanned points: the registration rests on the other datums in the directions "
+                              "it alone constrains; scan it or choose another datum");
+  }
   j["registration"] = {{"method", ToString(options.registration.error_term)},
                        {"per_view", options.per_view},
                        {"datums", datums},
+                       {"datum_points", datum_points},
                        {"points_used", r.registration_points},
                        {"common_correction_rotation_deg", r.common_correction.angle() * kRadToDeg},
                        {"common_correction_translation", r.common_correction.translation().norm()},

@@ -190,6 +190,21 @@ TEST(InspectCommand, DistancesBetweenPlanesAndAxesWithTheirUncertainty) {
   refused(R"({"type": "distance", "group": "px", "to": "pin_ends", "lower": -1, "upper": 1})",
           "'pin_ends' of the nominal is neither a plane nor a cylinder");
   refused(R"({"type": "distance", "group": "px", "lower": -1, "upper": 1})", "missing \"to\"");
+  // A datum the scan does not see (the bottom) is said, with the points each datum holds in the JSON.
+  const test::ShellResult unseen =
+      test::Shell(test::Quote({S2M_CLI_PATH, "inspect", "--nominal", (dir / "part.stl").string(),
+                               (dir / "scan.ply").string(), "--datum", "top", "--datum", "bottom", "--datum",
+                               "mx", "--json"}),
+                  false);
+  ASSERT_EQ(unseen.exit_code, 0) << unseen.out;
+  const nlohmann::json u = nlohmann::json::parse(unseen.out);
+  // (a few side points at the bottom edge lie nearest the bottom face)
+  EXPECT_LT(u["registration"]["datum_points"]["bottom"].get<int>(), 10);
+  EXPECT_GT(u["registration"]["datum_points"]["top"].get<int>(), 500);
+  const test::ShellResult noted = test::Shell(
+      test::Quote({S2M_CLI_PATH, "inspect", "--nominal", (dir / "part.stl").string(),
+                   (dir / "scan.ply").string(), "--datum", "top", "--datum", "bottom", "--datum", "mx"}));
+  EXPECT_NE(noted.out.find("datum 'bottom' has only "), std::string::npos) << noted.out;
   refused(R"({"type": "distance", "group": "px", "to": "px", "lower": -1, "upper": 1})", "two different");
   fs::remove_all(dir);
 }
