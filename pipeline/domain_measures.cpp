@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -721,9 +722,139 @@ std::string ProfileSvg(const VesselMeasures& v) {
   return s.str();
 }
 
+namespace {
+
+// DXF R12 group codes, one pair per two lines (AutoCAD DXF reference: group code, then value).
+class DxfWriter {
+ public:
+  void Pair(int code, const std::string& value) { out_ << code << "\n" << value << "\n"; }
+  // Coordinates to 12 significant digits (whatever the units), never "-0".
+  void Pair(int code, double value) {
+    char buffer[32];
+    std::snprintf(buffer, sizeof buffer, "%.12g", value == 0.0 ? 0.0 : value);
+    Pair(code, std::string(buffer));
+  }
+  void Line(const std::string& layer, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    Pair(0, "LINE");
+    Pair(8, layer);
+    Pair(10, a.x());
+    Pair(20, a.y());
+    Pair(30, 0.0);
+    Pair(11, b.x());
+    Pair(21, b.y());
+    Pair(31, 0.0);
+  }
+  void Polyline(const std::string& layer, const std::vector<Eigen::Vector2d>& points) {
+    Pair(0, "POLYLINE");
+    Pair(8, layer);
+    Pair(66, "1");  // vertices follow
+    Pair(10, 0.0);
+    Pair(20, 0.0);
+    Pair(30, 0.0);
+    for (const Eigen::Vector2d& p : points) {
+      Pair(0, "VERTEX");
+      Pair(8, layer);
+      Pair(10, p.x());
+      Pair(20, p.y());
+      Pair(30, 0.0);
+    }
+    Pair(0, "SEQEND");
+    Pair(8, layer);
+  }
+  void Text(const std::string& layer, const Eigen::Vector2d& at, double height, const std::string& text) {
+    Pair(0, "TEXT");
+    Pair(8, layer);
+    Pair(10, at.x());
+    Pair(20, at.y());
+    Pair(30, 0.0);
+    Pair(40, height);
+    Pair(1, text);
+  }
+  std::string str() const { return out_.str(); }
+
+ private:
+  std::ostringstream out_;
+};
+
+}  // namespace
+
+std::string ProfileDxf(const VesselMeasures& v) {
+  double max_r = 0, min_h = 0, max_h = 0;
+  for (const ProfileSample& row : v.profile) {
+    max_r = std::max(max_r, row.radius);
+    min_h = std::min(min_h, row.height_above_base);
+    max_h = std::max(max_h, row.height_above_base);
+  }
+  const double text_height = std::max(0.03 * std::max(max_h - min_h, 2 * max_r), 1e-6);
+  DxfWriter dxf;
+  dxf.Pair(999, "scan2model vessel profile, units " + v.units + " (1 drawing unit = 1 " + v.units + ")");
+  dxf.Pair(0, "SECTION");
+  dxf.Pair(2, "HEADER");
+  dxf.Pair(9, "$ACADVER");
+  dxf.Pair(1, "AC1009");
+  dxf.Pair(0, "ENDSEC");
+  dxf.Pair(0, "SECTION");
+  dxf.Pair(2, "ENTITIES");
+  dxf.Line("AXIS", {0, min_h - 2 * text_height}, {0, max_h + text_height});
+  std::vector<Eigen::Vector2d> section, exterior;
+  for (const ProfileSample& row : v.profile) {
+    section.emplace_back(-row.radius, row.height_above_base);
+    exterior.emplace_back(row.radius, row.height_above_base);
+  }
+  dxf.Polyline("SECTION", section);
+  dxf.Polyline("EXTERIOR", exterior);
+  const Eigen::Vector2d base = exterior.front(), rim = exterior.back();
+  dxf.Line("RIM", {-rim.x(), rim.y()}, rim);
+  dxf.Text("TEXT", {0, rim.y() + 0.5 * text_height}, text_height,
+           "rim diameter " + Format(2 * rim.x(), 5) + " " + v.units);
+  dxf.Line("BASE", {-base.x(), base.y()}, base);
+  dxf.Text("TEXT", {0, base.y() - 1.5 * text_height}, text_height,
+           "base diameter " + Format(2 * base.x(), 5) + " " + v.units);
+  const std::vector<double> ticks = svg::NiceTicks(0, 2 * max_r, 5);
+  const double bar = ticks.size() > 1 ? ticks[1] - ticks[0] : max_r;
+  const double bar_y = min_h - 4 * text_height;
+  dxf.Line("SCALE", {-max_r, bar_y}, {-max_r + bar, bar_y});
+  dxf.Text("SCALE", {-max_r + bar + 0.5 * text_height, bar_y}, text_height, Format(bar, 4) + " " + v.units);
+  dxf.Pair(0, "ENDSEC");
+  dxf.Pair(0, "EOF");
+  return dxf.str();
+}
+
+std::string ProfileKotyleCsv(const VesselMeasures& v) {
+  std::ostringstream csv;
+  csv.precision(12);
+  csv << "x,y\n";
+  for (auto row = v.profile.rbegin(); row != v.profile.rend(); ++row)
+    csv << row->radius << ',' << row->height_above_base << '\n';
+  return csv.str();
+}
+
+std::string ProfileGeoJson(const VesselMeasures& v) {
+  nlohmann::json line = nlohmann::json::array();
+  for (auto row = v.profile.rbegin(); row != v.profile.rend(); ++row)
+    line.push_back({row->radius, row->height_above_base});
+  nlohmann::json properties = {
+      {"units", v.units},
+      {"convention", "rim first; x radius, y height above the base; base centre at 0,0"},
+      {"rim_diameter", v.rim_diameter.value},
+      {"base_diameter", v.base_diameter.value},
+      {"height", v.height.value},
+      {"rim_diameter_uncertainty", NumberOrNull(v.rim_diameter.uncertainty)},
+      {"base_diameter_uncertainty", NumberOrNull(v.base_diameter.uncertainty)},
+      {"volume", NumberOrNull(v.volume.value)},
+      {"volume_uncertainty", NumberOrNull(v.volume.uncertainty)}};
+  const nlohmann::json feature = {{"type", "Feature"},
+                                  {"geometry", {{"type", "LineString"}, {"coordinates", line}}},
+                                  {"properties", properties}};
+  return feature.dump(1) + "\n";
+}
+
 void WriteProfileFiles(const std::string& prefix, const VesselMeasures& vessel) {
   WriteTextAtomically(prefix + "_profile.csv", ProfileCsv(vessel));
   WriteTextAtomically(prefix + "_profile.svg", ProfileSvg(vessel));
+  WriteTextAtomically(prefix + "_profile.dxf", ProfileDxf(vessel));
+  WriteTextAtomically(prefix + "_profile_kotyle.csv", ProfileKotyleCsv(vessel));
+  WriteTextAtomically(prefix + "_profile.geojson", ProfileGeoJson(vessel));
 }
 
 }  // namespace s2m::pipeline

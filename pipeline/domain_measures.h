@@ -237,7 +237,18 @@ std::string ProfileCsv(const VesselMeasures& vessel);
 // the axis, the vessel's outline mirrored right of it as a thin line, rim and base marked by horizontal lines
 // with their diameters, a scale bar.
 std::string ProfileSvg(const VesselMeasures& vessel);
-// Writes PREFIX_profile.csv and PREFIX_profile.svg (atomically).
+// The same drawing as DXF (AutoCAD R12, ASCII; docs/archaeology.md section 6), in the vessel's units (1
+// drawing unit = 1 unit): x across the axis, y the height above the base; layers AXIS, SECTION (the profile,
+// x <= 0), EXTERIOR (its mirror), RIM, BASE, SCALE and TEXT.
+std::string ProfileDxf(const VesselMeasures& vessel);
+// The profile in the rim-first, base-at-origin convention of Kotyle (docs/archaeology.md section 6): points
+// from the rim down to the base, x the radius, y the height above the base (the base's centre at the origin),
+// as CSV (x,y) and as a GeoJSON Feature (a LineString in the vessel's units, not geographic coordinates, with
+// the measures as properties).
+std::string ProfileKotyleCsv(const VesselMeasures& vessel);
+std::string ProfileGeoJson(const VesselMeasures& vessel);
+// Writes PREFIX_profile.csv, PREFIX_profile.svg, PREFIX_profile.dxf, PREFIX_profile_kotyle.csv and
+// PREFIX_profile.geojson (each atomically).
 void WriteProfileFiles(const std::string& prefix, const VesselMeasures& vessel);
 
 }  // namespace s2m::pipeline

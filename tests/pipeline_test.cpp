@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "acquisition/format_error.h"
 #include "pipeline/batch.h"
@@ -246,6 +247,44 @@ TEST(DomainMeasures, VesselFromAnAxisPointingDown) {
   EXPECT_NE(full.Text().find("1 of 2 bands resolved"), std::string::npos) << full.Text();
   EXPECT_NE(ProfileCsv(v).find("height_above_base,radius,radius_uncertainty\n0,"), std::string::npos);
   EXPECT_NE(ProfileSvg(v).find("rim &#216; 6 mm"), std::string::npos) << ProfileSvg(v);
+  // The DXF drawing: R12 group-code pairs, the section left of the axis (every SECTION vertex at x <= 0,
+  // the exterior mirrored at x >= 0), the rim line at the top; read back pair by pair.
+  {
+    std::istringstream in(ProfileDxf(v));
+    std::string code, value, entity, layer;
+    std::vector<std::pair<std::string, std::string>> pairs;
+    while (std::getline(in, code) && std::getline(in, value)) pairs.emplace_back(code, value);
+    ASSERT_GT(pairs.size(), 20u);
+    EXPECT_EQ(pairs.back(), std::make_pair(std::string("0"), std::string("EOF")));
+    int section_vertices = 0, exterior_vertices = 0;
+    for (std::size_t i = 0; i < pairs.size(); ++i) {
+      if (pairs[i].first == "0") entity = pairs[i].second;
+      if (pairs[i].first == "8") layer = pairs[i].second;
+      if (entity == "VERTEX" && pairs[i].first == "10") {
+        const double x = std::stod(pairs[i].second);
+        if (layer == "SECTION") {
+          ++section_vertices;
+          EXPECT_LE(x, 0.0);
+        } else if (layer == "EXTERIOR") {
+          ++exterior_vertices;
+          EXPECT_GE(x, 0.0);
+        }
+      }
+    }
+    EXPECT_EQ(section_vertices, 11);
+    EXPECT_EQ(exterior_vertices, 11);
+    EXPECT_NE(ProfileDxf(v).find("rim diameter 6 mm"), std::string::npos);
+  }
+  // Kotyle's convention: rim first, base at the origin.
+  EXPECT_EQ(ProfileKotyleCsv(v).substr(0, 15), "x,y\n3,10\n2.9,9\n");
+  EXPECT_EQ(ProfileKotyleCsv(v).substr(ProfileKotyleCsv(v).size() - 4), "2,0\n");
+  const nlohmann::json geo = nlohmann::json::parse(ProfileGeoJson(v));
+  EXPECT_EQ(geo["type"], "Feature");
+  EXPECT_EQ(geo["geometry"]["type"], "LineString");
+  ASSERT_EQ(geo["geometry"]["coordinates"].size(), 11u);
+  EXPECT_EQ(geo["geometry"]["coordinates"][0], nlohmann::json::array({3.0, 10.0}));
+  EXPECT_EQ(geo["geometry"]["coordinates"][10], nlohmann::json::array({2.0, 0.0}));
+  EXPECT_EQ(geo["properties"]["rim_diameter"].get<double>(), 6.0);
   EXPECT_THROW(MeasureVessel(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), {{0, 1}}, {}, "mm"),
                std::invalid_argument);
 }
