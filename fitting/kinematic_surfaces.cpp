@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -541,6 +542,30 @@ SpiralSurface::SpiralSurface(BSplineBasis basis, Eigen::Matrix2Xd profile, doubl
 
 double SpiralSurface::WhorlExpansionRate() const {
   return std::exp(2.0 * M_PI * growth_);
+}
+
+SpiralSurface::Raup SpiralSurface::RaupParameters() const {
+  double r_min = std::numeric_limits<double>::infinity(), r_max = -r_min, z_min = r_min, z_max = -r_min;
+  BSplineBasis::Values values;
+  constexpr int kSamples = 2001;
+  for (int i = 0; i < kSamples; ++i) {
+    const double u = basis_.lo() + (basis_.hi() - basis_.lo()) * i / (kSamples - 1);
+    basis_.Evaluate(u, 0, values);
+    Eigen::Vector2d rz = Eigen::Vector2d::Zero();
+    for (int k = 0; k < basis_.order(); ++k)
+      rz +=
+          values.values[0][static_cast<std::size_t>(k)] * profile_.col(basis_.ControlIndex(values.first, k));
+    r_min = std::min(r_min, rz.x());
+    r_max = std::max(r_max, rz.x());
+    z_min = std::min(z_min, rz.y());
+    z_max = std::max(z_max, rz.y());
+  }
+  Raup out;
+  out.w = WhorlExpansionRate();
+  out.d = r_min >= 0 && r_max > 0 ? r_min / r_max : std::numeric_limits<double>::quiet_NaN();
+  const double r_c = 0.5 * (r_min + r_max), z_c = 0.5 * (z_min + z_max);
+  out.t = r_c > 0 ? z_c / r_c : std::numeric_limits<double>::quiet_NaN();
+  return out;
 }
 
 ParameterDomain SpiralSurface::domain() const {

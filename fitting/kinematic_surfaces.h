@@ -100,6 +100,16 @@ class SpiralSurface final : public ParametricModel {
   const Eigen::Matrix2Xd& profile() const { return profile_; }
   double growth() const { return growth_; }
   double WhorlExpansionRate() const;
+  // Raup's coiling parameters of the surface (docs/archaeology.md section 7): W = exp(2 pi p); D = r_min /
+  // r_max, the generating curve's inner edge over its outer edge (distances from the axis); T = z_c / r_c,
+  // the axial over the radial coordinate of the generating curve's centre (the middle of its extent in r
+  // and z) seen from the spiral's apex, the frame's origin. On a logarithmic spiral every point moves along
+  // a ray from the apex, so T is Raup's translation dz/dr of the centre along the coil and D and T are the
+  // same at every v. Extents by 2001 samples of the generatrix. D is NaN when the curve crosses the axis.
+  struct Raup {
+    double w = 0.0, d = 0.0, t = 0.0;
+  };
+  Raup RaupParameters() const;
 
   std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<SpiralSurface>(*this); }
   void CopyFrom(const ParametricModel& other) override { *this = dynamic_cast<const SpiralSurface&>(other); }

@@ -591,10 +591,16 @@ ShellMeasures MeasureShell(double growth, double growth_uncertainty, double whor
 }
 
 nlohmann::json ShellMeasures::ToJson() const {
-  return {{"value", growth.value},
-          {"uncertainty", NumberOrNull(growth.uncertainty)},
-          {"whorl_expansion_rate", whorl_expansion_rate.value},
-          {"whorl_expansion_rate_uncertainty", NumberOrNull(whorl_expansion_rate.uncertainty)}};
+  nlohmann::json j = {{"value", growth.value},
+                      {"uncertainty", NumberOrNull(growth.uncertainty)},
+                      {"whorl_expansion_rate", whorl_expansion_rate.value},
+                      {"whorl_expansion_rate_uncertainty", NumberOrNull(whorl_expansion_rate.uncertainty)}};
+  if (std::isfinite(raup_d.value) || std::isfinite(raup_t.value))
+    j["raup"] = {
+        {"w", whorl_expansion_rate.value}, {"w_uncertainty", NumberOrNull(whorl_expansion_rate.uncertainty)},
+        {"d", NumberOrNull(raup_d.value)}, {"d_uncertainty", NumberOrNull(raup_d.uncertainty)},
+        {"t", NumberOrNull(raup_t.value)}, {"t_uncertainty", NumberOrNull(raup_t.uncertainty)}};
+  return j;
 }
 
 ToleranceCheck CheckTolerance(double deviation, double tolerance, double uncertainty) {

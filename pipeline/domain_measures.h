@@ -207,7 +207,11 @@ HelixMeasures MeasureHelix(double pitch, double pitch_uncertainty, const std::st
 struct ShellMeasures {
   Measure growth;                // 1/rad
   Measure whorl_expansion_rate;  // dimensionless
-  // {value, uncertainty, whorl_expansion_rate, whorl_expansion_rate_uncertainty}
+  // Raup's D and T (docs/archaeology.md section 7; W is the whorl expansion rate); NaN: not measured.
+  Measure raup_d{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(), ""};
+  Measure raup_t{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(), ""};
+  // {value, uncertainty, whorl_expansion_rate, whorl_expansion_rate_uncertainty, raup {w, d, d_uncertainty,
+  // t, t_uncertainty} when D or T is known}
   nlohmann::json ToJson() const;
 };
 ShellMeasures MeasureShell(double growth, double growth_uncertainty, double whorl_expansion_rate);

@@ -324,9 +324,12 @@ std::vector<FitOptionSpec> MakeTable() {
        "--uncertainty",
        K::kText,
        "none",
-       "Primitives and multi-view fits: uncertainties of the derived quantities (diameters, the cone's diameter "
-       "at the data's mid-height, the torus' diameters, the form error of --criterion; a vessel's rim and base "
-       "diameters and volume, the pitch, the growth and whorl expansion rate): none, linear (the GUM's law of "
+       "Primitives and multi-view fits: uncertainties of the derived quantities (diameters, the cone's "
+       "diameter "
+       "at the data's mid-height, the torus' diameters, the form error of --criterion; a vessel's rim and "
+       "base "
+       "diameters and volume, the pitch, the growth and whorl expansion rate): none, linear (the GUM's law "
+       "of "
        "propagation from the fit's covariance) or monte-carlo:N (GUM Supplement 1, N refits of perturbed "
        "data); expanded uncertainty U with its coverage factor (docs/metrology.md)",
        {},

@@ -505,10 +505,28 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     if (kinematic && kinematic->helical()) {
       j["pitch"] = MeasureHelix(kinematic->pitch(), UncertaintyOf(*model, r, "pitch"), units).ToJson();
     }
+    std::optional<ShellMeasures> shell;
     if (spiral) {
-      j["growth"] =
-          MeasureShell(spiral->growth(), UncertaintyOf(*model, r, "growth"), spiral->WhorlExpansionRate())
-              .ToJson();
+      shell =
+          MeasureShell(spiral->growth(), UncertaintyOf(*model, r, "growth"), spiral->WhorlExpansionRate());
+      // Raup's D and T with their standard uncertainties from the shape covariance (eq. 18 of
+      // docs/metrology.md; the generatrix's ends held, as for a vessel's radii).
+      const SpiralSurface::Raup raup = spiral->RaupParameters();
+      shell->raup_d.value = raup.d;
+      shell->raup_t.value = raup.t;
+      if (r.shape_covariance.rows() == spiral->num_parameters()) {
+        const std::vector<LinearPropagation> u = PropagateLinear(
+            [&](const Eigen::VectorXd& q) {
+              SpiralSurface moved = *spiral;
+              moved.set_parameters(q);
+              const SpiralSurface::Raup m = moved.RaupParameters();
+              return Eigen::Vector2d(m.d, m.t).eval();
+            },
+            spiral->parameters(), r.shape_covariance);
+        shell->raup_d.uncertainty = u[0].standard_uncertainty;
+        shell->raup_t.uncertainty = u[1].standard_uncertainty;
+      }
+      j["growth"] = shell->ToJson();
     }
     std::vector<RigidMotion> corrected;
     for (std::size_t k = 0; k < K; ++k) corrected.push_back(world_T_model_fit * r.model_T_scan[k]);
@@ -639,8 +657,11 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
           }
           if (k->helical()) y.push_back(k->pitch());
         } else if (const auto* sp = dynamic_cast<const SpiralSurface*>(&m)) {
+          const SpiralSurface::Raup raup = sp->RaupParameters();
           y.push_back(sp->growth());
           y.push_back(sp->WhorlExpansionRate());
+          y.push_back(raup.d);
+          y.push_back(raup.t);
         }
         return y;
       };
@@ -653,12 +674,12 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       }
       if (kinematic && kinematic->helical())
         derived.push_back({"pitch", kinematic->pitch(), UncertaintyOf(*model, r, "pitch"), units + "/rad"});
-      if (spiral) {
-        const ShellMeasures shell =
-            MeasureShell(spiral->growth(), UncertaintyOf(*model, r, "growth"), spiral->WhorlExpansionRate());
-        derived.push_back({"growth", shell.growth.value, shell.growth.uncertainty, "1/rad"});
-        derived.push_back({"whorl expansion rate", shell.whorl_expansion_rate.value,
-                           shell.whorl_expansion_rate.uncertainty, ""});
+      if (shell) {
+        derived.push_back({"growth", shell->growth.value, shell->growth.uncertainty, "1/rad"});
+        derived.push_back({"whorl expansion rate", shell->whorl_expansion_rate.value,
+                           shell->whorl_expansion_rate.uncertainty, ""});
+        derived.push_back({"Raup D", shell->raup_d.value, shell->raup_d.uncertainty, ""});
+        derived.push_back({"Raup T", shell->raup_t.value, shell->raup_t.uncertainty, ""});
       }
       std::vector<MonteCarloSummary> mc;
       if (method.kind == UncertaintyMethod::Kind::kMonteCarlo) {
@@ -740,7 +761,12 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       text << "  growth            " << Format(j["growth"]["value"].get<double>(), 8) << " +- "
            << UncertaintyText(UncertaintyOf(*model, r, "growth"), trusted, 2)
            << " per radian (whorl expansion rate "
-           << Format(j["growth"]["whorl_expansion_rate"].get<double>(), 6) << ")\n";
+           << Format(j["growth"]["whorl_expansion_rate"].get<double>(), 6) << ")\n"
+           << "  Raup              W " << Format(shell->whorl_expansion_rate.value, 6) << ", D "
+           << Format(shell->raup_d.value, 6) << " +- "
+           << UncertaintyText(shell->raup_d.uncertainty, trusted, 2) << ", T "
+           << Format(shell->raup_t.value, 6) << " +- "
+           << UncertaintyText(shell->raup_t.uncertainty, trusted, 2) << "\n";
     }
     text << ComplexityText(complexity);
     text << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "acquisition/scan_set_io.h"
+#include "fitting/kinematic_surfaces.h"
 #include "synthetic/synthetic_cases.h"
 #include "test_paths.h"
 #include "test_support.h"
@@ -328,6 +329,18 @@ TEST(Cli, HelicalAndSpiralFitsFromRecordedViews) {
                 doc["iterations"].get<int>());
     EXPECT_LT(std::abs(value - truth), 3 * uncertainty) << model;
     EXPECT_LT(doc["residuals"]["rms"].get<double>(), 1.1 * 0.02) << model;
+    if (model == "spiral") {
+      // Raup's D and T against the truth's (the same definitions on the true surface).
+      const auto true_raup =
+          dynamic_cast<const SpiralSurface&>(*MakeSyntheticCase(name).truth).RaupParameters();
+      const nlohmann::json& raup = doc["growth"]["raup"];
+      std::printf("Raup D %.6f +- %.2g (truth %.6f), T %.6f +- %.2g (truth %.6f)\n", raup["d"].get<double>(),
+                  raup["d_uncertainty"].get<double>(), true_raup.d, raup["t"].get<double>(),
+                  raup["t_uncertainty"].get<double>(), true_raup.t);
+      EXPECT_NEAR(raup["w"].get<double>(), std::exp(2 * M_PI * value), 1e-9);
+      EXPECT_LT(std::abs(raup["d"].get<double>() - true_raup.d), 3 * raup["d_uncertainty"].get<double>());
+      EXPECT_LT(std::abs(raup["t"].get<double>() - true_raup.t), 3 * raup["t_uncertainty"].get<double>());
+    }
     EXPECT_EQ(doc["views"].size(), 6u);
   }
   std::filesystem::remove_all(dir);

@@ -5,6 +5,8 @@
 // non-uniform clamped knots, at random parameters, at the knots and at the ends; and that the table follows
 // set_parameters, ApplySimilarity, Clone and CopyFrom.
 
+#include "fitting/kinematic_surfaces.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "fitting/kinematic_surfaces.h"
+#include "fitting/initial_models.h"
 
 namespace s2m {
 namespace {
@@ -214,6 +216,28 @@ TEST(KinematicProfileTable, FollowsSetParametersApplySimilarityCloneAndCopy) {
     EXPECT_EQ(target.ProfilePoint(u), surface.ProfilePoint(u));
     ExpectMatchesReference(target, rng, "CopyFrom");
   }
+}
+
+TEST(SpiralSurface, RaupParametersOfAStraightGeneratingCurve) {
+  // A linear generatrix from (r, z) = (10, 2) to (20, 6) (order 2, the control points the curve's ends):
+  // inner edge 10, outer 20, so D = 0.5; centre (15, 4), so T = 4 / 15; W = exp(2 pi p).
+  Eigen::Matrix2Xd profile(2, 3);
+  profile << 10, 15, 20,  //
+      2, 4, 6;
+  const SpiralSurface s(UnitSpacedClamped(2, 3), profile, 0.1, 0.0, 6.0);
+  const SpiralSurface::Raup raup = s.RaupParameters();
+  EXPECT_NEAR(raup.w, std::exp(2 * M_PI * 0.1), 1e-12);
+  EXPECT_NEAR(raup.d, 0.5, 1e-12);
+  EXPECT_NEAR(raup.t, 4.0 / 15.0, 1e-12);
+  // Scaling the generating curve about the apex (the same shell a turn later) changes neither.
+  Eigen::Matrix2Xd later = profile * std::exp(2 * M_PI * 0.1);
+  const SpiralSurface::Raup same =
+      SpiralSurface(UnitSpacedClamped(2, 3), later, 0.1, 0.0, 6.0).RaupParameters();
+  EXPECT_NEAR(same.d, raup.d, 1e-12);
+  EXPECT_NEAR(same.t, raup.t, 1e-12);
+  // A curve crossing the axis has no D.
+  profile(0, 0) = -5;
+  EXPECT_TRUE(std::isnan(SpiralSurface(UnitSpacedClamped(2, 3), profile, 0.1, 0.0, 6.0).RaupParameters().d));
 }
 
 }  // namespace
