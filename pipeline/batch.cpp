@@ -526,6 +526,13 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
       out.push_back(Flat("growth", g["value"].get<double>(), g["uncertainty"], "1/rad"));
       out.push_back(Flat("whorl_expansion_rate", g["whorl_expansion_rate"].get<double>(),
                          g["whorl_expansion_rate_uncertainty"], ""));
+      // Raup's D and T (docs/archaeology.md section 7); W is the whorl expansion rate above.
+      if (g.contains("raup")) {
+        for (const char* key : {"d", "t"})
+          if (g["raup"][key].is_number())
+            out.push_back(Flat(std::string("raup_") + key, g["raup"][key].get<double>(),
+                               g["raup"][std::string(key) + "_uncertainty"], ""));
+      }
     }
     if (d.contains("vessel")) {
       const nlohmann::json& v = d["vessel"];

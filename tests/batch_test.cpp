@@ -147,6 +147,7 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
   EXPECT_EQ(line.rfind("id,status,exit_code,model,input", 0), 0u) << line;
   EXPECT_NE(line.find("rim_diameter,rim_diameter_uncertainty"), std::string::npos);
   EXPECT_NE(line.find("whorl_expansion_rate"), std::string::npos);
+  EXPECT_NE(line.find("raup_d,raup_d_uncertainty"), std::string::npos) << line;
   while (std::getline(csv, line)) ++lines;
   EXPECT_EQ(lines, 20);
   // Reports of objects computed by the re-run (the shells come last in the manifest), also with unknown pose
@@ -157,6 +158,8 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
                ReadJson(out / "objects" / "shell_01.json")["notes"].dump().find("no report") !=
                    std::string::npos);
   EXPECT_TRUE(fs::exists(out / "objects" / "pot_00_profile.svg"));
+  EXPECT_TRUE(fs::exists(out / "objects" / "pot_00_profile.dxf"));
+  EXPECT_TRUE(fs::exists(out / "objects" / "pot_00_profile.geojson"));
   EXPECT_TRUE(fs::exists(out / "objects" / "sherd_03_profile.csv"));
 
   // The same objects fitted alone by `scan2model fit`: identical documents (timings aside).
