@@ -551,6 +551,15 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
           if (b[6].is_number() && (!worst || b[6].get<double>() > (*worst)[6].get<double>())) worst = &b;
         if (worst) out.push_back(Flat("max_ovality", (*worst)[6].get<double>(), (*worst)[7], units));
       }
+      // The outline's elliptic Fourier descriptors (fit option efd): efd_N_a .. efd_N_d.
+      if (v.contains("outline_efd")) {
+        const nlohmann::json& rows = v["outline_efd"]["coefficients"];
+        for (std::size_t n = 0; n < rows.size(); ++n)
+          for (int k = 0; k < 4; ++k)
+            out.push_back(
+                Flat("efd_" + std::to_string(n + 1) + "_" + std::string(1, static_cast<char>('a' + k)),
+                     rows[n][static_cast<std::size_t>(k)].get<double>(), nullptr, ""));
+      }
       if (v.contains("fill_volume") && v["fill_volume"].is_number())
         out.push_back(
             Flat("fill_volume", v["fill_volume"].get<double>(), v["fill_volume_uncertainty"], units + "^3"));

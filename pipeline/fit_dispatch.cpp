@@ -546,6 +546,8 @@ FitOutcome ComputeFit(const FitOptions& o) {
     throw FitFailure(kUsage, "--fill-height applies to --model revolution (a vessel's volume)");
   if (o.geometric_variation > 0 && o.model != "hermite-curve")
     throw FitFailure(kUsage, "--geometric-variation applies to --model hermite-curve");
+  if (o.efd_harmonics > 0 && o.model != "revolution")
+    throw FitFailure(kUsage, "--efd applies to --model revolution (a vessel's outline)");
   if (o.relative_variation && o.model != "hermite-curve")
     throw FitFailure(kUsage, "--relative-variation applies to --model hermite-curve");
   if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);

@@ -61,6 +61,17 @@ std::vector<FitOptionSpec> MakeTable() {
        -1e300,
        1e300,
        [](FitOptions& o, const std::string& v) { o.control_points = v; }});
+  t.push_back({"efd",
+               "--efd",
+               K::kInteger,
+               "0",
+               "revolution: the vessel's outline (the profile and its mirror, closed across rim and base) as "
+               "this many normalized elliptic Fourier harmonics (docs/archaeology.md section 8); 0: none",
+               {},
+               false,
+               0,
+               100,
+               [](FitOptions& o, const std::string& v) { o.efd_harmonics = ToInt(v); }});
   t.push_back({"order",
                "--order",
                K::kInteger,

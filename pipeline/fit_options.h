@@ -85,8 +85,10 @@ struct FitOptions {
   double tolerance = 0.0;          // target RMS in data units (0: the weights as given)
   double fairness_fraction = 0.0;  // scale-free fairness fraction in (0, 1) (0: the weights as given)
   double geometric_variation = 0.0;
-  bool relative_variation = false;  // the geometric share measured relative to the curvature (eq. F34)  //
-                                    // share of alpha3 on the arc-length curvature variation (plane curves)
+  bool relative_variation = false;
+  int efd_harmonics = 0;  // revolution: elliptic Fourier descriptors of the outline (0: none)  // the
+                          // geometric share measured relative to the curvature (eq. F34)  // share of alpha3
+                          // on the arc-length curvature variation (plane curves)
   // Show the iterations on a terminal as they run (splines); `batch` turns it off for its objects.
   bool interactive = true;
 };

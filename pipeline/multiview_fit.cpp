@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "acquisition/format_error.h"
+#include "fitting/elliptic_fourier.h"
 #include "fitting/initial_models.h"
 #include "fitting/joint_fit.h"
 #include "fitting/kinematic_starts.h"
@@ -629,6 +630,28 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
         vessel->roundness = MeasureRoundnessBands(above, radial, 0.0, vessel->height.value, 10);
       }
       j["vessel"] = vessel->ToJson();
+      if (o.efd_harmonics > 0) {
+        // The outline a drawing shows: the profile base to rim, its mirror rim to base (closed across the
+        // base), as normalized elliptic Fourier descriptors (docs/archaeology.md section 8).
+        Eigen::Matrix2Xd outline(2, static_cast<Eigen::Index>(2 * vessel->profile.size()));
+        const Eigen::Index m = static_cast<Eigen::Index>(vessel->profile.size());
+        for (Eigen::Index i = 0; i < m; ++i) {
+          const ProfileSample& s = vessel->profile[static_cast<std::size_t>(i)];
+          outline.col(i) << s.radius, s.height_above_base;
+          outline.col(2 * m - 1 - i) << -s.radius, s.height_above_base;
+        }
+        const EllipticFourierDescriptors efd =
+            NormalizeEllipticFourier(EllipticFourier(outline, o.efd_harmonics));
+        nlohmann::json rows = nlohmann::json::array();
+        for (Eigen::Index h = 0; h < efd.coefficients.rows(); ++h)
+          rows.push_back({efd.coefficients(h, 0), efd.coefficients(h, 1), efd.coefficients(h, 2),
+                          efd.coefficients(h, 3)});
+        j["vessel"]["outline_efd"] = {
+            {"harmonics", o.efd_harmonics},
+            {"normalization", "Kuhl and Giardina 1982: size, rotation, start point"},
+            {"columns", {"a", "b", "c", "d"}},
+            {"coefficients", rows}};
+      }
     }
     // The derived quantities with the asked uncertainty method (docs/metrology.md section 7a): linear from
     // the joint fit's shape covariance (as above), or Monte Carlo by refitting the whole joint fit (every

@@ -226,7 +226,7 @@ def main():
         ("hermite.schema.json", ["fit", "--json", "--model", "hermite-curve", "--degree", "3", "--c2",
                                  "--interpolate", "--alpha3", "1", os.path.join(work, "ellipse.xyz")], None),
         ("multiview.schema.json", ["fit", "--json", "--model", "revolution", "--control-points", "8", vase,
-                                   "--uncertainty", "monte-carlo:20"] + quick, None),
+                                   "--uncertainty", "monte-carlo:20", "--efd", "6"] + quick, None),
         ("multiview.schema.json", ["fit", "--json", "--model", "helical", "--control-points", "6", vase,
                                    "--uncertainty", "linear"] + quick, None),
         ("multiview.schema.json", ["fit", "--json", "--model", "spiral", "--control-points", "6", vase,

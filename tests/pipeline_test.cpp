@@ -79,7 +79,7 @@ TEST(FitDispatch, FailuresCarryTheirExitCodes) {
 TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
   EXPECT_EQ(ManifestOptionKeys(),
             "alpha1, alpha2, alpha3, bending, beta2, beta3, c2, closed, contour, control_points, criterion, "
-            "degree, elements, fairness_fraction, fill_height, geometric_variation, growth, initial, "
+            "degree, efd, elements, fairness_fraction, fill_height, geometric_variation, growth, initial, "
             "interpolate, loss, max_iterations, method, "
             "order, pitch, reference, rejected_output, relative_variation, robust, seed, solver, start, "
             "step_control, stretch, "

@@ -182,6 +182,30 @@ TEST(VesselVolume, MonteCarloAgreesWithTheLinearUncertaintiesOfTheDerivedQuantit
   EXPECT_NE(mc.text.find("monte-carlo:200"), std::string::npos);
 }
 
+TEST(VesselOutline, EllipticFourierDescriptorsOfTheMirroredProfile) {
+  // --efd 8: the outline (profile and mirror) as 8 normalized harmonics. The outline is symmetric about the
+  // axis, so every b_n and c_n vanishes; the first harmonic is (1, 0, 0, d1) with |d1| < 1. Another model
+  // refuses the option.
+  pipeline::FitOptions o;
+  o.file = WritePot("efd", 3000, 0.05, 3u).string();
+  o.model = "revolution";
+  o.interactive = false;
+  pipeline::ApplyFitOption(*pipeline::FindManifestOption("efd"), "8", o);
+  const nlohmann::json efd = pipeline::ComputeFit(o).document.at("vessel").at("outline_efd");
+  EXPECT_EQ(efd.at("harmonics").get<int>(), 8);
+  const nlohmann::json& rows = efd.at("coefficients");
+  ASSERT_EQ(rows.size(), 8u);
+  EXPECT_NEAR(rows[0][0].get<double>(), 1.0, 1e-12);
+  EXPECT_LT(std::abs(rows[0][3].get<double>()), 1.0);
+  EXPECT_GT(std::abs(rows[0][3].get<double>()), 0.1);
+  for (const auto& row : rows) {
+    EXPECT_LT(std::abs(row[1].get<double>()), 1e-9);
+    EXPECT_LT(std::abs(row[2].get<double>()), 1e-9);
+  }
+  o.model = "cylinder";
+  EXPECT_THROW(pipeline::ComputeFit(o), pipeline::FitFailure);
+}
+
 TEST(VesselVolume, OtherModelsRefuseTheFillHeight) {
   pipeline::FitOptions o;
   o.file = WritePot("exact", 600, 0.0, 1u).string();
