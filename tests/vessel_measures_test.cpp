@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "acquisition/point_cloud_io.h"
+#include "pipeline/batch.h"
 #include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/report.h"
@@ -191,7 +192,8 @@ TEST(VesselOutline, EllipticFourierDescriptorsOfTheMirroredProfile) {
   o.model = "revolution";
   o.interactive = false;
   pipeline::ApplyFitOption(*pipeline::FindManifestOption("efd"), "8", o);
-  const nlohmann::json efd = pipeline::ComputeFit(o).document.at("vessel").at("outline_efd");
+  const nlohmann::json document = pipeline::ComputeFit(o).document;
+  const nlohmann::json& efd = document.at("vessel").at("outline_efd");
   EXPECT_EQ(efd.at("harmonics").get<int>(), 8);
   const nlohmann::json& rows = efd.at("coefficients");
   ASSERT_EQ(rows.size(), 8u);
@@ -202,6 +204,11 @@ TEST(VesselOutline, EllipticFourierDescriptorsOfTheMirroredProfile) {
     EXPECT_LT(std::abs(row[1].get<double>()), 1e-9);
     EXPECT_LT(std::abs(row[2].get<double>()), 1e-9);
   }
+  // A batch's summary has them as the columns efd_1_a .. efd_8_d.
+  int columns = 0;
+  for (const nlohmann::json& p : pipeline::FlatParameters(document))
+    if (p.at("name").get<std::string>().rfind("efd_", 0) == 0) ++columns;
+  EXPECT_EQ(columns, 32);
   o.model = "cylinder";
   EXPECT_THROW(pipeline::ComputeFit(o), pipeline::FitFailure);
 }
