@@ -550,6 +550,13 @@ FitOutcome ComputeFit(const FitOptions& o) {
     throw FitFailure(kUsage, "--efd applies to --model revolution (a vessel's outline)");
   if (o.relative_variation && o.model != "hermite-curve")
     throw FitFailure(kUsage, "--relative-variation applies to --model hermite-curve");
+  // Derived quantities with a chosen uncertainty method exist for primitives and multi-view fits; the
+  // others would ignore the option silently.
+  if (!o.uncertainty.empty() && o.uncertainty != "none" &&
+      (o.model == "bspline-curve" || o.model == "bspline-surface" || o.model == "hermite-curve" ||
+       o.model.rfind("part:", 0) == 0))
+    throw FitFailure(kUsage, "--uncertainty applies to primitives and to revolution, helical and spiral fits (" +
+                                 o.model + " reports its parameters' standard uncertainties from the fit)");
   if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
   if (o.model == "hermite-curve") return ComputeHermiteFit(o);
   if (o.model == "revolution" || o.model == "helical" || o.model == "spiral") return ComputeMultiViewFit(o);

@@ -27,7 +27,12 @@ TriangleMesh Box() {
   return m;
 }
 
-// Points on the box's faces (noise 0.002 along the normal), moved by a small rigid motion.
+// The small rigid motion every test scan is placed off the nominal by.
+RigidMotion ScanPlacement() {
+  return RigidMotion(RotationAboutAxis(Eigen::Vector3d(0, 0, 1), 0.01), Eigen::Vector3d(0.3, -0.2, 0.1));
+}
+
+// Points on the box's faces (noise 0.002 along the normal), moved by ScanPlacement().
 Scan BoxScan() {
   std::mt19937_64 random(9);
   std::uniform_real_distribution<double> u(0, 1);
@@ -56,7 +61,7 @@ Scan BoxScan() {
         pts.emplace_back(-30 + 60 * p, -20 + 40 * q, -e);
     }
   }
-  const RigidMotion off(RotationAboutAxis(Eigen::Vector3d(0, 0, 1), 0.01), Eigen::Vector3d(0.3, -0.2, 0.1));
+  const RigidMotion off = ScanPlacement();
   Scan s;
   s.points.resize(3, static_cast<Eigen::Index>(pts.size()));
   for (std::size_t i = 0; i < pts.size(); ++i) s.points.col(static_cast<Eigen::Index>(i)) = off * pts[i];
@@ -97,14 +102,14 @@ TriangleMesh BoxWithPins() {
 }
 
 // Points (noise 0.002 along the normal) on the box's sides and top and on both round pins' sides, the first
-// pin built 0.08 further along +x than the nominal; then the scan is moved by a small rigid motion.
+// pin built 0.08 further along +x than the nominal; then the scan is moved by ScanPlacement().
 Scan BoxWithPinsScan() {
   std::mt19937_64 random(17);
   std::uniform_real_distribution<double> u(0, 1);
   std::normal_distribution<double> noise(0, 0.002);
   std::vector<Eigen::Vector3d> pts;
   const Scan box = BoxScan();
-  const RigidMotion off(RotationAboutAxis(Eigen::Vector3d(0, 0, 1), 0.01), Eigen::Vector3d(0.3, -0.2, 0.1));
+  const RigidMotion off = ScanPlacement();
   for (Eigen::Index i = 0; i < box.points.cols(); ++i) {
     const Eigen::Vector3d p = off.inverse() * Eigen::Vector3d(box.points.col(i));
     if (p.z() > 0.01) pts.push_back(p);  // not the bottom

@@ -552,6 +552,10 @@ TEST(FitDispatch, HermiteCurveDocumentIsSelfContained) {
   FitOptions other_model = no_share;
   other_model.model = "bspline-curve";
   usage(other_model, "applies to --model hermite-curve");
+  // --uncertainty is for primitives and multi-view fits: refused here rather than ignored.
+  FitOptions with_uncertainty = o;
+  ApplyFitOption(*FindManifestOption("uncertainty"), "monte-carlo:20", with_uncertainty);
+  usage(with_uncertainty, "--uncertainty applies to primitives");
 }
 
 }  // namespace
