@@ -487,6 +487,7 @@ nlohmann::json VesselMeasures::ToJson() const {
           {"fill_volume", NumberOrNull(fill_volume.value)},
           {"fill_volume_uncertainty", NumberOrNull(fill_volume.uncertainty)},
           {"roundness", RoundnessJson(roundness)},
+          {"covered_turn_fraction", NumberOrNull(covered_turn)},
           {"profile_columns", {"height_above_base", "radius", "radius_uncertainty"}},
           {"profile", rows},
           {"convention", "axis towards the world's +z; base = lower end of the profile, rim = upper end"}};
@@ -511,6 +512,7 @@ VesselMeasures VesselMeasures::FromJson(const nlohmann::json& j) {
   v.volume = {uncertainty("volume"), uncertainty("volume_uncertainty"), cubic};
   v.fill_height = uncertainty("fill_height");
   v.fill_volume = {uncertainty("fill_volume"), uncertainty("fill_volume_uncertainty"), cubic};
+  v.covered_turn = uncertainty("covered_turn_fraction");
   if (j.contains("roundness") && j.at("roundness").is_object()) {
     for (const nlohmann::json& row : j.at("roundness").at("bands")) {
       RoundnessBand b;
@@ -695,7 +697,14 @@ std::string ProfileSvg(const VesselMeasures& v) {
     right << Num(X(p.x())) << "," << Num(Y(p.y())) << " ";
   }
   s << "<polyline points=\"" << left.str() << "\" fill=\"none\" stroke=\"#000\" stroke-width=\"2.2\"/>\n"
-    << "<polyline points=\"" << right.str() << "\" fill=\"none\" stroke=\"#777\" stroke-width=\"0.8\"/>\n";
+    << "<polyline points=\"" << right.str() << "\" fill=\"none\" stroke=\"#777\" stroke-width=\"0.8\""
+    << (v.IsFragment() ? " stroke-dasharray=\"6 4\"" : "") << "/>\n";
+  // A fragment: the preserved section solid, the outline it implies (the rest of the vessel) dashed.
+  if (v.IsFragment())
+    s << "<text x=\"" << Num(kWidth - 10) << "\" y=\"20\" text-anchor=\"end\" fill=\"#444\">fragment: about "
+      << svg::Escape(Format(100 * v.covered_turn, 2))
+      << " % of the circumference; outline reconstructed (dashed)"
+      << "</text>\n";
   // Rim and base: horizontal lines across the vessel, with their diameters.
   const Eigen::Vector2d base = profile.front(), rim = profile.back();
   const std::string u = svg::Escape(units);
@@ -808,7 +817,11 @@ std::string ProfileDxf(const VesselMeasures& v) {
     exterior.emplace_back(row.radius, row.height_above_base);
   }
   dxf.Polyline("SECTION", section);
-  dxf.Polyline("EXTERIOR", exterior);
+  // A fragment's mirrored outline is reconstructed, not preserved: its own layer (for a dashed line type).
+  dxf.Polyline(v.IsFragment() ? "RECONSTRUCTED" : "EXTERIOR", exterior);
+  if (v.IsFragment())
+    dxf.Text("TEXT", {max_r + text_height, max_h}, text_height,
+             "fragment: about " + Format(100 * v.covered_turn, 2) + " % of the circumference");
   const Eigen::Vector2d base = exterior.front(), rim = exterior.back();
   dxf.Line("RIM", {-rim.x(), rim.y()}, rim);
   dxf.Text("TEXT", {0, rim.y() + 0.5 * text_height}, text_height,

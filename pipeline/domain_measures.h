@@ -177,6 +177,10 @@ struct VesselMeasures {
   // Out-of-roundness band by band from base to rim (docs/archaeology.md eqs. A5-A8), heights above the base;
   // empty when not measured.
   std::vector<RoundnessBand> roundness;
+  // The fraction of the circumference the points cover about the axis (5-degree sectors holding at least a
+  // tenth of the mean count); NaN: not measured. Below 0.9 the object is drawn as a fragment (IsFragment).
+  double covered_turn = std::numeric_limits<double>::quiet_NaN();
+  bool IsFragment() const { return covered_turn < 0.9; }
 
   // The "vessel" member of scan2model.multiview/1 (docs/cli.md).
   nlohmann::json ToJson() const;

@@ -585,6 +585,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       std::vector<Eigen::Vector2d> height_radius;
       for (const std::vector<double>& sample : samples) height_radius.emplace_back(sample[0], sample[1]);
       vessel = MeasureVessel(axis_point, axis_direction, height_radius, radius_uncertainty, units);
+      vessel->covered_turn =
+          CoveredTurnFraction(registered, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ());
       // The volume the fitted surface encloses, closed by the planes through the generatrix's ends, and up
       // to a fill plane above the base (the end lower in the world, as in MeasureVessel), with standard
       // uncertainties u = sqrt(g^T V g) from the shape covariance, the planes held (docs/archaeology.md eqs.

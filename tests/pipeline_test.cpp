@@ -275,6 +275,18 @@ TEST(DomainMeasures, VesselFromAnAxisPointingDown) {
     EXPECT_EQ(exterior_vertices, 11);
     EXPECT_NE(ProfileDxf(v).find("rim diameter 6 mm"), std::string::npos);
   }
+  // A fragment (a third of the circumference): the reconstructed outline dashed and said, on its own DXF
+  // layer; the covered fraction survives the JSON round trip.
+  {
+    VesselMeasures fragment = v;
+    fragment.covered_turn = 0.3;
+    EXPECT_NE(ProfileSvg(fragment).find("stroke-dasharray=\"6 4\""), std::string::npos);
+    EXPECT_NE(ProfileSvg(fragment).find("fragment: about 30 %"), std::string::npos);
+    EXPECT_EQ(ProfileSvg(v).find("fragment"), std::string::npos);
+    EXPECT_NE(ProfileDxf(fragment).find("RECONSTRUCTED"), std::string::npos);
+    EXPECT_EQ(ProfileDxf(fragment).find("\nEXTERIOR\n"), std::string::npos);
+    EXPECT_EQ(VesselMeasures::FromJson(fragment.ToJson()).covered_turn, 0.3);
+  }
   // Kotyle's convention: rim first, base at the origin.
   EXPECT_EQ(ProfileKotyleCsv(v).substr(0, 15), "x,y\n3,10\n2.9,9\n");
   EXPECT_EQ(ProfileKotyleCsv(v).substr(ProfileKotyleCsv(v).size() - 4), "2,0\n");
