@@ -386,9 +386,11 @@ void MarkUncertainties(nlohmann::json& d, std::optional<bool> trusted) {
       if (v.contains("pose_uncertainty")) v["uncertainty_trusted"] = flag;
     }
   }
-  if (d.contains("parameters") && d["parameters"].is_array()) {
-    for (nlohmann::json& p : d["parameters"]) {
-      if (p.is_object()) p["uncertainty_trusted"] = flag;
+  for (const char* list : {"parameters", "measurands"}) {
+    if (d.contains(list) && d[list].is_array()) {
+      for (nlohmann::json& p : d[list]) {
+        if (p.is_object()) p["uncertainty_trusted"] = flag;
+      }
     }
   }
 }

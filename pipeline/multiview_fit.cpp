@@ -763,9 +763,9 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
         measurands.push_back(MeasurandJson(derived[i].name, derived[i].value, derived[i].unit, method,
                                            derived[i].linear_u, i < mc.size() ? &mc[i] : nullptr));
       j["measurands"] = measurands;
-      measurands_text = MeasurandsText(measurands);
     }
     MarkUncertainties(j, trusted);
+    if (j.contains("measurands")) measurands_text = MeasurandsText(j["measurands"]);
     WriteRequestedFiles(o, j, r);
     if (vessel && !o.output.empty()) WriteProfileFiles(o.output, *vessel);
     std::ostringstream text;

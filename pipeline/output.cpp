@@ -185,11 +185,15 @@ std::string MeasurandsText(const nlohmann::json& measurands) {
   std::ostringstream text;
   text << "\n  derived quantities (value, standard uncertainty u, expanded U = k u)\n";
   for (const auto& m : measurands) {
+    // An inadequate model's uncertainties in brackets (MarkUncertainties, as every other figure).
+    const bool untrusted = m.value("uncertainty_trusted", nlohmann::json(true)) == false;
+    auto shown = [&](const nlohmann::json& u) {
+      if (u.is_null()) return std::string("-");
+      return untrusted ? "[" + Format(u.get<double>(), 3) + "]" : Format(u.get<double>(), 3);
+    };
     text << "  " << std::left << std::setw(28) << m["name"].get<std::string>()
-         << Format(m["value"].get<double>(), 8) << "  u "
-         << (m["standard_uncertainty"].is_null() ? "-" : Format(m["standard_uncertainty"].get<double>(), 3))
-         << "  U "
-         << (m["expanded_uncertainty"].is_null() ? "-" : Format(m["expanded_uncertainty"].get<double>(), 3))
+         << Format(m["value"].get<double>(), 8) << "  u " << shown(m["standard_uncertainty"]) << "  U "
+         << shown(m["expanded_uncertainty"])
          << " (k = " << (m["coverage_factor"].is_null() ? "-" : Format(m["coverage_factor"].get<double>(), 3))
          << ", " << m["method"].get<std::string>() << ")\n";
   }

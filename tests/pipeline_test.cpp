@@ -297,6 +297,17 @@ TEST(DomainMeasures, VesselFromAnAxisPointingDown) {
   EXPECT_EQ(geo["geometry"]["coordinates"][0], nlohmann::json::array({3.0, 10.0}));
   EXPECT_EQ(geo["geometry"]["coordinates"][10], nlohmann::json::array({2.0, 0.0}));
   EXPECT_EQ(geo["properties"]["rim_diameter"].get<double>(), 6.0);
+  // Derived quantities of an inadequate model: flagged, and their uncertainties bracketed in the text.
+  {
+    nlohmann::json d = {
+        {"measurands", {MeasurandJson("volume", 10.0, "mm^3", UncertaintyMethod{}, 0.5, nullptr)}}};
+    MarkUncertainties(d, false);
+    EXPECT_FALSE(d["measurands"][0]["uncertainty_trusted"].get<bool>());
+    EXPECT_NE(MeasurandsText(d["measurands"]).find("u [0.5]  U [1]"), std::string::npos)
+        << MeasurandsText(d["measurands"]);
+    MarkUncertainties(d, true);
+    EXPECT_NE(MeasurandsText(d["measurands"]).find("u 0.5  U 1 "), std::string::npos);
+  }
   EXPECT_THROW(MeasureVessel(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), {{0, 1}}, {}, "mm"),
                std::invalid_argument);
 }
