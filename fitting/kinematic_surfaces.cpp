@@ -546,15 +546,10 @@ double SpiralSurface::WhorlExpansionRate() const {
 
 SpiralSurface::Raup SpiralSurface::RaupParameters() const {
   double r_min = std::numeric_limits<double>::infinity(), r_max = -r_min, z_min = r_min, z_max = -r_min;
-  BSplineBasis::Values values;
   constexpr int kSamples = 2001;
   for (int i = 0; i < kSamples; ++i) {
     const double u = basis_.lo() + (basis_.hi() - basis_.lo()) * i / (kSamples - 1);
-    basis_.Evaluate(u, 0, values);
-    Eigen::Vector2d rz = Eigen::Vector2d::Zero();
-    for (int k = 0; k < basis_.order(); ++k)
-      rz +=
-          values.values[0][static_cast<std::size_t>(k)] * profile_.col(basis_.ControlIndex(values.first, k));
+    const Eigen::Vector2d rz = Generatrix(basis_, profile_, u, 0).col(0);
     r_min = std::min(r_min, rz.x());
     r_max = std::max(r_max, rz.x());
     z_min = std::min(z_min, rz.y());
