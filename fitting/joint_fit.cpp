@@ -219,6 +219,10 @@ void EstimateJointUncertainty(const CovarianceEstimate& estimate, const BlockArr
     ScanPoseUncertainty u;
     u.rotation = sigma.head<3>();
     u.translation = sigma.tail<3>() * scale;
+    // Translations are in the unit box: their rows and columns scale to input units.
+    Eigen::Matrix<double, 6, 1> to_input;
+    to_input << 1, 1, 1, scale, scale, scale;
+    u.covariance = to_input.asDiagonal() * c6 * to_input.asDiagonal();
     result.pose_uncertainty.push_back(u);
   }
 }

@@ -86,6 +86,10 @@ struct JointFitOptions {
 struct ScanPoseUncertainty {
   Eigen::Vector3d rotation = Eigen::Vector3d::Zero();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  // The motion's full covariance (c then cbar: radians and input units), for quantities that depend on
+  // several components (a sherd's arc about the axis, fitting/sherd_measures.h). Along unobservable
+  // directions it is the pseudo-inverse's, like shape_covariance.
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
 struct JointFitResult {

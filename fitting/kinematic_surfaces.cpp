@@ -236,8 +236,9 @@ double KinematicSurface::RadiusAtHeight(double height, Eigen::VectorXd* gradient
     const double a = basis_.lo() + (basis_.hi() - basis_.lo()) * i / samples;
     const double b = basis_.lo() + (basis_.hi() - basis_.lo()) * (i + 1) / samples;
     const double za = ProfilePoint(a).y() - height, zb = ProfilePoint(b).y() - height;
-    if (za == 0 || za * zb < 0) {
-      u = za == 0 ? a : a - za * (b - a) / (zb - za);
+    // The last interval includes its end (the generatrix's end height itself is reached).
+    if (za == 0 || za * zb < 0 || (zb == 0 && i == samples - 1)) {
+      u = za == 0 ? a : zb == 0 ? b : a - za * (b - a) / (zb - za);
       found = true;
     }
   }

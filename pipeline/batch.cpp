@@ -563,6 +563,15 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
       if (v.contains("fill_volume") && v["fill_volume"].is_number())
         out.push_back(
             Flat("fill_volume", v["fill_volume"].get<double>(), v["fill_volume_uncertainty"], units + "^3"));
+      // A sherd's preserved fraction and whether its rim was found and drawn up (docs/archaeology.md
+      // section 9).
+      if (v.contains("sherd")) {
+        const nlohmann::json& sh = v["sherd"];
+        if (sh["preserved_fraction"].is_number())
+          out.push_back(Flat("preserved_fraction", sh["preserved_fraction"].get<double>(),
+                             sh["preserved_fraction_uncertainty"], ""));
+        out.push_back(Flat("rim_up", sh["up_from"] == "rim" ? 1.0 : 0.0, nullptr, ""));
+      }
     }
   } else if (schema == "scan2model.hermite/1") {
     const nlohmann::json& q = d["interrogation"];

@@ -406,19 +406,18 @@ std::string UntrustedUncertaintiesLine(std::optional<bool> trusted) {
                           : "";
 }
 
-VesselMeasures MeasureVessel(const Eigen::Vector3d& axis_point, const Eigen::Vector3d& axis_direction,
+VesselMeasures MeasureVessel(const Eigen::Vector3d& axis_point, const Eigen::Vector3d& up_direction,
                              const std::vector<Eigen::Vector2d>& height_radius,
                              const std::vector<double>& radius_uncertainty, const std::string& units) {
-  const double sign = axis_direction.z() < 0 ? -1.0 : 1.0;  // the rim is the end higher in the world
   VesselMeasures v;
   v.units = units;
-  v.up = sign * axis_direction;
+  v.up = up_direction.normalized();
   struct Sample {
     double height, radius, uncertainty;
   };
   std::vector<Sample> profile;
   for (std::size_t i = 0; i < height_radius.size(); ++i) {
-    profile.push_back({sign * height_radius[i].x(), height_radius[i].y(),
+    profile.push_back({height_radius[i].x(), height_radius[i].y(),
                        i < radius_uncertainty.size() ? radius_uncertainty[i] : std::nan("")});
   }
   if (profile.size() < 2) throw std::invalid_argument("the profile has fewer than two samples");
@@ -467,32 +466,86 @@ nlohmann::json RoundnessJson(const std::vector<RoundnessBand>& bands) {
            "under 40 points is not resolved (docs/archaeology.md section 4)"}};
 }
 
+// The "sherd" member of "vessel" (docs/archaeology.md section 9) and back.
+nlohmann::json SherdJson(const SherdSummary& s) {
+  auto edge = [](double spread, double expected, bool level) {
+    return nlohmann::json{
+        {"spread", NumberOrNull(spread)}, {"expected_if_level", NumberOrNull(expected)}, {"level", level}};
+  };
+  return {{"up_from", s.up_from},
+          {"up_reason", s.up_reason},
+          {"preserved_fraction", NumberOrNull(s.preserved_fraction.value)},
+          {"preserved_fraction_uncertainty", NumberOrNull(s.preserved_fraction.uncertainty)},
+          {"preserved_fraction_axis_uncertainty", NumberOrNull(s.preserved_axis_uncertainty)},
+          {"preserved_fraction_sampling_uncertainty", NumberOrNull(s.preserved_sampling_uncertainty)},
+          {"preserved_where", s.preserved_where},
+          {"band_height_lo", s.band_lo},
+          {"band_height_hi", s.band_hi},
+          {"band_points", s.band_points},
+          {"edges",
+           {{"top", edge(s.top_spread, s.top_expected, s.top_level)},
+            {"bottom", edge(s.bottom_spread, s.bottom_expected, s.bottom_level)}}}};
+}
+
+SherdSummary SherdFromJson(const nlohmann::json& j) {
+  SherdSummary s;
+  const auto number = [&](const nlohmann::json& o, const char* key) {
+    return NumberOr(o.value(key, nlohmann::json()), std::nan(""));
+  };
+  s.up_from = j.at("up_from").get<std::string>();
+  s.up_reason = j.value("up_reason", "");
+  s.preserved_fraction = {number(j, "preserved_fraction"), number(j, "preserved_fraction_uncertainty"), ""};
+  s.preserved_axis_uncertainty = number(j, "preserved_fraction_axis_uncertainty");
+  s.preserved_sampling_uncertainty = number(j, "preserved_fraction_sampling_uncertainty");
+  s.preserved_where = j.value("preserved_where", "");
+  s.band_lo = number(j, "band_height_lo");
+  s.band_hi = number(j, "band_height_hi");
+  s.band_points = j.value("band_points", 0LL);
+  if (j.contains("edges")) {
+    const nlohmann::json& top = j.at("edges").at("top");
+    const nlohmann::json& bottom = j.at("edges").at("bottom");
+    s.top_spread = number(top, "spread");
+    s.top_expected = number(top, "expected_if_level");
+    s.top_level = top.value("level", false);
+    s.bottom_spread = number(bottom, "spread");
+    s.bottom_expected = number(bottom, "expected_if_level");
+    s.bottom_level = bottom.value("level", false);
+  }
+  return s;
+}
+
 }  // namespace
 
 nlohmann::json VesselMeasures::ToJson() const {
   nlohmann::json rows = nlohmann::json::array();
   for (const ProfileSample& s : profile)
     rows.push_back({s.height_above_base, s.radius, NumberOrNull(s.radius_uncertainty)});
-  return {{"units", units},
-          {"up", pipeline::ToJson(up)},
-          {"base_centre", pipeline::ToJson(base_centre)},
-          {"height", height.value},
-          {"base_diameter", base_diameter.value},
-          {"base_diameter_uncertainty", NumberOrNull(base_diameter.uncertainty)},
-          {"rim_diameter", rim_diameter.value},
-          {"rim_diameter_uncertainty", NumberOrNull(rim_diameter.uncertainty)},
-          {"max_diameter", max_diameter.value},
-          {"max_diameter_height", max_diameter_height},
-          {"volume", NumberOrNull(volume.value)},
-          {"volume_uncertainty", NumberOrNull(volume.uncertainty)},
-          {"fill_height", NumberOrNull(fill_height)},
-          {"fill_volume", NumberOrNull(fill_volume.value)},
-          {"fill_volume_uncertainty", NumberOrNull(fill_volume.uncertainty)},
-          {"roundness", RoundnessJson(roundness)},
-          {"covered_turn_fraction", NumberOrNull(covered_turn)},
-          {"profile_columns", {"height_above_base", "radius", "radius_uncertainty"}},
-          {"profile", rows},
-          {"convention", "axis towards the world's +z; base = lower end of the profile, rim = upper end"}};
+  nlohmann::json j = {
+      {"units", units},
+      {"up", pipeline::ToJson(up)},
+      {"base_centre", pipeline::ToJson(base_centre)},
+      {"height", height.value},
+      {"base_diameter", base_diameter.value},
+      {"base_diameter_uncertainty", NumberOrNull(base_diameter.uncertainty)},
+      {"rim_diameter", rim_diameter.value},
+      {"rim_diameter_uncertainty", NumberOrNull(rim_diameter.uncertainty)},
+      {"max_diameter", max_diameter.value},
+      {"max_diameter_height", max_diameter_height},
+      {"volume", NumberOrNull(volume.value)},
+      {"volume_uncertainty", NumberOrNull(volume.uncertainty)},
+      {"fill_height", NumberOrNull(fill_height)},
+      {"fill_volume", NumberOrNull(fill_volume.value)},
+      {"fill_volume_uncertainty", NumberOrNull(fill_volume.uncertainty)},
+      {"roundness", RoundnessJson(roundness)},
+      {"covered_turn_fraction", NumberOrNull(covered_turn)},
+      {"profile_columns", {"height_above_base", "radius", "radius_uncertainty"}},
+      {"profile", rows},
+      {"convention",
+       sherd && sherd->up_from == "rim"
+           ? "up from the base to the rim the sherd's level edge shows; base = lower end of the profile"
+           : "axis towards the world's +z; base = lower end of the profile, rim = upper end"}};
+  if (sherd) j["sherd"] = SherdJson(*sherd);
+  return j;
 }
 
 VesselMeasures VesselMeasures::FromJson(const nlohmann::json& j) {
@@ -515,6 +568,7 @@ VesselMeasures VesselMeasures::FromJson(const nlohmann::json& j) {
   v.fill_height = uncertainty("fill_height");
   v.fill_volume = {uncertainty("fill_volume"), uncertainty("fill_volume_uncertainty"), cubic};
   v.covered_turn = uncertainty("covered_turn_fraction");
+  if (j.contains("sherd") && j.at("sherd").is_object()) v.sherd = SherdFromJson(j.at("sherd"));
   if (j.contains("roundness") && j.at("roundness").is_object()) {
     for (const nlohmann::json& row : j.at("roundness").at("bands")) {
       RoundnessBand b;
@@ -546,7 +600,9 @@ std::string VesselMeasures::Text(std::optional<bool> trusted) const {
                                      : std::string());
   };
   std::ostringstream t;
-  t << "\n  vessel (axis towards the world's +z: base below, rim above)\n"
+  t << (sherd && sherd->up_from == "rim"
+            ? "\n  vessel (up towards the sherd's rim: base below, rim above)\n"
+            : "\n  vessel (axis towards the world's +z: base below, rim above)\n")
     << "  height            " << Format(height.value, 6) << " " << units << "\n"
     << "  rim diameter      " << with_u(rim_diameter) << " " << units << "\n"
     << "  base diameter     " << with_u(base_diameter) << " " << units << "\n"
@@ -574,6 +630,17 @@ std::string VesselMeasures::Text(std::optional<bool> trusted) const {
     } else {
       t << "not resolved: no band is seen all round (a sherd) or has enough points\n";
     }
+  }
+  if (sherd) {
+    t << "  sherd             "
+      << (sherd->up_from == "rim" ? "rim up (" + sherd->up_reason + ")"
+                                  : "way up not told by its edges (" + sherd->up_reason +
+                                        "): the end higher in the world is drawn up")
+      << "\n";
+    if (std::isfinite(sherd->preserved_fraction.value))
+      t << "  preserved         " << with_u(sherd->preserved_fraction) << " of the circumference ("
+        << (sherd->preserved_where == "rim" ? "at the rim" : "the widest band") << ", "
+        << Format(sherd->band_lo, 4) << "-" << Format(sherd->band_hi, 4) << " above the base)\n";
   }
   return t.str();
 }

@@ -157,9 +157,37 @@ struct ProfileSample {
   double radius_uncertainty = std::numeric_limits<double>::quiet_NaN();
 };
 
-// Vessel measures of a surface of revolution: the axis oriented towards the world's +z (the base is the end
-// lower in the world, the rim the upper one), base centre, height, base, rim and largest diameters with
-// standard uncertainties, and the profile from base to rim.
+// Below this covered fraction of the turn a surface of revolution is a fragment (a sherd): drawn as one and
+// measured as one (docs/archaeology.md sections 6 and 9).
+constexpr double kFragmentTurn = 0.9;
+
+// What a sherd adds to its vessel's measures (docs/archaeology.md section 9): how its way up was decided
+// and the preserved fraction of the circumference.
+struct SherdSummary {
+  // "rim": the edge level across the axis is the rim, drawn up; "world": the end higher in the world is
+  // drawn up (the edges do not tell the rim). `up_reason` says why.
+  std::string up_from = "world";
+  std::string up_reason;
+  // The fraction of the circumference preserved (eq. A14) with its standard uncertainty (A16) and the two
+  // parts of it (A15: the axis; the sampling of the breaks), in the band below the rim ("rim") or in the
+  // widest of ten bands of a body sherd ("widest band"); band heights above the base.
+  Measure preserved_fraction{std::numeric_limits<double>::quiet_NaN(),
+                             std::numeric_limits<double>::quiet_NaN(), ""};
+  double preserved_axis_uncertainty = std::numeric_limits<double>::quiet_NaN();
+  double preserved_sampling_uncertainty = std::numeric_limits<double>::quiet_NaN();
+  std::string preserved_where;
+  double band_lo = 0, band_hi = 0;
+  long long band_points = 0;
+  // The edges' evidence in the drawing's orientation (eqs. A12-A13): robust spread of the edge's height over
+  // the sectors of the arc, and what a level edge would show.
+  double top_spread = std::numeric_limits<double>::quiet_NaN(), top_expected = top_spread;
+  double bottom_spread = top_spread, bottom_expected = top_spread;
+  bool top_level = false, bottom_level = false;
+};
+
+// Vessel measures of a surface of revolution: the axis oriented up (`up`: the rim is the upper end; by
+// default the end higher in the world, for a sherd whose rim its edges tell, that rim), base centre,
+// height, base, rim and largest diameters with standard uncertainties, and the profile from base to rim.
 struct VesselMeasures {
   std::string units;
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
@@ -180,7 +208,9 @@ struct VesselMeasures {
   // The fraction of the circumference the points cover about the axis (5-degree sectors holding at least a
   // tenth of the mean count); NaN: not measured. Below 0.9 the object is drawn as a fragment (IsFragment).
   double covered_turn = std::numeric_limits<double>::quiet_NaN();
-  bool IsFragment() const { return covered_turn < 0.9; }
+  bool IsFragment() const { return covered_turn < kFragmentTurn; }
+  // Fragments: the sherd's stance and preserved fraction (empty for whole vessels or when not measured).
+  std::optional<SherdSummary> sherd;
 
   // The "vessel" member of scan2model.multiview/1 (docs/cli.md).
   nlohmann::json ToJson() const;
@@ -190,10 +220,10 @@ struct VesselMeasures {
   // The "vessel" block of the text output; untrusted uncertainties in brackets (MarkUncertainties).
   std::string Text(std::optional<bool> uncertainty_trusted = std::nullopt) const;
 };
-// From the fitted axis (a point and a direction, world frame) and the profile sampled as (height along the
-// axis from the axis point, radius) with the radius' standard uncertainty per sample (NaN: unknown). Throws
-// std::invalid_argument for fewer than two samples.
-VesselMeasures MeasureVessel(const Eigen::Vector3d& axis_point, const Eigen::Vector3d& axis_direction,
+// From the fitted axis (a point on it and the direction drawn up, world frame) and the profile sampled as
+// (height along `up_direction` from the axis point, radius) with the radius' standard uncertainty per sample
+// (NaN: unknown): the rim is the highest end. Throws std::invalid_argument for fewer than two samples.
+VesselMeasures MeasureVessel(const Eigen::Vector3d& axis_point, const Eigen::Vector3d& up_direction,
                              const std::vector<Eigen::Vector2d>& height_radius,
                              const std::vector<double>& radius_uncertainty, const std::string& units);
 

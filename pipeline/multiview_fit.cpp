@@ -20,6 +20,7 @@
 #include "fitting/out_of_round.h"
 #include "fitting/primitive_fit.h"
 #include "fitting/residual_structure.h"
+#include "fitting/sherd_measures.h"
 #include "pipeline/complexity.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
@@ -333,6 +334,35 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       fitted = std::move(*from_normals);
       report.reason = o.start == "normals" ? "--start normals"
                                            : "the fit from the normals' start is within the noise band";
+      // A sherd's breaks (docs/method.md section 19): within the noise band on all points, a fragment's fit
+      // may still carry the faces of its breaks, which pull its ends and make its edges look level. The
+      // points off the surface (77) are decided at the solution as after a search, with one refit when any
+      // are.
+      if (kind == KinematicKind::kRevolution && fitted.turn < kFragmentTurn) {
+        const std::vector<Eigen::Matrix3Xd> view_normals = ViewNormals(set);
+        std::vector<std::vector<bool>> masks(scans.size());
+        Eigen::Index off = 0;
+        for (std::size_t k = 0; k < scans.size(); ++k) {
+          masks[k] = PointsOffTheSurface(*fitted.model, fitted.result.model_T_scan[k].apply(scans[k]),
+                                         fitted.result.model_T_scan[k].rotation() * view_normals[k],
+                                         start_options.off_distance, start_options.off_angle_deg);
+          off += std::count(masks[k].begin(), masks[k].end(), true);
+        }
+        if (off > 0) {
+          JointFitOptions opts = options;
+          opts.fairness = fitted.fairness;
+          opts.left_out = masks;
+          RefinableGeneratrixFit refit(*fitted.model, scans, fitted.result.model_T_scan, opts,
+                                       max_control_points);
+          refit.Fit();
+          const int before = fitted.result.iterations;
+          fitted.result = refit.result();
+          fitted.result.iterations += before;
+          report.left_out = off;
+          report.left_out_masks = masks;
+          report.reason += "; a fragment: its points off the surface left out at the solution";
+        }
+      }
     } else {
       report.searched = true;
       report.reason = o.start == "global" ? "--start global"
@@ -538,6 +568,44 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     std::vector<Eigen::Matrix3Xd> model_points;
     for (std::size_t k = 0; k < K; ++k) model_points.push_back(r.model_T_scan[k].apply(scans[k]));
     const Eigen::Matrix3Xd registered = Concatenate(model_points);
+    // The axis' standard uncertainty relative to the data of a single view (docs/archaeology.md eq. A17):
+    // the view's pose correction m = (c, cbar) moves the points by cbar + c x x in the model frame, which is
+    // the axis moving by the opposite relative to them: its direction tilts by (-c_y, c_x), its point at
+    // height z0 shifts by -(cbar_x + c_y z0, cbar_y - c_x z0). Both as 2x2 covariances in the basis of the
+    // model frame's x and y axes (world vectors), at z0 the middle of the data's heights. With several
+    // views the axis is relative to all of them together, whose joint covariance the fit does not keep:
+    // not given.
+    double axis_tilt_deg = std::numeric_limits<double>::quiet_NaN(), axis_offset = axis_tilt_deg;
+    if (K == 1 && r.pose_uncertainty.size() == 1 && registered.cols() > 0) {
+      const double z0 = 0.5 * (registered.row(2).minCoeff() + registered.row(2).maxCoeff());
+      Eigen::Matrix<double, 2, 6> tilt = Eigen::Matrix<double, 2, 6>::Zero(), shift = tilt;
+      tilt(0, 1) = -1;
+      tilt(1, 0) = 1;
+      shift(0, 1) = -z0;
+      shift(0, 3) = -1;
+      shift(1, 0) = z0;
+      shift(1, 4) = -1;
+      const Eigen::Matrix<double, 6, 6>& C = r.pose_uncertainty[0].covariance;
+      const Eigen::Matrix2d tilt_cov = tilt * C * tilt.transpose(), shift_cov = shift * C * shift.transpose();
+      auto matrix = [](const Eigen::Matrix2d& m) {
+        return nlohmann::json::array({{m(0, 0), m(0, 1)}, {m(1, 0), m(1, 1)}});
+      };
+      axis_tilt_deg = std::sqrt(std::max(0.0, tilt_cov.trace())) * 180 / M_PI;
+      axis_offset = std::sqrt(std::max(0.0, shift_cov.trace()));
+      j["axis"]["uncertainty"] = {
+          {"at_height", z0},
+          {"basis",
+           {ToJson(Eigen::Vector3d(world_T_model_fit.rotation().col(0))),
+            ToJson(Eigen::Vector3d(world_T_model_fit.rotation().col(1)))}},
+          {"tilt_covariance", matrix(tilt_cov)},
+          {"offset_covariance", matrix(shift_cov)},
+          {"tilt_deg", axis_tilt_deg},
+          {"offset", axis_offset},
+          {"method",
+           "from the view's pose covariance (docs/archaeology.md eq. A17); tilt in radians, "
+           "offset in the data's units at at_height along the axis from its point; tilt_deg "
+           "and offset are the root sums of the two components' variances"}};
+    }
     Eigen::Matrix3Xd feet;
     const Eigen::VectorXd deviations = SignedDistancesAroundAxis(*model, registered, &feet);
     // Adequacy (docs/method.md section 17): the RMS against the views' own noise, and the signed residuals'
@@ -580,18 +648,74 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
                                      RobustWeightsAt(o.loss, r.loss_scale, deviations));
     j["complexity"] = ComplexityJson(complexity, complexity_options);
     j["adequacy"] = adequacy.ToJson();
+    // The way up (docs/archaeology.md section 9): the end higher in the world, unless the points cover a
+    // fragment of the turn whose level edge shows where its rim is.
+    double up_sign = axis_direction.z() < 0 ? -1.0 : 1.0;
+    std::optional<SherdMeasures> sherd;
+    double covered_turn = std::numeric_limits<double>::quiet_NaN();
+    if (o.model == "revolution") {
+      covered_turn = CoveredTurnFraction(registered, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ());
+      if (covered_turn < kFragmentTurn && r.pose_uncertainty.size() == K) {
+        // The points on the surface (the breaks' left out), each with its view's pose covariance.
+        std::vector<Eigen::Index> kept;
+        std::vector<int> view_of_point;
+        Eigen::Index at = 0;
+        for (std::size_t k = 0; k < K; ++k)
+          for (Eigen::Index p = 0; p < scans[k].cols(); ++p, ++at)
+            if (report.left_out_masks.empty() || !report.left_out_masks[k][static_cast<std::size_t>(p)]) {
+              kept.push_back(at);
+              view_of_point.push_back(static_cast<int>(k));
+            }
+        Eigen::Matrix3Xd surface(3, static_cast<Eigen::Index>(kept.size()));
+        for (std::size_t i = 0; i < kept.size(); ++i)
+          surface.col(static_cast<Eigen::Index>(i)) = registered.col(kept[i]);
+        std::vector<Eigen::Matrix<double, 6, 6>> pose_covariance;
+        for (const ScanPoseUncertainty& u : r.pose_uncertainty) pose_covariance.push_back(u.covariance);
+        try {
+          sherd = MeasureSherd(surface, view_of_point, pose_covariance,
+                               std::isfinite(noise.sigma) ? noise.sigma : r.residuals.rms);
+          if (sherd->rim_side != 0) up_sign = sherd->rim_side;
+        } catch (const std::invalid_argument& e) {
+          outcome.notes.push_back(std::string("sherd measures not taken: ") + e.what());
+        }
+      }
+    }
     std::optional<VesselMeasures> vessel;
     if (o.model == "revolution") {
       std::vector<Eigen::Vector2d> height_radius;
-      for (const std::vector<double>& sample : samples) height_radius.emplace_back(sample[0], sample[1]);
-      vessel = MeasureVessel(axis_point, axis_direction, height_radius, radius_uncertainty, units);
-      vessel->covered_turn =
-          CoveredTurnFraction(registered, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ());
+      for (const std::vector<double>& sample : samples)
+        height_radius.emplace_back(up_sign * sample[0], sample[1]);
+      vessel = MeasureVessel(axis_point, up_sign * axis_direction, height_radius, radius_uncertainty, units);
+      vessel->covered_turn = covered_turn;
+      if (sherd) {
+        // In the drawing's orientation: heights above the base, the top edge the one up.
+        SherdSummary s;
+        const double base = std::min(up_sign * samples.front()[0], up_sign * samples.back()[0]);
+        s.up_from = sherd->rim_side != 0 ? "rim" : "world";
+        s.up_reason = sherd->rim_reason;
+        const PreservedArc& a = sherd->preserved;
+        s.preserved_fraction = {a.fraction, a.uncertainty, ""};
+        s.preserved_axis_uncertainty = a.axis_uncertainty;
+        s.preserved_sampling_uncertainty = a.sampling_uncertainty;
+        s.preserved_where = sherd->preserved_at_rim ? "rim" : "widest band";
+        const double lo = up_sign * a.height_lo - base, hi = up_sign * a.height_hi - base;
+        s.band_lo = std::min(lo, hi);
+        s.band_hi = std::max(lo, hi);
+        s.band_points = static_cast<long long>(a.points);
+        const EdgeLevelness& top = up_sign > 0 ? sherd->upper : sherd->lower;
+        const EdgeLevelness& bottom = up_sign > 0 ? sherd->lower : sherd->upper;
+        s.top_spread = top.spread;
+        s.top_expected = top.expected;
+        s.top_level = top.level;
+        s.bottom_spread = bottom.spread;
+        s.bottom_expected = bottom.expected;
+        s.bottom_level = bottom.level;
+        vessel->sherd = s;
+      }
       // The volume the fitted surface encloses, closed by the planes through the generatrix's ends, and up
-      // to a fill plane above the base (the end lower in the world, as in MeasureVessel), with standard
+      // to a fill plane above the base (the end lower along up, as in MeasureVessel), with standard
       // uncertainties u = sqrt(g^T V g) from the shape covariance, the planes held (docs/archaeology.md eqs.
       // A1-A4).
-      const double up_sign = axis_direction.z() < 0 ? -1.0 : 1.0;
       const bool base_at_start = up_sign * samples.front()[0] <= up_sign * samples.back()[0];
       const double z_start = kinematic->ProfilePoint(kinematic->basis().lo()).y();
       const double z_end = kinematic->ProfilePoint(kinematic->basis().hi()).y();
@@ -667,7 +791,6 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       };
       std::vector<Derived> derived;
       // The same quantities of a refitted model (the base end as decided for the fit).
-      const double up_sign = axis_direction.z() < 0 ? -1.0 : 1.0;
       const bool base_at_start = up_sign * samples.front()[0] <= up_sign * samples.back()[0];
       auto quantities_of = [&](const ParametricModel& m) {
         std::vector<double> y;
@@ -777,6 +900,10 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
          << "  start             " << StartText(report, kind) << "\n"
          << "  axis point        " << Format(axis_point) << "\n"
          << "  axis direction    " << Format(axis_direction) << "\n";
+    if (std::isfinite(axis_tilt_deg))
+      text << "  axis uncertainty  tilt " << UncertaintyText(axis_tilt_deg, trusted) << " deg, position "
+           << UncertaintyText(axis_offset, trusted) << " " << units
+           << " at the data's middle height (standard, both directions across the axis)\n";
     if (j.contains("pitch")) {
       text << "  pitch             " << Format(j["pitch"]["value"].get<double>(), 8) << " +- "
            << UncertaintyText(UncertaintyOf(*model, r, "pitch"), trusted, 2) << " per radian (lead "

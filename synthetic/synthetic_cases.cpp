@@ -1,6 +1,7 @@
 #include "synthetic/synthetic_cases.h"
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -762,6 +763,175 @@ KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise
   c.surface_points = on_surface;
   c.truth = std::move(truth);
   return c;
+}
+
+SherdTruth MakeSherd(const SherdSpec& spec) {
+  if (!(spec.arc_fraction > 0 && spec.arc_fraction <= 1))
+    throw std::invalid_argument("an arc fraction in (0, 1]");
+  if (spec.count < 1 || !(spec.noise >= 0)) throw std::invalid_argument("a positive count, a noise >= 0");
+  Eigen::Matrix2Xd vase(2, 8);
+  vase << 30, 42, 58, 66, 55, 38, 34, 41,  //
+      0, 20, 45, 70, 95, 120, 135, 150;
+  auto truth =
+      std::make_unique<KinematicSurface>(KinematicSurface::Revolution(UnitSpacedClamped(4, 8), vase));
+  const double span = spec.arc_fraction * 2 * M_PI, thickness = 6.0;
+  // Profile parameters: the rim is u = 5 (150 mm); a body sherd spans heights of about 30 to 110 mm.
+  const double u0 = spec.rim ? 3.6 : 1.0, u1 = spec.rim ? 5.0 : 3.4;
+  auto side_lo = [=](double u) { return 0.08 * span * (u - u0) / (u1 - u0); };
+  auto side_hi = [=](double u) { return span - 0.06 * span * (u1 - u) / (u1 - u0); };
+  std::mt19937_64 rng(spec.seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  // A break's wander along the arc: three sines of random phase, scaled into [0, 1]; 0.3 in u is about
+  // 6 mm of height on this vase.
+  const double wander = spec.irregular_breaks ? 0.3 : 0.0;
+  auto make_wander = [&]() {
+    const std::array<double, 3> phase = {2 * M_PI * uniform(rng), 2 * M_PI * uniform(rng),
+                                         2 * M_PI * uniform(rng)};
+    return [phase](double s) {
+      return 0.5 + (std::sin(2 * M_PI * 1.3 * s + phase[0]) + std::sin(2 * M_PI * 2.7 * s + phase[1]) +
+                    std::sin(2 * M_PI * 4.1 * s + phase[2])) /
+                       6.0;
+    };
+  };
+  const auto bottom_wander = make_wander(), top_wander = make_wander();
+  const bool rim = spec.rim;
+  auto bottom = [=](double v) { return u0 + wander * bottom_wander(v / span); };
+  auto top = [=](double v) { return rim ? u1 : u1 - wander * top_wander(v / span); };
+  auto inside = [&](double u, double v) {
+    return v >= side_lo(u) && v <= side_hi(u) && u >= bottom(v) && u <= top(v);
+  };
+  LocalGeometry g;
+  auto outward = [&](const LocalGeometry& geo) {
+    Eigen::Vector3d n = To3(geo.d1.col(0)).cross(To3(geo.d1.col(1))).normalized();
+    if (n.x() * geo.point.x() + n.y() * geo.point.y() < 0) n = -n;
+    return n;
+  };
+  std::vector<Eigen::Vector3d> pts, nrm;
+  std::vector<std::pair<double, double>> params;
+  while (static_cast<int>(pts.size()) < spec.count) {
+    const double u = u0 + (u1 - u0) * uniform(rng), v = span * uniform(rng);
+    if (!inside(u, v)) continue;
+    truth->Evaluate({u, v, 0.0}, 1, g);
+    pts.push_back(To3(g.point));
+    nrm.push_back(outward(g));
+    params.emplace_back(u, v);
+  }
+  const auto outer_count = static_cast<Eigen::Index>(pts.size());
+  if (spec.inner_surface) {
+    // The inside: the same parameter region offset by the wall along the normal, facing the axis. The same
+    // count over a slightly smaller area: about as dense.
+    for (Eigen::Index i = 0; i < outer_count; ++i) {
+      const auto [u, v] = params[static_cast<std::size_t>(i)];
+      truth->Evaluate({u, v, 0.0}, 1, g);
+      const Eigen::Vector3d n = outward(g);
+      pts.push_back(To3(g.point) - thickness * n);
+      nrm.push_back(-n);
+    }
+  }
+  const auto surface_count = static_cast<Eigen::Index>(pts.size());
+  if (spec.fracture_faces) {
+    // The faces across the wall along the outline: the two side breaks, the bottom edge and the top edge
+    // (a break, or the rim's lip when asked), each sampled along its length (points outside the sherd's
+    // outline are skipped) and then across the wall, as dense per area as the outer surface.
+    using Edge = std::function<std::pair<double, double>(double)>;  // t in [0, 1] -> (u, v)
+    std::vector<Edge> edges = {[&](double t) {
+                                 return std::pair{u0 + t * (u1 - u0), side_lo(u0 + t * (u1 - u0))};
+                               },
+                               [&](double t) {
+                                 return std::pair{u0 + t * (u1 - u0), side_hi(u0 + t * (u1 - u0))};
+                               },
+                               [&](double t) {
+                                 return std::pair{bottom(t * span), t * span};
+                               }};
+    if (!spec.rim || spec.lip) edges.push_back([&](double t) { return std::pair{top(t * span), t * span}; });
+    const double tolerance = 1e-9;
+    auto on_outline = [&](const std::pair<double, double>& uv) {
+      const auto [u, v] = uv;
+      return v >= side_lo(u) - tolerance && v <= side_hi(u) + tolerance && u >= bottom(v) - tolerance &&
+             u <= top(v) + tolerance;
+    };
+    std::vector<double> lengths;
+    for (const Edge& e : edges) {
+      double length = 0.0;
+      Eigen::Vector3d previous = Eigen::Vector3d::Zero();
+      bool previous_on = false;
+      for (int i = 0; i <= 400; ++i) {
+        const auto uv = e(i / 400.0);
+        const bool on = on_outline(uv);
+        truth->Evaluate({uv.first, uv.second, 0.0}, 0, g);
+        if (on && previous_on) length += (To3(g.point) - previous).norm();
+        previous = To3(g.point);
+        previous_on = on;
+      }
+      lengths.push_back(length);
+    }
+    // The outer surface's area: its parameter region's share of the sampling rectangle times a grid sum of
+    // |S_u x S_v| over the rectangle.
+    double area = 0.0;
+    const int grid = 200;
+    for (int i = 0; i < grid; ++i)
+      for (int k = 0; k < grid; ++k) {
+        const double u = u0 + (u1 - u0) * (i + 0.5) / grid, v = span * (k + 0.5) / grid;
+        if (!inside(u, v)) continue;
+        truth->Evaluate({u, v, 0.0}, 1, g);
+        area += To3(g.d1.col(0)).cross(To3(g.d1.col(1))).norm() * (u1 - u0) * span / (grid * grid);
+      }
+    const double total_length = std::accumulate(lengths.begin(), lengths.end(), 0.0);
+    const auto face_count = static_cast<int>(spec.count * total_length * thickness / area);
+    std::discrete_distribution<int> pick(lengths.begin(), lengths.end());
+    for (int placed = 0; placed < face_count;) {
+      const Edge& e = edges[static_cast<std::size_t>(pick(rng))];
+      const double t = uniform(rng), h = 1e-4;
+      const auto uv = e(t);
+      if (!on_outline(uv)) continue;
+      truth->Evaluate({uv.first, uv.second, 0.0}, 1, g);
+      const Eigen::Vector3d n = outward(g), p = To3(g.point);
+      const auto ahead = e(std::min(t + h, 1.0)), behind = e(std::max(t - h, 0.0));
+      truth->Evaluate({ahead.first, ahead.second, 0.0}, 0, g);
+      const Eigen::Vector3d a = To3(g.point);
+      truth->Evaluate({behind.first, behind.second, 0.0}, 0, g);
+      const Eigen::Vector3d tangent = (a - To3(g.point)).normalized();
+      pts.push_back(p - thickness * uniform(rng) * n);
+      nrm.push_back(tangent.cross(n).normalized());
+      ++placed;
+    }
+  }
+  SurfaceSample s{Eigen::Matrix3Xd(3, static_cast<Eigen::Index>(pts.size())),
+                  Eigen::Matrix3Xd(3, static_cast<Eigen::Index>(pts.size()))};
+  const Eigen::Matrix3d flip = spec.upside_down
+                                   ? Eigen::Matrix3d(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()))
+                                   : Eigen::Matrix3d::Identity();
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    s.points.col(static_cast<Eigen::Index>(i)) = flip * pts[i];
+    s.normals.col(static_cast<Eigen::Index>(i)) = flip * nrm[i];
+  }
+  SherdTruth out;
+  std::mt19937_64 noise_rng(spec.seed + 1);
+  PlaceCloud(out.cloud, s, spec.noise, noise_rng);
+  // The cloud was placed as if its frame were the axis frame; the flip makes the axis frame's z point down.
+  out.cloud.world_T_model = out.cloud.world_T_model * RigidMotion(flip, Eigen::Vector3d::Zero());
+  out.cloud.axis_direction = out.cloud.world_T_model.rotation().col(2);
+  out.cloud.surface_points = outer_count;
+  out.inner_points = surface_count - outer_count;
+  out.wall_thickness = thickness;
+  out.profile_lo = u0;
+  out.profile_hi = u1;
+  out.rim_diameter = 2 * truth->ProfilePoint(u1).x();
+  out.cloud.truth = std::move(truth);
+  out.arc = [=](double u) -> std::optional<std::pair<double, double>> {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    const int steps = 4000;
+    for (int k = 0; k <= steps; ++k) {
+      const double v = span * k / steps;
+      if (v >= side_lo(u) && v <= side_hi(u) && u >= bottom(v) && u <= top(v)) {
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+      }
+    }
+    if (lo > hi) return std::nullopt;
+    return std::pair{lo, hi};
+  };
+  return out;
 }
 
 BSplineSurface BumpyPatch(double x_tilt) {

@@ -10,7 +10,9 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fitting/bspline_models.h"
@@ -143,6 +145,37 @@ KinematicCloud ConicalShellCloud(double ripple, double noise, int count, std::ui
 // perpendicular to the surface along the sherd's outline, as dense as the surface).
 KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise, int count,
                           std::uint64_t seed);
+
+// The sherds of the archaeology tests (docs/archaeology.md section 9), from the same vase and wall.
+struct SherdSpec {
+  double arc_fraction = 0.25;  // of the circumference, at the sherd's widest
+  // A rim sherd: the top edge is the vase's rim (150 mm, level across the axis) and the sherd reaches down to
+  // about 95 mm; otherwise a body sherd between about 30 and 110 mm.
+  bool rim = false;
+  // Breaks across the profile (the top and bottom edges of a body sherd, the bottom edge of a rim sherd)
+  // wander up and down by up to about 6 mm along the arc, as real breaks do; false: cut level.
+  bool irregular_breaks = true;
+  bool fracture_faces = false;  // points on the breaks, as dense as the surface
+  bool lip = false;             // a rim sherd's lip (the face across the wall at the rim) scanned too
+  bool inner_surface = false;   // the inside scanned too: the wall's inner surface, 6 mm in along the normal
+  bool upside_down = false;     // placed in the world rim down (the axis' world direction points down)
+  double noise = 0.05;          // mm, along the normal
+  int count = 8000;             // points on the outer surface (the inner one gets as many per area)
+  std::uint64_t seed = 1;
+};
+// The cloud and what the sherd measures should find. `surface_points` counts the outer surface's points,
+// which come first; then the inner surface's (`inner_points` of them), then the breaks'.
+struct SherdTruth {
+  KinematicCloud cloud;
+  Eigen::Index inner_points = 0;
+  double wall_thickness = 6.0;            // mm, along the outer surface's normal
+  double profile_lo = 0, profile_hi = 0;  // the generatrix parameters the sherd spans (at its widest)
+  double rim_diameter = 0;                // the outer surface's diameter at the top of the sherd
+  // The arc of the outer surface at profile parameter u, in radians about the axis from a fixed start; empty
+  // where the sherd does not reach height u (outside its top and bottom edges).
+  std::function<std::optional<std::pair<double, double>>(double u)> arc;
+};
+SherdTruth MakeSherd(const SherdSpec& spec);
 
 // The bumpy 100 x 100 mm free-form patch of the registration benchmark (bench/compare.cpp, section 1) and of
 // the foot point and squared distance field tests: a bicubic B-spline (clamped, unit-spaced knots) with

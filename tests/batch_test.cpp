@@ -161,6 +161,16 @@ TEST(Batch, TwentyObjectsSurviveAKillAndMatchSingleRuns) {
   EXPECT_TRUE(fs::exists(out / "objects" / "pot_00_profile.dxf"));
   EXPECT_TRUE(fs::exists(out / "objects" / "pot_00_profile.geojson"));
   EXPECT_TRUE(fs::exists(out / "objects" / "sherd_03_profile.csv"));
+  // A sherd's preserved fraction (docs/archaeology.md section 9): its whole height is there, both ends
+  // level, so its way up is the world's; the widest band's arc is what the views cover (a quarter to half of
+  // the circumference missing).
+  {
+    const nlohmann::json sherd = ReadJson(out / "objects" / "sherd_02.json")["result"]["vessel"]["sherd"];
+    EXPECT_EQ(sherd["up_from"], "world") << sherd;
+    EXPECT_GT(sherd["preserved_fraction"].get<double>(), 0.5) << sherd;
+    EXPECT_LT(sherd["preserved_fraction"].get<double>(), 0.76) << sherd;
+    EXPECT_GT(sherd["preserved_fraction_uncertainty"].get<double>(), 0.0) << sherd;
+  }
 
   // The same objects fitted alone by `scan2model fit`: identical documents (timings aside).
   for (const std::string id : {"pot_03", "sherd_02"}) {

@@ -188,17 +188,17 @@ TEST(DomainMeasures, AdequacyJsonAndVerdict) {
   EXPECT_NE(AssessAdequacy(0.05, 0.02).Text().find("NOT adequate"), std::string::npos);
 }
 
-TEST(DomainMeasures, VesselFromAnAxisPointingDown) {
-  // A pot widening upwards, its fitted axis pointing down in the world: heights -i along -z are i above the
-  // axis point, so the narrow end (radius 2, at the axis point) is the base and the wide one the rim.
+TEST(DomainMeasures, VesselFromAProfileSampledRimFirst) {
+  // A pot widening upwards, its profile sampled from the rim down (heights along up from 10 to 0 above the
+  // axis point): the narrow end (radius 2, at the axis point) is the base and the wide one the rim.
   std::vector<Eigen::Vector2d> height_radius;
   std::vector<double> uncertainty;
-  for (int i = 0; i <= 10; ++i) {
-    height_radius.emplace_back(-i, 2.0 + 0.1 * i);
+  for (int i = 10; i >= 0; --i) {
+    height_radius.emplace_back(i, 2.0 + 0.1 * i);
     uncertainty.push_back(0.01);
   }
   const VesselMeasures v =
-      MeasureVessel(Eigen::Vector3d(1, 2, 3), Eigen::Vector3d(0, 0, -1), height_radius, uncertainty, "mm");
+      MeasureVessel(Eigen::Vector3d(1, 2, 3), Eigen::Vector3d(0, 0, 1), height_radius, uncertainty, "mm");
   EXPECT_EQ(v.units, "mm");
   EXPECT_TRUE(v.up.isApprox(Eigen::Vector3d::UnitZ()));
   EXPECT_DOUBLE_EQ(v.height.value, 10.0);

@@ -1,0 +1,226 @@
+#include "fitting/sherd_measures.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+namespace s2m {
+namespace {
+
+constexpr double kTwoPi = 2 * M_PI;
+constexpr double kMadToSigma = 1.4826;  // sigma of a normal sample = 1.4826 x its median absolute deviation
+
+// Angle about the z axis in [0, 2 pi).
+double AngleOf(const Eigen::Vector3d& p) {
+  const double a = std::atan2(p.y(), p.x());
+  return a < 0 ? a + kTwoPi : a;
+}
+
+// The arc the angles cover: the turn less its largest gap between angularly neighbouring points. Returns the
+// indices (into `angles`) of the first point after the gap and of the last point before it, and the arc.
+struct Arc {
+  std::size_t first = 0, last = 0;
+  double extent = 0.0;
+};
+Arc CoveredArc(const std::vector<double>& angles) {
+  std::vector<std::size_t> order(angles.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return angles[a] < angles[b]; });
+  // The wrap-around gap first (from the last angle round to the first).
+  double largest = angles[order.front()] + kTwoPi - angles[order.back()];
+  Arc arc{order.front(), order.back(), 0.0};
+  for (std::size_t i = 1; i < order.size(); ++i) {
+    const double gap = angles[order[i]] - angles[order[i - 1]];
+    if (gap > largest) {
+      largest = gap;
+      arc.first = order[i];
+      arc.last = order[i - 1];
+    }
+  }
+  arc.extent = kTwoPi - largest;
+  return arc;
+}
+
+double Median(std::vector<double> v) {
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  if (v.size() % 2 == 1) return *mid;
+  return 0.5 * (*mid + *std::max_element(v.begin(), mid));
+}
+
+// d theta / d(c, cbar) of a point p under x' = x + cbar + c x x (docs/archaeology.md eq. A15):
+// rho^2 d theta = -x z c_x - y z c_y + rho^2 c_z - y cbar_x + x cbar_y.
+Eigen::Matrix<double, 6, 1> AngleGradient(const Eigen::Vector3d& p) {
+  const double rho2 = p.x() * p.x() + p.y() * p.y();
+  Eigen::Matrix<double, 6, 1> g;
+  g << -p.x() * p.z(), -p.y() * p.z(), rho2, -p.y(), p.x(), 0.0;
+  return g / rho2;
+}
+
+}  // namespace
+
+bool SherdMeasureOptions::IsValid(std::string* why) const {
+  auto fail = [&](const char* message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (sectors < 3) return fail("sectors must be at least 3");
+  if (!(level_factor > 0)) return fail("level_factor must be positive");
+  if (!(rim_band_depth > 0 && rim_band_depth <= 1)) return fail("rim_band_depth must be in (0, 1]");
+  if (bands < 1) return fail("bands must be at least 1");
+  if (min_band_points < 3) return fail("min_band_points must be at least 3");
+  return true;
+}
+
+PreservedArc MeasureArc(const Eigen::Matrix3Xd& points, const std::vector<int>& view_of_point,
+                        const std::vector<Eigen::Matrix<double, 6, 6>>& pose_covariance, double height_lo,
+                        double height_hi, int min_points) {
+  PreservedArc out;
+  out.height_lo = height_lo;
+  out.height_hi = height_hi;
+  std::vector<Eigen::Index> inside;
+  std::vector<double> angles;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    const Eigen::Vector3d p = points.col(i);
+    if (!(p.z() >= height_lo && p.z() <= height_hi) || p.head<2>().squaredNorm() == 0) continue;
+    inside.push_back(i);
+    angles.push_back(AngleOf(p));
+  }
+  out.points = static_cast<Eigen::Index>(inside.size());
+  if (out.points < std::max(min_points, 3)) return out;
+  const Arc arc = CoveredArc(angles);
+  // Eq. A14: n points spread uniformly over an arc L leave a range of expected length L (n - 1) / (n + 1),
+  // with variance 2 (n - 1) L^2 / ((n + 1)^2 (n + 2)) (order statistics of the uniform distribution), so
+  // L = R (n + 1) / (n - 1) is unbiased with standard deviation L sqrt(2 / ((n - 1) (n + 2))).
+  const double n = static_cast<double>(out.points);
+  const double correction = (n + 1) / (n - 1);
+  const double extent = std::min(kTwoPi, arc.extent * correction);
+  const double sampling = extent * std::sqrt(2 / ((n - 1) * (n + 2)));
+  // Eq. A15: the arc's end points move about the axis when a view's pose does (the axis moves relative to
+  // the points); views independent.
+  std::vector<Eigen::Matrix<double, 6, 1>> gradient(pose_covariance.size(),
+                                                    Eigen::Matrix<double, 6, 1>::Zero());
+  const Eigen::Index first = inside[arc.first], last = inside[arc.last];
+  const auto view = [&](Eigen::Index i) {
+    const int k = view_of_point[static_cast<std::size_t>(i)];
+    if (k < 0 || static_cast<std::size_t>(k) >= pose_covariance.size())
+      throw std::invalid_argument("a point's view has no pose covariance");
+    return static_cast<std::size_t>(k);
+  };
+  gradient[view(last)] += correction * AngleGradient(points.col(last));
+  gradient[view(first)] -= correction * AngleGradient(points.col(first));
+  double axis_variance = 0.0;
+  for (std::size_t k = 0; k < gradient.size(); ++k)
+    axis_variance += gradient[k].dot(pose_covariance[k] * gradient[k]);
+  out.fraction = extent / kTwoPi;
+  out.axis_uncertainty = std::sqrt(std::max(0.0, axis_variance)) / kTwoPi;
+  out.sampling_uncertainty = sampling / kTwoPi;
+  // Eq. A16.
+  out.uncertainty = std::hypot(out.axis_uncertainty, out.sampling_uncertainty);
+  return out;
+}
+
+SherdMeasures MeasureSherd(const Eigen::Matrix3Xd& points, const std::vector<int>& view_of_point,
+                           const std::vector<Eigen::Matrix<double, 6, 6>>& pose_covariance, double noise,
+                           const SherdMeasureOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument("sherd measure options: " + why);
+  if (static_cast<Eigen::Index>(view_of_point.size()) != points.cols())
+    throw std::invalid_argument("one view index per point is needed");
+  if (points.cols() < options.min_band_points)
+    throw std::invalid_argument("a sherd needs at least " + std::to_string(options.min_band_points) +
+                                " points on its surface, got " + std::to_string(points.cols()));
+  SherdMeasures m;
+  std::vector<double> angles(static_cast<std::size_t>(points.cols()));
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    angles[static_cast<std::size_t>(i)] = AngleOf(points.col(i));
+  const Arc arc = CoveredArc(angles);
+  m.covered_fraction = arc.extent / kTwoPi;
+  const double start = angles[arc.first];
+
+  // The edges sector by sector (eq. A12): the highest and the lowest point of each sector of the arc.
+  const int S = options.sectors;
+  std::vector<double> top(static_cast<std::size_t>(S), -std::numeric_limits<double>::infinity()),
+      bottom(static_cast<std::size_t>(S), std::numeric_limits<double>::infinity());
+  std::vector<int> count(static_cast<std::size_t>(S), 0);
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    double a = angles[static_cast<std::size_t>(i)] - start;
+    if (a < 0) a += kTwoPi;
+    const int s = std::clamp(static_cast<int>(a / arc.extent * S), 0, S - 1);
+    const auto k = static_cast<std::size_t>(s);
+    top[k] = std::max(top[k], points(2, i));
+    bottom[k] = std::min(bottom[k], points(2, i));
+    ++count[k];
+  }
+  // Eq. A13: in a sector of n points spread over a height H, the extreme point lies about H / (n + 1) short
+  // of the edge (an exponential gap: its standard deviation is its mean), and the noise moves it by up to
+  // sigma: a level edge varies from sector to sector by about sqrt(mean (H / (n + 1))^2 + sigma^2).
+  auto levelness = [&](const std::vector<double>& edge) {
+    EdgeLevelness e;
+    std::vector<double> heights;
+    double gap2 = 0.0;
+    for (int s = 0; s < S; ++s) {
+      const auto k = static_cast<std::size_t>(s);
+      if (count[k] < 3) continue;
+      heights.push_back(edge[k]);
+      const double gap = (top[k] - bottom[k]) / (count[k] + 1);
+      gap2 += gap * gap;
+    }
+    e.sectors = static_cast<int>(heights.size());
+    if (e.sectors < 3) return e;
+    e.height = Median(heights);
+    std::vector<double> deviation;
+    for (const double h : heights) deviation.push_back(std::abs(h - e.height));
+    e.spread = kMadToSigma * Median(deviation);
+    e.expected = std::sqrt(gap2 / e.sectors + noise * noise);
+    e.level = e.spread <= options.level_factor * e.expected;
+    return e;
+  };
+  m.upper = levelness(top);
+  m.lower = levelness(bottom);
+  if (m.upper.sectors < 3) {
+    m.rim_reason = "too few points per sector to trace the edges";
+  } else if (m.upper.level && !m.lower.level) {
+    m.rim_side = 1;
+    m.rim_reason = "the upper edge is level across the axis, the lower one is not";
+  } else if (m.lower.level && !m.upper.level) {
+    m.rim_side = -1;
+    m.rim_reason = "the lower edge is level across the axis, the upper one is not";
+  } else if (m.upper.level) {
+    m.rim_reason = "both edges are level across the axis: a rim cannot be told from a level break";
+  } else {
+    m.rim_reason =
+        "neither edge is level across the axis: a body sherd, whose way up its shape does not tell";
+  }
+
+  const double z_lo = points.row(2).minCoeff(), z_hi = points.row(2).maxCoeff(), height = z_hi - z_lo;
+  if (m.rim_side != 0) {
+    // The band below the rim (eq. A14 in it), deepened until it holds enough points.
+    const double rim = m.rim_side > 0 ? m.upper.height : m.lower.height;
+    const double infinity = std::numeric_limits<double>::infinity();
+    for (double depth = options.rim_band_depth * height;; depth *= 2) {
+      m.preserved = m.rim_side > 0 ? MeasureArc(points, view_of_point, pose_covariance, rim - depth, infinity,
+                                                options.min_band_points)
+                                   : MeasureArc(points, view_of_point, pose_covariance, -infinity,
+                                                rim + depth, options.min_band_points);
+      if (std::isfinite(m.preserved.fraction) || depth >= height) break;
+    }
+    // The band's far end is the data's, not infinity.
+    m.preserved.height_lo = std::max(m.preserved.height_lo, z_lo);
+    m.preserved.height_hi = std::min(m.preserved.height_hi, z_hi);
+    m.preserved_at_rim = std::isfinite(m.preserved.fraction);
+  }
+  if (!m.preserved_at_rim) {
+    // A body sherd: the widest of `bands` bands of equal height.
+    for (int b = 0; b < options.bands; ++b) {
+      const double lo = z_lo + height * b / options.bands, hi = z_lo + height * (b + 1) / options.bands;
+      const PreservedArc a =
+          MeasureArc(points, view_of_point, pose_covariance, lo, hi, options.min_band_points);
+      if (std::isfinite(a.fraction) && !(a.fraction <= m.preserved.fraction)) m.preserved = a;
+    }
+  }
+  return m;
+}
+
+}  // namespace s2m

@@ -1,0 +1,78 @@
+#pragma once
+// What a fragment of a surface of revolution (a sherd) tells about its vessel beyond the fitted axis and
+// profile (docs/archaeology.md section 9): which end of the profile is the rim (its stance: the rim up,
+// the axis vertical) and the fraction of the circumference that is preserved, with its standard
+// uncertainty from the axis' (the poses') covariance and from the sampling of the break.
+
+#include <Eigen/Core>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace s2m {
+
+struct SherdMeasureOptions {
+  // The covered arc is cut into this many sectors of equal angle; in each, the highest and the lowest point
+  // along the axis trace the sherd's top and bottom edges.
+  int sectors = 8;
+  // An edge is level (across the axis, as a rim is) when its robust spread over the sectors is at most this
+  // many times what a level edge would show from the sampling and the noise alone (eq. A13).
+  double level_factor = 3.0;
+  // The preserved fraction is measured in a band this deep (a fraction of the sherd's height) below the rim,
+  // or, on a body sherd, in each of `bands` bands of equal height (the widest reported); a band needs
+  // `min_band_points` points.
+  double rim_band_depth = 0.03;
+  int bands = 10;
+  int min_band_points = 30;
+  bool IsValid(std::string* why = nullptr) const;
+};
+
+// An edge of the sherd across the profile: its height along the axis sector by sector.
+struct EdgeLevelness {
+  double height = std::numeric_limits<double>::quiet_NaN();    // median over the sectors
+  double spread = std::numeric_limits<double>::quiet_NaN();    // 1.4826 x median |h_s - height|
+  double expected = std::numeric_limits<double>::quiet_NaN();  // of a level edge (eq. A13)
+  int sectors = 0;                                             // holding points
+  bool level = false;
+};
+
+// The angular extent of the points in a band of heights, as a fraction of the full turn.
+struct PreservedArc {
+  double fraction = std::numeric_limits<double>::quiet_NaN();     // (eq. A14), corrected for the sampling
+  double uncertainty = std::numeric_limits<double>::quiet_NaN();  // combined (eq. A16)
+  double axis_uncertainty = std::numeric_limits<double>::quiet_NaN();      // from the poses (eq. A15)
+  double sampling_uncertainty = std::numeric_limits<double>::quiet_NaN();  // from the point spacing
+  double height_lo = 0, height_hi = 0;  // the band, model frame (along the axis)
+  Eigen::Index points = 0;
+};
+
+struct SherdMeasures {
+  // The part of the circumference the points cover (the turn less its largest empty gap).
+  double covered_fraction = std::numeric_limits<double>::quiet_NaN();
+  EdgeLevelness upper, lower;  // the edges at the larger and at the smaller height along the model's z
+  // +1: the rim is the upper edge (larger z), -1: the lower one; 0: not told by the edges (both level, or
+  // neither), `rim_reason` says which.
+  int rim_side = 0;
+  std::string rim_reason;
+  PreservedArc preserved;  // in the band below the rim, or the widest band of a body sherd
+  bool preserved_at_rim = false;
+};
+
+// `points`: the sherd's surface points in the model frame of the fitted surface of revolution (its axis is
+// the z axis), the points judged off the surface (breaks) left out; `view_of_point[i]` the view point i came
+// from and `pose_covariance[k]` the 6x6 covariance of view k's pose correction (rotation c, then translation
+// cbar, in the model frame: x' = x + cbar + c x x; radians and the points' units); `noise` the data's
+// noise (the points' units). Throws std::invalid_argument for invalid options, mismatched sizes or fewer
+// than `min_band_points` points.
+SherdMeasures MeasureSherd(const Eigen::Matrix3Xd& points, const std::vector<int>& view_of_point,
+                           const std::vector<Eigen::Matrix<double, 6, 6>>& pose_covariance, double noise,
+                           const SherdMeasureOptions& options = {});
+
+// The angular extent of `points` about the z axis as a fraction of a turn, corrected for the sampling, with
+// its uncertainty (eqs. A14-A16); points with heights outside [height_lo, height_hi] are skipped. NaN when
+// fewer than `min_points` are inside.
+PreservedArc MeasureArc(const Eigen::Matrix3Xd& points, const std::vector<int>& view_of_point,
+                        const std::vector<Eigen::Matrix<double, 6, 6>>& pose_covariance, double height_lo,
+                        double height_hi, int min_points);
+
+}  // namespace s2m
