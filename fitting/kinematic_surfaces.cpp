@@ -564,6 +564,26 @@ SpiralSurface::Raup SpiralSurface::RaupParameters() const {
   return out;
 }
 
+SpiralSurface::GrowingTube SpiralSurface::GrowingTubeFromRaup(const Raup& raup) {
+  GrowingTube g;
+  if (!(raup.w > 1 && raup.d > -1 && raup.d < 1 && std::isfinite(raup.t))) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    return {nan, nan, nan};
+  }
+  // Eq. A18: the generating circle of radius r = r0 W^(theta / 2 pi) has its centre at r (rho, 0, h) turned
+  // by theta about the axis, rho = (1 + D) / (1 - D) (so inner over outer edge is D) and h = 2 T_N / (1 - D)
+  // with T_N = T (1 + D) / 2 the centre's height over the outer edge's distance.
+  const double L = std::log(raup.w), d = raup.d, t_n = raup.t * (1 + d) / 2;
+  const double four_pi2 = 4 * M_PI * M_PI;
+  // Eq. A19: |dc/dtheta| = r sqrt(Lambda) / (2 pi (1 - D)).
+  const double lambda = four_pi2 * (1 + d) * (1 + d) + L * L * ((1 + d) * (1 + d) + 4 * t_n * t_n);
+  // Eq. A20: E = (dr/dtheta) / (ds/dtheta); C and T from the helix' curvature and torsion times r.
+  g.expansion = (1 - d) * L / std::sqrt(lambda);
+  g.curvature = 2 * M_PI * (1 - d * d) * std::sqrt(four_pi2 + L * L) / lambda;
+  g.torsion = 4 * M_PI * t_n * (1 - d) * L / lambda;
+  return g;
+}
+
 ParameterDomain SpiralSurface::domain() const {
   ParameterDomain d;
   d.dimension = 2;

@@ -110,6 +110,16 @@ class SpiralSurface final : public ParametricModel {
     double w = 0.0, d = 0.0, t = 0.0;
   };
   Raup RaupParameters() const;
+  // The growing-tube parameters (Okamoto 1988) of the logarithmic coil with Raup's W, D and T
+  // (docs/archaeology.md section 7, eqs. A18-A20): the centre of a circular generating curve of radius r
+  // moves along a conical logarithmic helix of arc length s; E = dr/ds (the tube's expansion per length),
+  // C = kappa r and T = tau r (the helix' curvature and torsion standardized by the tube's radius), in the
+  // convention of Noshita (2014), whose translation rate is the centre's height over the outer edge's
+  // distance from the axis, T (1 + D) / 2 in ours. NaN unless W > 1 and -1 < D < 1.
+  struct GrowingTube {
+    double expansion = 0.0, curvature = 0.0, torsion = 0.0;
+  };
+  static GrowingTube GrowingTubeFromRaup(const Raup& raup);
 
   std::unique_ptr<ParametricModel> Clone() const override { return std::make_unique<SpiralSurface>(*this); }
   void CopyFrom(const ParametricModel& other) override { *this = dynamic_cast<const SpiralSurface&>(other); }

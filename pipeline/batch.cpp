@@ -532,6 +532,14 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
           if (g["raup"][key].is_number())
             out.push_back(Flat(std::string("raup_") + key, g["raup"][key].get<double>(),
                                g["raup"][std::string(key) + "_uncertainty"], ""));
+        // The growing-tube parameters (docs/archaeology.md eqs. A18-A20).
+        if (g["raup"].contains("growing_tube")) {
+          const nlohmann::json& tube = g["raup"]["growing_tube"];
+          for (const char* key : {"e", "c", "t"})
+            if (tube[key].is_number())
+              out.push_back(Flat(std::string("growing_tube_") + key, tube[key].get<double>(),
+                                 tube[std::string(key) + "_uncertainty"], ""));
+        }
       }
     }
     if (d.contains("vessel")) {

@@ -671,6 +671,17 @@ nlohmann::json ShellMeasures::ToJson() const {
         {"w", whorl_expansion_rate.value}, {"w_uncertainty", NumberOrNull(whorl_expansion_rate.uncertainty)},
         {"d", NumberOrNull(raup_d.value)}, {"d_uncertainty", NumberOrNull(raup_d.uncertainty)},
         {"t", NumberOrNull(raup_t.value)}, {"t_uncertainty", NumberOrNull(raup_t.uncertainty)}};
+  if (j.contains("raup") && std::isfinite(tube_expansion.value))
+    j["raup"]["growing_tube"] = {
+        {"e", tube_expansion.value},
+        {"e_uncertainty", NumberOrNull(tube_expansion.uncertainty)},
+        {"c", NumberOrNull(tube_curvature.value)},
+        {"c_uncertainty", NumberOrNull(tube_curvature.uncertainty)},
+        {"t", NumberOrNull(tube_torsion.value)},
+        {"t_uncertainty", NumberOrNull(tube_torsion.uncertainty)},
+        {"convention",
+         "Okamoto's growing tube in Noshita (2014)'s convention: E = dr/ds, C = kappa r, T = tau r of the "
+         "generating curve's centre (docs/archaeology.md eqs. A18-A20)"}};
   return j;
 }
 

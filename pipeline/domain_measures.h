@@ -244,8 +244,14 @@ struct ShellMeasures {
   // Raup's D and T (docs/archaeology.md section 7; W is the whorl expansion rate); NaN: not measured.
   Measure raup_d{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(), ""};
   Measure raup_t{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(), ""};
+  // The growing-tube parameters E, C, T (docs/archaeology.md eqs. A18-A20; Noshita 2014's convention); NaN:
+  // not measured.
+  Measure tube_expansion{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(),
+                         ""};
+  Measure tube_curvature = tube_expansion, tube_torsion = tube_expansion;
   // {value, uncertainty, whorl_expansion_rate, whorl_expansion_rate_uncertainty, raup {w, d, d_uncertainty,
-  // t, t_uncertainty} when D or T is known}
+  // t, t_uncertainty, growing_tube {e, c, t and their uncertainties, convention} when known} when D or T is
+  // known}
   nlohmann::json ToJson() const;
 };
 ShellMeasures MeasureShell(double growth, double growth_uncertainty, double whorl_expansion_rate);

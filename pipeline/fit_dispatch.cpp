@@ -555,8 +555,9 @@ FitOutcome ComputeFit(const FitOptions& o) {
   if (!o.uncertainty.empty() && o.uncertainty != "none" &&
       (o.model == "bspline-curve" || o.model == "bspline-surface" || o.model == "hermite-curve" ||
        o.model.rfind("part:", 0) == 0))
-    throw FitFailure(kUsage, "--uncertainty applies to primitives and to revolution, helical and spiral fits (" +
-                                 o.model + " reports its parameters' standard uncertainties from the fit)");
+    throw FitFailure(
+        kUsage, "--uncertainty applies to primitives and to revolution, helical and spiral fits (" + o.model +
+                    " reports its parameters' standard uncertainties from the fit)");
   if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
   if (o.model == "hermite-curve") return ComputeHermiteFit(o);
   if (o.model == "revolution" || o.model == "helical" || o.model == "spiral") return ComputeMultiViewFit(o);

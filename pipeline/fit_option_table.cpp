@@ -335,7 +335,8 @@ std::vector<FitOptionSpec> MakeTable() {
        "--uncertainty",
        K::kText,
        "none",
-       "Primitives and multi-view fits (refused for the others): uncertainties of the derived quantities (diameters, the cone's "
+       "Primitives and multi-view fits (refused for the others): uncertainties of the derived quantities "
+       "(diameters, the cone's "
        "diameter "
        "at the data's mid-height, the torus' diameters, the form error of --criterion; a vessel's rim and "
        "base "

@@ -545,17 +545,27 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       const SpiralSurface::Raup raup = spiral->RaupParameters();
       shell->raup_d.value = raup.d;
       shell->raup_t.value = raup.t;
+      const SpiralSurface::GrowingTube tube = SpiralSurface::GrowingTubeFromRaup(raup);
+      shell->tube_expansion.value = tube.expansion;
+      shell->tube_curvature.value = tube.curvature;
+      shell->tube_torsion.value = tube.torsion;
       if (r.shape_covariance.rows() == spiral->num_parameters()) {
         const std::vector<LinearPropagation> u = PropagateLinear(
             [&](const Eigen::VectorXd& q) {
               SpiralSurface moved = *spiral;
               moved.set_parameters(q);
               const SpiralSurface::Raup m = moved.RaupParameters();
-              return Eigen::Vector2d(m.d, m.t).eval();
+              const SpiralSurface::GrowingTube g = SpiralSurface::GrowingTubeFromRaup(m);
+              Eigen::VectorXd y(5);
+              y << m.d, m.t, g.expansion, g.curvature, g.torsion;
+              return y;
             },
             spiral->parameters(), r.shape_covariance);
         shell->raup_d.uncertainty = u[0].standard_uncertainty;
         shell->raup_t.uncertainty = u[1].standard_uncertainty;
+        shell->tube_expansion.uncertainty = u[2].standard_uncertainty;
+        shell->tube_curvature.uncertainty = u[3].standard_uncertainty;
+        shell->tube_torsion.uncertainty = u[4].standard_uncertainty;
       }
       j["growth"] = shell->ToJson();
     }
@@ -919,6 +929,13 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
            << UncertaintyText(shell->raup_d.uncertainty, trusted, 2) << ", T "
            << Format(shell->raup_t.value, 6) << " +- "
            << UncertaintyText(shell->raup_t.uncertainty, trusted, 2) << "\n";
+      if (std::isfinite(shell->tube_expansion.value))
+        text << "  growing tube      E " << Format(shell->tube_expansion.value, 6) << " +- "
+             << UncertaintyText(shell->tube_expansion.uncertainty, trusted, 2) << ", C "
+             << Format(shell->tube_curvature.value, 6) << " +- "
+             << UncertaintyText(shell->tube_curvature.uncertainty, trusted, 2) << ", T "
+             << Format(shell->tube_torsion.value, 6) << " +- "
+             << UncertaintyText(shell->tube_torsion.uncertainty, trusted, 2) << " (Noshita 2014)\n";
     }
     text << ComplexityText(complexity);
     text << "  residuals         RMS " << Format(r.residuals.rms, 6) << ", max "

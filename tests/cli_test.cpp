@@ -340,6 +340,21 @@ TEST(Cli, HelicalAndSpiralFitsFromRecordedViews) {
       EXPECT_NEAR(raup["w"].get<double>(), std::exp(2 * M_PI * value), 1e-9);
       EXPECT_LT(std::abs(raup["d"].get<double>() - true_raup.d), 3 * raup["d_uncertainty"].get<double>());
       EXPECT_LT(std::abs(raup["t"].get<double>() - true_raup.t), 3 * raup["t_uncertainty"].get<double>());
+      // The growing-tube parameters (docs/archaeology.md eqs. A18-A20) of the fit against the truth's.
+      const auto true_tube = SpiralSurface::GrowingTubeFromRaup(true_raup);
+      const nlohmann::json& tube = raup["growing_tube"];
+      std::printf(
+          "growing tube E %.6f +- %.2g (truth %.6f), C %.6f +- %.2g (truth %.6f), T %.6f +- %.2g (truth "
+          "%.6f)\n",
+          tube["e"].get<double>(), tube["e_uncertainty"].get<double>(), true_tube.expansion,
+          tube["c"].get<double>(), tube["c_uncertainty"].get<double>(), true_tube.curvature,
+          tube["t"].get<double>(), tube["t_uncertainty"].get<double>(), true_tube.torsion);
+      EXPECT_LT(std::abs(tube["e"].get<double>() - true_tube.expansion),
+                3 * tube["e_uncertainty"].get<double>());
+      EXPECT_LT(std::abs(tube["c"].get<double>() - true_tube.curvature),
+                3 * tube["c_uncertainty"].get<double>());
+      EXPECT_LT(std::abs(tube["t"].get<double>() - true_tube.torsion),
+                3 * tube["t_uncertainty"].get<double>());
     }
     EXPECT_EQ(doc["views"].size(), 6u);
   }

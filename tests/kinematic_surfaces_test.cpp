@@ -9,10 +9,12 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "fitting/initial_models.h"
@@ -238,6 +240,38 @@ TEST(SpiralSurface, RaupParametersOfAStraightGeneratingCurve) {
   // A curve crossing the axis has no D.
   profile(0, 0) = -5;
   EXPECT_TRUE(std::isnan(SpiralSurface(UnitSpacedClamped(2, 3), profile, 0.1, 0.0, 6.0).RaupParameters().d));
+}
+
+TEST(SpiralSurface, GrowingTubeFromRaupAgainstTheTrajectory) {
+  // The closed forms (docs/archaeology.md eqs. A18-A20) against the curvature and torsion of the generating
+  // circle's centre computed from its definition in our terms: the tube radius r = W^(theta / 2 pi), the
+  // centre r_c = r (1 + D) / (1 - D) from the axis (inner edge over outer edge D) at the height T r_c,
+  // turned by theta; derivatives by 5-point differences (step 2e-3: the first two to about 1e-9).
+  for (const auto& [w, d, t] : {std::tuple{2.5, 0.3, 1.2}, std::tuple{10.0, -0.2, 0.4},
+                                std::tuple{1.3, 0.6, -0.8}, std::tuple{3.0, 0.1, 0.0}}) {
+    const SpiralSurface::GrowingTube g = SpiralSurface::GrowingTubeFromRaup({w, d, t});
+    auto centre = [&](double theta) {
+      const double r_c = std::pow(w, theta / (2 * M_PI)) * (1 + d) / (1 - d);
+      return Eigen::Vector3d(r_c * std::cos(theta), r_c * std::sin(theta), t * r_c);
+    };
+    const double theta = 0.7, h = 2e-3;
+    const Eigen::Vector3d p2 = centre(theta + 2 * h), p1 = centre(theta + h), p0 = centre(theta),
+                          m1 = centre(theta - h), m2 = centre(theta - 2 * h);
+    const Eigen::Vector3d c1 = (-p2 + 8 * p1 - 8 * m1 + m2) / (12 * h);
+    const Eigen::Vector3d c2 = (-p2 + 16 * p1 - 30 * p0 + 16 * m1 - m2) / (12 * h * h);
+    const Eigen::Vector3d c3 = (p2 - 2 * p1 + 2 * m1 - m2) / (2 * h * h * h);
+    const Eigen::Vector3d b = c1.cross(c2);
+    const double r = std::pow(w, theta / (2 * M_PI));
+    const double kappa = b.norm() / std::pow(c1.norm(), 3), tau = b.dot(c3) / b.squaredNorm();
+    const double dr_ds = std::log(w) / (2 * M_PI) * r / c1.norm();
+    EXPECT_NEAR(g.expansion, dr_ds, 1e-6 * std::abs(dr_ds)) << w << " " << d << " " << t;
+    EXPECT_NEAR(g.curvature, kappa * r, 1e-6 * kappa * r) << w << " " << d << " " << t;
+    // The third derivative's stencil errs by about h^2 f^(5) / 4: 1e-6 relative here.
+    EXPECT_NEAR(g.torsion, tau * r, 1e-5 * std::abs(tau * r) + 1e-12) << w << " " << d << " " << t;
+  }
+  // Outside the model's range: no parameters.
+  EXPECT_TRUE(std::isnan(SpiralSurface::GrowingTubeFromRaup({1.0, 0.3, 1.0}).expansion));
+  EXPECT_TRUE(std::isnan(SpiralSurface::GrowingTubeFromRaup({2.0, 1.0, 1.0}).curvature));
 }
 
 }  // namespace

@@ -227,8 +227,8 @@ SherdFitError FitSherd(const SherdSpec& spec, bool print) {
   Eigen::Matrix2d to_doc;
   to_doc << bx.dot(R.col(0)), bx.dot(R.col(1)), by.dot(R.col(0)), by.dot(R.col(1));
   const Eigen::Vector2d tilt_doc = to_doc * tilt, offset_doc = to_doc * offset;
-  auto larger = [](double a, double b) {
-    return std::isnan(a) || std::isnan(b) ? std::nan("") : std::max(a, b);
+  auto larger = [](double x, double y) {
+    return std::isnan(x) || std::isnan(y) ? std::nan("") : std::max(x, y);
   };
   for (int i = 0; i < 2; ++i) {
     e.tilt_z = larger(e.tilt_z, std::abs(tilt_doc[i]) / std::sqrt(tilt_cov(i, i)));
