@@ -606,6 +606,10 @@ std::string VesselMeasures::Text(std::optional<bool> trusted) const {
     << "  height            " << Format(height.value, 6) << " " << units << "\n"
     << "  rim diameter      " << with_u(rim_diameter) << " " << units << "\n"
     << "  base diameter     " << with_u(base_diameter) << " " << units << "\n"
+    << (sherd && sherd->up_from != "rim"
+            ? "                    (a fragment whose edges do not show its rim: \"rim\" and \"base\" are its "
+              "upper and lower ends, which may be breaks)\n"
+            : "")
     << "  largest diameter  " << Format(max_diameter.value, 6) << " " << units << " at "
     << Format(max_diameter_height, 4) << " above the base\n";
   if (std::isfinite(volume.value))

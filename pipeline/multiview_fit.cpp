@@ -665,14 +665,24 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     double covered_turn = std::numeric_limits<double>::quiet_NaN();
     if (o.model == "revolution") {
       covered_turn = CoveredTurnFraction(registered, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ());
-      if (covered_turn < kFragmentTurn && r.pose_uncertainty.size() == K) {
-        // The points on the surface (the breaks' left out), each with its view's pose covariance.
+      if (covered_turn < kFragmentTurn && r.pose_uncertainty.size() == K && judged.size() > 0) {
+        // The points near the surface, each with its view's pose covariance: within Tukey's 4.6851 robust
+        // standard deviations of the fitted surface (the distance half of eq. 77, the scale over the points
+        // the fit kept). The normals' half is not applied: it also drops the surface's points next to the
+        // breaks, where the normals mix surface and break, and would shrink the arc; the breaks' points this
+        // keeps lie next to the surface's edges, at the edges' angles about the axis.
+        std::vector<double> kept_distance;
+        for (Eigen::Index i = 0; i < judged.size(); ++i) kept_distance.push_back(std::abs(judged[i]));
+        std::nth_element(kept_distance.begin(),
+                         kept_distance.begin() + static_cast<std::ptrdiff_t>(kept_distance.size() / 2),
+                         kept_distance.end());
+        const double near = 4.6851 * 1.4826 * kept_distance[kept_distance.size() / 2];
         std::vector<Eigen::Index> kept;
         std::vector<int> view_of_point;
         Eigen::Index at = 0;
         for (std::size_t k = 0; k < K; ++k)
           for (Eigen::Index p = 0; p < scans[k].cols(); ++p, ++at)
-            if (report.left_out_masks.empty() || !report.left_out_masks[k][static_cast<std::size_t>(p)]) {
+            if (std::abs(deviations[at]) <= near) {
               kept.push_back(at);
               view_of_point.push_back(static_cast<int>(k));
             }
