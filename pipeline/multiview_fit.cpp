@@ -296,6 +296,27 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     start_options.num_control = n;
     start_options.order = o.order;
     start_options.estimate = estimate;
+    // The points off the surface (eq. 77) at a fit's solution, with each view's own normals, and one refit
+    // without them when they differ from `before` (docs/method.md section 19).
+    auto leave_out_off_surface = [&](Searched& f, const std::vector<Eigen::Matrix3Xd>& view_normals,
+                                     const std::vector<std::vector<bool>>& before) {
+      std::vector<std::vector<bool>> masks(scans.size());
+      for (std::size_t k = 0; k < scans.size(); ++k)
+        masks[k] = PointsOffTheSurface(*f.model, f.result.model_T_scan[k].apply(scans[k]),
+                                       f.result.model_T_scan[k].rotation() * view_normals[k],
+                                       start_options.off_distance, start_options.off_angle_deg);
+      if (masks != before) {
+        JointFitOptions opts = options;
+        opts.fairness = f.fairness;
+        opts.left_out = masks;
+        RefinableGeneratrixFit refit(*f.model, scans, f.result.model_T_scan, opts, max_control_points);
+        refit.Fit();
+        const int iterations = f.result.iterations;
+        f.result = refit.result();
+        f.result.iterations += iterations;
+      }
+      return masks;
+    };
     // Helical and spiral surfaces (--start auto): the spectrum first. Its starts need no joint fit; a
     // normals' start in a wrong basin costs a whole complexity search that runs every step to the
     // iteration cap (measured on the shallow thread: 75 s of the command's 80). When the spectrum's
@@ -339,25 +360,13 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       // points off the surface (77) are decided at the solution as after a search, with one refit when any
       // are.
       if (kind == KinematicKind::kRevolution && fitted.turn < kFragmentTurn) {
-        const std::vector<Eigen::Matrix3Xd> view_normals = ViewNormals(set);
-        std::vector<std::vector<bool>> masks(scans.size());
+        std::vector<std::vector<bool>> none;
+        for (const Eigen::Matrix3Xd& scan : scans)
+          none.emplace_back(static_cast<std::size_t>(scan.cols()), false);
+        const std::vector<std::vector<bool>> masks = leave_out_off_surface(fitted, ViewNormals(set), none);
         Eigen::Index off = 0;
-        for (std::size_t k = 0; k < scans.size(); ++k) {
-          masks[k] = PointsOffTheSurface(*fitted.model, fitted.result.model_T_scan[k].apply(scans[k]),
-                                         fitted.result.model_T_scan[k].rotation() * view_normals[k],
-                                         start_options.off_distance, start_options.off_angle_deg);
-          off += std::count(masks[k].begin(), masks[k].end(), true);
-        }
+        for (const auto& mask : masks) off += std::count(mask.begin(), mask.end(), true);
         if (off > 0) {
-          JointFitOptions opts = options;
-          opts.fairness = fitted.fairness;
-          opts.left_out = masks;
-          RefinableGeneratrixFit refit(*fitted.model, scans, fitted.result.model_T_scan, opts,
-                                       max_control_points);
-          refit.Fit();
-          const int before = fitted.result.iterations;
-          fitted.result = refit.result();
-          fitted.result.iterations += before;
           report.left_out = off;
           report.left_out_masks = masks;
           report.reason += "; a fragment: its points off the surface left out at the solution";
@@ -411,22 +420,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
                                    started.left_out_masks);
         // The points off the surface decided at the coarse count again at the chosen one (a surface point
         // the coarse generatrix missed comes back), with one refit when that changed them.
-        std::vector<std::vector<bool>> masks = started.left_out_masks;
-        for (std::size_t k = 0; k < scans.size(); ++k)
-          masks[k] = PointsOffTheSurface(*fitted.model, fitted.result.model_T_scan[k].apply(scans[k]),
-                                         fitted.result.model_T_scan[k].rotation() * view_normals[k],
-                                         start_options.off_distance, start_options.off_angle_deg);
-        if (masks != started.left_out_masks) {
-          JointFitOptions opts = options;
-          opts.fairness = fitted.fairness;
-          opts.left_out = masks;
-          RefinableGeneratrixFit refit(*fitted.model, scans, fitted.result.model_T_scan, opts,
-                                       max_control_points);
-          refit.Fit();
-          const int before = fitted.result.iterations;
-          fitted.result = refit.result();
-          fitted.result.iterations += before;
-        }
+        const std::vector<std::vector<bool>> masks =
+            leave_out_off_surface(fitted, view_normals, started.left_out_masks);
         report.left_out = 0;
         for (const auto& mask : masks) report.left_out += std::count(mask.begin(), mask.end(), true);
         report.left_out_masks = masks;
