@@ -666,12 +666,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
         // the fit kept). The normals' half is not applied: it also drops the surface's points next to the
         // breaks, where the normals mix surface and break, and would shrink the arc; the breaks' points this
         // keeps lie next to the surface's edges, at the edges' angles about the axis.
-        std::vector<double> kept_distance;
-        for (Eigen::Index i = 0; i < judged.size(); ++i) kept_distance.push_back(std::abs(judged[i]));
-        std::nth_element(kept_distance.begin(),
-                         kept_distance.begin() + static_cast<std::ptrdiff_t>(kept_distance.size() / 2),
-                         kept_distance.end());
-        const double near = 4.6851 * 1.4826 * kept_distance[kept_distance.size() / 2];
+        const double near = TuningConstant(LossKind::kTukey) * MadSigma(judged);
         std::vector<Eigen::Index> kept;
         std::vector<int> view_of_point;
         Eigen::Index at = 0;
