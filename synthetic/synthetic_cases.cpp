@@ -765,6 +765,96 @@ KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise
   return c;
 }
 
+WallTruth MakeTwoSurfaceVessel(double noise, int count, std::uint64_t seed) {
+  if (count < 1 || !(noise >= 0)) throw std::invalid_argument("a positive count, a noise >= 0");
+  Eigen::Matrix2Xd vase(2, 8);
+  vase << 30, 42, 58, 66, 55, 38, 34, 41,  //
+      0, 20, 45, 70, 95, 120, 135, 150;
+  auto truth =
+      std::make_unique<KinematicSurface>(KinematicSurface::Revolution(UnitSpacedClamped(4, 8), vase));
+  const double thickness = 6.0, u0 = 0.3, u1 = 5.0;
+  // The generatrix's unit normal in the meridian plane, pointing away from the axis' side of the wall
+  // (outwards): (z', -r') / |(r', z')| for a profile rising with u.
+  auto offset_point = [&](double u) {
+    LocalGeometry g;
+    truth->Evaluate({u, 0.0, 0.0}, 1, g);
+    const Eigen::Vector2d tangent(g.d1(0, 0), g.d1(2, 0));
+    const Eigen::Vector2d normal = Eigen::Vector2d(tangent.y(), -tangent.x()).normalized();
+    return Eigen::Vector2d(Eigen::Vector2d(g.point[0], g.point[2]) - thickness * normal);
+  };
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  // Area-uniform samples: u drawn in proportion to r(u) |C'(u)| by rejection against its maximum.
+  auto sample = [&](bool inner, std::vector<Eigen::Vector3d>& pts, std::vector<Eigen::Vector3d>& nrm) {
+    const double h = 1e-6;
+    auto weight = [&](double u) {
+      if (!inner) {
+        LocalGeometry g;
+        truth->Evaluate({u, 0.0, 0.0}, 1, g);
+        return g.point[0] * std::hypot(g.d1(0, 0), g.d1(2, 0));
+      }
+      return offset_point(u).x() * (offset_point(u + h) - offset_point(u - h)).norm() / (2 * h);
+    };
+    double top = 0.0;
+    for (int i = 0; i <= 400; ++i) top = std::max(top, weight(u0 + (u1 - u0) * i / 400.0));
+    top *= 1.1;
+    while (static_cast<int>(pts.size()) < count) {
+      const double u = u0 + (u1 - u0) * uniform(rng), v = 2 * M_PI * uniform(rng);
+      if (uniform(rng) * top > weight(u)) continue;
+      Eigen::Vector2d rz, dir;
+      if (inner) {
+        rz = offset_point(u);
+        const Eigen::Vector2d t = offset_point(u + h) - offset_point(u - h);
+        dir = Eigen::Vector2d(-t.y(), t.x()).normalized();  // towards the axis
+      } else {
+        LocalGeometry g;
+        truth->Evaluate({u, 0.0, 0.0}, 1, g);
+        rz << g.point[0], g.point[2];
+        dir = Eigen::Vector2d(g.d1(2, 0), -g.d1(0, 0)).normalized();  // outwards
+      }
+      pts.emplace_back(rz.x() * std::cos(v), rz.x() * std::sin(v), rz.y());
+      nrm.emplace_back(dir.x() * std::cos(v), dir.x() * std::sin(v), dir.y());
+    }
+  };
+  std::vector<Eigen::Vector3d> pts, nrm;
+  sample(false, pts, nrm);
+  const auto outer_count = static_cast<Eigen::Index>(pts.size());
+  pts.reserve(2 * pts.size());
+  std::vector<Eigen::Vector3d> inner_pts, inner_nrm;
+  sample(true, inner_pts, inner_nrm);
+  pts.insert(pts.end(), inner_pts.begin(), inner_pts.end());
+  nrm.insert(nrm.end(), inner_nrm.begin(), inner_nrm.end());
+  SurfaceSample s{Eigen::Matrix3Xd(3, static_cast<Eigen::Index>(pts.size())),
+                  Eigen::Matrix3Xd(3, static_cast<Eigen::Index>(pts.size()))};
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    s.points.col(static_cast<Eigen::Index>(i)) = pts[i];
+    s.normals.col(static_cast<Eigen::Index>(i)) = nrm[i];
+  }
+  WallTruth out;
+  std::mt19937_64 noise_rng(seed + 1);
+  PlaceCloud(out.cloud, s, noise, noise_rng);
+  out.cloud.surface_points = outer_count;
+  out.inner_points = static_cast<Eigen::Index>(inner_pts.size());
+  out.thickness = thickness;
+  // The capacity: pi integral r^2 dz along the offset generatrix (composite Simpson over u, 20000 steps;
+  // the offset rises with u, so the integral is the volume between its end heights).
+  const int steps = 20000;
+  double integral = 0.0;
+  const double du = (u1 - u0) / steps, h = 1e-6;
+  for (int i = 0; i <= steps; ++i) {
+    const double u = u0 + du * i;
+    const Eigen::Vector2d q = offset_point(u);
+    const double dz = (offset_point(u + h).y() - offset_point(u - h).y()) / (2 * h);
+    const double w = (i == 0 || i == steps) ? 1.0 : (i % 2 == 1 ? 4.0 : 2.0);
+    integral += w * q.x() * q.x() * dz;
+  }
+  out.capacity = M_PI * integral * du / 3.0;
+  out.inner_lo = offset_point(u0).y();
+  out.inner_hi = offset_point(u1).y();
+  out.cloud.truth = std::move(truth);
+  return out;
+}
+
 SherdTruth MakeSherd(const SherdSpec& spec) {
   if (!(spec.arc_fraction > 0 && spec.arc_fraction <= 1))
     throw std::invalid_argument("an arc fraction in (0, 1]");

@@ -177,6 +177,20 @@ struct SherdTruth {
 };
 SherdTruth MakeSherd(const SherdSpec& spec);
 
+// A whole vessel scanned inside and out (docs/archaeology.md section 10): the demo vase's surface of
+// revolution (radius 30-66 mm, u in [0.3, 5], heights about 6 to 150 mm) all round as the outside, and its
+// offset 6 mm in along the normal as the inside, `count` points on each, Gaussian noise along the normal.
+// The outside's points come first (`cloud.surface_points` of them), then the inside's.
+struct WallTruth {
+  KinematicCloud cloud;  // truth: the outer surface, in the axis frame
+  Eigen::Index inner_points = 0;
+  double thickness = 6.0;  // mm, square to the wall, at every height
+  // The inner surface's lowest and highest heights in the axis frame, and the volume it encloses between
+  // them (numerical integration of the offset generatrix, relative error below 1e-9).
+  double inner_lo = 0, inner_hi = 0, capacity = 0;
+};
+WallTruth MakeTwoSurfaceVessel(double noise, int count, std::uint64_t seed);
+
 // The bumpy 100 x 100 mm free-form patch of the registration benchmark (bench/compare.cpp, section 1) and of
 // the foot point and squared distance field tests: a bicubic B-spline (clamped, unit-spaced knots) with
 // 10 x 10 control points over [-50, 50]^2 at heights
