@@ -446,18 +446,16 @@ Eigen::MatrixXd RefinableGeneratrixFit::InsertKnotAtLargestResidual() {
   return r.transform;
 }
 
-bool RefinableGeneratrixFit::ApplyEndRule(Eigen::MatrixXd* transform, double tolerance_in_rms) {
+std::array<double, 2> GeneratrixEndRuleSpan(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile,
+                                            std::vector<double> feet_u, double tolerance) {
   // Eq. 52: keep the generatrix on [u_lo, u_hi], the parameters of the data's feet, and within that span
-  // cut it where it turns back along its principal direction by more than 3 RMS (a fold: the end span
-  // doubling back along the surface, or curling off it as a lip), unless that would drop more than a
+  // cut it where it turns back along its principal direction by more than the tolerance (a fold: the end
+  // span doubling back along the surface, or curling off it as a lip), unless that would drop more than a
   // quarter of its length (a profile that truly turns back).
-  const BSplineBasis& basis = *GeneratrixBasis(model_);
-  const Eigen::Matrix2Xd& profile = *GeneratrixProfile(model_);
-  if (feet_u_.empty()) return false;
-  std::vector<double> sorted = feet_u_;
-  std::sort(sorted.begin(), sorted.end());
-  double lo = sorted.front(), hi = sorted.back();
-  const double median = sorted[sorted.size() / 2];
+  if (feet_u.empty()) return {basis.lo(), basis.hi()};
+  std::sort(feet_u.begin(), feet_u.end());
+  double lo = feet_u.front(), hi = feet_u.back();
+  const double median = feet_u[feet_u.size() / 2];
   const int samples = 400;
   Eigen::Matrix2Xd c(2, samples + 1);
   std::vector<double> us(samples + 1);
@@ -474,7 +472,6 @@ bool RefinableGeneratrixFit::ApplyEndRule(Eigen::MatrixXd* transform, double tol
   const Eigen::VectorXd s = d.transpose() * c;
   const int mid = static_cast<int>(std::lround((median - lo) / std::max(hi - lo, 1e-300) * samples));
   const double sign = s[samples] >= s[0] ? 1.0 : -1.0;
-  const double tolerance = tolerance_in_rms * std::max(result_.residuals.rms, 1e-12);
   // Walking outwards from the median foot: the first sample after which the curve falls back by more than
   // the tolerance below the running extreme.
   auto find_fold = [&](int from, int step) {
@@ -500,6 +497,16 @@ bool RefinableGeneratrixFit::ApplyEndRule(Eigen::MatrixXd* transform, double tol
   const double length = arc(0, samples);
   if (fold_hi >= 0 && arc(fold_hi, samples) < 0.25 * length) hi = us[static_cast<std::size_t>(fold_hi)];
   if (fold_lo >= 0 && arc(0, fold_lo) < 0.25 * length) lo = us[static_cast<std::size_t>(fold_lo)];
+  return {lo, hi};
+}
+
+bool RefinableGeneratrixFit::ApplyEndRule(Eigen::MatrixXd* transform, double tolerance_in_rms) {
+  const BSplineBasis& basis = *GeneratrixBasis(model_);
+  const Eigen::Matrix2Xd& profile = *GeneratrixProfile(model_);
+  if (feet_u_.empty()) return false;
+  const std::array<double, 2> kept = GeneratrixEndRuleSpan(
+      basis, profile, feet_u_, tolerance_in_rms * std::max(result_.residuals.rms, 1e-12));
+  const double lo = kept[0], hi = kept[1];
   // Trim only what is more than a hundredth of a span off (feet reach the ends of a well-fitted model).
   const double span = (basis.hi() - basis.lo()) / std::max(1, basis.num_control() - basis.order() + 1);
   const bool trim_lo = lo > basis.lo() + 1e-2 * span, trim_hi = hi < basis.hi() - 1e-2 * span;

@@ -10,6 +10,7 @@
 // (RefinableGeneratrixFit, which also applies the generatrix end rule of eq. 70).
 
 #include <Eigen/Core>
+#include <array>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -42,6 +43,13 @@ struct BasisRefinement {
 BasisRefinement RefineBasis(const BSplineBasis& basis, const std::vector<double>& insert,
                             double lo = std::numeric_limits<double>::quiet_NaN(),
                             double hi = std::numeric_limits<double>::quiet_NaN());
+
+// The generatrix end rule (docs/method.md eq. 70): the parameter span [lo, hi] a generatrix (a plane
+// B-spline curve) keeps, from its data's foot parameters `feet_u`: their extent, cut where the curve turns
+// back along its principal direction by more than `tolerance` (a fold or a curl at an end) unless that cut
+// would drop more than a quarter of its length. The whole domain when there are no feet.
+std::array<double, 2> GeneratrixEndRuleSpan(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile,
+                                            std::vector<double> feet_u, double tolerance);
 
 // The knot spans of `basis` (distinct breakpoints) and the sum of the squared residuals of the points whose
 // foot parameter lies in each (the insertion rule of eq. 69).

@@ -50,8 +50,6 @@ double MeanRadius(const KinematicSurface& face, double lo, double hi, int count)
 RevolutionWall::RevolutionWall(KinematicSurface a, KinematicSurface b) : faces_{std::move(a), std::move(b)} {
   if (faces_[0].helical() || faces_[1].helical())
     throw std::invalid_argument("a wall of revolution needs two surfaces of revolution (not helical ones)");
-  if (faces_[0].basis().lo() != faces_[1].basis().lo() || faces_[0].basis().hi() != faces_[1].basis().hi())
-    throw std::invalid_argument("the two generatrices of a wall must share their parameter interval");
   const std::array<double, 2> common = Intersect(HeightRange(faces_[0]), HeightRange(faces_[1]));
   if (!(common[1] > common[0]))
     throw std::invalid_argument("the two surfaces of a wall share no height along the axis");

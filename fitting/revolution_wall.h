@@ -28,9 +28,9 @@ class RevolutionWall final : public ParametricModel {
   static constexpr int kOuter = 0;
   static constexpr int kInner = 1;
 
-  // Two surfaces of revolution in one frame whose generatrices share the parameter interval. Which is outer
+  // Two surfaces of revolution in one frame (each generatrix on its own parameter interval). Which is outer
   // is decided here: the face farther from the axis at the heights both reach (they are swapped if given the
-  // other way). Throws std::invalid_argument for helical faces, different intervals or no common height.
+  // other way). Throws std::invalid_argument for helical faces or no common height.
   RevolutionWall(KinematicSurface a, KinematicSurface b);
   RevolutionWall(const RevolutionWall& other);
   RevolutionWall& operator=(const RevolutionWall& other);
@@ -59,7 +59,8 @@ class RevolutionWall final : public ParametricModel {
   void CopyFrom(const ParametricModel& other) override { *this = dynamic_cast<const RevolutionWall&>(other); }
   std::string name() const override { return "wall of revolution"; }
   int ambient_dimension() const override { return 3; }
-  // The outer face's (both share the interval in u).
+  // The outer face's: the engine needs only its dimension (2); each face's u lies in its own interval, which
+  // the wall's feet respect.
   ParameterDomain domain() const override { return faces_[0].domain(); }
   int num_parameters() const override { return faces_[0].num_parameters() + faces_[1].num_parameters(); }
   std::string parameter_name(int index) const override;

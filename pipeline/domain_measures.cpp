@@ -406,6 +406,31 @@ std::string UntrustedUncertaintiesLine(std::optional<bool> trusted) {
                           : "";
 }
 
+SherdSummary SummarizeSherd(const SherdMeasures& sherd, double up_sign, double base) {
+  SherdSummary s;
+  s.up_from = sherd.rim_side != 0 ? "rim" : "world";
+  s.up_reason = sherd.rim_reason;
+  const PreservedArc& a = sherd.preserved;
+  s.preserved_fraction = {a.fraction, a.uncertainty, ""};
+  s.preserved_axis_uncertainty = a.axis_uncertainty;
+  s.preserved_sampling_uncertainty = a.sampling_uncertainty;
+  s.preserved_where = sherd.preserved_at_rim ? "rim" : "widest band";
+  const double lo = up_sign * a.height_lo - base, hi = up_sign * a.height_hi - base;
+  s.band_lo = std::min(lo, hi);
+  s.band_hi = std::max(lo, hi);
+  s.band_points = static_cast<long long>(a.points);
+  // The top edge is the one drawn up.
+  const EdgeLevelness& top = up_sign > 0 ? sherd.upper : sherd.lower;
+  const EdgeLevelness& bottom = up_sign > 0 ? sherd.lower : sherd.upper;
+  s.top_spread = top.spread;
+  s.top_expected = top.expected;
+  s.top_level = top.level;
+  s.bottom_spread = bottom.spread;
+  s.bottom_expected = bottom.expected;
+  s.bottom_level = bottom.level;
+  return s;
+}
+
 VesselMeasures MeasureVessel(const Eigen::Vector3d& axis_point, const Eigen::Vector3d& up_direction,
                              const std::vector<Eigen::Vector2d>& height_radius,
                              const std::vector<double>& radius_uncertainty, const std::string& units) {

@@ -20,6 +20,7 @@
 #include "fitting/out_of_round.h"
 #include "fitting/residual_structure.h"
 #include "fitting/robust_loss.h"
+#include "fitting/sherd_measures.h"
 #include "fitting/signed_distance.h"
 #include "registration/scan.h"
 
@@ -220,6 +221,11 @@ struct VesselMeasures {
   // The "vessel" block of the text output; untrusted uncertainties in brackets (MarkUncertainties).
   std::string Text(std::optional<bool> uncertainty_trusted = std::nullopt) const;
 };
+// A sherd's measures (fitting/sherd_measures.h, in the fitted model frame) in the drawing's orientation:
+// `up_sign` +1 when the model's z is drawn up, -1 when it is drawn down; heights above `base`, the base's
+// height along the drawn-up direction (up_sign times the model's z).
+SherdSummary SummarizeSherd(const SherdMeasures& sherd, double up_sign, double base);
+
 // From the fitted axis (a point on it and the direction drawn up, world frame) and the profile sampled as
 // (height along `up_direction` from the axis point, radius) with the radius' standard uncertainty per sample
 // (NaN: unknown): the rim is the highest end. Throws std::invalid_argument for fewer than two samples.

@@ -560,6 +560,9 @@ FitOutcome ComputeFit(const FitOptions& o) {
                     " reports its parameters' standard uncertainties from the fit)");
   if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
   if (o.model == "hermite-curve") return ComputeHermiteFit(o);
+  if (o.wall && o.model != "revolution")
+    throw FitFailure(kUsage, "--wall applies to --model revolution (a vessel's inner and outer surfaces)");
+  if (o.wall) return ComputeWallFit(o);
   if (o.model == "revolution" || o.model == "helical" || o.model == "spiral") return ComputeMultiViewFit(o);
   if (o.model.rfind("part:", 0) == 0) return ComputePartFit(o);
   if (o.model != "plane" && o.model != "sphere" && o.model != "cylinder" && o.model != "cone" &&

@@ -287,6 +287,19 @@ std::vector<FitOptionSpec> MakeTable() {
                -1e300,
                1e300,
                [](FitOptions& o, const std::string& v) { o.growth = std::stod(v); }});
+  t.push_back(
+      {"wall",
+       "--wall",
+       K::kFlag,
+       "",
+       "Revolution: the data hold the vessel's inner and outer surfaces; fit both sharing one axis and "
+       "report the wall's thickness along the height, the capacity (inside the inner surface), the "
+       "outer and the material volume (docs/archaeology.md section 10)",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.wall = v == "true"; }});
   t.push_back({"fill_height",
                "--fill-height",
                K::kNumber,

@@ -54,6 +54,8 @@ struct FitOptions {
   double growth = 0.0;
   // Revolution: the vessel's volume also up to this height above the base (data units); 0: only to the rim.
   double fill_height = 0.0;
+  // Revolution: the data hold the inner and the outer surface; fit the wall (docs/archaeology.md section 10).
+  bool wall = false;
   std::string step_control = "lm";
   RobustLoss loss;  // --loss: the robust loss of every fit (fitting/robust_loss.h)
   // Whether --loss (or a manifest's "loss") was given; otherwise ComputeFit chooses the default for the
@@ -82,13 +84,11 @@ struct FitOptions {
   // Whether --alpha3 was given: B-spline curves, surfaces and generatrices take it (and beta2, beta3) as
   // their curvature-variation and jump weights (docs/fair-curves.md section 8), 0 unless given.
   bool alpha3_given = false;
-  double tolerance = 0.0;          // target RMS in data units (0: the weights as given)
-  double fairness_fraction = 0.0;  // scale-free fairness fraction in (0, 1) (0: the weights as given)
-  double geometric_variation = 0.0;
-  bool relative_variation = false;
-  int efd_harmonics = 0;  // revolution: elliptic Fourier descriptors of the outline (0: none)  // the
-                          // geometric share measured relative to the curvature (eq. F34)  // share of alpha3
-                          // on the arc-length curvature variation (plane curves)
+  double tolerance = 0.0;            // target RMS in data units (0: the weights as given)
+  double fairness_fraction = 0.0;    // scale-free fairness fraction in (0, 1) (0: the weights as given)
+  double geometric_variation = 0.0;  // share of alpha3 on the arc-length curvature variation (plane curves)
+  bool relative_variation = false;   // the geometric share measured relative to the curvature (eq. F34)
+  int efd_harmonics = 0;             // revolution: elliptic Fourier descriptors of the outline (0: none)
   // Show the iterations on a terminal as they run (splines); `batch` turns it off for its objects.
   bool interactive = true;
 };
@@ -138,6 +138,9 @@ Eigen::MatrixXd ReadFitPoints(const FitOptions& o, std::string& format, std::str
                               std::vector<std::string>& notes, std::string& device);
 // A joint multi-view fit (surface of revolution, helical or spiral surface).
 FitOutcome ComputeMultiViewFit(const FitOptions& options);
+// A vessel's wall (`--model revolution --wall`, docs/archaeology.md section 10): its inner and outer
+// surfaces of revolution fitted jointly with the views' poses about one axis (pipeline/vessel_wall.cpp).
+FitOutcome ComputeWallFit(const FitOptions& options);
 // A joint multi-view fit of a constrained part (`--model part:FILE`, docs/parts.md).
 FitOutcome ComputePartFit(const FitOptions& options);
 

@@ -47,20 +47,6 @@ KinematicAxis InitialKinematicAxis(const ScanSet& set, KinematicKind kind) {
   return KinematicAxisFromNormals(merged, EstimateNormals(merged, 12), kind);
 }
 
-// Unit normals of each view in its own coordinates (local plane fits over 12 neighbours), for deciding which
-// points lie off the fitted surface; a view too small for them gets none (distance test only).
-std::vector<Eigen::Matrix3Xd> ViewNormals(const ScanSet& set) {
-  std::vector<Eigen::Matrix3Xd> normals;
-  for (const Scan& s : set.scans) {
-    try {
-      normals.push_back(EstimateNormals(s.points, 12));
-    } catch (const std::invalid_argument&) {
-      normals.emplace_back();
-    }
-  }
-  return normals;
-}
-
 // Where the fit started and why (the JSON member `start`, docs/cli.md).
 struct StartReport {
   std::string mode;                      // --start
@@ -453,25 +439,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     const JointFitResult& r = fitted.result;
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-    // Report in the data's world. The fit fixes the views only relative to each other and to the model; place
-    // the result so that the views' pose corrections average to zero (the least total correction: no single
-    // device pose is trusted more than the others).
-    RigidMotion world_T_model_fit = set.scans[0].world_T_scan * r.model_T_scan[0].inverse();
-    Eigen::Vector3d mean_rotation = Eigen::Vector3d::Zero(), mean_translation = Eigen::Vector3d::Zero();
-    for (std::size_t k = 0; k < K; ++k) {
-      const RigidMotion correction =
-          world_T_model_fit * r.model_T_scan[k] * set.scans[k].world_T_scan.inverse();
-      const Eigen::AngleAxisd aa(correction.rotation());
-      mean_rotation += aa.angle() * aa.axis() / static_cast<double>(K);
-      mean_translation += correction.translation() / static_cast<double>(K);
-    }
-    const RigidMotion mean_correction(
-        Eigen::AngleAxisd(mean_rotation.norm(), mean_rotation.norm() > 0
-                                                    ? Eigen::Vector3d(mean_rotation.normalized())
-                                                    : Eigen::Vector3d::UnitZ())
-            .toRotationMatrix(),
-        mean_translation);
-    world_T_model_fit = mean_correction.inverse() * world_T_model_fit;
+    // Report in the data's world, the views' pose corrections averaging to zero.
+    const RigidMotion world_T_model_fit = PlaceModelInWorld(set, r.model_T_scan);
     const Eigen::Vector3d axis_point = world_T_model_fit.translation();
     const Eigen::Vector3d axis_direction = world_T_model_fit.rotation().col(2);
     const std::string units = o.units.empty() ? set.scans[0].units : o.units;
@@ -698,29 +667,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       vessel = MeasureVessel(axis_point, up_sign * axis_direction, height_radius, radius_uncertainty, units);
       vessel->covered_turn = covered_turn;
       if (sherd) {
-        // In the drawing's orientation: heights above the base, the top edge the one up.
-        SherdSummary s;
         const double base = std::min(up_sign * samples.front()[0], up_sign * samples.back()[0]);
-        s.up_from = sherd->rim_side != 0 ? "rim" : "world";
-        s.up_reason = sherd->rim_reason;
-        const PreservedArc& a = sherd->preserved;
-        s.preserved_fraction = {a.fraction, a.uncertainty, ""};
-        s.preserved_axis_uncertainty = a.axis_uncertainty;
-        s.preserved_sampling_uncertainty = a.sampling_uncertainty;
-        s.preserved_where = sherd->preserved_at_rim ? "rim" : "widest band";
-        const double lo = up_sign * a.height_lo - base, hi = up_sign * a.height_hi - base;
-        s.band_lo = std::min(lo, hi);
-        s.band_hi = std::max(lo, hi);
-        s.band_points = static_cast<long long>(a.points);
-        const EdgeLevelness& top = up_sign > 0 ? sherd->upper : sherd->lower;
-        const EdgeLevelness& bottom = up_sign > 0 ? sherd->lower : sherd->upper;
-        s.top_spread = top.spread;
-        s.top_expected = top.expected;
-        s.top_level = top.level;
-        s.bottom_spread = bottom.spread;
-        s.bottom_expected = bottom.expected;
-        s.bottom_level = bottom.level;
-        vessel->sherd = s;
+        vessel->sherd = SummarizeSherd(*sherd, up_sign, base);
       }
       // The volume the fitted surface encloses, closed by the planes through the generatrix's ends, and up
       // to a fill plane above the base (the end lower along up, as in MeasureVessel), with standard

@@ -1,5 +1,6 @@
 #include "pipeline/views.h"
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
@@ -12,6 +13,7 @@
 #include "acquisition/recording.h"
 #include "acquisition/scan_set_io.h"
 #include "pipeline/output.h"
+#include "registration/scan_to_scan.h"
 
 namespace s2m::pipeline {
 
@@ -140,6 +142,37 @@ std::string UnobservableText(const JointFitResult& result) {
 void WriteRequestedFiles(const FitOptions& o, const nlohmann::json& document, const JointFitResult& result) {
   if (!o.output.empty()) WriteTextAtomically(o.output + ".json", document.dump(2) + "\n");
   if (!o.history.empty()) WriteTextAtomically(o.history, HistoryCsv(result.history));
+}
+
+RigidMotion PlaceModelInWorld(const ScanSet& set, const std::vector<RigidMotion>& model_T_scan) {
+  const std::size_t K = set.scans.size();
+  const RigidMotion world_T_model = set.scans[0].world_T_scan * model_T_scan[0].inverse();
+  Eigen::Vector3d mean_rotation = Eigen::Vector3d::Zero(), mean_translation = Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < K; ++k) {
+    const RigidMotion correction = world_T_model * model_T_scan[k] * set.scans[k].world_T_scan.inverse();
+    const Eigen::AngleAxisd aa(correction.rotation());
+    mean_rotation += aa.angle() * aa.axis() / static_cast<double>(K);
+    mean_translation += correction.translation() / static_cast<double>(K);
+  }
+  const RigidMotion mean_correction(
+      Eigen::AngleAxisd(mean_rotation.norm(), mean_rotation.norm() > 0
+                                                  ? Eigen::Vector3d(mean_rotation.normalized())
+                                                  : Eigen::Vector3d::UnitZ())
+          .toRotationMatrix(),
+      mean_translation);
+  return mean_correction.inverse() * world_T_model;
+}
+
+std::vector<Eigen::Matrix3Xd> ViewNormals(const ScanSet& set) {
+  std::vector<Eigen::Matrix3Xd> normals;
+  for (const Scan& s : set.scans) {
+    try {
+      normals.push_back(EstimateNormals(s.points, 12));
+    } catch (const std::invalid_argument&) {
+      normals.emplace_back();
+    }
+  }
+  return normals;
 }
 
 }  // namespace s2m::pipeline

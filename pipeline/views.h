@@ -25,6 +25,15 @@ const ScanSet& InputViews(const FitOptions& options, ScanSet& storage);
 // caller reads itself.
 std::optional<Scan> InputCloud(const std::string& file, const ScanSet* views);
 
+// Where a joint fit's model frame lies in the data's world. The fit fixes the views only relative to each
+// other and to the model; the model is placed so that the views' pose corrections average to zero (the
+// least total correction: no single device pose is trusted more than the others).
+RigidMotion PlaceModelInWorld(const ScanSet& set, const std::vector<RigidMotion>& model_T_scan);
+
+// Unit normals of each view in its own coordinates (local plane fits over 12 neighbours), for deciding which
+// points lie off a fitted surface; a view too small for them gets none (distance test only).
+std::vector<Eigen::Matrix3Xd> ViewNormals(const ScanSet& set);
+
 // The error term (default tdm), iteration cap and solver variant (joint, alternating, register-then-fit).
 // Throws std::invalid_argument for a method the joint solver does not know.
 JointFitOptions JointOptions(const FitOptions& o);

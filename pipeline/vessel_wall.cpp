@@ -1,0 +1,708 @@
+// `scan2model fit --model revolution --wall <views>`: a vessel's wall, its outer and inner surfaces of
+// revolution fitted jointly with the views' poses about one axis (docs/archaeology.md section 10).
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <limits>
+#include <sstream>
+
+#include "acquisition/format_error.h"
+#include "fitting/foot_point.h"
+#include "fitting/initial_models.h"
+#include "fitting/joint_fit.h"
+#include "fitting/kinematic_starts.h"
+#include "fitting/model_complexity.h"
+#include "fitting/noise_estimate.h"
+#include "fitting/residual_structure.h"
+#include "fitting/revolution_wall.h"
+#include "fitting/robust_loss.h"
+#include "fitting/signed_distance.h"
+#include "pipeline/complexity.h"
+#include "pipeline/domain_measures.h"
+#include "pipeline/exit_code.h"
+#include "pipeline/fit_option_table.h"
+#include "pipeline/fit_options.h"
+#include "pipeline/output.h"
+#include "pipeline/views.h"
+#include "registration/scan_to_scan.h"
+
+namespace s2m::pipeline {
+namespace {
+
+// The two sheets' split of signed offsets e_j (one number per point): the threshold of the 1-D two-means
+// (the split of the sorted values minimizing the within-group sum of squares, eq. A23) over the central 98 %
+// of the values (a few far outliers must not make a group of their own), with each group's mean and robust
+// spread.
+struct SheetSplit {
+  double threshold = 0.0;
+  std::array<double, 2> mean{0.0, 0.0};    // low, high
+  std::array<double, 2> spread{0.0, 0.0};  // MadSigma of each group
+  std::array<Eigen::Index, 2> count{0, 0};
+};
+
+SheetSplit SplitInTwo(const std::vector<double>& values) {
+  std::vector<double> v;
+  for (double x : values)
+    if (std::isfinite(x)) v.push_back(x);
+  if (v.size() < 20) throw std::invalid_argument("too few points to split into two surfaces");
+  std::sort(v.begin(), v.end());
+  const auto trim = v.size() / 100;
+  const std::vector<double> central(v.begin() + static_cast<std::ptrdiff_t>(trim),
+                                    v.end() - static_cast<std::ptrdiff_t>(trim));
+  const std::size_t n = central.size();
+  std::vector<double> prefix(n + 1, 0.0), prefix2(n + 1, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    prefix[i + 1] = prefix[i] + central[i];
+    prefix2[i + 1] = prefix2[i] + central[i] * central[i];
+  }
+  auto sse = [&](std::size_t a, std::size_t b) {  // of central[a, b)
+    const double m = static_cast<double>(b - a), s = prefix[b] - prefix[a];
+    return prefix2[b] - prefix2[a] - s * s / m;
+  };
+  std::size_t best = 1;
+  double best_sse = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 1; k < n; ++k) {
+    const double total = sse(0, k) + sse(k, n);
+    if (total < best_sse) {
+      best_sse = total;
+      best = k;
+    }
+  }
+  SheetSplit out;
+  out.threshold = 0.5 * (central[best - 1] + central[best]);
+  std::array<std::vector<double>, 2> groups;
+  for (double x : v) groups[x > out.threshold ? 1 : 0].push_back(x);
+  for (std::size_t g = 0; g < 2; ++g) {
+    out.count[g] = static_cast<Eigen::Index>(groups[g].size());
+    if (groups[g].empty()) continue;
+    std::vector<double> sorted = groups[g];
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                     sorted.end());
+    out.mean[g] = sorted[sorted.size() / 2];  // the median: robust to the group's stragglers
+    out.spread[g] = MadSigma(
+        Eigen::Map<const Eigen::VectorXd>(groups[g].data(), static_cast<Eigen::Index>(groups[g].size())));
+  }
+  return out;
+}
+
+// Each face trimmed by the generatrix end rule (docs/method.md eq. 70, face by face): to the parameter span
+// its points' feet cover, cut where it folds back. A generatrix extending past its data is free along its
+// end tangent, and one curling at its end (towards the other face near a rim) would carry a rim diameter or
+// a volume beyond the scan. True when a face changed.
+bool TrimFacesToFeet(RevolutionWall& wall, const std::vector<FootPoint>& feet, const std::vector<bool>& used,
+                     double rms) {
+  std::array<std::vector<double>, 2> feet_u;
+  for (std::size_t i = 0; i < feet.size(); ++i)
+    if (used[i]) feet_u[static_cast<std::size_t>(feet[i].t[2])].push_back(feet[i].t[0]);
+  std::array<KinematicSurface, 2> faces{wall.face(0), wall.face(1)};
+  bool changed = false;
+  for (std::size_t f = 0; f < 2; ++f) {
+    const BSplineBasis& basis = faces[f].basis();
+    const std::array<double, 2> kept =
+        GeneratrixEndRuleSpan(basis, faces[f].profile(), feet_u[f], 0.01 * std::max(rms, 1e-12));
+    if (!(kept[1] > kept[0])) continue;
+    // Only what is more than a hundredth of a span off (feet reach the ends of a well-fitted face).
+    const double span = (basis.hi() - basis.lo()) / std::max(1, basis.num_control() - basis.order() + 1);
+    const bool trim_lo = kept[0] > basis.lo() + 1e-2 * span, trim_hi = kept[1] < basis.hi() - 1e-2 * span;
+    if (!trim_lo && !trim_hi) continue;
+    const BasisRefinement r =
+        RefineBasis(basis, {}, trim_lo ? kept[0] : basis.lo(), trim_hi ? kept[1] : basis.hi());
+    faces[f] = KinematicSurface::Revolution(r.basis, faces[f].profile() * r.transform.transpose());
+    changed = true;
+  }
+  if (changed) wall = RevolutionWall(faces[0], faces[1]);
+  return changed;
+}
+
+// Both faces with a knot inserted in the middle of every span (the spans halved).
+RevolutionWall Refined(const RevolutionWall& wall) {
+  std::array<KinematicSurface, 2> faces{wall.face(0), wall.face(1)};
+  for (KinematicSurface& face : faces) {
+    const std::vector<double> breaks = face.basis().Breakpoints();
+    std::vector<double> insert;
+    for (std::size_t s = 0; s + 1 < breaks.size(); ++s) insert.push_back(0.5 * (breaks[s] + breaks[s + 1]));
+    const BasisRefinement r = RefineBasis(face.basis(), insert);
+    face = KinematicSurface::Revolution(r.basis, face.profile() * r.transform.transpose());
+  }
+  return RevolutionWall(faces[0], faces[1]);
+}
+
+int ControlPoints(const RevolutionWall& wall) {
+  return std::max(wall.face(0).basis().num_control(), wall.face(1).basis().num_control());
+}
+
+nlohmann::json FaceJson(const KinematicSurface& face, Eigen::Index points, double rms) {
+  std::vector<std::vector<double>> cp;
+  for (Eigen::Index i = 0; i < face.profile().cols(); ++i)
+    cp.push_back({face.profile()(0, i), face.profile()(1, i)});
+  return {{"order", face.basis().order()},
+          {"knots", face.basis().knots()},
+          {"control_points_radius_height", cp},
+          {"points", points},
+          {"rms", NumberOrNull(rms)}};
+}
+
+}  // namespace
+
+FitOutcome ComputeWallFit(const FitOptions& given) {
+  FitOptions o = given;
+  try {
+    if (o.model != "revolution") throw FitFailure(kUsage, "--wall applies to --model revolution");
+    if (o.uncertainty != "linear" && o.uncertainty != "none" && !o.uncertainty.empty())
+      throw FitFailure(kUsage, "--wall: the uncertainties are the linear propagation's (--uncertainty " +
+                                   o.uncertainty + " is not available for a wall)");
+    ScanSet storage;
+    const ScanSet& set = InputViews(o, storage);
+    ResolveDefaultLoss(o, ClassifyInput(o.file, set.scans.empty() ? "" : set.scans.front().metadata.device));
+    const std::size_t K = set.scans.size();
+    const std::string units = o.units.empty() ? set.scans[0].units : o.units;
+    const auto start_time = std::chrono::steady_clock::now();
+    auto progress = [&](const std::string& what) {
+      if (o.progress) o.progress(what);
+    };
+    const Eigen::Matrix3Xd merged = set.MergedWorldPoints();
+    const NoiseEstimate noise = EstimateNoiseWithDof(set);
+    // The axis: both surfaces are surfaces of revolution about it, so every point's normal meets it (eq. 26),
+    // the robust solution (eq. 71) over all points of both.
+    progress("wall: the axis from the normals");
+    const Eigen::Matrix3Xd normals = EstimateNormals(merged, 12);
+    const KinematicAxis axis = RobustKinematicAxisFromNormals(merged, normals, KinematicKind::kRevolution);
+    const RigidMotion world_T_axis(FrameWithAxis(axis.direction), axis.point);
+    const Eigen::Matrix3Xd local = world_T_axis.inverse().apply(merged);
+    // The two sheets (eq. A23): a mid generatrix, the radius as a function of height through all points, and
+    // each point's radial offset from it; its two groups are the two surfaces.
+    const int order = o.order;
+    const KinematicSurface mid = InitialRevolution(local, 8, order);
+    // Points on neither surface (a sherd's breaks, across the wall; a lip) have normals far from the mean
+    // profile's at their height (more than 45 degrees, as in eq. 77): they take no part in the split and
+    // start left out of the joint fit (eq. 77 decides again at its solution).
+    const Eigen::Matrix3Xd local_normals = world_T_axis.rotation().transpose() * normals;
+    std::vector<bool> across(static_cast<std::size_t>(local.cols()), false);
+    std::vector<double> offsets(static_cast<std::size_t>(local.cols()), std::nan(""));
+    for (Eigen::Index j = 0; j < local.cols(); ++j) {
+      try {
+        const double z = local(2, j), h = 0.5;
+        const double slope = (mid.RadiusAtHeight(z + h) - mid.RadiusAtHeight(z - h)) / (2 * h);  // dr/dz
+        const double phi = std::atan2(local(1, j), local(0, j));
+        const Eigen::Vector3d meridian_normal =
+            Eigen::Vector3d(std::cos(phi), std::sin(phi), -slope).normalized();
+        if (std::abs(meridian_normal.dot(local_normals.col(j))) < std::cos(45.0 * M_PI / 180)) {
+          across[static_cast<std::size_t>(j)] = true;
+          continue;
+        }
+      } catch (const std::domain_error&) {  // near the mean profile's ends: judged by the split alone
+      }
+      try {
+        offsets[static_cast<std::size_t>(j)] =
+            std::hypot(local(0, j), local(1, j)) - mid.RadiusAtHeight(local(2, j));
+      } catch (const std::domain_error&) {
+      }
+    }
+    const SheetSplit split = SplitInTwo(offsets);
+    std::array<std::vector<Eigen::Index>, 2> members;
+    for (Eigen::Index j = 0; j < local.cols(); ++j) {
+      const double e = offsets[static_cast<std::size_t>(j)];
+      if (std::isfinite(e)) members[e > split.threshold ? 1 : 0].push_back(j);
+    }
+    auto columns = [&](const std::vector<Eigen::Index>& index) {
+      Eigen::Matrix3Xd out(3, static_cast<Eigen::Index>(index.size()));
+      for (std::size_t i = 0; i < index.size(); ++i)
+        out.col(static_cast<Eigen::Index>(i)) = local.col(index[i]);
+      return out;
+    };
+    const ControlPointRequest request = ParseControlPoints(o.control_points, false);
+    const int first_count = request.automatic ? std::max(order + 2, 8) : request.first;
+    const int max_count = request.automatic ? (request.max > 0 ? request.max : 40) : request.first;
+    for (const std::vector<Eigen::Index>& m : members)
+      if (static_cast<int>(m.size()) < 4 * first_count)
+        throw FitFailure(kFitError,
+                         o.file + ": --wall: the points do not show two surfaces about one axis (" +
+                             std::to_string(members[0].size()) + " and " + std::to_string(members[1].size()) +
+                             " points in the two groups of radial offsets)");
+    std::array<KinematicSurface, 2> starts{InitialRevolution(columns(members[0]), first_count, order),
+                                           InitialRevolution(columns(members[1]), first_count, order)};
+    // Two surfaces, not one spread out: each group lies near its own start (robust spread of the radial
+    // residuals) much closer than to the other's (the median radial gap), eq. A23.
+    std::array<double, 2> own_spread{0.0, 0.0};
+    std::vector<double> gaps;
+    for (std::size_t g = 0; g < 2; ++g) {
+      std::vector<double> own;
+      for (const Eigen::Index j : members[g]) {
+        const double rho = std::hypot(local(0, j), local(1, j));
+        try {
+          own.push_back(rho - starts[g].RadiusAtHeight(local(2, j)));
+          gaps.push_back(std::abs(rho - starts[1 - g].RadiusAtHeight(local(2, j))));
+        } catch (const std::domain_error&) {
+        }
+      }
+      own_spread[g] = own.empty() ? std::numeric_limits<double>::infinity()
+                                  : MadSigma(Eigen::Map<const Eigen::VectorXd>(
+                                        own.data(), static_cast<Eigen::Index>(own.size())));
+    }
+    double gap = 0.0;
+    if (!gaps.empty()) {
+      std::nth_element(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2), gaps.end());
+      gap = gaps[gaps.size() / 2];
+    }
+    if (!(gap > 6 * std::max(own_spread[0], own_spread[1])))
+      throw FitFailure(kFitError,
+                       o.file +
+                           ": --wall: the points do not show two surfaces about one axis (the two "
+                           "groups of radial offsets lie " +
+                           Format(gap, 4) + " " + units + " apart with spreads " + Format(own_spread[0], 3) +
+                           " and " + Format(own_spread[1], 3) +
+                           " about their own profiles); fit one surface without --wall, or crop the "
+                           "data to the vessel");
+    RevolutionWall wall(starts[0], starts[1]);
+
+    std::vector<Eigen::Matrix3Xd> scans;
+    std::vector<RigidMotion> poses;
+    for (const Scan& s : set.scans) {
+      scans.push_back(s.points);
+      poses.push_back(world_T_axis.inverse() * s.world_T_scan);
+    }
+    JointFitOptions options = JointOptions(o);
+    options.fairness =
+        FairnessWeights{o.stretch, o.bending, o.alpha3_given ? o.alpha3 : 0.0, o.beta2, o.beta3};
+    std::vector<std::vector<bool>> masks(K);
+    {
+      std::size_t at = 0;
+      for (std::size_t k = 0; k < K; ++k)
+        for (Eigen::Index p = 0; p < scans[k].cols(); ++p) masks[k].push_back(across[at++]);
+    }
+    auto fit = [&](RevolutionWall& w, const std::vector<RigidMotion>& from) {
+      JointFitOptions opts = options;
+      opts.left_out = masks;
+      return FitJointly(w, scans, from, opts);
+    };
+    auto registered_of = [&](const JointFitResult& r) {
+      Eigen::Matrix3Xd all(3, static_cast<Eigen::Index>(set.TotalPoints()));
+      Eigen::Index at = 0;
+      for (std::size_t k = 0; k < K; ++k) {
+        all.middleCols(at, scans[k].cols()) = r.model_T_scan[k].apply(scans[k]);
+        at += scans[k].cols();
+      }
+      return all;
+    };
+    auto used_points = [&]() {
+      std::vector<bool> used;
+      for (std::size_t k = 0; k < K; ++k)
+        for (Eigen::Index p = 0; p < scans[k].cols(); ++p)
+          used.push_back(masks.empty() || !masks[k][static_cast<std::size_t>(p)]);
+      return used;
+    };
+    // Fit, then the end rule with one refit when it trimmed a face.
+    auto fit_and_trim = [&](RevolutionWall& w, const std::vector<RigidMotion>& from) {
+      JointFitResult r = fit(w, from);
+      std::vector<FootPoint> feet;
+      ComputeFootPoints(w, registered_of(r), feet);
+      if (TrimFacesToFeet(w, feet, used_points(), r.residuals.rms)) {
+        const int iterations = r.iterations;
+        r = fit(w, r.model_T_scan);
+        r.iterations += iterations;
+      }
+      return r;
+    };
+    progress("wall: fitting both surfaces at " + std::to_string(first_count) + " control points");
+    JointFitResult result = fit_and_trim(wall, poses);
+    int total_iterations = result.iterations;
+    // The count (docs/archaeology.md section 10): every span halved while that lowers the Bayesian
+    // information criterion N ln(RSS / N) + P ln N over the points used (eq. A25): a bias of the profile
+    // below the noise (an inner surface the coarse spline cannot follow) shows in the RSS of thousands of
+    // points long before it shows in the RMS.
+    auto criterion = [&](const JointFitResult& r, const RevolutionWall& w) {
+      const double rss = r.residuals.rms * r.residuals.rms * static_cast<double>(r.residuals.count);
+      const double n = static_cast<double>(r.residuals.count);
+      return n * std::log(rss / n) + w.num_parameters() * std::log(n);
+    };
+    std::string count_reason = request.automatic ? "" : "given";
+    while (request.automatic) {
+      RevolutionWall finer = Refined(wall);
+      if (ControlPoints(finer) > max_count) {
+        count_reason = "the next refinement exceeds " + std::to_string(max_count) + " control points";
+        break;
+      }
+      progress("wall: refining to " + std::to_string(ControlPoints(finer)) + " control points");
+      JointFitResult r = fit_and_trim(finer, result.model_T_scan);
+      total_iterations += r.iterations;
+      if (!(criterion(r, finer) < criterion(result, wall))) {
+        count_reason = "halving the spans does not lower the information criterion";
+        break;
+      }
+      wall = finer;
+      result = r;
+    }
+    // The points off the surfaces (eq. 77) decided again at the solution (a lip, breaks, a stand, flying
+    // pixels), with one refit when they changed.
+    const std::vector<Eigen::Matrix3Xd> view_normals = ViewNormals(set);
+    {
+      std::vector<std::vector<bool>> off(K);
+      Eigen::Index count = 0;
+      const KinematicStartOptions defaults;
+      for (std::size_t k = 0; k < K; ++k) {
+        off[k] =
+            PointsOffTheSurface(wall, result.model_T_scan[k].apply(scans[k]),
+                                view_normals[k].cols() == scans[k].cols()
+                                    ? Eigen::Matrix3Xd(result.model_T_scan[k].rotation() * view_normals[k])
+                                    : Eigen::Matrix3Xd(),
+                                defaults.off_distance, defaults.off_angle_deg);
+        count += std::count(off[k].begin(), off[k].end(), true);
+      }
+      if (off != masks) {
+        masks = off;
+        progress("wall: refitting without the " + std::to_string(count) + " points off the surfaces");
+        result = fit_and_trim(wall, result.model_T_scan);
+        total_iterations += result.iterations;
+      }
+    }
+    result.iterations = total_iterations;
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+
+    // ---- Measures
+    std::vector<std::string> outcome_notes;
+    const RigidMotion world_T_model = PlaceModelInWorld(set, result.model_T_scan);
+    const Eigen::Vector3d axis_point = world_T_model.translation();
+    const Eigen::Vector3d axis_direction = world_T_model.rotation().col(2);
+    // The way up: the end higher in the world, unless the points cover a fragment whose level edge tells
+    // the rim (docs/archaeology.md section 9, measured on the outer surface's points).
+    double up_sign = axis_direction.z() < 0 ? -1.0 : 1.0;
+    const Eigen::Matrix3Xd registered = registered_of(result);
+    const std::vector<bool> used = used_points();
+    std::vector<FootPoint> feet;
+    ComputeFootPoints(wall, registered, feet);
+    std::array<Eigen::Index, 2> face_points{0, 0};
+    std::array<double, 2> face_sum_squares{0.0, 0.0};
+    for (std::size_t i = 0; i < feet.size(); ++i) {
+      if (!used[i]) continue;
+      const auto f = static_cast<std::size_t>(feet[i].t[2]);
+      ++face_points[f];
+      face_sum_squares[f] += feet[i].distance * feet[i].distance;
+    }
+    const double covered_turn =
+        CoveredTurnFraction(registered, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ());
+    std::optional<SherdMeasures> sherd;
+    if (covered_turn < kFragmentTurn && result.pose_uncertainty.size() == K) {
+      // The outer surface's points within Tukey's 4.6851 robust standard deviations of it (as for one
+      // surface, pipeline/multiview_fit.cpp).
+      std::vector<double> distances;
+      for (std::size_t i = 0; i < feet.size(); ++i)
+        if (used[i]) distances.push_back(feet[i].distance);
+      const double near = TuningConstant(LossKind::kTukey) *
+                          MadSigma(Eigen::Map<const Eigen::VectorXd>(
+                              distances.data(), static_cast<Eigen::Index>(distances.size())));
+      std::vector<Eigen::Index> kept_outer;
+      std::vector<int> view_of_point;
+      std::size_t at = 0;
+      for (std::size_t k = 0; k < K; ++k)
+        for (Eigen::Index p = 0; p < scans[k].cols(); ++p, ++at)
+          if (feet[at].t[2] == RevolutionWall::kOuter && feet[at].distance <= near) {
+            kept_outer.push_back(static_cast<Eigen::Index>(at));
+            view_of_point.push_back(static_cast<int>(k));
+          }
+      Eigen::Matrix3Xd surface(3, static_cast<Eigen::Index>(kept_outer.size()));
+      for (std::size_t i = 0; i < kept_outer.size(); ++i)
+        surface.col(static_cast<Eigen::Index>(i)) = registered.col(kept_outer[i]);
+      std::vector<Eigen::Matrix<double, 6, 6>> pose_covariance;
+      for (const ScanPoseUncertainty& u : result.pose_uncertainty) pose_covariance.push_back(u.covariance);
+      try {
+        sherd = MeasureSherd(surface, view_of_point, pose_covariance,
+                             std::isfinite(noise.sigma) ? noise.sigma : result.residuals.rms);
+        if (sherd->rim_side != 0) up_sign = sherd->rim_side;
+      } catch (const std::invalid_argument& e) {
+        outcome_notes.push_back(std::string("sherd measures not taken: ") + e.what());
+      }
+    }
+    const Eigen::MatrixXd& covariance = result.shape_covariance;
+    const bool have_covariance = covariance.rows() == wall.num_parameters();
+    auto uncertainty_of = [&](const Eigen::VectorXd& gradient) {
+      return have_covariance ? std::sqrt(std::max(0.0, gradient.dot(covariance * gradient))) : std::nan("");
+    };
+    const KinematicSurface& outer = wall.face(RevolutionWall::kOuter);
+    const KinematicSurface& inner = wall.face(RevolutionWall::kInner);
+    // Heights along the axis in the model frame; "up" heights are up_sign times them.
+    auto end_heights = [](const KinematicSurface& f) {
+      return std::array<double, 2>{f.ProfilePoint(f.basis().lo()).y(), f.ProfilePoint(f.basis().hi()).y()};
+    };
+    const std::array<double, 2> outer_ends = end_heights(outer), inner_ends = end_heights(inner);
+    auto lower = [&](const std::array<double, 2>& e) {
+      return up_sign > 0 ? std::min(e[0], e[1]) : std::max(e[0], e[1]);
+    };
+    auto upper = [&](const std::array<double, 2>& e) {
+      return up_sign > 0 ? std::max(e[0], e[1]) : std::min(e[0], e[1]);
+    };
+    const double z_base = lower(outer_ends);
+    const double z_rim = up_sign > 0 ? std::max(upper(outer_ends), upper(inner_ends))
+                                     : std::min(upper(outer_ends), upper(inner_ends));
+    const double z_inner_bottom = lower(inner_ends);
+    auto above_base = [&](double z) { return up_sign * (z - z_base); };
+
+    // The outer surface's vessel measures (the drawing's outline, rim and base diameters).
+    std::vector<Eigen::Vector2d> height_radius;
+    std::vector<double> radius_uncertainty;
+    for (int i = 0; i <= 50; ++i) {
+      const Eigen::Vector2d rz =
+          outer.ProfilePoint(outer.basis().lo() + (outer.basis().hi() - outer.basis().lo()) * i / 50);
+      height_radius.emplace_back(up_sign * rz.y(), rz.x());
+      double u = std::nan("");
+      try {
+        Eigen::VectorXd g;
+        outer.RadiusAtHeight(rz.y(), &g);
+        Eigen::VectorXd full = Eigen::VectorXd::Zero(wall.num_parameters());
+        full.head(g.size()) = g;
+        u = uncertainty_of(full);
+      } catch (const std::domain_error&) {
+      }
+      radius_uncertainty.push_back(u);
+    }
+    VesselMeasures vessel =
+        MeasureVessel(axis_point, up_sign * axis_direction, height_radius, radius_uncertainty, units);
+    vessel.covered_turn = covered_turn;
+    if (sherd) vessel.sherd = SummarizeSherd(*sherd, up_sign, up_sign * z_base);
+    const std::string cubic = units + "^3";
+    // Volumes between planes across the axis (eqs. A1-A4 on each face), with the planes' own uncertainty: a
+    // plane through a generatrix's end lies where the scan ends, known to about the views' noise (eq. A24).
+    const double plane_u = std::isfinite(noise.sigma) ? noise.sigma : result.residuals.rms;
+    auto radius_at = [](const KinematicSurface& f, double z) {
+      try {
+        return f.RadiusAtHeight(z);
+      } catch (const std::domain_error&) {
+        return std::nan("");
+      }
+    };
+    auto volume = [&](int face, double z_a, double z_b, Eigen::VectorXd* gradient) {
+      const double lo = std::min(z_a, z_b), hi = std::max(z_a, z_b);
+      return wall.EnclosedVolume(face, lo, hi, gradient);
+    };
+    Eigen::VectorXd g_outer, g_inner;
+    const double v_outer = volume(RevolutionWall::kOuter, z_base, z_rim, &g_outer);
+    const double v_inner = volume(RevolutionWall::kInner, z_inner_bottom, z_rim, &g_inner);
+    const double r_out_rim = radius_at(outer, upper(outer_ends)),
+                 r_in_rim = radius_at(inner, upper(inner_ends));
+    const double r_out_base = radius_at(outer, z_base), r_in_bottom = radius_at(inner, z_inner_bottom);
+    auto plane_term = [&](double radius) {
+      return std::isfinite(radius) ? M_PI * radius * radius * plane_u : 0.0;
+    };
+    auto combine = [](double a, double b) { return std::sqrt(a * a + b * b); };
+    const Measure capacity{
+        v_inner, combine(uncertainty_of(g_inner), combine(plane_term(r_in_rim), plane_term(r_in_bottom))),
+        cubic};
+    const Measure outer_volume{
+        v_outer, combine(uncertainty_of(g_outer), combine(plane_term(r_out_rim), plane_term(r_out_base))),
+        cubic};
+    // The material: the rim plane's term is the annulus between the faces (pi (r_o^2 - r_i^2) u).
+    const double annulus = std::isfinite(r_out_rim) && std::isfinite(r_in_rim)
+                               ? M_PI * std::abs(r_out_rim * r_out_rim - r_in_rim * r_in_rim) * plane_u
+                               : 0.0;
+    const Measure material{
+        v_outer - v_inner,
+        combine(uncertainty_of(g_outer - g_inner),
+                combine(annulus, combine(plane_term(r_out_base), plane_term(r_in_bottom)))),
+        cubic};
+    vessel.volume = outer_volume;
+    std::optional<Measure> fill;
+    if (o.fill_height > 0) {
+      if (o.fill_height > above_base(z_rim)) {
+        throw FitFailure(kUsage, "--fill-height " + Format(o.fill_height, 6) + " is above the rim (" +
+                                     Format(above_base(z_rim), 6) + " " + units + " above the base)");
+      }
+      Eigen::VectorXd g;
+      const double z_fill = z_base + up_sign * o.fill_height;
+      if (up_sign * (z_fill - z_inner_bottom) <= 0) {
+        fill = Measure{0.0, 0.0, cubic};
+      } else {
+        const double v = volume(RevolutionWall::kInner, z_inner_bottom, z_fill, &g);
+        fill = Measure{v, combine(uncertainty_of(g), plane_term(r_in_bottom)), cubic};
+      }
+    }
+    // The thickness along the height, at 11 heights spread over those both faces reach (eqs. A21-A22).
+    nlohmann::json thickness_rows = nlohmann::json::array();
+    double t_min = std::numeric_limits<double>::infinity(), t_max = -t_min, t_sum = 0.0;
+    int t_count = 0;
+    const std::array<double, 2> common = wall.CommonHeights();
+    for (int i = 0; i <= 10; ++i) {
+      const double z = common[0] + (common[1] - common[0]) * (0.02 + 0.96 * i / 10.0);
+      try {
+        Eigen::VectorXd g;
+        const double t = wall.ThicknessAtHeight(z, &g);
+        thickness_rows.push_back({above_base(z), t, NumberOrNull(uncertainty_of(g))});
+        t_min = std::min(t_min, t);
+        t_max = std::max(t_max, t);
+        t_sum += t;
+        ++t_count;
+      } catch (const std::domain_error&) {
+      }
+    }
+    std::sort(thickness_rows.begin(), thickness_rows.end(),
+              [](const nlohmann::json& a, const nlohmann::json& b) {
+                return a[0].get<double>() < b[0].get<double>();
+              });
+
+    // Adequacy over both faces: the RMS against the views' noise and the residuals' structure along the
+    // height.
+    Eigen::Matrix3Xd foot_points;
+    const Eigen::VectorXd deviations = SignedDistancesAroundAxis(wall, registered, &foot_points);
+    std::vector<Eigen::Index> kept;
+    for (std::size_t i = 0; i < used.size(); ++i)
+      if (used[i]) kept.push_back(static_cast<Eigen::Index>(i));
+    Eigen::VectorXd judged(static_cast<Eigen::Index>(kept.size()));
+    Eigen::Matrix3Xd judged_feet(3, judged.size());
+    for (std::size_t i = 0; i < kept.size(); ++i) {
+      judged[static_cast<Eigen::Index>(i)] = deviations[kept[i]];
+      judged_feet.col(static_cast<Eigen::Index>(i)) = foot_points.col(kept[i]);
+    }
+    AdequacyEvidence evidence;
+    evidence.family = ModelFamily::kMultiView;
+    evidence.model = "revolution wall";
+    evidence.control_points =
+        std::to_string(outer.basis().num_control()) + " + " + std::to_string(inner.basis().num_control());
+    evidence.fit_rms = result.residuals.rms;
+    evidence.noise_estimate = noise.sigma;
+    evidence.residuals = judged;
+    evidence.points = judged_feet;
+    evidence.order = OrderByParameter(judged_feet.row(2).transpose());
+    evidence.order_description = "the height along the axis";
+    evidence.weights = RobustWeightsAt(o.loss, result.loss_scale, judged);
+    evidence.extent = ComputeBounds(registered).diagonal();
+    const Adequacy adequacy = AssessAdequacy(evidence);
+    const std::optional<bool> trusted = adequacy.uncertainty_trusted();
+
+    FitOutcome outcome;
+    outcome.notes = outcome_notes;
+    nlohmann::json& j = outcome.document;
+    j["schema"] = "scan2model.multiview/1";
+    j["input"] = {{"file", o.file}, {"views", K}, {"points", set.TotalPoints()}, {"units", units}};
+    j["model"] = o.model;
+    j["method"] = ToString(options.error_term);
+    j["solver"] = SolverName(options);
+    j["loss"] = LossJson(o.loss, result.loss_scale, Eigen::VectorXd());
+    j["loss"]["reason"] = o.loss_reason;
+    j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
+    j["start"] = {
+        {"mode", "wall"},
+        {"reason",
+         "--wall: the axis from all points' normals (eq. 71), the two surfaces split by their radial "
+         "offsets from a mean profile (eq. A23)"}};
+    {
+      std::vector<std::vector<double>> cp;
+      for (Eigen::Index i = 0; i < outer.profile().cols(); ++i)
+        cp.push_back({outer.profile()(0, i), outer.profile()(1, i)});
+      std::vector<std::vector<double>> samples;
+      for (const Eigen::Vector2d& hr : height_radius) samples.push_back({up_sign * hr.x(), hr.y()});
+      j["profile"] = {{"order", outer.basis().order()},
+                      {"knots", outer.basis().knots()},
+                      {"control_points_radius_height", cp},
+                      {"samples_height_radius", samples},
+                      {"surface", "outer"}};
+      j["profile"]["samples_radius_uncertainty"] = nlohmann::json::array();
+      for (double u : radius_uncertainty)
+        j["profile"]["samples_radius_uncertainty"].push_back(NumberOrNull(u));
+    }
+    std::vector<RigidMotion> corrected;
+    for (std::size_t k = 0; k < K; ++k) corrected.push_back(world_T_model * result.model_T_scan[k]);
+    j["views"] = ViewsJson(set, corrected, result);
+    AddSolverJson(j, result, seconds);
+    j["deviations"] = DeviationsJson(world_T_model.apply(registered), deviations, {},
+                                     RobustWeightsAt(o.loss, result.loss_scale, deviations));
+    j["adequacy"] = adequacy.ToJson();
+    j["vessel"] = vessel.ToJson();
+    auto measure_json = [](const Measure& m) {
+      return nlohmann::json{
+          {"value", m.value}, {"uncertainty", NumberOrNull(m.uncertainty)}, {"unit", m.unit}};
+    };
+    const Eigen::Index left_out = static_cast<Eigen::Index>(used.size()) -
+                                  static_cast<Eigen::Index>(std::count(used.begin(), used.end(), true));
+    j["wall"] = {{"outer", FaceJson(outer, face_points[0],
+                                    face_points[0] > 0
+                                        ? std::sqrt(face_sum_squares[0] / static_cast<double>(face_points[0]))
+                                        : std::nan(""))},
+                 {"inner", FaceJson(inner, face_points[1],
+                                    face_points[1] > 0
+                                        ? std::sqrt(face_sum_squares[1] / static_cast<double>(face_points[1]))
+                                        : std::nan(""))},
+                 {"control_points_reason", count_reason},
+                 {"left_out", left_out},
+                 {"thickness",
+                  {{"columns", {"height_above_base", "thickness", "uncertainty"}},
+                   {"rows", thickness_rows},
+                   {"min", t_count > 0 ? NumberOrNull(t_min) : nullptr},
+                   {"max", t_count > 0 ? NumberOrNull(t_max) : nullptr},
+                   {"mean", t_count > 0 ? NumberOrNull(t_sum / t_count) : nullptr},
+                   {"method",
+                    "square to the wall: from the outer surface's point at each height to the inner "
+                    "generatrix (docs/archaeology.md eq. A21)"}}},
+                 {"fragment", vessel.IsFragment()},
+                 {"rim_height_above_base", above_base(z_rim)},
+                 {"inner_bottom_height_above_base", above_base(z_inner_bottom)},
+                 {"capacity", measure_json(capacity)},
+                 {"outer_volume", measure_json(outer_volume)},
+                 {"material_volume", measure_json(material)},
+                 {"plane_uncertainty", plane_u},
+                 {"split",
+                  {{"threshold", split.threshold},
+                   {"offsets", {split.mean[0], split.mean[1]}},
+                   {"spreads", {split.spread[0], split.spread[1]}},
+                   {"points", {split.count[0], split.count[1]}}}}};
+    if (fill) {
+      j["wall"]["fill_height"] = o.fill_height;
+      j["wall"]["fill_capacity"] = measure_json(*fill);
+    }
+    MarkUncertainties(j, trusted);
+    WriteRequestedFiles(o, j, result);
+    if (!o.output.empty()) WriteProfileFiles(o.output, vessel);
+
+    std::ostringstream text;
+    text << "scan2model fit: " << wall.name() << " to " << K << " views (" << set.TotalPoints()
+         << " points) of " << o.file << " (units " << units << ")\n\n"
+         << UntrustedUncertaintiesLine(trusted) << "  solver            "
+         << SolverSummary(options, result, seconds) << "\n"
+         << "  loss              " << ToString(o.loss) << "; " << o.loss_reason << "\n"
+         << "  axis point        " << Format(axis_point) << "\n"
+         << "  axis direction    " << Format(axis_direction) << "\n"
+         << "  surfaces          outer " << face_points[0] << " points, " << outer.basis().num_control()
+         << " control points; inner " << face_points[1] << " points, " << inner.basis().num_control()
+         << " control points (" << count_reason << ")";
+    if (left_out > 0) text << "; " << left_out << " points off both left out";
+    text << "\n  residuals         RMS " << Format(result.residuals.rms, 6) << ", max "
+         << Format(result.residuals.max_abs, 6) << "\n";
+    text << ViewsTable(j["views"]) << UnobservableText(result);
+    if (o.verbose) text << HistoryTable(result.history);
+    text << vessel.Text(trusted);
+    text << "  wall              thickness "
+         << (t_count > 0 ? Format(t_min, 4) + " to " + Format(t_max, 4) : "-") << " " << units
+         << " square to the wall (mean " << (t_count > 0 ? Format(t_sum / t_count, 4) : "-") << ")\n";
+    for (const nlohmann::json& row : thickness_rows)
+      text << "  " << std::setw(14) << Format(row[0].get<double>(), 6) << " above the base  " << std::setw(10)
+           << Format(row[1].get<double>(), 5) << " +- "
+           << UncertaintyText(row[2].is_number() ? row[2].get<double>() : std::nan(""), trusted, 2) << "\n";
+    auto measure_line = [&](const char* label, const Measure& m, const std::string& what) {
+      text << "  " << label << Format(m.value, 7) << " +- " << UncertaintyText(m.uncertainty, trusted, 2)
+           << " " << m.unit << " (" << what << ")\n";
+    };
+    measure_line("capacity          ", capacity,
+                 vessel.IsFragment() ? "inside the inner surface between its ends: a fragment, so only the "
+                                       "preserved height band, closed by planes"
+                                     : "inside the inner surface, its bottom to the rim plane");
+    if (fill)
+      measure_line("filled capacity   ", *fill,
+                   "inside the inner surface up to " + Format(o.fill_height, 6) + " above the base");
+    measure_line("outer volume      ", outer_volume, "inside the outer surface, base plane to rim plane");
+    measure_line("material volume   ", material, "between the surfaces");
+    text << adequacy.Text();
+    outcome.text = text.str();
+    return outcome;
+  } catch (const FormatError& e) {
+    throw FitFailure(kInputError, e.what());
+  } catch (const FitFailure&) {
+    throw;
+  } catch (const std::invalid_argument& e) {
+    throw FitFailure(kFitError, o.file + ": --wall: " + e.what());
+  } catch (const std::exception& e) {
+    throw FitFailure(kFitError, o.file + ": --wall: " + e.what());
+  }
+}
+
+}  // namespace s2m::pipeline
