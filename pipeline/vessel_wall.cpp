@@ -7,6 +7,7 @@
 #include <cmath>
 #include <iomanip>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "acquisition/format_error.h"
@@ -89,18 +90,47 @@ SheetSplit SplitInTwo(const std::vector<double>& values) {
 }
 
 // Each face trimmed by the generatrix end rule (docs/method.md eq. 70, face by face): to the parameter span
-// its points' feet cover, cut where it folds back. A generatrix extending past its data is free along its
-// end tangent, and one curling at its end (towards the other face near a rim) would carry a rim diameter or
-// a volume beyond the scan. True when a face changed.
-bool TrimFacesToFeet(RevolutionWall& wall, const std::vector<FootPoint>& feet, const std::vector<bool>& used,
-                     double rms) {
+// the feet of its own points cover, cut where it folds back. A point is the face's own by the sheets' split
+// (`sheet_of_point`: RevolutionWall::kOuter, kInner, or -1 for neither, then the nearer face's), not by
+// which face is nearer now:
+// near a rim a face's free end can curl towards the other sheet's points beyond the other face's end, and
+// trimming the other face to the points still nearest to it would then shorten it step by step. A
+// generatrix extending past its data is free along its end tangent and would carry a rim diameter or a
+// volume beyond the scan. True when a face changed. With `parameter_map`, the linear map of the wall's
+// parameters the trim applied (new = map * old), to carry a covariance along.
+bool TrimFacesToFeet(RevolutionWall& wall, const Eigen::Matrix3Xd& registered,
+                     const std::vector<int>& sheet_of_point, const std::vector<bool>& used, double rms,
+                     Eigen::MatrixXd* parameter_map = nullptr) {
   std::array<std::vector<double>, 2> feet_u;
-  for (std::size_t i = 0; i < feet.size(); ++i)
-    if (used[i]) feet_u[static_cast<std::size_t>(feet[i].t[2])].push_back(feet[i].t[0]);
+  {
+    // The points of no sheet (beyond the heights both sheets reach) count for the face nearer to them.
+    std::vector<Eigen::Index> unlabelled;
+    for (std::size_t i = 0; i < used.size(); ++i)
+      if (used[i] && sheet_of_point[i] < 0) unlabelled.push_back(static_cast<Eigen::Index>(i));
+    Eigen::MatrixXd points(3, static_cast<Eigen::Index>(unlabelled.size()));
+    for (std::size_t i = 0; i < unlabelled.size(); ++i)
+      points.col(static_cast<Eigen::Index>(i)) = registered.col(unlabelled[i]);
+    std::vector<FootPoint> feet;
+    ComputeFootPoints(wall, points, feet);
+    for (const FootPoint& foot : feet) feet_u[static_cast<std::size_t>(foot.t[2])].push_back(foot.t[0]);
+  }
+  for (int f = 0; f < 2; ++f) {
+    std::vector<Eigen::Index> own;
+    for (std::size_t i = 0; i < used.size(); ++i)
+      if (used[i] && sheet_of_point[i] == f) own.push_back(static_cast<Eigen::Index>(i));
+    Eigen::MatrixXd points(3, static_cast<Eigen::Index>(own.size()));
+    for (std::size_t i = 0; i < own.size(); ++i)
+      points.col(static_cast<Eigen::Index>(i)) = registered.col(own[i]);
+    std::vector<FootPoint> feet;
+    ComputeFootPoints(wall.face(f), points, feet);
+    for (const FootPoint& foot : feet) feet_u[static_cast<std::size_t>(f)].push_back(foot.t[0]);
+  }
   std::array<KinematicSurface, 2> faces{wall.face(0), wall.face(1)};
+  std::array<Eigen::MatrixXd, 2> transforms;  // n_new x n_old per face
   bool changed = false;
   for (std::size_t f = 0; f < 2; ++f) {
     const BSplineBasis& basis = faces[f].basis();
+    transforms[f] = Eigen::MatrixXd::Identity(basis.num_control(), basis.num_control());
     const std::array<double, 2> kept =
         GeneratrixEndRuleSpan(basis, faces[f].profile(), feet_u[f], 0.01 * std::max(rms, 1e-12));
     if (!(kept[1] > kept[0])) continue;
@@ -111,10 +141,31 @@ bool TrimFacesToFeet(RevolutionWall& wall, const std::vector<FootPoint>& feet, c
     const BasisRefinement r =
         RefineBasis(basis, {}, trim_lo ? kept[0] : basis.lo(), trim_hi ? kept[1] : basis.hi());
     faces[f] = KinematicSurface::Revolution(r.basis, faces[f].profile() * r.transform.transpose());
+    transforms[f] = r.transform;
     changed = true;
   }
-  if (changed) wall = RevolutionWall(faces[0], faces[1]);
-  return changed;
+  if (!changed) return false;
+  if (parameter_map) {
+    // Each face's (r_k, z_k) interleaved map by its transform per coordinate, the faces as blocks in the
+    // wall's order (RevolutionWall keeps the outer face first, whichever was given first).
+    const auto rows = 2 * (transforms[0].rows() + transforms[1].rows());
+    const auto cols = 2 * (transforms[0].cols() + transforms[1].cols());
+    parameter_map->setZero(rows, cols);
+    Eigen::Index row0 = 0, col0 = 0;
+    for (const Eigen::MatrixXd& t : transforms) {
+      for (Eigen::Index i = 0; i < t.rows(); ++i)
+        for (Eigen::Index k = 0; k < t.cols(); ++k)
+          for (int c = 0; c < 2; ++c) (*parameter_map)(row0 + 2 * i + c, col0 + 2 * k + c) = t(i, k);
+      row0 += 2 * t.rows();
+      col0 += 2 * t.cols();
+    }
+  }
+  const double before = faces[0].profile().row(0).mean();
+  wall = RevolutionWall(faces[0], faces[1]);
+  // The trim cannot swap the faces (it keeps each face's own part): the map's block order holds.
+  if (parameter_map && wall.face(RevolutionWall::kOuter).profile().row(0).mean() != before)
+    throw std::logic_error("the wall's faces swapped in a trim");
+  return true;
 }
 
 // Both faces with a knot inserted in the middle of every span (the spans halved).
@@ -145,6 +196,142 @@ nlohmann::json FaceJson(const KinematicSurface& face, Eigen::Index points, doubl
           {"rms", NumberOrNull(rms)}};
 }
 
+// The points split into the two sheets about one candidate axis (eq. A23), in that axis' frame (`local`,
+// with the points' unit normals `local_normals`), with the start of each sheet's surface and how tightly
+// the sheets lie about them.
+struct Sheets {
+  std::vector<bool> across;  // normals far from the mean profile's: a break or a lip, on neither surface
+  SheetSplit split;
+  std::array<std::vector<Eigen::Index>, 2> members;       // by radial offset: [0] the inner, [1] the outer
+  std::optional<std::array<KinematicSurface, 2>> starts;  // none when a group is too small (`why`)
+  std::string why;
+  std::array<double, 2> own_spread{std::numeric_limits<double>::infinity(),
+                                   std::numeric_limits<double>::infinity()};
+  double gap = 0.0;  // the median radial distance of a group's points from the other group's start
+  // Two surfaces, not one spread out: each group lies near its own start much closer than to the other's.
+  bool Separated() const { return starts && gap > 6 * std::max(own_spread[0], own_spread[1]); }
+  // Lower is better: the sheets' larger spread relative to their gap.
+  double Score() const {
+    return starts && gap > 0 ? std::max(own_spread[0], own_spread[1]) / gap
+                             : std::numeric_limits<double>::infinity();
+  }
+};
+
+Sheets SplitSheets(const Eigen::Matrix3Xd& local, const Eigen::Matrix3Xd& local_normals, int order,
+                   int first_count) {
+  Sheets sheets;
+  // The two sheets (eq. A23): a mid generatrix, the radius as a function of height through all points, and
+  // each point's radial offset from it; its two groups are the two surfaces.
+  const KinematicSurface mid = InitialRevolution(local, 8, order);
+  // Points on neither surface (a sherd's breaks, across the wall; a lip) have normals far from the mean
+  // profile's at their height (more than 45 degrees, as in eq. 77): they take no part in the split and
+  // start left out of the joint fit (eq. 77 decides again at its solution).
+  std::vector<bool>& across = sheets.across;
+  across.assign(static_cast<std::size_t>(local.cols()), false);
+  for (Eigen::Index j = 0; j < local.cols(); ++j) {
+    try {
+      const double z = local(2, j), h = 0.5;
+      const double slope = (mid.RadiusAtHeight(z + h) - mid.RadiusAtHeight(z - h)) / (2 * h);  // dr/dz
+      const double phi = std::atan2(local(1, j), local(0, j));
+      const Eigen::Vector3d meridian_normal =
+          Eigen::Vector3d(std::cos(phi), std::sin(phi), -slope).normalized();
+      if (std::abs(meridian_normal.dot(local_normals.col(j))) < std::cos(45.0 * M_PI / 180))
+        across[static_cast<std::size_t>(j)] = true;
+    } catch (const std::domain_error&) {  // near the mean profile's ends: judged by the split alone
+    }
+  }
+  // Radial offsets from a mean profile, for the points between heights lo and hi (NaN elsewhere).
+  auto offsets_from = [&](const KinematicSurface& mean_profile, double lo, double hi) {
+    std::vector<double> offsets(static_cast<std::size_t>(local.cols()), std::nan(""));
+    for (Eigen::Index j = 0; j < local.cols(); ++j) {
+      if (across[static_cast<std::size_t>(j)] || local(2, j) < lo || local(2, j) > hi) continue;
+      try {
+        offsets[static_cast<std::size_t>(j)] =
+            std::hypot(local(0, j), local(1, j)) - mean_profile.RadiusAtHeight(local(2, j));
+      } catch (const std::domain_error&) {
+      }
+    }
+    return offsets;
+  };
+  auto groups_of = [&](const std::vector<double>& e, SheetSplit* split) {
+    *split = SplitInTwo(e);
+    std::array<std::vector<Eigen::Index>, 2> groups;
+    for (Eigen::Index j = 0; j < local.cols(); ++j) {
+      const double x = e[static_cast<std::size_t>(j)];
+      if (std::isfinite(x)) groups[x > split->threshold ? 1 : 0].push_back(j);
+    }
+    return groups;
+  };
+  const double infinity = std::numeric_limits<double>::infinity();
+  SheetSplit& split = sheets.split;
+  std::array<std::vector<Eigen::Index>, 2>& members = sheets.members;
+  members = groups_of(offsets_from(mid, -infinity, infinity), &split);
+  // Where only one sheet reaches (above the outside's rim the inside rises on along its slant; a break cut
+  // at a slant), the mean profile follows that sheet alone and its points' offsets straddle the threshold.
+  // So again, from a mean profile over the heights both groups span (their 1 % to 99 % quantiles), only
+  // for the points between those heights; the others belong to no sheet in what follows (they still join
+  // the fit through their nearer face).
+  {
+    std::array<std::array<double, 2>, 2> range;
+    for (std::size_t g = 0; g < 2; ++g) {
+      std::vector<double> heights;
+      for (const Eigen::Index j : members[g]) heights.push_back(local(2, j));
+      if (heights.size() < 100) break;
+      std::sort(heights.begin(), heights.end());
+      range[g] = {heights[heights.size() / 100], heights[heights.size() - 1 - heights.size() / 100]};
+    }
+    const double lo = std::max(range[0][0], range[1][0]), hi = std::min(range[0][1], range[1][1]);
+    if (members[0].size() >= 100 && members[1].size() >= 100 && hi > lo) {
+      std::vector<Eigen::Index> between;
+      for (Eigen::Index j = 0; j < local.cols(); ++j)
+        if (!across[static_cast<std::size_t>(j)] && local(2, j) >= lo && local(2, j) <= hi)
+          between.push_back(j);
+      Eigen::Matrix3Xd points(3, static_cast<Eigen::Index>(between.size()));
+      for (std::size_t i = 0; i < between.size(); ++i)
+        points.col(static_cast<Eigen::Index>(i)) = local.col(between[i]);
+      if (points.cols() >= 20)
+        members = groups_of(offsets_from(InitialRevolution(points, 8, order), lo, hi), &split);
+    }
+  }
+  auto columns = [&](const std::vector<Eigen::Index>& index) {
+    Eigen::Matrix3Xd matrix(3, static_cast<Eigen::Index>(index.size()));
+    for (std::size_t i = 0; i < index.size(); ++i)
+      matrix.col(static_cast<Eigen::Index>(i)) = local.col(index[i]);
+    return matrix;
+  };
+  for (const std::vector<Eigen::Index>& m : members)
+    if (static_cast<int>(m.size()) < 4 * first_count) {
+      sheets.why = std::to_string(members[0].size()) + " and " + std::to_string(members[1].size()) +
+                   " points in the two groups of radial offsets";
+      return sheets;
+    }
+  sheets.starts = std::array<KinematicSurface, 2>{InitialRevolution(columns(members[0]), first_count, order),
+                                                  InitialRevolution(columns(members[1]), first_count, order)};
+  // Two surfaces, not one spread out: each group lies near its own start (robust spread of the radial
+  // residuals) much closer than to the other's (the median radial gap), eq. A23.
+  std::vector<double> gaps;
+  for (std::size_t g = 0; g < 2; ++g) {
+    std::vector<double> own;
+    for (const Eigen::Index j : members[g]) {
+      const double rho = std::hypot(local(0, j), local(1, j));
+      try {
+        own.push_back(rho - (*sheets.starts)[g].RadiusAtHeight(local(2, j)));
+        gaps.push_back(std::abs(rho - (*sheets.starts)[1 - g].RadiusAtHeight(local(2, j))));
+      } catch (const std::domain_error&) {
+      }
+    }
+    sheets.own_spread[g] =
+        own.empty()
+            ? std::numeric_limits<double>::infinity()
+            : MadSigma(Eigen::Map<const Eigen::VectorXd>(own.data(), static_cast<Eigen::Index>(own.size())));
+  }
+  if (!gaps.empty()) {
+    std::nth_element(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2), gaps.end());
+    sheets.gap = gaps[gaps.size() / 2];
+  }
+  return sheets;
+}
+
 }  // namespace
 
 FitOutcome ComputeWallFit(const FitOptions& given) {
@@ -165,98 +352,71 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     };
     const Eigen::Matrix3Xd merged = set.MergedWorldPoints();
     const NoiseEstimate noise = EstimateNoiseWithDof(set);
-    // The axis: both surfaces are surfaces of revolution about it, so every point's normal meets it (eq. 26),
-    // the robust solution (eq. 71) over all points of both.
-    progress("wall: the axis from the normals");
-    const Eigen::Matrix3Xd normals = EstimateNormals(merged, 12);
-    const KinematicAxis axis = RobustKinematicAxisFromNormals(merged, normals, KinematicKind::kRevolution);
-    const RigidMotion world_T_axis(FrameWithAxis(axis.direction), axis.point);
-    const Eigen::Matrix3Xd local = world_T_axis.inverse().apply(merged);
-    // The two sheets (eq. A23): a mid generatrix, the radius as a function of height through all points, and
-    // each point's radial offset from it; its two groups are the two surfaces.
     const int order = o.order;
-    const KinematicSurface mid = InitialRevolution(local, 8, order);
-    // Points on neither surface (a sherd's breaks, across the wall; a lip) have normals far from the mean
-    // profile's at their height (more than 45 degrees, as in eq. 77): they take no part in the split and
-    // start left out of the joint fit (eq. 77 decides again at its solution).
-    const Eigen::Matrix3Xd local_normals = world_T_axis.rotation().transpose() * normals;
-    std::vector<bool> across(static_cast<std::size_t>(local.cols()), false);
-    std::vector<double> offsets(static_cast<std::size_t>(local.cols()), std::nan(""));
-    for (Eigen::Index j = 0; j < local.cols(); ++j) {
-      try {
-        const double z = local(2, j), h = 0.5;
-        const double slope = (mid.RadiusAtHeight(z + h) - mid.RadiusAtHeight(z - h)) / (2 * h);  // dr/dz
-        const double phi = std::atan2(local(1, j), local(0, j));
-        const Eigen::Vector3d meridian_normal =
-            Eigen::Vector3d(std::cos(phi), std::sin(phi), -slope).normalized();
-        if (std::abs(meridian_normal.dot(local_normals.col(j))) < std::cos(45.0 * M_PI / 180)) {
-          across[static_cast<std::size_t>(j)] = true;
-          continue;
-        }
-      } catch (const std::domain_error&) {  // near the mean profile's ends: judged by the split alone
-      }
-      try {
-        offsets[static_cast<std::size_t>(j)] =
-            std::hypot(local(0, j), local(1, j)) - mid.RadiusAtHeight(local(2, j));
-      } catch (const std::domain_error&) {
-      }
-    }
-    const SheetSplit split = SplitInTwo(offsets);
-    std::array<std::vector<Eigen::Index>, 2> members;
-    for (Eigen::Index j = 0; j < local.cols(); ++j) {
-      const double e = offsets[static_cast<std::size_t>(j)];
-      if (std::isfinite(e)) members[e > split.threshold ? 1 : 0].push_back(j);
-    }
-    auto columns = [&](const std::vector<Eigen::Index>& index) {
-      Eigen::Matrix3Xd out(3, static_cast<Eigen::Index>(index.size()));
-      for (std::size_t i = 0; i < index.size(); ++i)
-        out.col(static_cast<Eigen::Index>(i)) = local.col(index[i]);
-      return out;
-    };
     const ControlPointRequest request = ParseControlPoints(o.control_points, false);
     const int first_count = request.automatic ? std::max(order + 2, 8) : request.first;
     const int max_count = request.automatic ? (request.max > 0 ? request.max : 40) : request.first;
-    for (const std::vector<Eigen::Index>& m : members)
-      if (static_cast<int>(m.size()) < 4 * first_count)
-        throw FitFailure(kFitError,
-                         o.file + ": --wall: the points do not show two surfaces about one axis (" +
-                             std::to_string(members[0].size()) + " and " + std::to_string(members[1].size()) +
-                             " points in the two groups of radial offsets)");
-    std::array<KinematicSurface, 2> starts{InitialRevolution(columns(members[0]), first_count, order),
-                                           InitialRevolution(columns(members[1]), first_count, order)};
-    // Two surfaces, not one spread out: each group lies near its own start (robust spread of the radial
-    // residuals) much closer than to the other's (the median radial gap), eq. A23.
-    std::array<double, 2> own_spread{0.0, 0.0};
-    std::vector<double> gaps;
-    for (std::size_t g = 0; g < 2; ++g) {
-      std::vector<double> own;
-      for (const Eigen::Index j : members[g]) {
-        const double rho = std::hypot(local(0, j), local(1, j));
-        try {
-          own.push_back(rho - starts[g].RadiusAtHeight(local(2, j)));
-          gaps.push_back(std::abs(rho - starts[1 - g].RadiusAtHeight(local(2, j))));
-        } catch (const std::domain_error&) {
-        }
+    // The axis (eq. A23): both surfaces are surfaces of revolution about it. Candidates: the robust axis
+    // from all points' normals (eqs. 26, 71), which holds on a whole vessel, and those of the direction
+    // search of a single surface (eqs. 75-76), which a small sherd needs; each is judged by how tightly the
+    // two sheets it splits the points into lie about their own profiles relative to their distance, the
+    // tightest kept.
+    progress("wall: the axis");
+    const Eigen::Matrix3Xd normals = EstimateNormals(merged, 12);
+    std::vector<std::pair<RigidMotion, std::string>> axes;
+    std::optional<Sheets> best;
+    RigidMotion world_T_axis;
+    std::string axis_source;
+    auto consider = [&](const RigidMotion& frame, const std::string& source) {
+      axes.emplace_back(frame, source);
+      Sheets candidate = SplitSheets(frame.inverse().apply(merged), frame.rotation().transpose() * normals,
+                                     order, first_count);
+      if (!best || candidate.Score() < best->Score()) {
+        best = std::move(candidate);
+        world_T_axis = frame;
+        axis_source = source;
       }
-      own_spread[g] = own.empty() ? std::numeric_limits<double>::infinity()
-                                  : MadSigma(Eigen::Map<const Eigen::VectorXd>(
-                                        own.data(), static_cast<Eigen::Index>(own.size())));
+    };
+    {
+      const KinematicAxis axis = RobustKinematicAxisFromNormals(merged, normals, KinematicKind::kRevolution);
+      consider(RigidMotion(FrameWithAxis(axis.direction), axis.point), "normals");
     }
-    double gap = 0.0;
-    if (!gaps.empty()) {
-      std::nth_element(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2), gaps.end());
-      gap = gaps[gaps.size() / 2];
+    // The direction search unless the sheets about the normals' axis lie as tightly about their starts as
+    // the views' noise allows (within 3 sigma: no axis can do better; the search costs seconds).
+    const double tight = 3 * (std::isfinite(noise.sigma) ? noise.sigma : 0.0);
+    if (!(best->starts && std::max(best->own_spread[0], best->own_spread[1]) <= tight)) {
+      progress("wall: searching the axis' direction");
+      try {
+        for (const AxisCandidate& c : RevolutionAxisCandidates(merged, normals))
+          consider(RigidMotion(FrameWithAxis(c.direction), c.point), c.source);
+      } catch (const std::invalid_argument&) {  // the normals' axis stands alone
+      }
     }
-    if (!(gap > 6 * std::max(own_spread[0], own_spread[1])))
+    const Eigen::Matrix3Xd local = world_T_axis.inverse().apply(merged);
+    const Sheets& sheets = *best;
+    const std::array<std::vector<Eigen::Index>, 2>& members = sheets.members;
+    const SheetSplit& split = sheets.split;
+    if (!sheets.starts)
+      throw FitFailure(kFitError, o.file + ": --wall: the points do not show two surfaces about one axis (" +
+                                      sheets.why + ")");
+    if (!sheets.Separated())
       throw FitFailure(kFitError,
                        o.file +
                            ": --wall: the points do not show two surfaces about one axis (the two "
                            "groups of radial offsets lie " +
-                           Format(gap, 4) + " " + units + " apart with spreads " + Format(own_spread[0], 3) +
-                           " and " + Format(own_spread[1], 3) +
+                           Format(sheets.gap, 4) + " " + units + " apart with spreads " +
+                           Format(sheets.own_spread[0], 3) + " and " + Format(sheets.own_spread[1], 3) +
                            " about their own profiles); fit one surface without --wall, or crop the "
                            "data to the vessel");
-    RevolutionWall wall(starts[0], starts[1]);
+    const std::vector<bool>& across = sheets.across;
+    RevolutionWall wall((*sheets.starts)[0], (*sheets.starts)[1]);
+    // Each point's sheet by the split, as the wall's face index (the group of larger radial offsets is the
+    // outer surface).
+    std::vector<int> sheet_of_point(static_cast<std::size_t>(local.cols()), -1);
+    for (const Eigen::Index j : members[1])
+      sheet_of_point[static_cast<std::size_t>(j)] = RevolutionWall::kOuter;
+    for (const Eigen::Index j : members[0])
+      sheet_of_point[static_cast<std::size_t>(j)] = RevolutionWall::kInner;
 
     std::vector<Eigen::Matrix3Xd> scans;
     std::vector<RigidMotion> poses;
@@ -297,9 +457,7 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     // Fit, then the end rule with one refit when it trimmed a face.
     auto fit_and_trim = [&](RevolutionWall& w, const std::vector<RigidMotion>& from) {
       JointFitResult r = fit(w, from);
-      std::vector<FootPoint> feet;
-      ComputeFootPoints(w, registered_of(r), feet);
-      if (TrimFacesToFeet(w, feet, used_points(), r.residuals.rms)) {
+      if (TrimFacesToFeet(w, registered_of(r), sheet_of_point, used_points(), r.residuals.rms)) {
         const int iterations = r.iterations;
         r = fit(w, r.model_T_scan);
         r.iterations += iterations;
@@ -359,6 +517,16 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
       }
     }
     result.iterations = total_iterations;
+    // A free end can fold back again in the last refit (two sheets fit the noise band better than one, or
+    // an end curls towards the other face's points near a rim): the end rule once more, without a refit,
+    // the shape covariance carried by the cut's linear map.
+    {
+      Eigen::MatrixXd map;
+      if (TrimFacesToFeet(wall, registered_of(result), sheet_of_point, used_points(), result.residuals.rms,
+                          &map) &&
+          result.shape_covariance.cols() == map.cols())
+        result.shape_covariance = map * result.shape_covariance * map.transpose();
+    }
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
 

@@ -1,57 +1,164 @@
-// Exploration (temporary).
+// `scan2model fit --model revolution --wall` (pipeline/vessel_wall.cpp, docs/archaeology.md section 10),
+// through the command's own path (ComputeFit): a whole vessel scanned inside and out, two-surface rim
+// sherds with their breaks, and data that show one surface only.
+
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
 
+#include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
-#include "synthetic/synthetic_cases.h"
 #include "registration/scan.h"
+#include "synthetic/synthetic_cases.h"
 
 namespace s2m {
 namespace {
 
-TEST(VesselWall, SingleSheetOnTwoSurfaces) {
-  const WallTruth truth = MakeTwoSurfaceVessel(0.05, 6000, 7);
+pipeline::FitOptions WallOptions(const Eigen::Matrix3Xd& points, const std::string& name) {
   auto set = std::make_shared<ScanSet>();
   Scan scan;
   scan.units = "mm";
-  scan.points = truth.cloud.points;
+  scan.points = points;
   set->scans.push_back(scan);
   pipeline::FitOptions o;
-  o.file = "vessel";
+  o.file = name;
   o.views = set;
   o.model = "revolution";
   o.interactive = false;
   o.wall = true;
-  const pipeline::FitOutcome outcome = pipeline::ComputeFit(o);
-  std::printf("%s\n", outcome.text.c_str());
+  return o;
 }
 
-TEST(VesselWall, TwoSurfaceSherdExplore) {
-  for (double arc : {0.4}) {
+double Number(const nlohmann::json& j) {
+  return j.is_number() ? j.get<double>() : std::nan("");
+}
+
+// A whole vessel, outer and inner surfaces all round, 0.05 mm noise: the wall 6 mm thick at every height
+// within the noise, each row within 4 of its standard uncertainties; the capacity within 3 standard
+// uncertainties of the truth's (the inner surface's volume between its ends, by quadrature); both faces
+// found with their own points; adequate.
+TEST(VesselWall, WholeVesselThicknessAndCapacity) {
+  const double noise = 0.05;
+  const WallTruth truth = MakeTwoSurfaceVessel(noise, 6000, 7);
+  const pipeline::FitOutcome outcome = pipeline::ComputeFit(WallOptions(truth.cloud.points, "vessel"));
+  const nlohmann::json& d = outcome.document;
+  ASSERT_TRUE(d.contains("wall")) << d.dump().substr(0, 400);
+  const nlohmann::json& w = d["wall"];
+  EXPECT_EQ(d["adequacy"]["adequate"], true);
+  EXPECT_FALSE(w["fragment"].get<bool>());
+  // Each face holds about its own 6000 points (a few left out near the rim, where normals mix both).
+  EXPECT_GT(w["outer"]["points"].get<int>(), 5500);
+  EXPECT_GT(w["inner"]["points"].get<int>(), 5500);
+  EXPECT_LT(w["left_out"].get<int>(), 600);
+  const nlohmann::json& rows = w["thickness"]["rows"];
+  ASSERT_GE(rows.size(), 9u);
+  for (const nlohmann::json& row : rows) {
+    const double t = row[1].get<double>(), u = Number(row[2]);
+    EXPECT_NEAR(t, truth.thickness, noise) << row.dump();
+    EXPECT_LT(std::abs(t - truth.thickness), 4 * u) << row.dump();
+    EXPECT_LT(u, 0.2 * noise) << row.dump();
+  }
+  const double capacity = w["capacity"]["value"].get<double>();
+  const double capacity_u = Number(w["capacity"]["uncertainty"]);
+  EXPECT_LT(std::abs(capacity - truth.capacity), 3 * capacity_u) << capacity << " truth " << truth.capacity;
+  EXPECT_LT(std::abs(capacity - truth.capacity), 1e-3 * truth.capacity);
+  // The material is the difference of the outer and the inner volumes.
+  EXPECT_NEAR(w["material_volume"]["value"].get<double>(),
+              w["outer_volume"]["value"].get<double>() - capacity, 1e-6 * capacity);
+  EXPECT_NE(outcome.text.find("  capacity          "), std::string::npos);
+  EXPECT_NE(outcome.text.find("  wall              thickness "), std::string::npos);
+  std::printf("whole vessel: thickness %.4f-%.4f, capacity %.1f +- %.1f (truth %.1f)\n",
+              w["thickness"]["min"].get<double>(), w["thickness"]["max"].get<double>(), capacity, capacity_u,
+              truth.capacity);
+}
+
+// Two-surface rim sherds with fracture faces (breaks across the wall), 0.05 mm noise, placed rim down, 40,
+// 20 and 10 % of the circumference (S2M_WALL_SEEDS seeds each, default 1). Every fit must be right or say
+// that it is not: a fit judged adequate has its rim told and drawn up, the rim diameter and the preserved
+// fraction within 3 standard uncertainties of the truth and the wall 6 mm within the noise. The 40 % sherd
+// of seed 1 must be adequate. Measured over seeds 1-3 (S2M_WALL_SEEDS=3): adequate 2, 1 and 0 of 3 at 40,
+// 20 and 10 %, every adequate one right; the others say they are not adequate (docs/archaeology.md
+// section 10).
+TEST(VesselWall, TwoSurfaceRimSherds) {
+  const double noise = 0.05;
+  const int seeds = std::getenv("S2M_WALL_SEEDS") ? std::atoi(std::getenv("S2M_WALL_SEEDS")) : 1;
+  for (const double arc : {0.4, 0.2, 0.1}) {
+    for (int seed = 1; seed <= seeds; ++seed) {
+      SherdSpec spec;
+      spec.arc_fraction = arc;
+      spec.rim = true;
+      spec.inner_surface = true;
+      spec.fracture_faces = true;
+      spec.upside_down = true;
+      spec.noise = noise;
+      spec.seed = static_cast<std::uint64_t>(seed);
+      const SherdTruth truth = MakeSherd(spec);
+      pipeline::FitOutcome outcome;
+      try {
+        outcome = pipeline::ComputeFit(WallOptions(truth.cloud.points, "sherd"));
+      } catch (const pipeline::FitFailure& e) {  // refused, with its reason: not a wrong number
+        std::printf("arc %.2f seed %d: refused: %s\n", arc, seed, e.what());
+        EXPECT_LT(arc, 0.3) << e.what();
+        continue;
+      }
+      const nlohmann::json& d = outcome.document;
+      const nlohmann::json& w = d["wall"];
+      const nlohmann::json& v = d["vessel"];
+      const bool adequate = d["adequacy"]["adequate"].get<bool>();
+      const double rim = v["rim_diameter"].get<double>(), rim_u = Number(v["rim_diameter_uncertainty"]);
+      const auto truth_arc = truth.arc(truth.profile_hi - 1e-9);
+      ASSERT_TRUE(truth_arc.has_value());
+      const double truth_fraction = (truth_arc->second - truth_arc->first) / (2 * M_PI);
+      const nlohmann::json s = v.contains("sherd") ? v["sherd"] : nlohmann::json::object();
+      const double fraction = Number(s.value("preserved_fraction", nlohmann::json()));
+      const double fraction_u = Number(s.value("preserved_fraction_uncertainty", nlohmann::json()));
+      std::printf(
+          "arc %.2f seed %d: adequate %d, rim %s, rim diameter %.4f +- %.4f (truth %.4f), thickness "
+          "%.4f-%.4f, preserved %.4f +- %.4f (truth %.4f)\n",
+          arc, seed, adequate ? 1 : 0, s.value("up_from", std::string("-")).c_str(), rim, rim_u,
+          truth.rim_diameter, Number(w["thickness"]["min"]), Number(w["thickness"]["max"]), fraction,
+          fraction_u, truth_fraction);
+      if (arc > 0.3 && seed == 1) {
+        EXPECT_TRUE(adequate) << "arc " << arc << " seed " << seed << "\n" << outcome.text;
+      }
+      if (!adequate) continue;
+      EXPECT_EQ(s.value("up_from", std::string()), "rim") << "arc " << arc << " seed " << seed;
+      EXPECT_LT(std::abs(rim - truth.rim_diameter), 3 * rim_u) << "arc " << arc << " seed " << seed;
+      EXPECT_LT(std::abs(fraction - truth_fraction), 3 * fraction_u) << "arc " << arc << " seed " << seed;
+      EXPECT_NEAR(Number(w["thickness"]["min"]), truth.wall_thickness, noise) << "arc " << arc;
+      EXPECT_NEAR(Number(w["thickness"]["max"]), truth.wall_thickness, noise) << "arc " << arc;
+    }
+  }
+}
+
+// Data that show one surface (the outside only): refused with a message that says why, not a wall.
+TEST(VesselWall, OneSurfaceIsRefused) {
   SherdSpec spec;
-  spec.arc_fraction = arc;
+  spec.arc_fraction = 1.0;
   spec.rim = true;
-  spec.inner_surface = true;
-  spec.fracture_faces = true;
-  spec.seed = 3;
+  spec.irregular_breaks = false;
   const SherdTruth truth = MakeSherd(spec);
-  auto set = std::make_shared<ScanSet>();
-  Scan scan;
-  scan.units = "mm";
-  scan.points = truth.cloud.points;
-  set->scans.push_back(scan);
-  pipeline::FitOptions o;
-  o.file = "sherd";
-  o.views = set;
-  o.model = "revolution";
-  o.interactive = false;
-  o.wall = true;
   try {
-  const pipeline::FitOutcome outcome = pipeline::ComputeFit(o);
-  std::printf("%s\n%s\n", outcome.document["wall"]["outer"].dump().c_str(), outcome.document["wall"]["inner"].dump().c_str());
-  std::printf("%s\ntruth rim diameter %g axis %g %g %g\n", outcome.text.c_str(), truth.rim_diameter, truth.cloud.axis_direction.x(), truth.cloud.axis_direction.y(), truth.cloud.axis_direction.z());
-  } catch (const std::exception& e) { std::printf("error %s\n", e.what()); }
+    pipeline::ComputeFit(WallOptions(truth.cloud.points, "outside.ply"));
+    ADD_FAILURE() << "a single surface was fitted as a wall";
+  } catch (const pipeline::FitFailure& e) {
+    EXPECT_EQ(e.exit_code(), pipeline::kFitError);
+    EXPECT_NE(std::string(e.what()).find("outside.ply: --wall: the points do not show two surfaces"),
+              std::string::npos)
+        << e.what();
+  }
+  pipeline::FitOptions helical = WallOptions(truth.cloud.points, "outside.ply");
+  helical.model = "helical";
+  try {
+    pipeline::ComputeFit(helical);
+    ADD_FAILURE() << "--wall accepted for a helical surface";
+  } catch (const pipeline::FitFailure& e) {
+    EXPECT_EQ(e.exit_code(), pipeline::kUsage);
   }
 }
 
