@@ -8,6 +8,9 @@
 //                                                (the "part" case of synthetic/synthetic_cases.h): 8 views,
 //                                                0.02 mm noise, recorded poses off by 2 degrees and 2 mm
 //                                                (world: the part frame, as a fixture would give it)
+//   s2m_make_demo_views wall <manifest.json>     a vessel scanned outside and inside (MakeTwoSurfaceVessel of
+//                                                synthetic/synthetic_cases.h): two views, 3000 points each,
+//                                                0.05 mm noise, 6 mm wall (docs/archaeology.md section 10)
 // Deterministic (fixed seeds).
 
 #include <Eigen/Geometry>
@@ -18,9 +21,9 @@
 #include <string>
 
 #include "acquisition/scan_set_io.h"
-#include "synthetic/synthetic_cases.h"
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
+#include "synthetic/synthetic_cases.h"
 
 namespace s2m {
 namespace {
@@ -68,19 +71,37 @@ ScanSet MakeVaseViews() {
   return set;
 }
 
+// The two-surface vessel as two views in one world frame: the outside's points, then the inside's.
+ScanSet MakeWallViews() {
+  const WallTruth truth = MakeTwoSurfaceVessel(0.05, 3000, 11);
+  ScanSet set;
+  set.name = "demo vessel scanned outside and inside (6 mm wall), 2 views";
+  const Eigen::Index outer = truth.cloud.surface_points;
+  for (int k = 0; k < 2; ++k) {
+    Scan scan;
+    scan.units = "mm";
+    scan.points = k == 0 ? Eigen::Matrix3Xd(truth.cloud.points.leftCols(outer))
+                         : Eigen::Matrix3Xd(truth.cloud.points.rightCols(truth.inner_points));
+    set.scans.push_back(scan);
+  }
+  return set;
+}
+
 }  // namespace
 }  // namespace s2m
 
 int main(int argc, char** argv) {
   using namespace s2m;
   const std::string which = argc == 3 ? argv[1] : "vase";
-  if ((argc != 2 && argc != 3) || (which != "vase" && which != "block" && which != "freeform")) {
-    std::cerr << "usage: s2m_make_demo_views [vase|block|freeform] <manifest.json>\n";
+  if ((argc != 2 && argc != 3) ||
+      (which != "vase" && which != "block" && which != "freeform" && which != "wall")) {
+    std::cerr << "usage: s2m_make_demo_views [vase|block|freeform|wall] <manifest.json>\n";
     return 2;
   }
   const std::filesystem::path manifest = argv[argc - 1];
-  ScanSet set =
-      which == "vase" ? MakeVaseViews() : RecordedViews(MakeSyntheticCase(which == "block" ? "part" : which));
+  ScanSet set = which == "vase"   ? MakeVaseViews()
+                : which == "wall" ? MakeWallViews()
+                                  : RecordedViews(MakeSyntheticCase(which == "block" ? "part" : which));
   if (which == "block") set.name = "demo block (docs/examples/counterbored_block.part.json), 8 views";
   if (which == "freeform")
     set.name = "plate with a free-form top (docs/examples/freeform_plate.part.json), 8 views";

@@ -581,6 +581,17 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
         out.push_back(Flat("rim_up", sh["up_from"] == "rim" ? 1.0 : 0.0, nullptr, ""));
       }
     }
+    // A wall (fit option wall, docs/archaeology.md section 10): the thickness' range and mean, the capacity
+    // and the material volume with their uncertainties.
+    if (d.contains("wall")) {
+      const nlohmann::json& w = d["wall"];
+      for (const char* key : {"min", "max", "mean"})
+        if (w["thickness"][key].is_number())
+          out.push_back(
+              Flat(std::string("wall_thickness_") + key, w["thickness"][key].get<double>(), nullptr, units));
+      for (const char* key : {"capacity", "material_volume"})
+        out.push_back(Flat(key, w[key]["value"].get<double>(), w[key]["uncertainty"], units + "^3"));
+    }
   } else if (schema == "scan2model.hermite/1") {
     const nlohmann::json& q = d["interrogation"];
     out.push_back(Flat("length", q["length"].get<double>(), nullptr, units));

@@ -477,6 +477,17 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
       return n * std::log(rss / n) + w.num_parameters() * std::log(n);
     };
     std::string count_reason = request.automatic ? "" : "given";
+    nlohmann::json steps = nlohmann::json::array();
+    auto record_step = [&](const RevolutionWall& w, const JointFitResult& r) {
+      steps.push_back(
+          {{"control_points", std::to_string(w.face(RevolutionWall::kOuter).basis().num_control()) + " + " +
+                                  std::to_string(w.face(RevolutionWall::kInner).basis().num_control())},
+           {"parameters", w.num_parameters()},
+           {"points", r.residuals.count},
+           {"rms", r.residuals.rms},
+           {"bic", criterion(r, w)}});
+    };
+    record_step(wall, result);
     while (request.automatic) {
       RevolutionWall finer = Refined(wall);
       if (ControlPoints(finer) > max_count) {
@@ -486,6 +497,7 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
       progress("wall: refining to " + std::to_string(ControlPoints(finer)) + " control points");
       JointFitResult r = fit_and_trim(finer, result.model_T_scan);
       total_iterations += r.iterations;
+      record_step(finer, r);
       if (!(criterion(r, finer) < criterion(result, wall))) {
         count_reason = "halving the spans does not lower the information criterion";
         break;
@@ -511,7 +523,7 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
       }
       if (off != masks) {
         masks = off;
-        progress("wall: refitting without the " + std::to_string(count) + " points off the surfaces");
+        progress("wall: refitting with the " + std::to_string(count) + " points off the surfaces left out");
         result = fit_and_trim(wall, result.model_T_scan);
         total_iterations += result.iterations;
       }
@@ -540,6 +552,8 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     double up_sign = axis_direction.z() < 0 ? -1.0 : 1.0;
     const Eigen::Matrix3Xd registered = registered_of(result);
     const std::vector<bool> used = used_points();
+    const Eigen::Index left_out = static_cast<Eigen::Index>(used.size()) -
+                                  static_cast<Eigen::Index>(std::count(used.begin(), used.end(), true));
     std::vector<FootPoint> feet;
     ComputeFootPoints(wall, registered, feet);
     std::array<Eigen::Index, 2> face_points{0, 0};
@@ -751,9 +765,21 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
     j["start"] = {
         {"mode", "wall"},
+        {"searched", axes.size() > 1},
         {"reason",
-         "--wall: the axis from all points' normals (eq. 71), the two surfaces split by their radial "
-         "offsets from a mean profile (eq. A23)"}};
+         "--wall: the axis whose two sheets lie tightest about their own profiles (eq. A23), the "
+         "surfaces split by their radial offsets from a mean profile"},
+        {"normals_adequate", nullptr},
+        {"turn_fraction", covered_turn},
+        {"fairness", {{"stretch", options.fairness.stretch}, {"bending", options.fairness.bending}}},
+        {"source", axis_source},
+        {"tried", axes.size()},
+        {"left_out_points", left_out}};
+    j["complexity"] = {{"mode", request.automatic ? "auto" : "fixed"},
+                       {"chosen", std::to_string(outer.basis().num_control()) + " + " +
+                                      std::to_string(inner.basis().num_control())},
+                       {"stop_reason", count_reason},
+                       {"steps", steps}};
     {
       std::vector<std::vector<double>> cp;
       for (Eigen::Index i = 0; i < outer.profile().cols(); ++i)
@@ -781,8 +807,6 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
       return nlohmann::json{
           {"value", m.value}, {"uncertainty", NumberOrNull(m.uncertainty)}, {"unit", m.unit}};
     };
-    const Eigen::Index left_out = static_cast<Eigen::Index>(used.size()) -
-                                  static_cast<Eigen::Index>(std::count(used.begin(), used.end(), true));
     j["wall"] = {{"outer", FaceJson(outer, face_points[0],
                                     face_points[0] > 0
                                         ? std::sqrt(face_sum_squares[0] / static_cast<double>(face_points[0]))

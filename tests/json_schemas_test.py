@@ -227,6 +227,8 @@ def main():
                                  "--interpolate", "--alpha3", "1", os.path.join(work, "ellipse.xyz")], None),
         ("multiview.schema.json", ["fit", "--json", "--model", "revolution", "--control-points", "8", vase,
                                    "--uncertainty", "monte-carlo:20", "--efd", "6"] + quick, None),
+        ("multiview.schema.json", ["fit", "--json", "--model", "revolution", "--wall", "--fill-height", "60",
+                                   os.path.join(source, "recordings", "demo_wall", "views.json")], None),
         ("multiview.schema.json", ["fit", "--json", "--model", "helical", "--control-points", "6", vase,
                                    "--uncertainty", "linear"] + quick, None),
         ("multiview.schema.json", ["fit", "--json", "--model", "spiral", "--control-points", "6", vase,

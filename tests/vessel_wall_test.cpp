@@ -9,8 +9,10 @@
 #include <cstdlib>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 
+#include "pipeline/batch.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
 #include "registration/scan.h"
@@ -70,6 +72,12 @@ TEST(VesselWall, WholeVesselThicknessAndCapacity) {
   // The material is the difference of the outer and the inner volumes.
   EXPECT_NEAR(w["material_volume"]["value"].get<double>(),
               w["outer_volume"]["value"].get<double>() - capacity, 1e-6 * capacity);
+  // The batch table's columns (docs/batch.md).
+  std::set<std::string> columns;
+  for (const nlohmann::json& c : pipeline::FlatParameters(d)) columns.insert(c["name"].get<std::string>());
+  for (const char* name : {"wall_thickness_min", "wall_thickness_max", "wall_thickness_mean", "capacity",
+                           "material_volume", "rim_diameter"})
+    EXPECT_TRUE(columns.count(name)) << name;
   EXPECT_NE(outcome.text.find("  capacity          "), std::string::npos);
   EXPECT_NE(outcome.text.find("  wall              thickness "), std::string::npos);
   std::printf("whole vessel: thickness %.4f-%.4f, capacity %.1f +- %.1f (truth %.1f)\n",
