@@ -406,6 +406,30 @@ std::string UntrustedUncertaintiesLine(std::optional<bool> trusted) {
                           : "";
 }
 
+std::optional<SherdMeasures> MeasureSherdOfPoints(
+    const Eigen::Matrix3Xd& registered, const std::vector<Eigen::Index>& view_sizes,
+    const std::vector<bool>& take, const std::vector<Eigen::Matrix<double, 6, 6>>& pose_covariance,
+    double noise, std::vector<std::string>& notes) {
+  std::vector<Eigen::Index> kept;
+  std::vector<int> view_of_point;
+  Eigen::Index at = 0;
+  for (std::size_t k = 0; k < view_sizes.size(); ++k)
+    for (Eigen::Index p = 0; p < view_sizes[k]; ++p, ++at)
+      if (take[static_cast<std::size_t>(at)]) {
+        kept.push_back(at);
+        view_of_point.push_back(static_cast<int>(k));
+      }
+  Eigen::Matrix3Xd surface(3, static_cast<Eigen::Index>(kept.size()));
+  for (std::size_t i = 0; i < kept.size(); ++i)
+    surface.col(static_cast<Eigen::Index>(i)) = registered.col(kept[i]);
+  try {
+    return MeasureSherd(surface, view_of_point, pose_covariance, noise);
+  } catch (const std::invalid_argument& e) {
+    notes.push_back(std::string("sherd measures not taken: ") + e.what());
+    return std::nullopt;
+  }
+}
+
 SherdSummary SummarizeSherd(const SherdMeasures& sherd, double up_sign, double base) {
   SherdSummary s;
   s.up_from = sherd.rim_side != 0 ? "rim" : "world";

@@ -221,6 +221,14 @@ struct VesselMeasures {
   // The "vessel" block of the text output; untrusted uncertainties in brackets (MarkUncertainties).
   std::string Text(std::optional<bool> uncertainty_trusted = std::nullopt) const;
 };
+// The sherd measures (fitting/sherd_measures.h) of the registered points (model frame, all views one after
+// the other, `view_sizes` points each) that `take` selects, each with its view's 6x6 pose covariance; `noise`
+// the data's noise. Nullopt, with a note appended to `notes`, when they cannot be taken (too few points).
+std::optional<SherdMeasures> MeasureSherdOfPoints(
+    const Eigen::Matrix3Xd& registered, const std::vector<Eigen::Index>& view_sizes,
+    const std::vector<bool>& take, const std::vector<Eigen::Matrix<double, 6, 6>>& pose_covariance,
+    double noise, std::vector<std::string>& notes);
+
 // A sherd's measures (fitting/sherd_measures.h, in the fitted model frame) in the drawing's orientation:
 // `up_sign` +1 when the model's z is drawn up, -1 when it is drawn down; heights above `base`, the base's
 // height along the drawn-up direction (up_sign times the model's z).

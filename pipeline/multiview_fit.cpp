@@ -636,27 +636,17 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
         // breaks, where the normals mix surface and break, and would shrink the arc; the breaks' points this
         // keeps lie next to the surface's edges, at the edges' angles about the axis.
         const double near = TuningConstant(LossKind::kTukey) * MadSigma(judged);
-        std::vector<Eigen::Index> kept;
-        std::vector<int> view_of_point;
-        Eigen::Index at = 0;
-        for (std::size_t k = 0; k < K; ++k)
-          for (Eigen::Index p = 0; p < scans[k].cols(); ++p, ++at)
-            if (std::abs(deviations[at]) <= near) {
-              kept.push_back(at);
-              view_of_point.push_back(static_cast<int>(k));
-            }
-        Eigen::Matrix3Xd surface(3, static_cast<Eigen::Index>(kept.size()));
-        for (std::size_t i = 0; i < kept.size(); ++i)
-          surface.col(static_cast<Eigen::Index>(i)) = registered.col(kept[i]);
+        std::vector<bool> take(static_cast<std::size_t>(deviations.size()));
+        for (Eigen::Index i = 0; i < deviations.size(); ++i)
+          take[static_cast<std::size_t>(i)] = std::abs(deviations[i]) <= near;
+        std::vector<Eigen::Index> view_sizes;
+        for (const Eigen::Matrix3Xd& scan : scans) view_sizes.push_back(scan.cols());
         std::vector<Eigen::Matrix<double, 6, 6>> pose_covariance;
         for (const ScanPoseUncertainty& u : r.pose_uncertainty) pose_covariance.push_back(u.covariance);
-        try {
-          sherd = MeasureSherd(surface, view_of_point, pose_covariance,
-                               std::isfinite(noise.sigma) ? noise.sigma : r.residuals.rms);
-          if (sherd->rim_side != 0) up_sign = sherd->rim_side;
-        } catch (const std::invalid_argument& e) {
-          outcome.notes.push_back(std::string("sherd measures not taken: ") + e.what());
-        }
+        sherd =
+            MeasureSherdOfPoints(registered, view_sizes, take, pose_covariance,
+                                 std::isfinite(noise.sigma) ? noise.sigma : r.residuals.rms, outcome.notes);
+        if (sherd && sherd->rim_side != 0) up_sign = sherd->rim_side;
       }
     }
     std::optional<VesselMeasures> vessel;

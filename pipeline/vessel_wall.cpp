@@ -576,27 +576,17 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
       const double near = TuningConstant(LossKind::kTukey) *
                           MadSigma(Eigen::Map<const Eigen::VectorXd>(
                               distances.data(), static_cast<Eigen::Index>(distances.size())));
-      std::vector<Eigen::Index> kept_outer;
-      std::vector<int> view_of_point;
-      std::size_t at = 0;
-      for (std::size_t k = 0; k < K; ++k)
-        for (Eigen::Index p = 0; p < scans[k].cols(); ++p, ++at)
-          if (feet[at].t[2] == RevolutionWall::kOuter && feet[at].distance <= near) {
-            kept_outer.push_back(static_cast<Eigen::Index>(at));
-            view_of_point.push_back(static_cast<int>(k));
-          }
-      Eigen::Matrix3Xd surface(3, static_cast<Eigen::Index>(kept_outer.size()));
-      for (std::size_t i = 0; i < kept_outer.size(); ++i)
-        surface.col(static_cast<Eigen::Index>(i)) = registered.col(kept_outer[i]);
+      std::vector<bool> take(feet.size());
+      for (std::size_t i = 0; i < feet.size(); ++i)
+        take[i] = feet[i].t[2] == RevolutionWall::kOuter && feet[i].distance <= near;
+      std::vector<Eigen::Index> view_sizes;
+      for (const Eigen::Matrix3Xd& scan : scans) view_sizes.push_back(scan.cols());
       std::vector<Eigen::Matrix<double, 6, 6>> pose_covariance;
       for (const ScanPoseUncertainty& u : result.pose_uncertainty) pose_covariance.push_back(u.covariance);
-      try {
-        sherd = MeasureSherd(surface, view_of_point, pose_covariance,
-                             std::isfinite(noise.sigma) ? noise.sigma : result.residuals.rms);
-        if (sherd->rim_side != 0) up_sign = sherd->rim_side;
-      } catch (const std::invalid_argument& e) {
-        outcome_notes.push_back(std::string("sherd measures not taken: ") + e.what());
-      }
+      sherd = MeasureSherdOfPoints(registered, view_sizes, take, pose_covariance,
+                                   std::isfinite(noise.sigma) ? noise.sigma : result.residuals.rms,
+                                   outcome_notes);
+      if (sherd && sherd->rim_side != 0) up_sign = sherd->rim_side;
     }
     const Eigen::MatrixXd& covariance = result.shape_covariance;
     const bool have_covariance = covariance.rows() == wall.num_parameters();
@@ -890,8 +880,6 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     throw FitFailure(kInputError, e.what());
   } catch (const FitFailure&) {
     throw;
-  } catch (const std::invalid_argument& e) {
-    throw FitFailure(kFitError, o.file + ": --wall: " + e.what());
   } catch (const std::exception& e) {
     throw FitFailure(kFitError, o.file + ": --wall: " + e.what());
   }

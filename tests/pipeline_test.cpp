@@ -83,7 +83,7 @@ TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
             "interpolate, loss, max_iterations, method, "
             "order, pitch, reference, rejected_output, relative_variation, robust, seed, solver, start, "
             "step_control, stretch, "
-            "tolerance, uncertainty, units");
+            "tolerance, uncertainty, units, wall");
   for (const FitOptionSpec& spec : FitOptionTable()) {
     EXPECT_TRUE(spec.set) << spec.key << spec.names;
     // Every manifest key but the solver (three flags) is also a command-line option with the dashed name.
