@@ -447,14 +447,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
 
     FitOutcome outcome;
     nlohmann::json& j = outcome.document;
-    j["schema"] = "scan2model.multiview/1";
-    j["input"] = {{"file", o.file}, {"views", K}, {"points", set.TotalPoints()}, {"units", units}};
-    j["model"] = o.model;
-    j["method"] = ToString(options.error_term);
-    j["solver"] = SolverName(options);
-    j["loss"] = LossJson(o.loss, r.loss_scale, Eigen::VectorXd());
-    j["loss"]["reason"] = o.loss_reason;
-    j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
+    j = MultiViewDocumentHead(o, set, options, r.loss_scale, axis_point, axis_direction, units);
     j["start"] = StartJson(report, kind);
     const auto* kinematic = dynamic_cast<const KinematicSurface*>(model.get());
     const auto* spiral = dynamic_cast<const SpiralSurface*>(model.get());

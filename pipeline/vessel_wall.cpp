@@ -745,14 +745,7 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     FitOutcome outcome;
     outcome.notes = outcome_notes;
     nlohmann::json& j = outcome.document;
-    j["schema"] = "scan2model.multiview/1";
-    j["input"] = {{"file", o.file}, {"views", K}, {"points", set.TotalPoints()}, {"units", units}};
-    j["model"] = o.model;
-    j["method"] = ToString(options.error_term);
-    j["solver"] = SolverName(options);
-    j["loss"] = LossJson(o.loss, result.loss_scale, Eigen::VectorXd());
-    j["loss"]["reason"] = o.loss_reason;
-    j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
+    j = MultiViewDocumentHead(o, set, options, result.loss_scale, axis_point, axis_direction, units);
     j["start"] = {
         {"mode", "wall"},
         {"searched", axes.size() > 1},

@@ -175,4 +175,20 @@ std::vector<Eigen::Matrix3Xd> ViewNormals(const ScanSet& set) {
   return normals;
 }
 
+nlohmann::json MultiViewDocumentHead(const FitOptions& o, const ScanSet& set, const JointFitOptions& options,
+                                     double loss_scale, const Eigen::Vector3d& axis_point,
+                                     const Eigen::Vector3d& axis_direction, const std::string& units) {
+  nlohmann::json j;
+  j["schema"] = "scan2model.multiview/1";
+  j["input"] = {
+      {"file", o.file}, {"views", set.scans.size()}, {"points", set.TotalPoints()}, {"units", units}};
+  j["model"] = o.model;
+  j["method"] = ToString(options.error_term);
+  j["solver"] = SolverName(options);
+  j["loss"] = LossJson(o.loss, loss_scale, Eigen::VectorXd());
+  j["loss"]["reason"] = o.loss_reason;
+  j["axis"] = {{"point", ToJson(axis_point)}, {"direction", ToJson(axis_direction)}};
+  return j;
+}
+
 }  // namespace s2m::pipeline

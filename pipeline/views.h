@@ -34,6 +34,12 @@ RigidMotion PlaceModelInWorld(const ScanSet& set, const std::vector<RigidMotion>
 // points lie off a fitted surface; a view too small for them gets none (distance test only).
 std::vector<Eigen::Matrix3Xd> ViewNormals(const ScanSet& set);
 
+// The members every scan2model.multiview/1 document opens with: schema, input, model, method, solver, loss
+// (with the loss' scale at the solution and the reason it was chosen) and axis (world frame).
+nlohmann::json MultiViewDocumentHead(const FitOptions& o, const ScanSet& set, const JointFitOptions& options,
+                                     double loss_scale, const Eigen::Vector3d& axis_point,
+                                     const Eigen::Vector3d& axis_direction, const std::string& units);
+
 // The error term (default tdm), iteration cap and solver variant (joint, alternating, register-then-fit).
 // Throws std::invalid_argument for a method the joint solver does not know.
 JointFitOptions JointOptions(const FitOptions& o);
