@@ -676,11 +676,12 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
         cubic};
     vessel.volume = outer_volume;
     std::optional<Measure> fill;
-    if (o.fill_height > 0) {
-      if (o.fill_height > above_base(z_rim)) {
-        throw FitFailure(kUsage, "--fill-height " + Format(o.fill_height, 6) + " is above the rim (" +
-                                     Format(above_base(z_rim), 6) + " " + units + " above the base)");
-      }
+    if (o.fill_height > above_base(z_rim)) {
+      // Said, as for one surface: the capacity to the rim is there.
+      outcome_notes.push_back("--fill-height " + Format(o.fill_height, 6) + " is above the rim (" +
+                              Format(above_base(z_rim), 6) + " " + units +
+                              " above the base): no filled capacity, only the capacity to the rim");
+    } else if (o.fill_height > 0) {
       Eigen::VectorXd g;
       const double z_fill = z_base + up_sign * o.fill_height;
       if (up_sign * (z_fill - z_inner_bottom) <= 0) {
