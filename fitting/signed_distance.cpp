@@ -1,6 +1,7 @@
 #include "fitting/signed_distance.h"
 
 #include <Eigen/Geometry>  // cross products
+#include <stdexcept>
 #include <vector>
 
 #include "fitting/foot_point.h"
@@ -11,9 +12,11 @@ namespace {
 // Signed distances with the sign of (x - foot) . n, n = C_u x C_v at the foot point, optionally turned away
 // from the z axis.
 Eigen::VectorXd SignedDistances(const ParametricModel& model, const Eigen::Matrix3Xd& points,
-                                bool away_from_axis, Eigen::Matrix3Xd* foot_points) {
-  std::vector<FootPoint> feet;
-  ComputeFootPoints(model, Eigen::MatrixXd(points), feet);
+                                bool away_from_axis, Eigen::Matrix3Xd* foot_points,
+                                const std::vector<FootPoint>* known = nullptr) {
+  std::vector<FootPoint> searched;
+  if (known == nullptr) ComputeFootPoints(model, Eigen::MatrixXd(points), searched);
+  const std::vector<FootPoint>& feet = known != nullptr ? *known : searched;
   Eigen::VectorXd out(points.cols());
   if (foot_points) foot_points->resize(3, points.cols());
   LocalGeometry g;
@@ -33,8 +36,10 @@ Eigen::VectorXd SignedDistances(const ParametricModel& model, const Eigen::Matri
 }  // namespace
 
 Eigen::VectorXd SignedDistancesAroundAxis(const ParametricModel& model, const Eigen::Matrix3Xd& points,
-                                          Eigen::Matrix3Xd* feet) {
-  return SignedDistances(model, points, true, feet);
+                                          Eigen::Matrix3Xd* feet, const std::vector<FootPoint>* known) {
+  if (known != nullptr && known->size() != static_cast<std::size_t>(points.cols()))
+    throw std::invalid_argument("one known foot point per point");
+  return SignedDistances(model, points, true, feet, known);
 }
 
 Eigen::VectorXd SignedDistancesToFaces(const PartModel& part, const Eigen::Matrix3Xd& points,

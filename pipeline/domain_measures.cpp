@@ -419,9 +419,7 @@ std::optional<SherdMeasures> MeasureSherdOfPoints(
         kept.push_back(at);
         view_of_point.push_back(static_cast<int>(k));
       }
-  Eigen::Matrix3Xd surface(3, static_cast<Eigen::Index>(kept.size()));
-  for (std::size_t i = 0; i < kept.size(); ++i)
-    surface.col(static_cast<Eigen::Index>(i)) = registered.col(kept[i]);
+  const Eigen::Matrix3Xd surface = registered(Eigen::all, kept);
   try {
     return MeasureSherd(surface, view_of_point, pose_covariance, noise);
   } catch (const std::invalid_argument& e) {

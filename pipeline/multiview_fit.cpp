@@ -588,12 +588,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       for (std::size_t k = 0; k < K; ++k)
         for (Eigen::Index p = 0; p < scans[k].cols(); ++p, ++at)
           if (!report.left_out_masks[k][static_cast<std::size_t>(p)]) kept.push_back(at);
-      judged.resize(static_cast<Eigen::Index>(kept.size()));
-      judged_feet.resize(3, judged.size());
-      for (std::size_t i = 0; i < kept.size(); ++i) {
-        judged[static_cast<Eigen::Index>(i)] = deviations[kept[i]];
-        judged_feet.col(static_cast<Eigen::Index>(i)) = feet.col(kept[i]);
-      }
+      judged = deviations(kept);
+      judged_feet = feet(Eigen::all, kept);
     }
     AdequacyEvidence evidence;
     evidence.family = ModelFamily::kMultiView;

@@ -107,9 +107,7 @@ bool TrimFacesToFeet(RevolutionWall& wall, const Eigen::Matrix3Xd& registered,
     std::vector<Eigen::Index> unlabelled;
     for (std::size_t i = 0; i < used.size(); ++i)
       if (used[i] && sheet_of_point[i] < 0) unlabelled.push_back(static_cast<Eigen::Index>(i));
-    Eigen::MatrixXd points(3, static_cast<Eigen::Index>(unlabelled.size()));
-    for (std::size_t i = 0; i < unlabelled.size(); ++i)
-      points.col(static_cast<Eigen::Index>(i)) = registered.col(unlabelled[i]);
+    const Eigen::MatrixXd points = registered(Eigen::all, unlabelled);
     std::vector<FootPoint> feet;
     ComputeFootPoints(wall, points, feet);
     for (const FootPoint& foot : feet) feet_u[static_cast<std::size_t>(foot.t[2])].push_back(foot.t[0]);
@@ -118,9 +116,7 @@ bool TrimFacesToFeet(RevolutionWall& wall, const Eigen::Matrix3Xd& registered,
     std::vector<Eigen::Index> own;
     for (std::size_t i = 0; i < used.size(); ++i)
       if (used[i] && sheet_of_point[i] == f) own.push_back(static_cast<Eigen::Index>(i));
-    Eigen::MatrixXd points(3, static_cast<Eigen::Index>(own.size()));
-    for (std::size_t i = 0; i < own.size(); ++i)
-      points.col(static_cast<Eigen::Index>(i)) = registered.col(own[i]);
+    const Eigen::MatrixXd points = registered(Eigen::all, own);
     std::vector<FootPoint> feet;
     ComputeFootPoints(wall.face(f), points, feet);
     for (const FootPoint& foot : feet) feet_u[static_cast<std::size_t>(f)].push_back(foot.t[0]);
@@ -286,27 +282,20 @@ Sheets SplitSheets(const Eigen::Matrix3Xd& local, const Eigen::Matrix3Xd& local_
       for (Eigen::Index j = 0; j < local.cols(); ++j)
         if (!across[static_cast<std::size_t>(j)] && local(2, j) >= lo && local(2, j) <= hi)
           between.push_back(j);
-      Eigen::Matrix3Xd points(3, static_cast<Eigen::Index>(between.size()));
-      for (std::size_t i = 0; i < between.size(); ++i)
-        points.col(static_cast<Eigen::Index>(i)) = local.col(between[i]);
-      if (points.cols() >= 20)
-        members = groups_of(offsets_from(InitialRevolution(points, 8, order), lo, hi), &split);
+      if (between.size() >= 20)
+        members =
+            groups_of(offsets_from(InitialRevolution(local(Eigen::all, between), 8, order), lo, hi), &split);
     }
   }
-  auto columns = [&](const std::vector<Eigen::Index>& index) {
-    Eigen::Matrix3Xd matrix(3, static_cast<Eigen::Index>(index.size()));
-    for (std::size_t i = 0; i < index.size(); ++i)
-      matrix.col(static_cast<Eigen::Index>(i)) = local.col(index[i]);
-    return matrix;
-  };
   for (const std::vector<Eigen::Index>& m : members)
     if (static_cast<int>(m.size()) < 4 * first_count) {
       sheets.why = std::to_string(members[0].size()) + " and " + std::to_string(members[1].size()) +
                    " points in the two groups of radial offsets";
       return sheets;
     }
-  sheets.starts = std::array<KinematicSurface, 2>{InitialRevolution(columns(members[0]), first_count, order),
-                                                  InitialRevolution(columns(members[1]), first_count, order)};
+  sheets.starts =
+      std::array<KinematicSurface, 2>{InitialRevolution(local(Eigen::all, members[0]), first_count, order),
+                                      InitialRevolution(local(Eigen::all, members[1]), first_count, order)};
   // Two surfaces, not one spread out: each group lies near its own start (robust spread of the radial
   // residuals) much closer than to the other's (the median radial gap), eq. A23.
   std::vector<double> gaps;
@@ -717,16 +706,12 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     // Adequacy over both faces: the RMS against the views' noise and the residuals' structure along the
     // height.
     Eigen::Matrix3Xd foot_points;
-    const Eigen::VectorXd deviations = SignedDistancesAroundAxis(wall, registered, &foot_points);
+    const Eigen::VectorXd deviations = SignedDistancesAroundAxis(wall, registered, &foot_points, &feet);
     std::vector<Eigen::Index> kept;
     for (std::size_t i = 0; i < used.size(); ++i)
       if (used[i]) kept.push_back(static_cast<Eigen::Index>(i));
-    Eigen::VectorXd judged(static_cast<Eigen::Index>(kept.size()));
-    Eigen::Matrix3Xd judged_feet(3, judged.size());
-    for (std::size_t i = 0; i < kept.size(); ++i) {
-      judged[static_cast<Eigen::Index>(i)] = deviations[kept[i]];
-      judged_feet.col(static_cast<Eigen::Index>(i)) = foot_points.col(kept[i]);
-    }
+    const Eigen::VectorXd judged = deviations(kept);
+    const Eigen::Matrix3Xd judged_feet = foot_points(Eigen::all, kept);
     AdequacyEvidence evidence;
     evidence.family = ModelFamily::kMultiView;
     evidence.model = "revolution wall";
