@@ -541,11 +541,37 @@ SpiralSurface::SpiralSurface(BSplineBasis basis, Eigen::Matrix2Xd profile, doubl
   if (!(v_hi_ > v_lo_)) throw std::invalid_argument("empty angle range for the spiral surface");
 }
 
+SpiralSurface SpiralSurface::WithAllometry(double growth_change, double axial_excess) const {
+  SpiralSurface out = *this;
+  out.allometric_ = true;
+  out.growth_change_ = growth_change;
+  out.axial_excess_ = axial_excess;
+  out.allometry_reference_ = 0.5 * (v_lo_ + v_hi_);
+  return out;
+}
+
+SpiralSurface SpiralSurface::WithGeneratrix(BSplineBasis basis, Eigen::Matrix2Xd profile) const {
+  SpiralSurface out(std::move(basis), std::move(profile), growth_, v_lo_, v_hi_);
+  out.allometric_ = allometric_;
+  out.growth_change_ = growth_change_;
+  out.axial_excess_ = axial_excess_;
+  out.allometry_reference_ = allometry_reference_;
+  return out;
+}
+
+SpiralSurface SpiralSurface::WithAngleRange(double v_lo, double v_hi) const {
+  if (!(v_hi > v_lo)) throw std::invalid_argument("empty angle range for the spiral surface");
+  SpiralSurface out = *this;
+  out.v_lo_ = v_lo;
+  out.v_hi_ = v_hi;
+  return out;
+}
+
 double SpiralSurface::WhorlExpansionRate() const {
   return std::exp(2.0 * M_PI * growth_);
 }
 
-SpiralSurface::Raup SpiralSurface::RaupParameters() const {
+Eigen::Vector4d SpiralSurface::Extents() const {
   double r_min = std::numeric_limits<double>::infinity(), r_max = -r_min, z_min = r_min, z_max = -r_min;
   constexpr int kSamples = 2001;
   for (int i = 0; i < kSamples; ++i) {
@@ -556,12 +582,36 @@ SpiralSurface::Raup SpiralSurface::RaupParameters() const {
     z_min = std::min(z_min, rz.y());
     z_max = std::max(z_max, rz.y());
   }
+  return {r_min, r_max, z_min, z_max};
+}
+
+SpiralSurface::Scales SpiralSurface::ScalesAt(double v) const {
+  // Eq. S1: g(v) = p v + q (v - v_c)^2 / 2 radially, g(v) + a (v - v_c) axially.
+  const double w = v - allometry_reference_;
+  const double g = growth_ * v + 0.5 * growth_change_ * w * w, rate = growth_ + growth_change_ * w;
+  return {std::exp(g), std::exp(g + axial_excess_ * w), rate, rate + axial_excess_};
+}
+
+SpiralSurface::Raup SpiralSurface::RaupParameters() const {
+  const Eigen::Vector4d e = Extents();
+  const double r_min = e[0], r_max = e[1], z_min = e[2], z_max = e[3];
   Raup out;
   out.w = WhorlExpansionRate();
   out.d = r_min >= 0 && r_max > 0 ? r_min / r_max : std::numeric_limits<double>::quiet_NaN();
   const double r_c = 0.5 * (r_min + r_max), z_c = 0.5 * (z_min + z_max);
   out.t = r_c > 0 ? z_c / r_c : std::numeric_limits<double>::quiet_NaN();
   return out;
+}
+
+SpiralSurface::Whorl SpiralSurface::WhorlAt(double v) const {
+  const Eigen::Vector4d e = Extents();
+  const Scales here = ScalesAt(v), opposite = ScalesAt(v - M_PI);
+  Whorl w;
+  w.height = here.axial * (e[3] - e[2]);                                        // eq. S4
+  w.width = here.radial * (e[1] - e[0]);                                        // eq. S4
+  w.umbilical_width = e[0] > 0 ? e[0] * (here.radial + opposite.radial) : 0.0;  // eq. S5
+  w.diameter = std::max(0.0, e[1]) * (here.radial + opposite.radial);           // eq. S6
+  return w;
 }
 
 SpiralSurface::GrowingTube SpiralSurface::GrowingTubeFromRaup(const Raup& raup) {
@@ -594,6 +644,9 @@ ParameterDomain SpiralSurface::domain() const {
 }
 
 std::string SpiralSurface::parameter_name(int index) const {
+  const auto after = static_cast<int>(profile_.size()) + 1;
+  if (index == after) return "growth_change";
+  if (index == after + 1) return "axial_excess";
   return GeneratrixParameterName(index, profile_.size(), "growth");
 }
 
@@ -601,12 +654,17 @@ Eigen::VectorXd SpiralSurface::parameters() const {
   Eigen::VectorXd p(num_parameters());
   p.head(profile_.size()) = Eigen::Map<const Eigen::VectorXd>(profile_.data(), profile_.size());
   p[profile_.size()] = growth_;
+  if (allometric_) p.tail(2) << growth_change_, axial_excess_;
   return p;
 }
 
 void SpiralSurface::set_parameters(const Eigen::VectorXd& p) {
   profile_ = Eigen::Map<const Eigen::Matrix2Xd>(p.data(), 2, profile_.cols());
   growth_ = p[profile_.size()];
+  if (allometric_) {
+    growth_change_ = p[profile_.size() + 1];
+    axial_excess_ = p[profile_.size() + 2];
+  }
 }
 
 void SpiralSurface::ApplySimilarity(double scale, const VecS& offset) {
@@ -618,24 +676,24 @@ void SpiralSurface::ApplySimilarity(double scale, const VecS& offset) {
 
 void SpiralSurface::Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const {
   const Eigen::Matrix<double, 2, 3> rz = Generatrix(basis_, profile_, t[0], derivatives);
-  const double v = std::clamp(t[1], v_lo_, v_hi_), c = std::cos(v), s = std::sin(v),
-               e = std::exp(growth_ * v);
-  const double p = growth_;
-  const Eigen::Vector3d base(rz(0, 0) * c, rz(0, 0) * s, rz(1, 0));  // before the growth factor
-  const Eigen::Vector3d turn(-rz(0, 0) * s, rz(0, 0) * c, 0.0);      // d/dv of base
-  const Eigen::Vector3d turn2(-rz(0, 0) * c, -rz(0, 0) * s, 0.0);    // d2/dv2 of base
-  const Eigen::Vector3d base_u(rz(0, 1) * c, rz(0, 1) * s, rz(1, 1));
-  out.point = e * base;
+  const double v = std::clamp(t[1], v_lo_, v_hi_), c = std::cos(v), s = std::sin(v);
+  // Eq. S1: x = (E r cos v, E r sin v, F z), E = e^{g(v)}, F = e^{g(v) + a (v - v_c)}; E' = g' E, F' = h F
+  // with g' = p + q (v - v_c), h = g' + a, and E'' = (q + g'^2) E, F'' = (q + h^2) F.
+  const Scales k = ScalesAt(v);
+  const double E = k.radial, F = k.axial, g = k.radial_rate, h = k.axial_rate, q = growth_change_;
+  out.point = Eigen::Vector3d(E * rz(0, 0) * c, E * rz(0, 0) * s, F * rz(1, 0));
   out.d1.setZero(3, 2);
   out.d2.setZero(3, 3);
   if (derivatives >= 1) {
-    out.d1.col(0) = e * base_u;
-    out.d1.col(1) = e * (p * base + turn);
+    out.d1.col(0) = Eigen::Vector3d(E * rz(0, 1) * c, E * rz(0, 1) * s, F * rz(1, 1));
+    out.d1.col(1) = Eigen::Vector3d(E * rz(0, 0) * (g * c - s), E * rz(0, 0) * (g * s + c), h * F * rz(1, 0));
   }
   if (derivatives >= 2) {
-    out.d2.col(0) = e * Eigen::Vector3d(rz(0, 2) * c, rz(0, 2) * s, rz(1, 2));
-    out.d2.col(1) = e * (p * base_u + Eigen::Vector3d(-rz(0, 1) * s, rz(0, 1) * c, 0.0));
-    out.d2.col(2) = e * (p * p * base + 2.0 * p * turn + turn2);
+    out.d2.col(0) = Eigen::Vector3d(E * rz(0, 2) * c, E * rz(0, 2) * s, F * rz(1, 2));
+    out.d2.col(1) = Eigen::Vector3d(E * rz(0, 1) * (g * c - s), E * rz(0, 1) * (g * s + c), h * F * rz(1, 1));
+    const double radial = q + g * g - 1.0;
+    out.d2.col(2) = Eigen::Vector3d(E * rz(0, 0) * (radial * c - 2.0 * g * s),
+                                    E * rz(0, 0) * (radial * s + 2.0 * g * c), (q + h * h) * F * rz(1, 0));
   }
 }
 
@@ -643,37 +701,54 @@ void SpiralSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Jac
   out.clear();
   BSplineBasis::Values b;
   basis_.Evaluate(t[0], with_dt ? 1 : 0, b);
-  const double v = std::clamp(t[1], v_lo_, v_hi_), c = std::cos(v), s = std::sin(v),
-               e = std::exp(growth_ * v);
+  const double v = std::clamp(t[1], v_lo_, v_hi_), c = std::cos(v), s = std::sin(v);
+  const Scales k = ScalesAt(v);
+  const double E = k.radial, F = k.axial, g = k.radial_rate, h = k.axial_rate;
+  const Eigen::Vector3d radial_direction(c, s, 0.0), radial_turn(g * c - s, g * s + c, 0.0);
   for (int i = 0; i < basis_.order(); ++i) {
-    const int k = basis_.ControlIndex(b.first, i);
+    const int index = basis_.ControlIndex(b.first, i);
     const double w = b.values[0][static_cast<std::size_t>(i)];
     const double dw = with_dt ? b.values[1][static_cast<std::size_t>(i)] : 0.0;
     JacobianEntry radius, height;
-    radius.index = 2 * k;
-    radius.column = e * w * Eigen::Vector3d(c, s, 0.0);
-    radius.dcolumn_dt = {
-        Eigen::Vector3d(e * dw * Eigen::Vector3d(c, s, 0.0)),
-        with_dt
-            ? Eigen::Vector3d(e * w * (growth_ * Eigen::Vector3d(c, s, 0.0) + Eigen::Vector3d(-s, c, 0.0)))
-            : Eigen::Vector3d::Zero()};
-    height.index = 2 * k + 1;
-    height.column = e * w * Eigen::Vector3d::UnitZ();
+    radius.index = 2 * index;
+    radius.column = E * w * radial_direction;
+    radius.dcolumn_dt = {Eigen::Vector3d(E * dw * radial_direction),
+                         with_dt ? Eigen::Vector3d(E * w * radial_turn) : Eigen::Vector3d::Zero()};
+    height.index = 2 * index + 1;
+    height.column = F * w * Eigen::Vector3d::UnitZ();
     height.dcolumn_dt = {
-        Eigen::Vector3d(e * dw * Eigen::Vector3d::UnitZ()),
-        with_dt ? Eigen::Vector3d(e * w * growth_ * Eigen::Vector3d::UnitZ()) : Eigen::Vector3d::Zero()};
+        Eigen::Vector3d(F * dw * Eigen::Vector3d::UnitZ()),
+        with_dt ? Eigen::Vector3d(h * F * w * Eigen::Vector3d::UnitZ()) : Eigen::Vector3d::Zero()};
     out.push_back(radius);
     out.push_back(height);
   }
-  LocalGeometry g;
-  Evaluate(t, with_dt ? 1 : 0, g);
+  LocalGeometry geo;
+  Evaluate(t, with_dt ? 1 : 0, geo);
+  const Eigen::Vector3d x = geo.point,
+                        x_u = with_dt ? Eigen::Vector3d(geo.d1.col(0)) : Eigen::Vector3d::Zero(),
+                        x_v = with_dt ? Eigen::Vector3d(geo.d1.col(1)) : Eigen::Vector3d::Zero();
+  // d/dp of x is v x (both scales carry p v); with w = v - v_c, d/dq is (w^2 / 2) x and d/da is w times x's
+  // axial component.
   JacobianEntry growth;
   growth.index = static_cast<int>(profile_.size());
-  growth.column = v * Eigen::Vector3d(g.point);  // d/dp of e^{p v} base = v x
-  growth.dcolumn_dt = {with_dt ? Eigen::Vector3d(v * Eigen::Vector3d(g.d1.col(0))) : Eigen::Vector3d::Zero(),
-                       with_dt ? Eigen::Vector3d(Eigen::Vector3d(g.point) + v * Eigen::Vector3d(g.d1.col(1)))
-                               : Eigen::Vector3d::Zero()};
+  growth.column = v * x;
+  growth.dcolumn_dt = {Eigen::Vector3d(v * x_u),
+                       with_dt ? Eigen::Vector3d(x + v * x_v) : Eigen::Vector3d::Zero()};
   out.push_back(growth);
+  if (allometric_) {
+    JacobianEntry change, excess;
+    change.index = growth.index + 1;
+    const double w = v - allometry_reference_;
+    change.column = 0.5 * w * w * x;
+    change.dcolumn_dt = {Eigen::Vector3d(0.5 * w * w * x_u),
+                         with_dt ? Eigen::Vector3d(w * x + 0.5 * w * w * x_v) : Eigen::Vector3d::Zero()};
+    excess.index = growth.index + 2;
+    excess.column = Eigen::Vector3d(0.0, 0.0, w * x.z());
+    excess.dcolumn_dt = {Eigen::Vector3d(0.0, 0.0, w * x_u.z()),
+                         with_dt ? Eigen::Vector3d(0.0, 0.0, x.z() + w * x_v.z()) : Eigen::Vector3d::Zero()};
+    out.push_back(change);
+    out.push_back(excess);
+  }
 }
 
 std::vector<ParamT> SpiralSurface::SampleParameters() const {

@@ -92,14 +92,46 @@ class KinematicSurface final : public ParametricModel {
 // B_k(u) for v in [v_lo, v_hi] (the whorls, unwrapped), growth parameter p. The growth enters non-linearly;
 // its Jacobian at fixed (u, v) is v x(u, v), the linearization at the current value (section 6). The whorl
 // expansion rate is exp(2 pi p).
+//
+// Allometric growth (docs/shells.md eq. S1): the radial scale e^{g(v)}, g(v) = p v + q (v - v_c)^2 / 2, and
+// the axial scale e^{g(v) + a (v - v_c)}, i.e. x(u, v) = (e^g r(u) cos v, e^g r(u) sin v, e^{g + a (v - v_c)}
+// z(u)): q is the change of the growth rate per radian of coiling (the whorl expansion rate is not
+// constant), a the excess of the axial over the radial growth rate (the generating curve's height-to-width
+// ratio changes), p the growth rate at the reference angle v_c. q = a = 0 is the logarithmic (isometric)
+// spiral; WithAllometry() frees both as two more parameters, the nested model the adequacy test of
+// docs/shells.md section 3 fits, with v_c the middle of the angle range: q and a do not depend on v_c (a
+// shift of it changes p and the generating curve's scale only), but about the middle of the data they are
+// nearly uncorrelated with p.
 class SpiralSurface final : public ParametricModel {
  public:
   SpiralSurface(BSplineBasis basis, Eigen::Matrix2Xd profile, double growth, double v_lo, double v_hi);
+  // This surface with q and a as parameters (after the growth), set to the given values, v_c the middle of
+  // the angle range.
+  SpiralSurface WithAllometry(double growth_change = 0.0, double axial_excess = 0.0) const;
+  // This surface with another generating curve (growth, angle range and allometry kept).
+  SpiralSurface WithGeneratrix(BSplineBasis basis, Eigen::Matrix2Xd profile) const;
+  // This surface over another range of coiling angles (the allometry's v_c kept).
+  SpiralSurface WithAngleRange(double v_lo, double v_hi) const;
 
   const BSplineBasis& basis() const { return basis_; }
   const Eigen::Matrix2Xd& profile() const { return profile_; }
   double growth() const { return growth_; }
+  bool allometric() const { return allometric_; }
+  double growth_change() const { return growth_change_; }  // q, 1/rad^2
+  double axial_excess() const { return axial_excess_; }    // a, 1/rad
+  double v_lo() const { return v_lo_; }
+  double v_hi() const { return v_hi_; }
+  double allometry_reference() const { return allometry_reference_; }  // v_c
   double WhorlExpansionRate() const;
+  // The whorl at coiling angle v (docs/shells.md eqs. S4-S6): the generating curve there, e^{g(v)} times
+  // its extents in r and e^{g(v) + a v} times its extent in z. `height` along the axis and `width` across it
+  // are the whorl's own; `umbilical_width` is the distance across the axis between the curve's inner edges
+  // at v and at v - pi (0 when the curve reaches the axis: no umbilicus), `diameter` the same between the
+  // outer edges, the shell's breadth through the axis there.
+  struct Whorl {
+    double height = 0.0, width = 0.0, umbilical_width = 0.0, diameter = 0.0;
+  };
+  Whorl WhorlAt(double v) const;
   // Raup's coiling parameters of the surface (docs/archaeology.md section 7): W = exp(2 pi p); D = r_min /
   // r_max, the generating curve's inner edge over its outer edge (distances from the axis); T = z_c / r_c,
   // the axial over the radial coordinate of the generating curve's centre (the middle of its extent in r
@@ -126,7 +158,7 @@ class SpiralSurface final : public ParametricModel {
   std::string name() const override { return "spiral surface"; }
   int ambient_dimension() const override { return 3; }
   ParameterDomain domain() const override;
-  int num_parameters() const override { return static_cast<int>(profile_.size()) + 1; }
+  int num_parameters() const override { return static_cast<int>(profile_.size()) + (allometric_ ? 3 : 1); }
   std::string parameter_name(int index) const override;
   Eigen::VectorXd parameters() const override;
   void set_parameters(const Eigen::VectorXd& p) override;
@@ -141,10 +173,21 @@ class SpiralSurface final : public ParametricModel {
   std::vector<Motion6> CommonMotionsAbsorbedByShape() const override;
 
  private:
+  // The generating curve's extents (r_min, r_max, z_min, z_max) by 2001 samples.
+  Eigen::Vector4d Extents() const;
+  // e^{g(v)} and e^{g(v) + a (v - v_c)} (eq. S1) and their log-derivatives g'(v) = p + q (v - v_c), g'(v) +
+  // a.
+  struct Scales {
+    double radial, axial, radial_rate, axial_rate;
+  };
+  Scales ScalesAt(double v) const;
+
   BSplineBasis basis_;
   Eigen::Matrix2Xd profile_;
   double growth_;
   double v_lo_, v_hi_;
+  bool allometric_ = false;
+  double growth_change_ = 0.0, axial_excess_ = 0.0, allometry_reference_ = 0.0;
 };
 
 }  // namespace s2m

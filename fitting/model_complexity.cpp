@@ -382,9 +382,7 @@ std::unique_ptr<ParametricModel> WithGeneratrix(const ParametricModel& model, BS
         KinematicSurface::Helical(std::move(basis), std::move(profile), k->pitch(), turns));
   }
   if (const auto* s = dynamic_cast<const SpiralSurface*>(&model)) {
-    const ParameterDomain d = s->domain();
-    return std::make_unique<SpiralSurface>(std::move(basis), std::move(profile), s->growth(), d.lo[1],
-                                           d.hi[1]);
+    return std::make_unique<SpiralSurface>(s->WithGeneratrix(std::move(basis), std::move(profile)));
   }
   throw std::invalid_argument("not a surface with a generatrix: " + model.name());
 }

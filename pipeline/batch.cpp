@@ -541,6 +541,16 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
                                  tube[std::string(key) + "_uncertainty"], ""));
         }
       }
+      // The test of the logarithmic spiral (docs/shells.md section 3): q and a of the allometric spiral and
+      // the test's p-value (its verdict also decides the row's adequacy).
+      if (g.contains("allometry")) {
+        const nlohmann::json& a = g["allometry"];
+        for (const auto& [key, unit] :
+             {std::pair<const char*, const char*>{"growth_change", "1/rad^2"}, {"axial_excess", "1/rad"}})
+          if (a[key]["value"].is_number())
+            out.push_back(Flat(key, a[key]["value"].get<double>(), a[key]["uncertainty"], unit));
+        out.push_back(Flat("allometry_p_value", a["p_value"].get<double>(), nullptr, ""));
+      }
     }
     if (d.contains("vessel")) {
       const nlohmann::json& v = d["vessel"];

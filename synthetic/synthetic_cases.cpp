@@ -667,6 +667,26 @@ KinematicCloud ConicalShellCloud(double ripple_amplitude, double noise, int coun
   return c;
 }
 
+KinematicCloud AllometricShellCloud(double growth_change, double axial_excess, double noise, int count,
+                                    std::uint64_t seed) {
+  Eigen::Matrix2Xd whorl(2, 6);
+  whorl << 20, 25, 30, 31, 26, 19,  //
+      -8, -6, -2, 2, 6, 8;
+  const double growth = 0.12;
+  auto truth = std::make_unique<SpiralSurface>(
+      SpiralSurface(UnitSpacedClamped(4, 6), whorl, growth, -M_PI - 0.2, 3 * M_PI + 0.2)
+          .WithAllometry(growth_change, axial_excess));
+  const SurfaceSample s =
+      SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -M_PI, 3 * M_PI, count, seed);
+  KinematicCloud c;
+  std::mt19937_64 rng(seed + 1);
+  PlaceCloud(c, s, noise, rng);
+  c.surface_points = c.points.cols();
+  c.growth = growth;
+  c.truth = std::move(truth);
+  return c;
+}
+
 KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise, int count,
                           std::uint64_t seed) {
   if (!(arc_fraction > 0 && arc_fraction <= 1)) throw std::invalid_argument("an arc fraction in (0, 1]");

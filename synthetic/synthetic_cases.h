@@ -139,6 +139,13 @@ KinematicCloud ShallowThreadCloud(double relief, double noise, int count, std::u
 // invariant under every spiral motion about its apex, so (26) hardly determines the growth.
 KinematicCloud ConicalShellCloud(double ripple, double noise, int count, std::uint64_t seed);
 
+// A shell with allometric growth (docs/shells.md eq. S1): the "spiral" case's whorl (20-31 mm from the axis
+// and 16 mm high at v = 0), growth 0.12/rad at v = 0 changing by `growth_change` per radian, the axial scale
+// growing faster than the radial by `axial_excess` per radian; two whorls (v from -pi to 3 pi) seen all
+// round. growth_change = axial_excess = 0 is a logarithmic shell.
+KinematicCloud AllometricShellCloud(double growth_change, double axial_excess, double noise, int count,
+                                    std::uint64_t seed);
+
 // A sherd: `arc_fraction` of the circumference of the demo vase's surface of revolution (150 mm tall,
 // radius 30-66 mm) between heights of about 30 and 110 mm, one surface (the outside), its side breaks
 // slanted; with `fracture_faces`, points also on the breaks of a 6 mm thick wall (planar-ish faces

@@ -242,6 +242,62 @@ TEST(SpiralSurface, RaupParametersOfAStraightGeneratingCurve) {
   EXPECT_TRUE(std::isnan(SpiralSurface(UnitSpacedClamped(2, 3), profile, 0.1, 0.0, 6.0).RaupParameters().d));
 }
 
+// The whorl measures of docs/shells.md eqs. S4-S6 on the straight generating curve above (r 10 to 20, z 2 to
+// 6), logarithmic and allometric: the closed forms of the scales e^{p v + q v^2 / 2} and e^{(p + a) v + ...}.
+TEST(SpiralSurface, WhorlMeasuresAgainstTheirClosedForms) {
+  Eigen::Matrix2Xd profile(2, 3);
+  profile << 10, 15, 20,  //
+      2, 4, 6;
+  const double p = 0.1, q = 0.004, a = -0.02, v = 5.0;
+  for (const SpiralSurface& s :
+       {SpiralSurface(UnitSpacedClamped(2, 3), profile, p, -4.0, 8.0),
+        SpiralSurface(UnitSpacedClamped(2, 3), profile, p, -4.0, 8.0).WithAllometry(q, a)}) {
+    // Eq. S1 about v_c, the middle of the angle range (2) for the allometric surface.
+    const double qq = s.growth_change(), aa = s.axial_excess(), vc = s.allometric() ? 2.0 : 0.0;
+    EXPECT_EQ(s.allometry_reference(), vc);
+    auto radial = [&](double angle) { return std::exp(p * angle + 0.5 * qq * (angle - vc) * (angle - vc)); };
+    const SpiralSurface::Whorl w = s.WhorlAt(v);
+    EXPECT_NEAR(w.width, 10 * radial(v), 1e-9);
+    EXPECT_NEAR(w.height, 4 * radial(v) * std::exp(aa * (v - vc)), 1e-9);
+    EXPECT_NEAR(w.umbilical_width, 10 * (radial(v) + radial(v - M_PI)), 1e-9);
+    EXPECT_NEAR(w.diameter, 20 * (radial(v) + radial(v - M_PI)), 1e-9);
+    // The surface point itself carries the same scales.
+    LocalGeometry g;
+    s.Evaluate({1.0, v, 0.0}, 0, g);
+    EXPECT_NEAR(g.point.head<2>().norm(), 15 * radial(v), 1e-9);
+    EXPECT_NEAR(g.point.z(), 4 * radial(v) * std::exp(aa * (v - vc)), 1e-9);
+  }
+  // A generating curve reaching the axis leaves no umbilicus.
+  profile(0, 0) = -5;
+  EXPECT_EQ(SpiralSurface(UnitSpacedClamped(2, 3), profile, p, -4.0, 8.0).WhorlAt(v).umbilical_width, 0.0);
+}
+
+// The nested model at q = a = 0 is the logarithmic surface: same points and derivatives, two more
+// parameters named after the growth.
+TEST(SpiralSurface, AllometricAtZeroIsTheLogarithmicSpiral) {
+  Eigen::Matrix2Xd profile(2, 5);
+  profile << 1.0, 1.3, 1.5, 1.3, 1.0, -0.4, -0.2, 0.0, 0.2, 0.4;
+  const SpiralSurface log_spiral(UnitSpacedClamped(4, 5), profile, 0.12, -2.0, 6.0);
+  const SpiralSurface nested = log_spiral.WithAllometry();
+  ASSERT_EQ(nested.num_parameters(), log_spiral.num_parameters() + 2);
+  EXPECT_EQ(nested.parameter_name(log_spiral.num_parameters()), "growth_change");
+  EXPECT_EQ(nested.parameter_name(log_spiral.num_parameters() + 1), "axial_excess");
+  LocalGeometry a, b;
+  for (const ParamT& t : {ParamT{0.3, -1.5, 0.0}, ParamT{1.7, 2.0, 0.0}, ParamT{1.1, 5.5, 0.0}}) {
+    log_spiral.Evaluate(t, 2, a);
+    nested.Evaluate(t, 2, b);
+    EXPECT_LT((a.point - b.point).norm(), 1e-12);
+    EXPECT_LT((a.d1 - b.d1).norm(), 1e-12);
+    EXPECT_LT((a.d2 - b.d2).norm(), 1e-12);
+  }
+  Eigen::VectorXd params = nested.parameters();
+  params.tail(2) << 0.01, 0.02;
+  SpiralSurface moved = nested;
+  moved.set_parameters(params);
+  EXPECT_EQ(moved.growth_change(), 0.01);
+  EXPECT_EQ(moved.axial_excess(), 0.02);
+}
+
 TEST(SpiralSurface, GrowingTubeFromRaupAgainstTheTrajectory) {
   // The closed forms (docs/archaeology.md eqs. A18-A20) against the curvature and torsion of the generating
   // circle's centre computed from its definition in our terms: the tube radius r = W^(theta / 2 pi), the

@@ -148,6 +148,14 @@ std::unique_ptr<ParametricModel> Spiral() {
   profile << 1.0, 1.3, 1.5, 1.3, 1.0, -0.4, -0.2, 0.0, 0.2, 0.4;
   return std::make_unique<SpiralSurface>(UnitSpacedClamped(4, 5), profile, 0.12, -2.0, 6.0);
 }
+// The nested model of the allometry test (docs/shells.md eq. S1): the growth rate changing along the coil
+// and the axial scale outgrowing the radial one.
+std::unique_ptr<ParametricModel> AllometricSpiral() {
+  Eigen::Matrix2Xd profile(2, 5);
+  profile << 1.0, 1.3, 1.5, 1.3, 1.0, -0.4, -0.2, 0.3, 0.6, 0.8;
+  return std::make_unique<SpiralSurface>(
+      SpiralSurface(UnitSpacedClamped(4, 5), profile, 0.12, -2.0, 6.0).WithAllometry(0.01, -0.03));
+}
 std::unique_ptr<ParametricModel> PartFromExample(const std::string& file) {
   const PartFile part = ReadPartFile(std::string(S2M_SOURCE_DIR) + "/docs/examples/" + file);
   return std::make_unique<PartModel>(part.definition);
@@ -215,6 +223,7 @@ S2M_CHECK_MODEL_FAMILY(SurfaceOfRevolution, Revolution)
 S2M_CHECK_MODEL_FAMILY(RevolutionGeneratrix, RevolutionGeneratrix)
 S2M_CHECK_MODEL_FAMILY(HelicalSurface, Helical)
 S2M_CHECK_MODEL_FAMILY(SpiralSurface, Spiral)
+S2M_CHECK_MODEL_FAMILY(AllometricSpiralSurface, AllometricSpiral)
 S2M_CHECK_MODEL_FAMILY(PartCounterboredBlock, [] { return PartFromExample("counterbored_block.part.json"); })
 S2M_CHECK_MODEL_FAMILY(PartFreeformPlate, [] { return PartFromExample("freeform_plate.part.json"); })
 S2M_CHECK_MODEL_FAMILY(PartEveryFaceType, PartWithEveryFaceType)

@@ -1,0 +1,76 @@
+#pragma once
+// A fitted shell's growth beyond Raup's three numbers (docs/shells.md): the measures of each whorl the scan
+// covers, and whether the logarithmic spiral holds at all, tested against the allometric spiral of eq. S1
+// (the growth rate changing along the coil, the axial scale outgrowing the radial one).
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fitting/joint_fit.h"
+#include "fitting/kinematic_surfaces.h"
+#include "pipeline/domain_measures.h"
+
+namespace s2m::pipeline {
+
+// One whorl (docs/shells.md section 2): the generating curve at coiling angle `angle` (radians, the fit's
+// frame), `whorls_from_last` whole turns before the last angle the data reach. Height, width, umbilical
+// width and diameter as SpiralSurface::WhorlAt defines them, with standard uncertainties from the shape
+// covariance (eq. 18 of docs/metrology.md, the angle held). The umbilical width and the diameter need the
+// data to reach the opposite side of the axis half a turn earlier: NaN when they do not.
+struct WhorlMeasures {
+  int whorls_from_last = 0;
+  double angle = 0.0;
+  Measure height, width, umbilical_width, diameter;
+};
+
+// The whorls in [angle_lo, angle_hi], the coiling angles the data cover: one at angle_hi and one a turn
+// before it, and so on, while inside the range.
+std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
+                                         double angle_lo, double angle_hi, const std::string& units);
+
+// The test of the logarithmic spiral against the allometric one (docs/shells.md section 3): the nested
+// model refitted jointly from the logarithmic fit, its q and a with their standard uncertainties, and the
+// Wald statistic chi2 = theta^T V^-1 theta of theta = (q, a) (eq. S8) with 2 degrees of freedom.
+struct AllometryTest {
+  Measure growth_change;  // q, 1/rad^2
+  Measure axial_excess;   // a, 1/rad
+  // What they mean per whorl: the whorl expansion rate a turn later over now, e^{4 pi^2 q} (eq. S9), and the
+  // height-to-width ratio of the generating curve a turn later over now, e^{2 pi a} (eq. S10).
+  Measure expansion_rate_change_per_whorl, shape_change_per_whorl;
+  double chi2 = 0.0;
+  double p_value = 1.0;  // exp(-chi2 / 2), the chi-square tail with 2 degrees of freedom
+  double rms_logarithmic = 0.0, rms_allometric = 0.0;
+  // "holds": the data do not show allometric growth (p at least kAllometryAlpha); "does not hold": they do;
+  // "inconclusive": the logarithmic fit is not adequate and the allometric one does not explain why;
+  // "not tested": the nested fit had no uncertainties (too few points, q and a unobservable).
+  std::string verdict = "not tested";
+  std::string reason;
+  nlohmann::json ToJson() const;
+};
+
+// The false-alarm rate of the allometry test: the one-sided z > 3 of the residual-structure tests
+// (kStructureZ), 1.35e-3, so that a logarithmic shell is called allometric as rarely as an adequate model
+// is called structured.
+constexpr double kAllometryAlpha = 1.349898031630095e-3;
+
+// The nested model the test fits (docs/shells.md section 3): `fitted` with q = a = 0 freed and its angle
+// range widened by half a turn at either end (the allometric surface's data may reach past the logarithmic
+// one's range).
+SpiralSurface AllometricStart(const SpiralSurface& fitted);
+
+// Tests q = a = 0 on the allometric spiral `nested`, fitted jointly (shape covariance `shape_covariance`,
+// RMS `rms_allometric`) with the same loss, weights and left-out points as the logarithmic fit of RMS
+// `rms_logarithmic`. `logarithmic_trusted` is the logarithmic fit's adequacy verdict (its
+// uncertainty_trusted()), `noise` the data's noise estimate (NaN: unknown): a logarithmic fit that is not
+// adequate gives "inconclusive" unless the test is significant and the allometric fit's RMS is within
+// kAdequacyThreshold x the noise.
+AllometryTest TestAllometry(const SpiralSurface& nested, const Eigen::MatrixXd& shape_covariance,
+                            double rms_allometric, double rms_logarithmic,
+                            std::optional<bool> logarithmic_trusted, double noise);
+
+nlohmann::json WhorlsJson(const std::vector<WhorlMeasures>& whorls);
+
+}  // namespace s2m::pipeline
