@@ -190,6 +190,28 @@ std::string NameUnobservableDirection(const ParametricModel& model, const BlockA
   return name;
 }
 
+// The Jacobian of the shape parameters in input units by those in the unit box, at the unit-box model
+// `unit_model`: the map is ApplySimilarity(scale) with no offset, linear in the parameters (lengths scale by
+// `scale`; growth rates, angles and other dimensionless parameters stay), taken column by column.
+Eigen::MatrixXd UnitBoxToInputJacobian(const ParametricModel& unit_model, double scale) {
+  const Eigen::VectorXd p = unit_model.parameters();
+  auto to_input = [&](const Eigen::VectorXd& x) {
+    const std::unique_ptr<ParametricModel> m = unit_model.Clone();
+    m->set_parameters(x);
+    m->ApplySimilarity(scale, VecS::Zero(m->ambient_dimension()));
+    return Eigen::VectorXd(m->parameters());
+  };
+  const Eigen::VectorXd at = to_input(p);
+  Eigen::MatrixXd J(p.size(), p.size());
+  for (Eigen::Index i = 0; i < p.size(); ++i) {
+    Eigen::VectorXd moved = p;
+    const double step = 1e-6 * std::max(1.0, std::abs(p[i]));
+    moved[i] += step;
+    J.col(i) = (to_input(moved) - at) / step;
+  }
+  return J;
+}
+
 // Standard uncertainties (type A, GUM) from the final information matrix (the GTDM normal matrix of the
 // orthogonal distances with the IRLS weights w_j of the robust loss, 1 for plain least squares; unit scan
 // weights; gauge-reduced coordinates) by the one covariance routine (fitting/covariance.h): s^2 H^+ with
@@ -198,16 +220,26 @@ std::string NameUnobservableDirection(const ParametricModel& model, const BlockA
 // radius at a height under control points sliding along the profile) keep valid uncertainties through
 // shape_covariance; a single parameter or pose component that moves along them gets NaN.
 void EstimateJointUncertainty(const CovarianceEstimate& estimate, const BlockArrowSystem& system,
-                              const std::vector<Eigen::MatrixXd>& bases, double scale,
-                              JointFitResult& result) {
+                              const std::vector<Eigen::MatrixXd>& bases, const ParametricModel& unit_model,
+                              double scale, JointFitResult& result) {
   if (estimate.covariance.size() == 0) return;
   const Eigen::Index r = system.shape_size();
   const Eigen::MatrixXd& cov = estimate.covariance;
   // A pose component is touched by the null directions by the same rule as a parameter.
   const double touch_threshold = CovarianceOptions{}.touch_threshold;
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  result.shape_covariance = cov.topLeftCorner(r, r) * (scale * scale);
-  result.shape_uncertainty = estimate.standard_uncertainty.head(r) * scale;
+  // Parameters to input units by the model's own similarity: a length's variance scales by scale^2, a
+  // spiral's growth (per radian) not at all. A parameter the null directions touch (NaN) stays NaN.
+  const Eigen::MatrixXd J = UnitBoxToInputJacobian(unit_model, scale);
+  result.shape_covariance = J * cov.topLeftCorner(r, r) * J.transpose();
+  result.shape_uncertainty.resize(r);
+  for (Eigen::Index i = 0; i < r; ++i) {
+    bool touched = false;
+    for (Eigen::Index j = 0; j < r; ++j)
+      touched = touched || (std::abs(J(i, j)) > 1e-9 * J.row(i).cwiseAbs().maxCoeff() &&
+                            std::isnan(estimate.standard_uncertainty[j]));
+    result.shape_uncertainty[i] = touched ? nan : std::sqrt(std::max(0.0, result.shape_covariance(i, i)));
+  }
   for (std::size_t k = 0; k < bases.size(); ++k) {
     const Eigen::MatrixXd& B = bases[k];
     const Eigen::Index offset = system.block_offset(k), q = B.cols();
@@ -625,7 +657,7 @@ JointFitResult JointFitProblem::Finish(ParametricModel& model, MinimizerSummary 
   const CovarianceEstimate estimate = EstimateCovariance(full, weighted_square_sum, effective_count);
   for (const Eigen::VectorXd& v : estimate.null_directions)
     result.unobservable.push_back(NameUnobservableDirection(model, final_system, bases, v));
-  EstimateJointUncertainty(estimate, final_system, bases, scale_, result);
+  EstimateJointUncertainty(estimate, final_system, bases, *st.model, scale_, result);
   return result;
 }
 

@@ -261,6 +261,52 @@ TEST(JointFit, RecoversThePitchOfAHelicalSurfaceAndTheGrowthOfASpiralShell) {
   EXPECT_NEAR(shell_start.WhorlExpansionRate(), std::exp(2 * M_PI * 0.12), 1e-6);
 }
 
+// The same shell in millimetres and in centimetres (all coordinates x 10): lengths and their uncertainties
+// scale by 10, the growth (per radian) and its uncertainty do not. The covariance is computed in the unit box
+// and mapped back by the model's own similarity; a uniform scale^2 made the growth's uncertainty grow with
+// the object's size.
+TEST(JointFit, UncertaintiesKeepTheirUnitsWhenTheDataAreScaled) {
+  Eigen::Matrix2Xd whorl(2, 5);
+  whorl << 1.0, 1.3, 1.5, 1.3, 1.0,  //
+      -0.4, -0.2, 0.0, 0.2, 0.4;
+  const SpiralSurface shell(UnitSpacedClamped(4, 5), whorl, 0.12, -2.0, 6.0);
+  std::vector<Eigen::Matrix3Xd> scans;
+  std::vector<RigidMotion> initial;
+  ViewsOf(shell, -2.0, 6.0, scans, initial);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.002);
+  for (Eigen::Matrix3Xd& s : scans) s = s.unaryExpr([&](double x) { return x + noise(rng); });
+  JointFitOptions o;
+  o.optimizer.max_iterations = 80;
+  SpiralSurface small(UnitSpacedClamped(4, 5), whorl * 0.98, 0.115, -2.0, 6.0);
+  const JointFitResult a = FitJointly(small, scans, initial, o);
+  constexpr double kTimes = 10.0;
+  std::vector<Eigen::Matrix3Xd> scaled_scans;
+  std::vector<RigidMotion> scaled_initial;
+  for (std::size_t k = 0; k < scans.size(); ++k) {
+    scaled_scans.push_back(kTimes * scans[k]);
+    scaled_initial.emplace_back(initial[k].rotation(), kTimes * initial[k].translation());
+  }
+  SpiralSurface large(UnitSpacedClamped(4, 5), kTimes * 0.98 * whorl, 0.115, -2.0, 6.0);
+  const JointFitResult b = FitJointly(large, scaled_scans, scaled_initial, o);
+  ASSERT_EQ(a.shape_uncertainty.size(), b.shape_uncertainty.size());
+  const Eigen::Index growth = small.num_parameters() - 1;
+  std::printf("growth %.8f +- %.3g (x %g: %.8f +- %.3g)\n", small.growth(), a.shape_uncertainty[growth],
+              kTimes, large.growth(), b.shape_uncertainty[growth]);
+  EXPECT_NEAR(large.growth(), small.growth(), 1e-9);
+  EXPECT_NEAR(b.shape_uncertainty[growth] / a.shape_uncertainty[growth], 1.0, 1e-4);
+  // The control points slide with the frame's turn about the axis (the curve scales by e^(p dv)): no
+  // uncertainty of their own (NaN) at either size; their covariance scales by 10^2.
+  for (Eigen::Index i = 0; i < growth; ++i)
+    EXPECT_EQ(std::isnan(b.shape_uncertainty[i]), std::isnan(a.shape_uncertainty[i]));
+  const Eigen::MatrixXd ratio = b.shape_covariance.topLeftCorner(growth, growth)
+                                    .cwiseQuotient(a.shape_covariance.topLeftCorner(growth, growth));
+  EXPECT_NEAR(ratio.minCoeff(), kTimes * kTimes, 1e-2 * kTimes * kTimes);
+  EXPECT_NEAR(ratio.maxCoeff(), kTimes * kTimes, 1e-2 * kTimes * kTimes);
+  // And the growth's uncertainty is that of the data: its error here within 4 of it.
+  EXPECT_LT(std::abs(small.growth() - 0.12), 4 * a.shape_uncertainty[growth]);
+}
+
 // Gauge of primitives (issue 4): each scan's rotation about and shift along a cylinder's axis, and its
 // rotations about a sphere's centre, are removed; what stays unobservable is only the model's own
 // re-parametrization (a cylinder's axis point sliding along the axis and its frame turning about it), never a
