@@ -607,6 +607,10 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     evidence.weights = RobustWeightsAt(o.loss, r.loss_scale, judged);
     evidence.extent = ComputeBounds(registered).diagonal();
     Adequacy adequacy = AssessAdequacy(evidence);
+    // A shell's section through its axis (written with -o): the surface its whorls are measured on, over
+    // the coiling angles the data cover.
+    std::optional<SpiralSurface> section_surface;
+    double section_lo = 0.0, section_hi = 0.0;
     if (spiral) {
       // A shell's whorls over the coiling angles its kept points' feet cover, and the test of the logarithmic
       // spiral against the allometric one (docs/shells.md sections 2-3); a shell that grows allometrically
@@ -652,6 +656,11 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       j["growth"]["whorls"] =
           WhorlsJson(MeasureWhorls(measured, allometric ? nested.result.shape_covariance : r.shape_covariance,
                                    angle_lo, angle_hi, units));
+      if (std::isfinite(angle_lo) && std::isfinite(angle_hi)) {
+        section_surface = measured;
+        section_lo = angle_lo;
+        section_hi = angle_hi;
+      }
       j["growth"]["whorls_surface"] = allometric ? "allometric" : "logarithmic";
       j["growth"]["coiled_angle"] = NumberOrNull(angle_hi - angle_lo);
       if (allometric) {
@@ -882,6 +891,9 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     if (j.contains("measurands")) measurands_text = MeasurandsText(j["measurands"]);
     WriteRequestedFiles(o, j, r);
     if (vessel && !o.output.empty()) WriteProfileFiles(o.output, *vessel);
+    if (section_surface && !o.output.empty())
+      WriteTextAtomically(o.output + "_section.svg",
+                          ShellSectionSvg(*section_surface, section_lo, section_hi, units));
     std::ostringstream text;
     text << "scan2model fit: " << model->name() << " to " << K << " views (" << set.TotalPoints()
          << " points) of " << o.file << " (units " << units << ")\n\n"

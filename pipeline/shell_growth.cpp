@@ -1,11 +1,15 @@
 #include "pipeline/shell_growth.h"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
+#include <stdexcept>
 
 #include "fitting/measurement_uncertainty.h"
 #include "pipeline/output.h"
+#include "pipeline/svg.h"
 
 namespace s2m::pipeline {
 namespace {
@@ -15,6 +19,19 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 nlohmann::json MeasureJson(const Measure& m) {
   return {{"value", NumberOrNull(m.value)}, {"uncertainty", NumberOrNull(m.uncertainty)}};
 }
+
+// One cut of the coil by the section's plane: the generating curve at coiling angle `angle`, drawn at x = +r
+// (right of the axis) or x = -r (left), z up; in the model's units.
+struct SectionCut {
+  double angle = 0.0;
+  int whorls_from_last = 0;
+  bool right = true;
+  bool scanned = true;
+  std::vector<Eigen::Vector2d> points;  // (x, z)
+};
+
+constexpr int kSectionSamples = 241;         // along the generating curve
+constexpr int kMostExtrapolatedWhorls = 30;  // on either side of the axis
 
 }  // namespace
 
@@ -65,6 +82,153 @@ nlohmann::json WhorlsJson(const std::vector<WhorlMeasures>& whorls) {
                     {"umbilical_width", MeasureJson(w.umbilical_width)},
                     {"diameter", MeasureJson(w.diameter)}});
   return rows;
+}
+
+std::string ShellSectionSvg(const SpiralSurface& shell, double angle_lo, double angle_hi,
+                            const std::string& units) {
+  using svg::Line;
+  using svg::Num;
+  using svg::Text;
+  if (!(std::isfinite(angle_lo) && std::isfinite(angle_hi) && angle_lo <= angle_hi))
+    throw std::invalid_argument("the shell's section needs a finite range of coiling angles, lowest first");
+  // The surface over every angle drawn: Evaluate holds v within the surface's range.
+  const double lowest =
+      std::min({shell.v_lo(), angle_lo, angle_hi - M_PI - 2 * M_PI * (kMostExtrapolatedWhorls + 1)});
+  const SpiralSurface whole = shell.WithAngleRange(lowest, std::max(shell.v_hi(), angle_hi));
+  auto size = [&](double v) {
+    const SpiralSurface::Whorl w = whole.WhorlAt(v);
+    return std::max(w.height, w.width);
+  };
+  const SpiralSurface::Whorl last = whole.WhorlAt(angle_hi);
+  const double outermost = std::max(last.height, last.width);
+  const double u_lo = whole.basis().lo(), u_hi = whole.basis().hi();
+  std::vector<SectionCut> cuts;
+  LocalGeometry g;
+  for (const bool right : {true, false}) {
+    int extrapolated = 0;
+    for (int k = 0;; ++k) {
+      SectionCut cut;
+      cut.angle = angle_hi - (right ? 0.0 : M_PI) - 2 * M_PI * k;
+      cut.whorls_from_last = k;
+      cut.right = right;
+      cut.scanned = cut.angle >= angle_lo;
+      // Below the data, inner whorls while they are not too small to draw and still shrink towards the apex
+      // (an allometric growth rate may turn negative far outside the data).
+      if (!cut.scanned) {
+        const double here = size(cut.angle);
+        if (++extrapolated > kMostExtrapolatedWhorls || !(here > kSectionSmallestWhorl * outermost) ||
+            !(here < size(cut.angle + M_PI)))
+          break;
+      }
+      // The distance from the axis signed along the half-plane's direction (cos v, sin v): hypot(x, y) where
+      // the generating curve keeps to its side of the axis, and a curve that crosses it is drawn across.
+      const double c = std::cos(cut.angle), s = std::sin(cut.angle);
+      for (int i = 0; i < kSectionSamples; ++i) {
+        whole.Evaluate(ParamT{u_lo + (u_hi - u_lo) * i / (kSectionSamples - 1), cut.angle, 0.0}, 0, g);
+        const double r = g.point[0] * c + g.point[1] * s;
+        cut.points.emplace_back(right ? r : -r, g.point[2]);
+      }
+      cuts.push_back(std::move(cut));
+    }
+  }
+  double x_min = 0, x_max = 0, z_min = std::numeric_limits<double>::infinity(), z_max = -z_min;
+  for (const SectionCut& cut : cuts)
+    for (const Eigen::Vector2d& p : cut.points) {
+      x_min = std::min(x_min, p.x());
+      x_max = std::max(x_max, p.x());
+      z_min = std::min(z_min, p.y());
+      z_max = std::max(z_max, p.y());
+    }
+  // The last whorl (the first cut, always in the data) and the one half a turn before it, left.
+  const SectionCut& outer = cuts.front();
+  const SectionCut* opposite = nullptr;
+  for (const SectionCut& cut : cuts)
+    if (!cut.right && cut.whorls_from_last == 0) opposite = &cut;
+  auto extreme = [](const SectionCut& cut, int coordinate, bool largest) {
+    auto less = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+      return a[coordinate] < b[coordinate];
+    };
+    return largest ? *std::max_element(cut.points.begin(), cut.points.end(), less)
+                   : *std::min_element(cut.points.begin(), cut.points.end(), less);
+  };
+  const Eigen::Vector2d inner_edge = extreme(outer, 0, false), outer_edge = extreme(outer, 0, true);
+  const Eigen::Vector2d bottom = extreme(outer, 1, false), top = extreme(outer, 1, true);
+
+  // Layout: the width of the last whorl above the drawing, its height right of it, the umbilicus, the scale
+  // bar and the caption below it.
+  constexpr double kWidth = 640, kLeft = 40, kRight = 120, kTop = 60, kBottom = 116, kTallest = 560;
+  const double span_x = std::max(x_max - x_min, 1e-9), span_z = std::max(z_max - z_min, 1e-9);
+  const double scale = std::min((kWidth - kLeft - kRight) / span_x, kTallest / span_z);
+  const double height = std::ceil(kTop + scale * span_z + kBottom);
+  const double x0 = kLeft + 0.5 * (kWidth - kLeft - kRight - scale * span_x);
+  auto X = [&](double x) { return x0 + scale * (x - x_min); };
+  auto Y = [&](double z) { return kTop + scale * (z_max - z); };
+  const std::string u = " " + units;
+  std::ostringstream s;
+  s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << Num(kWidth) << "\" height=\"" << Num(height)
+    << "\" viewBox=\"0 0 " << Num(kWidth) << " " << Num(height)
+    << "\" font-family=\"sans-serif\" font-size=\"12\">\n"
+    << "<title>Shell section through the axis</title>\n<rect width=\"100%\" height=\"100%\" "
+       "fill=\"white\"/>\n";
+  // The axis (dash-dot), beyond the drawing at both ends.
+  s << Line(X(0), Y(z_max) - 12, X(0), Y(z_min) + 12, "#000", 0.8,
+            " class=\"axis\" stroke-dasharray=\"12 3 2 3\"");
+  // The cuts, the inner (extrapolated) ones first so that the scanned ones are drawn over them.
+  for (auto cut = cuts.rbegin(); cut != cuts.rend(); ++cut) {
+    s << "<polyline class=\"section " << (cut->right ? "right" : "left")
+      << (cut->scanned ? " scanned" : " extrapolated") << "\" points=\"";
+    for (std::size_t i = 0; i < cut->points.size(); ++i)
+      s << (i ? " " : "") << Num(X(cut->points[i].x())) << "," << Num(Y(cut->points[i].y()));
+    s << "\" fill=\"none\" stroke=\""
+      << (cut->scanned ? "#000\" stroke-width=\"1.8\"" : "#555\" stroke-width=\"1\" stroke-dasharray=\"5 3\"")
+      << "><title>"
+      << svg::Escape((cut->right ? "right" : "left") + std::string(", coiling angle ") +
+                     Format(cut->angle, 5) + " rad, " + (cut->scanned ? "scanned" : "extrapolated"))
+      << "</title></polyline>\n";
+  }
+  // Dimensions of the last whorl: thin extension lines from the section a little past the dimension line.
+  const std::string extension = "#999";
+  const double width_y = Y(z_max) - 22;
+  s << Line(X(inner_edge.x()), Y(inner_edge.y()) - 3, X(inner_edge.x()), width_y - 5, extension, 0.6)
+    << Line(X(outer_edge.x()), Y(outer_edge.y()) - 3, X(outer_edge.x()), width_y - 5, extension, 0.6)
+    << Line(X(inner_edge.x()), width_y, X(outer_edge.x()), width_y, "#b2182b", 1.2,
+            " class=\"dimension width\"")
+    << Text(0.5 * (X(inner_edge.x()) + X(outer_edge.x())), width_y - 8,
+            "last whorl width " + Format(last.width, 5) + u, "middle", " fill=\"#b2182b\"");
+  const double height_x = X(x_max) + 22;
+  s << Line(X(top.x()) + 3, Y(top.y()), height_x + 5, Y(top.y()), extension, 0.6)
+    << Line(X(bottom.x()) + 3, Y(bottom.y()), height_x + 5, Y(bottom.y()), extension, 0.6)
+    << Line(height_x, Y(top.y()), height_x, Y(bottom.y()), "#2166ac", 1.2, " class=\"dimension height\"")
+    << "<text transform=\"translate(" << Num(height_x + 14) << "," << Num(0.5 * (Y(top.y()) + Y(bottom.y())))
+    << ") rotate(-90)\" text-anchor=\"middle\" fill=\"#2166ac\">"
+    << svg::Escape("last whorl height " + Format(last.height, 5) + u) << "</text>\n";
+  // The umbilicus: between the inner edges of the last whorl and of the one half a turn before it.
+  if (last.umbilical_width > 0 && opposite) {
+    const Eigen::Vector2d left_edge = extreme(*opposite, 0, true);
+    const double umbilicus_y = Y(z_min) + 24;
+    s << Line(X(left_edge.x()), Y(left_edge.y()) + 3, X(left_edge.x()), umbilicus_y + 5, extension, 0.6,
+              " stroke-dasharray=\"2 2\"")
+      << Line(X(inner_edge.x()), Y(inner_edge.y()) + 3, X(inner_edge.x()), umbilicus_y + 5, extension, 0.6,
+              " stroke-dasharray=\"2 2\"")
+      << Line(X(left_edge.x()), umbilicus_y, X(inner_edge.x()), umbilicus_y, "#1b7837", 1.2,
+              " class=\"dimension umbilicus\"")
+      << Text(X(0), umbilicus_y + 16,
+              "umbilicus " + Format(last.umbilical_width, 5) + u +
+                  (opposite->scanned ? "" : " (one side extrapolated)"),
+              "middle", " fill=\"#1b7837\"");
+  }
+  // Scale bar: a round length about a fifth of the drawing's width.
+  const std::vector<double> ticks = svg::NiceTicks(0, span_x, 5);
+  const double bar = ticks.size() > 1 ? ticks[1] - ticks[0] : span_x;
+  const double bar_y = height - 40;
+  s << "<rect class=\"scale-bar\" x=\"" << Num(kLeft) << "\" y=\"" << Num(bar_y - 6) << "\" width=\""
+    << Num(scale * bar) << "\" height=\"6\" fill=\"#000\"/>\n"
+    << Text(kLeft + scale * bar + 6, bar_y, Format(bar, 4) + u, "start", " class=\"scale-label\"")
+    << Text(kWidth / 2, height - 12,
+            "section through the axis at the last coiling angle; solid: scanned whorls, dashed: extrapolated",
+            "middle", " class=\"caption\" font-size=\"11\"")
+    << "</svg>\n";
+  return s.str();
 }
 
 SpiralSurface AllometricStart(const SpiralSurface& fitted) {

@@ -73,4 +73,18 @@ AllometryTest TestAllometry(const SpiralSurface& nested, const Eigen::MatrixXd& 
 
 nlohmann::json WhorlsJson(const std::vector<WhorlMeasures>& whorls);
 
+// The shell's section through its axis as an SVG drawing (the archaeological and malacological convention,
+// axis vertical, the model's z up): the half-plane at coiling angle angle_hi right of the axis, the one at
+// angle_hi - pi left of it, each cutting the coil once a turn, at v = angle_hi - 2 pi k and angle_hi - pi
+// - 2 pi k. Each cut is the generating curve at that v, scaled as the surface scales it there; solid where
+// v lies in [angle_lo, angle_hi] (the coiling angles the data cover), dashed for the inner whorls the model
+// extrapolates below angle_lo, while a whorl's size (the larger of its height and width) stays above
+// kSectionSmallestWhorl of the last one's and keeps shrinking towards the apex. Annotated with the last
+// whorl's height and width (SpiralSurface::WhorlAt(angle_hi)), its umbilical width when positive, a scale
+// bar of a round length in `units` and a one-line caption. Throws std::invalid_argument unless angle_lo <=
+// angle_hi, both finite.
+std::string ShellSectionSvg(const SpiralSurface& shell, double angle_lo, double angle_hi,
+                            const std::string& units);
+constexpr double kSectionSmallestWhorl = 0.02;
+
 }  // namespace s2m::pipeline

@@ -17,18 +17,6 @@ std::string Open(Size size) {
          std::to_string(size.height) + "\" font-family=\"sans-serif\" font-size=\"12\">\n";
 }
 
-std::string Text(double x, double y, const std::string& text, const std::string& anchor = "middle",
-                 const std::string& extra = "") {
-  return "<text x=\"" + Num(x) + "\" y=\"" + Num(y) + "\" text-anchor=\"" + anchor + "\"" + extra + ">" +
-         Escape(text) + "</text>\n";
-}
-
-std::string Line(double x1, double y1, double x2, double y2, const std::string& stroke, double width = 1.0,
-                 const std::string& extra = "") {
-  return "<line x1=\"" + Num(x1) + "\" y1=\"" + Num(y1) + "\" x2=\"" + Num(x2) + "\" y2=\"" + Num(y2) +
-         "\" stroke=\"" + stroke + "\" stroke-width=\"" + Num(width) + "\"" + extra + "/>\n";
-}
-
 // A tick label: short and exact enough.
 std::string TickLabel(double v) {
   if (v == 0.0) return "0";
@@ -126,6 +114,18 @@ std::string Num(double value) {
   while (!s.empty() && s.back() == '0') s.pop_back();
   if (!s.empty() && s.back() == '.') s.pop_back();
   return s == "-0" ? "0" : s;
+}
+
+std::string Text(double x, double y, const std::string& text, const std::string& anchor,
+                 const std::string& extra) {
+  return "<text x=\"" + Num(x) + "\" y=\"" + Num(y) + "\" text-anchor=\"" + anchor + "\"" + extra + ">" +
+         Escape(text) + "</text>\n";
+}
+
+std::string Line(double x1, double y1, double x2, double y2, const std::string& stroke, double width,
+                 const std::string& extra) {
+  return "<line x1=\"" + Num(x1) + "\" y1=\"" + Num(y1) + "\" x2=\"" + Num(x2) + "\" y2=\"" + Num(y2) +
+         "\" stroke=\"" + stroke + "\" stroke-width=\"" + Num(width) + "\"" + extra + "/>\n";
 }
 
 std::vector<double> NiceTicks(double lo, double hi, int target) {

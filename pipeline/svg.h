@@ -14,6 +14,13 @@ std::string Escape(const std::string& text);
 std::string Num(double value);
 // "Nice" tick values (1, 2, 5 x 10^k steps) covering [lo, hi], about `target` of them.
 std::vector<double> NiceTicks(double lo, double hi, int target = 6);
+// A <text> element at (x, y), its text escaped; `extra` is more attributes, written as given (with a
+// leading space).
+std::string Text(double x, double y, const std::string& text, const std::string& anchor = "middle",
+                 const std::string& extra = "");
+// A <line> element; `extra` as for Text.
+std::string Line(double x1, double y1, double x2, double y2, const std::string& stroke, double width = 1.0,
+                 const std::string& extra = "");
 // A diverging colour for t in [-1, 1]: blue (negative), white (0), red (positive), as #rrggbb.
 std::string DivergingColour(double t);
 

@@ -1,7 +1,8 @@
 // A shell's whorls and the test of the logarithmic spiral against the allometric one (pipeline/
 // shell_growth.h, docs/shells.md sections 2-3), through the command's own path (ComputeFit): logarithmic
 // shells are called logarithmic and their whorls measured; allometric shells are called allometric, with
-// q and a recovered.
+// q and a recovered. The section through the axis (ShellSectionSvg) is drawn from a surface built here,
+// without a fit.
 
 #include "pipeline/shell_growth.h"
 
@@ -10,15 +11,22 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
+#include <vector>
 
+#include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
 #include "pipeline/batch.h"
 #include "pipeline/fit_options.h"
+#include "pipeline/output.h"
 #include "registration/scan.h"
 #include "synthetic/synthetic_cases.h"
+#include "test_support.h"
 
 namespace s2m {
 namespace {
@@ -125,6 +133,158 @@ TEST(ShellGrowth, AllometricShellIsToldAndItsAllometryRecovered) {
     EXPECT_NEAR(growth["coiled_angle"].get<double>(), 4 * M_PI, 0.01);
     ASSERT_GE(growth["whorls"].size(), 2u);
     ExpectLastWhorl(growth["whorls"][0], dynamic_cast<const SpiralSurface&>(*cloud.truth));
+  }
+}
+
+// The SVG's elements as python3's XML parser reads them (each tag without its namespace, its attributes
+// and its text), or null when it is not well-formed XML.
+nlohmann::json ParseSvg(const std::string& svg, const std::string& name) {
+  const std::filesystem::path dir = test::FreshTempDir("shell_section_" + name);
+  const std::filesystem::path file = dir / "section.svg";
+  std::ofstream(file) << svg;
+  const test::ShellResult r = test::Shell(
+      "python3 -c 'import sys, json, xml.etree.ElementTree as E; print(json.dumps([{\"tag\": "
+      "e.tag.split(\"}\")[-1], \"attrib\": e.attrib, \"text\": e.text or \"\"} for e in "
+      "E.parse(sys.argv[1]).iter()]))' " +
+          file.string(),
+      false);
+  std::filesystem::remove_all(dir);
+  if (r.exit_code != 0) return nullptr;
+  return nlohmann::json::parse(r.out);
+}
+
+std::vector<Eigen::Vector2d> PolylinePoints(const nlohmann::json& element) {
+  std::vector<Eigen::Vector2d> points;
+  std::istringstream in(element["attrib"]["points"].get<std::string>());
+  double x, y;
+  char comma;
+  while (in >> x >> comma >> y) points.emplace_back(x, y);
+  return points;
+}
+
+bool HasClass(const nlohmann::json& element, const std::string& name) {
+  const std::string classes = " " + element["attrib"].value("class", "") + " ";
+  return classes.find(" " + name + " ") != std::string::npos;
+}
+
+// The section of the allometric synthetic shell's surface (q = a = 0: logarithmic, growth 0.12) at its last
+// angle 3 pi, without a fit: well-formed XML; the cuts at 3 pi - 2 pi k right of the dash-dot axis, those at
+// 2 pi - 2 pi k left of it, the largest left one smaller than the outermost right one by e^{-p pi} (half a
+// turn); the outermost right cut as wide in the drawing as WhorlAt(3 pi).width at the scale bar's scale;
+// solid cuts for the angles the data cover, dashed ones below while a whorl is above 2 % of the last one,
+// and none when the data reach below that.
+TEST(ShellSection, SvgIsXmlAndPutsTheOppositeSideLeftOfTheAxis) {
+  if (test::Shell("command -v python3 >/dev/null").exit_code != 0)
+    GTEST_SKIP() << "python3 is needed to parse the SVG as XML";
+  Eigen::Matrix2Xd whorl(2, 6);
+  whorl << 20, 25, 30, 31, 26, 19,  //
+      -8, -6, -2, 2, 6, 8;
+  const double growth = 0.12, angle_hi = 3 * M_PI;
+  const SpiralSurface shell(UnitSpacedClamped(4, 6), whorl, growth, -M_PI - 0.2, 3 * M_PI + 0.2);
+  const SpiralSurface::Whorl last = shell.WhorlAt(angle_hi);
+  // The cuts on one side below angle_lo that are above 2 % of the last whorl (sizes scale as e^{p v}).
+  auto expected_extrapolated = [&](double angle_lo, double first) {
+    int n = 0;
+    for (double v = first; std::exp(growth * (v - angle_hi)) > pipeline::kSectionSmallestWhorl; v -= 2 * M_PI)
+      n += v < angle_lo;
+    return n;
+  };
+  for (const double angle_lo : {-M_PI - 0.2, angle_hi - 40.0, angle_hi}) {
+    SCOPED_TRACE("angle_lo " + std::to_string(angle_lo));
+    const std::string svg = pipeline::ShellSectionSvg(shell, angle_lo, angle_hi, "mm");
+    const nlohmann::json elements = ParseSvg(svg, std::to_string(static_cast<int>(100 * angle_lo)));
+    ASSERT_FALSE(elements.is_null()) << "not well-formed XML:\n" << svg;
+    double axis_x = std::nan(""), bar_px = std::nan(""), bar_mm = std::nan("");
+    std::vector<std::vector<Eigen::Vector2d>> right, left;
+    int right_dashed = 0, left_dashed = 0, right_solid = 0, left_solid = 0;
+    std::string text;
+    for (const nlohmann::json& e : elements) {
+      const std::string tag = e["tag"];
+      text += e["text"].get<std::string>() + "\n";
+      if (tag == "line" && HasClass(e, "axis")) {
+        axis_x = std::stod(e["attrib"]["x1"].get<std::string>());
+        EXPECT_EQ(e["attrib"]["x2"], e["attrib"]["x1"]);  // vertical
+        EXPECT_TRUE(e["attrib"].contains("stroke-dasharray"));
+      } else if (tag == "rect" && HasClass(e, "scale-bar")) {
+        bar_px = std::stod(e["attrib"]["width"].get<std::string>());
+      } else if (tag == "text" && HasClass(e, "scale-label")) {
+        EXPECT_EQ(e["text"].get<std::string>().substr(e["text"].get<std::string>().size() - 3), " mm");
+        bar_mm = std::stod(e["text"].get<std::string>());
+      } else if (tag == "polyline" && HasClass(e, "section")) {
+        const bool dashed = e["attrib"].contains("stroke-dasharray");
+        EXPECT_EQ(dashed, HasClass(e, "extrapolated"));
+        if (HasClass(e, "right")) {
+          right.push_back(PolylinePoints(e));
+          ++(dashed ? right_dashed : right_solid);
+        } else {
+          ASSERT_TRUE(HasClass(e, "left"));
+          left.push_back(PolylinePoints(e));
+          ++(dashed ? left_dashed : left_solid);
+        }
+      }
+    }
+    ASSERT_TRUE(std::isfinite(axis_x));
+    ASSERT_TRUE(bar_px > 0 && bar_mm > 0);
+    // A round length: 1, 2 or 5 times a power of 10.
+    const double mantissa = bar_mm / std::pow(10.0, std::floor(std::log10(bar_mm)));
+    EXPECT_TRUE(std::abs(mantissa - 1) < 1e-9 || std::abs(mantissa - 2) < 1e-9 ||
+                std::abs(mantissa - 5) < 1e-9)
+        << bar_mm;
+    const double scale = bar_px / bar_mm;  // pixels per mm
+    // Solid: 3 pi, pi, -pi right and 2 pi, 0 left in the synthetic shell's range, every angle down to
+    // angle_lo otherwise.
+    auto solid = [&](double first) {
+      int n = 0;
+      for (double v = first; v >= angle_lo; v -= 2 * M_PI) ++n;
+      return n;
+    };
+    EXPECT_EQ(right_solid, solid(angle_hi));
+    EXPECT_EQ(left_solid, solid(angle_hi - M_PI));
+    EXPECT_EQ(right_dashed, expected_extrapolated(angle_lo, angle_hi));
+    EXPECT_EQ(left_dashed, expected_extrapolated(angle_lo, angle_hi - M_PI));
+    EXPECT_EQ(right_dashed + left_dashed > 0, angle_lo > angle_hi - 40.0);
+    // Right of the axis and left of it, from the coordinates (the generating curve keeps 19 mm and more
+    // from the axis, scaled).
+    auto extent = [](const std::vector<Eigen::Vector2d>& points) {
+      double lo = points.front().x(), hi = lo;
+      for (const Eigen::Vector2d& p : points) {
+        lo = std::min(lo, p.x());
+        hi = std::max(hi, p.x());
+      }
+      return std::pair<double, double>(lo, hi);
+    };
+    double outermost_right = 0, outermost_right_width = 0, outermost_left_width = 0, outermost_left = 0;
+    for (const auto& cut : right) {
+      ASSERT_GE(cut.size(), 2u);
+      const auto [lo, hi] = extent(cut);
+      EXPECT_GT(lo, axis_x);
+      if (hi > outermost_right) {
+        outermost_right = hi;
+        outermost_right_width = hi - lo;
+      }
+    }
+    for (const auto& cut : left) {
+      ASSERT_GE(cut.size(), 2u);
+      const auto [lo, hi] = extent(cut);
+      EXPECT_LT(hi, axis_x);
+      if (axis_x - lo > outermost_left) {
+        outermost_left = axis_x - lo;
+        outermost_left_width = hi - lo;
+      }
+    }
+    // The outermost right cut is the last whorl: its width at the drawing's scale, to 0.01 pixel (about 100
+    // pixels wide here; the coordinates are written to 1e-4 pixel and the curve is sampled at 241 points,
+    // measured 1e-4 pixel off).
+    EXPECT_NEAR(outermost_right_width, last.width * scale, 0.01);
+    // The outermost left cut is half a turn before it.
+    EXPECT_NEAR(outermost_left_width / outermost_right_width, std::exp(-growth * M_PI), 1e-3);
+    EXPECT_NE(text.find("last whorl height " + pipeline::Format(last.height, 5) + " mm"), std::string::npos)
+        << text;
+    EXPECT_NE(text.find("last whorl width " + pipeline::Format(last.width, 5) + " mm"), std::string::npos);
+    EXPECT_NE(text.find("umbilicus " + pipeline::Format(last.umbilical_width, 5) + " mm"), std::string::npos);
+    EXPECT_NE(text.find("section through the axis at the last coiling angle; solid: scanned whorls, dashed: "
+                        "extrapolated"),
+              std::string::npos);
   }
 }
 
