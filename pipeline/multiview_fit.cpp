@@ -647,15 +647,17 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       for (std::size_t k = 0; k < K; ++k) measured_points.push_back(measured_poses[k].apply(scans[k]));
       std::vector<FootPoint> coil_feet;
       ComputeFootPoints(measured, Concatenate(measured_points)(Eigen::all, kept), coil_feet);
-      double angle_lo = std::numeric_limits<double>::infinity(), angle_hi = -angle_lo;
+      std::vector<double> coil_angles;
       for (const FootPoint& f : coil_feet)
-        if (!f.on_boundary) {
-          angle_lo = std::min(angle_lo, f.t[1]);
-          angle_hi = std::max(angle_hi, f.t[1]);
-        }
+        if (!f.on_boundary) coil_angles.push_back(f.t[1]);
+      double angle_lo = std::numeric_limits<double>::infinity(), angle_hi = -angle_lo;
+      for (const double angle : coil_angles) {
+        angle_lo = std::min(angle_lo, angle);
+        angle_hi = std::max(angle_hi, angle);
+      }
       j["growth"]["whorls"] =
           WhorlsJson(MeasureWhorls(measured, allometric ? nested.result.shape_covariance : r.shape_covariance,
-                                   angle_lo, angle_hi, units));
+                                   angle_lo, angle_hi, LastAngleUncertainty(coil_angles, angle_hi), units));
       if (std::isfinite(angle_lo) && std::isfinite(angle_hi)) {
         section_surface = measured;
         section_lo = angle_lo;

@@ -35,8 +35,16 @@ constexpr int kMostExtrapolatedWhorls = 30;  // on either side of the axis
 
 }  // namespace
 
+double LastAngleUncertainty(const std::vector<double>& foot_angles, double angle_hi) {
+  constexpr double kWindow = 0.2 * M_PI;  // a tenth of a turn
+  const auto in_window = std::count_if(foot_angles.begin(), foot_angles.end(),
+                                       [&](double v) { return v >= angle_hi - kWindow && v <= angle_hi; });
+  return in_window > 0 ? kWindow / static_cast<double>(in_window) : kNaN;
+}
+
 std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
-                                         double angle_lo, double angle_hi, const std::string& units) {
+                                         double angle_lo, double angle_hi, double angle_uncertainty,
+                                         const std::string& units) {
   std::vector<WhorlMeasures> out;
   if (!(angle_hi >= angle_lo)) return out;
   const bool propagate = shape_covariance.rows() == shell.num_parameters();
@@ -45,23 +53,31 @@ std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen
     w.whorls_from_last = k;
     w.angle = angle_hi - 2 * M_PI * k;
     const bool across = w.angle - M_PI >= angle_lo;  // the opposite side is in the data too
-    auto measures = [&](const SpiralSurface& s) {
-      const SpiralSurface::Whorl m = s.WhorlAt(w.angle);
+    auto measures = [](const SpiralSurface& s, double angle) {
+      const SpiralSurface::Whorl m = s.WhorlAt(angle);
       Eigen::VectorXd y(4);
       y << m.height, m.width, m.umbilical_width, m.diameter;
       return y;
     };
-    const Eigen::VectorXd value = measures(shell);
+    const Eigen::VectorXd value = measures(shell, w.angle);
     Eigen::VectorXd uncertainty = Eigen::VectorXd::Constant(4, kNaN);
     if (propagate) {
       const std::vector<LinearPropagation> u = PropagateLinear(
           [&](const Eigen::VectorXd& p) {
             SpiralSurface moved = shell;
             moved.set_parameters(p);
-            return measures(moved);
+            return measures(moved, w.angle);
           },
           shell.parameters(), shape_covariance);
       for (int i = 0; i < 4; ++i) uncertainty[i] = u[static_cast<std::size_t>(i)].standard_uncertainty;
+      // Eq. S7a: the rows sit at the data's last angle, itself uncertain; the measures' derivative along the
+      // coil (central difference) times that uncertainty, in quadrature.
+      if (std::isfinite(angle_uncertainty) && angle_uncertainty > 0) {
+        constexpr double kStep = 1e-4;
+        const Eigen::VectorXd along =
+            (measures(shell, w.angle + kStep) - measures(shell, w.angle - kStep)) / (2 * kStep);
+        uncertainty = (uncertainty.array().square() + (along.array() * angle_uncertainty).square()).sqrt();
+      }
     }
     w.height = {value[0], uncertainty[0], units};
     w.width = {value[1], uncertainty[1], units};

@@ -18,8 +18,8 @@ namespace s2m::pipeline {
 // One whorl (docs/shells.md section 2): the generating curve at coiling angle `angle` (radians, the fit's
 // frame), `whorls_from_last` whole turns before the last angle the data reach. Height, width, umbilical
 // width and diameter as SpiralSurface::WhorlAt defines them, with standard uncertainties from the shape
-// covariance (eq. 18 of docs/metrology.md, the angle held). The umbilical width and the diameter need the
-// data to reach the opposite side of the axis half a turn earlier: NaN when they do not.
+// covariance (eq. 18 of docs/metrology.md) and the last angle's own uncertainty. The umbilical width and the
+// diameter need the data to reach the opposite side of the axis half a turn earlier: NaN when they do not.
 struct WhorlMeasures {
   int whorls_from_last = 0;
   double angle = 0.0;
@@ -27,9 +27,17 @@ struct WhorlMeasures {
 };
 
 // The whorls in [angle_lo, angle_hi], the coiling angles the data cover: one at angle_hi and one a turn
-// before it, and so on, while inside the range.
+// before it, and so on, while inside the range. `angle_uncertainty` is the standard uncertainty of angle_hi
+// itself (where the data end; docs/shells.md eq. S7a): the rows move with it, and its share (the measure's
+// derivative along the coil times it) is added in quadrature to the shape covariance's.
 std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
-                                         double angle_lo, double angle_hi, const std::string& units);
+                                         double angle_lo, double angle_hi, double angle_uncertainty,
+                                         const std::string& units);
+
+// The standard uncertainty of the last coiling angle the data reach, from the angles of the points' feet
+// (docs/shells.md eq. S7a): the points sample the coil at random, so the last one falls short of the coil's
+// end by about the local spacing of the angles, the width of the last tenth of a turn over the feet in it.
+double LastAngleUncertainty(const std::vector<double>& foot_angles, double angle_hi);
 
 // The test of the logarithmic spiral against the allometric one (docs/shells.md section 3): the nested
 // model refitted jointly from the logarithmic fit, its q and a with their standard uncertainties, and the

@@ -54,21 +54,17 @@ int Seeds() {
 }
 
 // The last whorl's height, width, umbilical width and diameter against the truth's at the data's last angle
-// (3 pi), within 3 standard uncertainties plus what the data's end can tell: the points sample the coil at
-// random, so the last angle is found to within about 4 pi / kPoints radians, a relative g' 4 pi / kPoints of
-// a whorl's size (g' the local growth rate; 1.3e-4 here).
+// (3 pi), within 3 standard uncertainties: the shape's and the last angle's own (eq. S7a; the points sample
+// the coil at random, so the last one falls short of its end).
 void ExpectLastWhorl(const nlohmann::json& row, const SpiralSurface& truth) {
   const SpiralSurface::Whorl last = truth.WhorlAt(3 * M_PI);
-  const double rate = truth.growth() + truth.growth_change() * (3 * M_PI - truth.allometry_reference()) +
-                      std::abs(truth.axial_excess());
-  const double end_error = rate * 4 * M_PI / kPoints;
   for (const auto& [key, expected] : {std::pair<const char*, double>{"height", last.height},
                                       {"width", last.width},
                                       {"umbilical_width", last.umbilical_width},
                                       {"diameter", last.diameter}}) {
     const double value = row[key]["value"].get<double>(), u = row[key]["uncertainty"].get<double>();
     std::printf("  last whorl %s %.4f +- %.2g (truth %.4f)\n", key, value, u, expected);
-    EXPECT_LT(std::abs(value - expected), 3 * u + end_error * expected) << key;
+    EXPECT_LT(std::abs(value - expected), 3 * u) << key;
   }
 }
 
@@ -286,6 +282,14 @@ TEST(ShellSection, SvgIsXmlAndPutsTheOppositeSideLeftOfTheAxis) {
                         "extrapolated"),
               std::string::npos);
   }
+}
+
+// Eq. S7a: feet every 0.01 rad give the last angle to 0.01 rad; none in the last tenth of a turn give NaN.
+TEST(ShellGrowth, LastAngleUncertaintyIsTheLocalSpacing) {
+  std::vector<double> angles;
+  for (int i = 0; i <= 1000; ++i) angles.push_back(0.01 * i);
+  EXPECT_NEAR(pipeline::LastAngleUncertainty(angles, 10.0), 0.2 * M_PI / 63, 1e-12);  // 63 feet in 0.628 rad
+  EXPECT_TRUE(std::isnan(pipeline::LastAngleUncertainty(angles, 20.0)));
 }
 
 }  // namespace
