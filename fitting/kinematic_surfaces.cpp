@@ -232,13 +232,17 @@ double KinematicSurface::RadiusAtHeight(double height, Eigen::VectorXd* gradient
   const int samples = 64 * basis_.num_control();
   double u = basis_.lo();
   bool found = false;
+  // A height within rounding of a sample counts as reached there: the generatrix's end heights come from
+  // another evaluation of the same spline (a caller's basis sums), equal only to the last few bits.
+  const double tolerance = 1e-12 * (1.0 + std::abs(height));
   for (int i = 0; i < samples && !found; ++i) {
     const double a = basis_.lo() + (basis_.hi() - basis_.lo()) * i / samples;
     const double b = basis_.lo() + (basis_.hi() - basis_.lo()) * (i + 1) / samples;
     const double za = ProfilePoint(a).y() - height, zb = ProfilePoint(b).y() - height;
+    const bool at_a = std::abs(za) <= tolerance, at_b = std::abs(zb) <= tolerance;
     // The last interval includes its end (the generatrix's end height itself is reached).
-    if (za == 0 || za * zb < 0 || (zb == 0 && i == samples - 1)) {
-      u = za == 0 ? a : zb == 0 ? b : a - za * (b - a) / (zb - za);
+    if (at_a || za * zb < 0 || (at_b && i == samples - 1)) {
+      u = at_a ? a : at_b ? b : a - za * (b - a) / (zb - za);
       found = true;
     }
   }

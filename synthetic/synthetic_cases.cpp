@@ -620,6 +620,21 @@ void PlaceCloud(KinematicCloud& c, const SurfaceSample& s, double noise, std::mt
   c.axis_direction = c.world_T_model.rotation().col(2);
 }
 
+// The cloud of a kinematic surface's points over its whole generatrix and the coiling angles [v0, v1], with
+// normal noise, placed in the world (PlaceCloud); the caller sets the truth's pitch or growth.
+template <class Surface>
+KinematicCloud CloudAroundAxis(std::unique_ptr<Surface> truth, double v0, double v1, double noise, int count,
+                               std::uint64_t seed) {
+  const SurfaceSample s =
+      SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), v0, v1, count, seed);
+  KinematicCloud c;
+  std::mt19937_64 rng(seed + 1);
+  PlaceCloud(c, s, noise, rng);
+  c.surface_points = c.points.cols();
+  c.truth = std::move(truth);
+  return c;
+}
+
 }  // namespace
 
 KinematicCloud ShallowThreadCloud(double relief, double noise, int count, std::uint64_t seed) {
@@ -633,14 +648,8 @@ KinematicCloud ShallowThreadCloud(double relief, double noise, int count, std::u
   auto truth = std::make_unique<KinematicSurface>(
       KinematicSurface::Helical(UnitSpacedClamped(4, m), profile, pitch, 3.5));
   // Three turns of data, inside the model's 3.5 (a gauge shift must not push data off its ends).
-  const SurfaceSample s =
-      SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -3 * M_PI, 3 * M_PI, count, seed);
-  KinematicCloud c;
-  std::mt19937_64 rng(seed + 1);
-  PlaceCloud(c, s, noise, rng);
-  c.surface_points = c.points.cols();
+  KinematicCloud c = CloudAroundAxis(std::move(truth), -3 * M_PI, 3 * M_PI, noise, count, seed);
   c.pitch = pitch;
-  c.truth = std::move(truth);
   return c;
 }
 
@@ -656,14 +665,8 @@ KinematicCloud ConicalShellCloud(double ripple_amplitude, double noise, int coun
   }
   auto truth = std::make_unique<SpiralSurface>(UnitSpacedClamped(4, m), profile, growth, -2.2 * 2 * M_PI,
                                                2.2 * 2 * M_PI);
-  const SurfaceSample s =
-      SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -4 * M_PI, 4 * M_PI, count, seed);
-  KinematicCloud c;
-  std::mt19937_64 rng(seed + 1);
-  PlaceCloud(c, s, noise, rng);
-  c.surface_points = c.points.cols();
+  KinematicCloud c = CloudAroundAxis(std::move(truth), -4 * M_PI, 4 * M_PI, noise, count, seed);
   c.growth = growth;
-  c.truth = std::move(truth);
   return c;
 }
 
@@ -676,14 +679,8 @@ KinematicCloud AllometricShellCloud(double growth_change, double axial_excess, d
   auto truth = std::make_unique<SpiralSurface>(
       SpiralSurface(UnitSpacedClamped(4, 6), whorl, growth, -M_PI - 0.2, 3 * M_PI + 0.2)
           .WithAllometry(growth_change, axial_excess));
-  const SurfaceSample s =
-      SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -M_PI, 3 * M_PI, count, seed);
-  KinematicCloud c;
-  std::mt19937_64 rng(seed + 1);
-  PlaceCloud(c, s, noise, rng);
-  c.surface_points = c.points.cols();
+  KinematicCloud c = CloudAroundAxis(std::move(truth), -M_PI, 3 * M_PI, noise, count, seed);
   c.growth = growth;
-  c.truth = std::move(truth);
   return c;
 }
 

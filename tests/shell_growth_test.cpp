@@ -21,6 +21,7 @@
 
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
+#include "one_cloud_fit.h"
 #include "pipeline/batch.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
@@ -35,17 +36,7 @@ constexpr int kPoints = 12000;
 constexpr double kNoise = 0.02;
 
 pipeline::FitOutcome FitShell(const Eigen::Matrix3Xd& points) {
-  auto set = std::make_shared<ScanSet>();
-  Scan scan;
-  scan.units = "mm";
-  scan.points = points;
-  set->scans.push_back(scan);
-  pipeline::FitOptions o;
-  o.file = "shell";
-  o.views = set;
-  o.model = "spiral";
-  o.interactive = false;
-  return pipeline::ComputeFit(o);
+  return pipeline::ComputeFit(test::OneCloudFitOptions(points, "shell", "spiral"));
 }
 
 int Seeds() {

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "fitting/kinematic_surfaces.h"
+#include "one_cloud_fit.h"
 #include "pipeline/batch.h"
 #include "pipeline/fit_options.h"
 #include "registration/scan.h"
@@ -172,17 +173,8 @@ double Number(const nlohmann::json& j) {
 SherdFitError FitSherd(const SherdSpec& spec, bool print) {
   const SherdTruth truth = MakeSherd(spec);
   const KinematicCloud& c = truth.cloud;
-  auto set = std::make_shared<ScanSet>();
-  Scan scan;
-  scan.units = "mm";
-  scan.points = c.points;
-  set->scans.push_back(scan);
-  pipeline::FitOptions o;
-  o.file = "sherd";
-  o.views = set;
-  o.model = "revolution";
-  o.interactive = false;
-  const pipeline::FitOutcome outcome = pipeline::ComputeFit(o);
+  const pipeline::FitOutcome outcome =
+      pipeline::ComputeFit(test::OneCloudFitOptions(c.points, "sherd", "revolution"));
   const nlohmann::json& doc = outcome.document;
   EXPECT_TRUE(doc.contains("vessel")) << doc.dump().substr(0, 400);
   SherdFitError e;

@@ -12,6 +12,7 @@
 #include <set>
 #include <string>
 
+#include "one_cloud_fit.h"
 #include "pipeline/batch.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
@@ -22,16 +23,7 @@ namespace s2m {
 namespace {
 
 pipeline::FitOptions WallOptions(const Eigen::Matrix3Xd& points, const std::string& name) {
-  auto set = std::make_shared<ScanSet>();
-  Scan scan;
-  scan.units = "mm";
-  scan.points = points;
-  set->scans.push_back(scan);
-  pipeline::FitOptions o;
-  o.file = name;
-  o.views = set;
-  o.model = "revolution";
-  o.interactive = false;
+  pipeline::FitOptions o = test::OneCloudFitOptions(points, name, "revolution");
   o.wall = true;
   return o;
 }
