@@ -84,8 +84,11 @@ int RunFit(const FitOptions& given) {
   FitOptions o = given;
   // Progress of long work on standard error, one line rewritten in place.
   bool progressed = false;
-  o.progress = [&progressed](const std::string& line) {
-    std::cerr << "\rscan2model fit: " << line << std::flush;
+  std::size_t previous = 0;  // a shorter line is padded over the longer one before it
+  o.progress = [&progressed, &previous](const std::string& line) {
+    std::cerr << "\rscan2model fit: " << line
+              << std::string(previous > line.size() ? previous - line.size() : 0, ' ') << std::flush;
+    previous = line.size();
     progressed = true;
   };
   try {

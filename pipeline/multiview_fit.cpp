@@ -626,8 +626,12 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
         return search_complexity(std::make_shared<SpiralSurface>(AllometricStart(logarithmic)),
                                  r.model_T_scan, world_T_log, report.left_out_masks);
       };
+      if (o.progress)
+        o.progress("testing the logarithmic spiral: the allometric fit from the logarithmic one");
       Searched nested = fit_nested(*spiral);
       if (nested.complexity.steps.at(nested.complexity.chosen).adequate != true) {
+        if (o.progress)
+          o.progress("testing the logarithmic spiral: the allometric fit from a fresh generating curve");
         Searched afresh = fit_nested(
             InitialSpiral(registered, spiral->growth(), static_cast<int>(spiral->profile().cols()), o.order));
         if (afresh.result.residuals.rms < nested.result.residuals.rms) nested = std::move(afresh);
