@@ -1,0 +1,69 @@
+#pragma once
+// Fitting a fair finite-element surface (fitting/fe_surface.h) to scattered points (docs/fe-surfaces.md
+// section 4, eqs. S5-S8): minimize the sum over the points of their squared distance to the surface plus the
+// fairness energy Q^T K Q, the distances in the PDM, TDM or SDM approximation of docs/method.md (after Y.
+// Liu) and the energy of Fang's plate (after L. Fang), by damped Gauss-Newton steps on all dofs at once, with
+// the feet re-found on the surface after every step.
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "fitting/fe_surface.h"
+
+namespace s2m {
+
+enum class FeFitMethod { kPdm, kTdm, kSdm };
+
+struct FeSurfaceFitOptions {
+  FeFitMethod method = FeFitMethod::kSdm;
+  // Relative (dimensionless) fairness weights of eq. S6: the energy enters as N * (weight * D^k / A) times
+  // the integral, D the domain's diameter, A its area, k = 2 (stretch), 4 (bending), 3 (jump along edges), so
+  // a weight means the same at any size and point count.
+  double stretch = 0.0;
+  double bending = 1e-7;
+  double jump = 0.0;
+  int max_iterations = 50;
+  double tolerance = 1e-10;  // stop when the objective falls by less than this fraction
+  bool IsValid(std::string* why = nullptr) const;
+};
+
+struct FeSurfaceFitResult {
+  bool converged = false;
+  int iterations = 0;
+  std::vector<double> objective;  // per iteration, the first before any step
+  double rms = 0.0;               // of the point-to-surface distances
+  double max_distance = 0.0;
+  FeSurfaceEnergy energy;   // with the absolute weights used
+  FairnessWeights weights;  // the absolute weights (eq. S6)
+  std::vector<FeSurfacePoint> feet;
+  std::vector<double> distances;
+  int boundary_feet = 0;  // points whose foot is on the domain's boundary
+};
+
+// The foot of x on the surface by Newton steps in (u, v) from `at`, walking across triangles (the surface is
+// C1, so the steps see one smooth chart). Returns false when the foot is on the domain's boundary.
+bool FeFootPoint(const FeSurface& surface, const Eigen::Vector3d& x, FeSurfacePoint& at);
+
+// Fits surface's dofs to the points. start_uv holds each point's parameter to start from (for a patch
+// projected onto a plane, its projection): the first step is the linear least-squares fit (PDM) with the
+// points held at these parameters, from the surface's current dofs; later steps re-find the feet. The
+// unknowns listed in `fixed` (index 3 dof + coordinate) keep their current values: the reduced transformation
+// of docs/fe-surfaces.md eq. S9 for constraints that fix dofs. Throws std::invalid_argument for mismatched
+// sizes, non-finite input, an out-of-range fixed unknown or invalid options.
+FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Matrix2Xd& start_uv,
+                                const FeSurfaceFitOptions& options, FeSurface& surface,
+                                const std::vector<int>& fixed = {});
+
+// A patch parametrized by its projection onto a plane (the points expressed in the plane's frame: x, y in the
+// plane, z along its normal): sets the surface to the plane z = 0 with the identity chart w = (u, v, 0), and
+// returns the unknowns that pin the boundary's in-plane position and slopes to the domain polygon (x and y of
+// every boundary vertex's value and slopes and of every boundary edge's normal slope), so that the fitted
+// patch covers exactly the domain's projection and cannot shrink or slide along its plane.
+std::vector<int> SetPlanarChart(FeSurface& surface);
+
+// The absolute weights of eq. S6 for a point count and a surface's domain.
+FairnessWeights AbsoluteFairnessWeights(const FeSurfaceFitOptions& options, const FeSurface& surface,
+                                        int point_count);
+
+}  // namespace s2m
