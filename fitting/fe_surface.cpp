@@ -161,7 +161,7 @@ bool FeSurface::Locate(const Eigen::Vector2d& uv, FeSurfacePoint& at) const {
 }
 
 Eigen::SparseMatrix<double> FeSurface::JumpMatrix() const {
-  // Eq. S4: the integral along every interior edge of |Hessian_alpha - Hessian_beta|^2 (Frobenius norm) over
+  // Eq. P4: the integral along every interior edge of |Hessian_alpha - Hessian_beta|^2 (Frobenius norm) over
   // arc length, by Gauss-Legendre points strictly inside the edge (the elements' second derivatives are
   // singular at the vertices).
   std::vector<double> x, w;

@@ -2,7 +2,7 @@
 // A fair finite-element surface after L. Fang (docs/fe-surfaces.md section 3; Fang 1994, sec. 4.2): a C1
 // vector field w(u, v) in R^3 over a triangulated domain of the parameter plane, one 12-dof conforming
 // triangle (fitting/fe_triangle.h) per face. Global dofs: three vector dofs per vertex (w, w_u, w_v in the
-// global (u, v)) and one per edge (the slope along the edge's globally oriented normal), eq. S1; each is a
+// global (u, v)) and one per edge (the slope along the edge's globally oriented normal), eq. P1; each is a
 // point of R^3, so the dofs form a dof_count x 3 matrix and the fairness energy decouples into x, y and z.
 
 #include <Eigen/Core>
@@ -34,7 +34,7 @@ struct FeSurfaceGeometry {
   Eigen::Matrix3d d2;
 };
 
-// The energy terms of eq. S3, each the sum over x, y and z.
+// The energy terms of eq. P3, each the sum over x, y and z.
 struct FeSurfaceEnergy {
   double stretch = 0.0, bending = 0.0, jump = 0.0;
 };
@@ -74,7 +74,7 @@ class FeSurface {
   // outside the domain: `at` is then the nearest point of the boundary edge the walk left through.
   bool Locate(const Eigen::Vector2d& uv, FeSurfacePoint& at) const;
 
-  // K of eq. S3 (dof_count square, symmetric): stretch * membrane + bending * thin plate + jump * C2-jump.
+  // K of eq. P3 (dof_count square, symmetric): stretch * membrane + bending * thin plate + jump * C2-jump.
   Eigen::SparseMatrix<double> EnergyMatrix(const FairnessWeights& weights) const;
   FeSurfaceEnergy Energy(const FairnessWeights& weights) const;
 

@@ -163,7 +163,7 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
   result.objective.push_back(objective);
   double damping = 1e-9;
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
-    // Eq. S7: the normal equations of the step delta (3 dofs x, y, z per scalar dof, index 3 dof + c):
+    // Eq. P7: the normal equations of the step delta (3 dofs x, y, z per scalar dof, index 3 dof + c):
     //   (sum_i (N_i^T N_i) (x) M_i + K (x) I3 + damping diag) delta = sum_i N_i^T (x) M_i r_i - (K (x) I3) q,
     // M_i the point's error matrix (PDM: I; TDM: n n^T; SDM: Pottmann-Hofer's, docs/method.md eq. 5); feet on
     // the boundary use PDM (their residual is not along the normal).

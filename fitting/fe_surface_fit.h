@@ -1,6 +1,6 @@
 #pragma once
 // Fitting a fair finite-element surface (fitting/fe_surface.h) to scattered points (docs/fe-surfaces.md
-// section 4, eqs. S5-S8): minimize the sum over the points of their squared distance to the surface plus the
+// section 4, eqs. P5-P8): minimize the sum over the points of their squared distance to the surface plus the
 // fairness energy Q^T K Q, the distances in the PDM, TDM or SDM approximation of docs/method.md (after Y.
 // Liu) and the energy of Fang's plate (after L. Fang), by damped Gauss-Newton steps on all dofs at once, with
 // the feet re-found on the surface after every step.
@@ -17,7 +17,7 @@ enum class FeFitMethod { kPdm, kTdm, kSdm };
 
 struct FeSurfaceFitOptions {
   FeFitMethod method = FeFitMethod::kSdm;
-  // Relative (dimensionless) fairness weights of eq. S6: the energy enters as N * (weight * D^k / A) times
+  // Relative (dimensionless) fairness weights of eq. P6: the energy enters as N * (weight * D^k / A) times
   // the integral, D the domain's diameter, A its area, k = 2 (stretch), 4 (bending), 3 (jump along edges), so
   // a weight means the same at any size and point count.
   double stretch = 0.0;
@@ -35,7 +35,7 @@ struct FeSurfaceFitResult {
   double rms = 0.0;               // of the point-to-surface distances
   double max_distance = 0.0;
   FeSurfaceEnergy energy;   // with the absolute weights used
-  FairnessWeights weights;  // the absolute weights (eq. S6)
+  FairnessWeights weights;  // the absolute weights (eq. P6)
   std::vector<FeSurfacePoint> feet;
   std::vector<double> distances;
   int boundary_feet = 0;  // points whose foot is on the domain's boundary
@@ -49,7 +49,7 @@ bool FeFootPoint(const FeSurface& surface, const Eigen::Vector3d& x, FeSurfacePo
 // projected onto a plane, its projection): the first step is the linear least-squares fit (PDM) with the
 // points held at these parameters, from the surface's current dofs; later steps re-find the feet. The
 // unknowns listed in `fixed` (index 3 dof + coordinate) keep their current values: the reduced transformation
-// of docs/fe-surfaces.md eq. S9 for constraints that fix dofs. Throws std::invalid_argument for mismatched
+// of docs/fe-surfaces.md eq. P9 for constraints that fix dofs. Throws std::invalid_argument for mismatched
 // sizes, non-finite input, an out-of-range fixed unknown or invalid options.
 FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Matrix2Xd& start_uv,
                                 const FeSurfaceFitOptions& options, FeSurface& surface,
@@ -62,7 +62,7 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
 // patch covers exactly the domain's projection and cannot shrink or slide along its plane.
 std::vector<int> SetPlanarChart(FeSurface& surface);
 
-// The absolute weights of eq. S6 for a point count and a surface's domain.
+// The absolute weights of eq. P6 for a point count and a surface's domain.
 FairnessWeights AbsoluteFairnessWeights(const FeSurfaceFitOptions& options, const FeSurface& surface,
                                         int point_count);
 

@@ -242,7 +242,7 @@ TEST(FeSurfaceFit, GaussianBumpFromScatteredNoisyPoints) {
 }
 
 TEST(FeSurfaceFit, CurvatureJumpTermLowersTheJumpsAcrossEdges) {
-  // Fang's C2-jump term (eq. S4): with it, the integral of the squared Hessian jump over the interior edges
+  // Fang's C2-jump term (eq. P4): with it, the integral of the squared Hessian jump over the interior edges
   // is measurably smaller, at an unchanged accuracy.
   std::mt19937 rng(2025);
   const NoisyBump data = SampleNoisyBump(3000, 0.005, rng);
