@@ -5,6 +5,8 @@ set -euo pipefail
 packages=(
   build-essential cmake pkg-config
   libeigen3-dev          # maths core
+  libcgal-dev            # maths core, header-only: the FE surface's parameter-domain triangulation (CGAL's
+                         # constrained Delaunay mesher, fitting/domain_triangulation.cpp, docs/fe-surfaces.md)
   nlohmann-json3-dev     # --json output, manifests
   libcli11-dev           # command line
   zlib1g-dev             # .ply.gz
