@@ -71,8 +71,9 @@ Runner AddFitCommand(CLI::App& app) {
       ->required();
   cmd->add_option(
          "--model,-m", o->model,
-         "Model to fit: plane, sphere, cylinder, cone, bspline-curve, bspline-surface, revolution, helical, "
-         "spiral, or part:FILE (a constrained part, docs/parts.md)")
+         "Model to fit: plane, sphere, cylinder, cone, line, circle, torus, bspline-curve, bspline-surface, "
+         "hermite-curve, fe-surface, revolution, helical, spiral, or part:FILE (a constrained part, "
+         "docs/parts.md)")
       ->required()
       ->check(CLI::Validator([](std::string& model) { return ModelError(model); }, "MODEL"));
   // The other options come from the table the batch manifest's keys come from too.

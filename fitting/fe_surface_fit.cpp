@@ -207,8 +207,8 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
               triplets.emplace_back(row, col, block(a, b));
           }
     }
-    for (int col = 0; col < k.outerSize(); ++col)
-      for (Eigen::SparseMatrix<double>::InnerIterator it(k, col); it; ++it)
+    for (int outer = 0; outer < k.outerSize(); ++outer)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(k, outer); it; ++it)
         for (int c = 0; c < 3; ++c) {
           const int row = 3 * static_cast<int>(it.row()) + c, col = 3 * static_cast<int>(it.col()) + c;
           if (!is_fixed[static_cast<std::size_t>(row)] && !is_fixed[static_cast<std::size_t>(col)])

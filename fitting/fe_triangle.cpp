@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "fitting/domain_mesh.h"
+
 namespace s2m {
 namespace {
 
@@ -77,10 +79,10 @@ std::array<Jet, 3> BarycentricJets(const Eigen::Vector3d& L, const std::array<do
 }  // namespace
 
 EdgeFrame GlobalEdgeFrame(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-  Eigen::Vector2d t = (b - a).normalized();
-  // Eq. T2: t's u component positive, or t = (0, -1) for an edge parallel to v; negation is exact, so both
-  // orders of the end points give bit-identical frames.
-  if (t.x() < 0.0 || (t.x() == 0.0 && t.y() > 0.0)) t = -t;
+  // Eq. T2: the direction of docs/fe-surfaces.md eq. D2 (one definition, fitting/domain_mesh.h); b - a and a
+  // - b are exact negatives, so both orders of the end points give bit-identical frames.
+  const Eigen::Vector2d t =
+      (IsGlobalEdgeDirection(a, b) ? Eigen::Vector2d(b - a) : Eigen::Vector2d(a - b)).normalized();
   return {t, Eigen::Vector2d(-t.y(), t.x())};
 }
 

@@ -94,26 +94,55 @@ std::vector<FitOptionSpec> MakeTable() {
        -1e300,
        1e300,
        [](FitOptions& o, const std::string& v) { o.closed = v == "true"; }});
-  t.push_back({"stretch",
-               "--stretch",
+  t.push_back(
+      {"stretch",
+       "--stretch",
+       K::kNumber,
+       "0",
+       "Splines: fairness weight of the stretch (membrane) energy, unit box; fe-surface: relative weight "
+       "(docs/fe-surfaces.md eq. P6)",
+       {},
+       false,
+       0,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.stretch = std::stod(v); }});
+  t.push_back(
+      {"bending",
+       "--bending",
+       K::kNumber,
+       "0.001 (splines), 1e-07 (fe-surface)",
+       "Splines: fairness weight of the bending (thin plate) energy, unit box; fe-surface: relative weight "
+       "(docs/fe-surfaces.md eq. P6)",
+       {},
+       false,
+       0,
+       1e300,
+       [](FitOptions& o, const std::string& v) {
+         o.bending = std::stod(v);
+         o.bending_given = true;
+       }});
+  t.push_back(
+      {"boundary",
+       "--boundary",
+       K::kText,
+       "auto",
+       "fe-surface: the domain's outline, a point file (PLY, PCD, XYZ) of its corners in order, projected "
+       "onto the points' plane; auto: the convex hull of the points' projection",
+       {},
+       false,
+       -1e300,
+       1e300,
+       [](FitOptions& o, const std::string& v) { o.boundary = v; }});
+  t.push_back({"size",
+               "--size",
                K::kNumber,
                "0",
-               "Splines: fairness weight of the stretch (membrane) energy, unit box",
+               "fe-surface: the triangles' longest edge in data units (0: from --elements)",
                {},
                false,
                0,
                1e300,
-               [](FitOptions& o, const std::string& v) { o.stretch = std::stod(v); }});
-  t.push_back({"bending",
-               "--bending",
-               K::kNumber,
-               "0.001",
-               "Splines: fairness weight of the bending (thin plate) energy, unit box",
-               {},
-               false,
-               0,
-               1e300,
-               [](FitOptions& o, const std::string& v) { o.bending = std::stod(v); }});
+               [](FitOptions& o, const std::string& v) { o.size = std::stod(v); }});
   // Hermite curves (docs/fair-curves.md).
   t.push_back({"degree",
                "--degree",
@@ -130,7 +159,8 @@ std::vector<FitOptionSpec> MakeTable() {
                K::kText,
                "auto",
                "hermite-curve: number of elements, or auto (elements split where the local error is largest "
-               "until the tolerance, or the data's noise estimate, is met)",
+               "until the tolerance, or the data's noise estimate, is met); fe-surface: number of triangles, "
+               "or auto (about 30 points per triangle, then refined where the surface bends)",
                {},
                false,
                -1e300,
@@ -642,14 +672,14 @@ void ResolveDefaultLoss(FitOptions& o, InputKind kind) {
 
 std::string ModelError(const std::string& model) {
   static const std::set<std::string> kModels = {
-      "plane",         "sphere",          "cylinder",      "cone",       "line",    "circle", "torus",
-      "bspline-curve", "bspline-surface", "hermite-curve", "revolution", "helical", "spiral"};
+      "plane",         "sphere",          "cylinder",      "cone",       "line",       "circle",  "torus",
+      "bspline-curve", "bspline-surface", "hermite-curve", "fe-surface", "revolution", "helical", "spiral"};
   if (kModels.count(model) > 0) return "";
   if (model.rfind("part:", 0) == 0)
     return model.size() > 5 ? "" : "part: needs a part file, e.g. part:block.part.json";
   return model +
          " is not a model (plane, sphere, cylinder, cone, line, circle, torus, bspline-curve, "
-         "bspline-surface, hermite-curve, revolution, helical, spiral, part:FILE)";
+         "bspline-surface, hermite-curve, fe-surface, revolution, helical, spiral, part:FILE)";
 }
 
 }  // namespace s2m::pipeline

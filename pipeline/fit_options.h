@@ -43,6 +43,11 @@ struct FitOptions {
   bool closed = false;  // closed (periodic) curve; for surfaces: periodic in u over a fitted cylinder
   double stretch = 0.0;
   double bending = 1e-3;
+  bool bending_given = false;  // fe-surface has its own default (docs/fe-surfaces.md eq. P6)
+  // fe-surface (docs/fe-surfaces.md): the domain's outline (a point file, in order) or auto, and the
+  // triangles' edge length (0: from --elements).
+  std::string boundary = "auto";
+  double size = 0.0;
   // Kinematic surfaces (revolution, helical, spiral): where the joint fit starts (docs/method.md section 19):
   // "auto" (the normals' start, and the global search only when that fit does not reach the noise band),
   // "normals" (the normals' start only), "global" (the global search always, the normals' start among its
@@ -136,6 +141,8 @@ FitOutcome ComputeHermiteFit(const FitOptions& options);
 // contour out of range, FormatError for unreadable files.
 Eigen::MatrixXd ReadFitPoints(const FitOptions& o, std::string& format, std::string& units,
                               std::vector<std::string>& notes, std::string& device);
+// A fair triangular finite-element surface fit (pipeline/fe_surface_fit.cpp, docs/fe-surfaces.md).
+FitOutcome ComputeFeSurfaceFit(const FitOptions& options);
 // A joint multi-view fit (surface of revolution, helical or spiral surface).
 FitOutcome ComputeMultiViewFit(const FitOptions& options);
 // A vessel's wall (`--model revolution --wall`, docs/archaeology.md section 10): its inner and outer

@@ -17,6 +17,7 @@ packages=(
   libpcl-dev             # optional edge (s2m_pcl): PCL's reference ICP, coarse alignment (FPFH + RANSAC)
   pybind11-dev python3-dev python3-numpy  # the Python module (python/, docs/python.md)
   python3-pytest         # tests only: the Python module's tests (tests/python)
+  python3-scipy          # bench only: SciPy's Clough-Tocher interpolant, a baseline of bench/fe_surfaces.cpp
   dpkg-dev               # the .deb (cpack -G DEB): dpkg-shlibdeps names the Debian packages it depends on
   python3-jsonschema     # tests only: docs/schemas/ validated against real outputs (tests/json_schemas_test.py)
   libtiff-dev            # tests only: libtiff decodes the Kinect depth TIFFs independently of our reader

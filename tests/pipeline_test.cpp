@@ -2,14 +2,18 @@
 // the batch manifest, the typed domain measures, the batch engine and the report, without running the binary.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
 
 #include "acquisition/format_error.h"
+#include "acquisition/point_cloud_io.h"
 #include "pipeline/batch.h"
 #include "pipeline/domain_measures.h"
+#include "pipeline/exit_code.h"
 #include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
@@ -579,6 +583,156 @@ TEST(FitDispatch, HermiteCurveDocumentIsSelfContained) {
   FitOptions with_uncertainty = o;
   ApplyFitOption(*FindManifestOption("uncertainty"), "monte-carlo:20", with_uncertainty);
   usage(with_uncertainty, "--uncertainty applies to primitives");
+}
+
+}  // namespace
+}  // namespace s2m::pipeline
+
+namespace s2m::pipeline {
+namespace {
+
+// A Gaussian bump (unit height, sigma 1) over a hexagon of circumradius 3, moved by a rigid motion so that
+// the fit must find the patch's plane, sampled with isotropic noise; `hole` removes the points within 0.8 of
+// (1.2, 0.4) (in the bump's own frame).
+struct MovedBump {
+  Eigen::Matrix3d rotation;
+  Eigen::Vector3d offset;
+  Eigen::Vector3d ToWorld(const Eigen::Vector3d& p) const { return rotation * p + offset; }
+  Eigen::Vector3d ToBump(const Eigen::Vector3d& x) const { return rotation.transpose() * (x - offset); }
+};
+
+bool InsideHexagon3(const Eigen::Vector2d& p) {
+  for (int k = 0; k < 6; ++k) {
+    const double a = (k + 0.5) * M_PI / 3.0;
+    if (p.x() * std::cos(a) + p.y() * std::sin(a) > 3.0 * std::cos(M_PI / 6.0)) return false;
+  }
+  return true;
+}
+
+MovedBump WriteBump(const fs::path& file, int count, double noise, bool hole, unsigned seed) {
+  MovedBump m;
+  m.rotation = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 0.5).normalized()).toRotationMatrix();
+  m.offset = Eigen::Vector3d(10, -5, 3);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> coordinate(-3.0, 3.0);
+  std::normal_distribution<double> gauss(0.0, noise);
+  std::ofstream out(file);
+  out.precision(12);
+  for (int i = 0; i < count;) {
+    const Eigen::Vector2d p(coordinate(rng), coordinate(rng));
+    if (!InsideHexagon3(p) || (hole && (p - Eigen::Vector2d(1.2, 0.4)).norm() < 0.8)) continue;
+    const Eigen::Vector3d x = m.ToWorld(Eigen::Vector3d(p.x(), p.y(), std::exp(-0.5 * p.squaredNorm()))) +
+                              Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    out << x.x() << " " << x.y() << " " << x.z() << "\n";
+    ++i;
+  }
+  return m;
+}
+
+// The largest distance of the document's vertices (data coordinates) from the true bump, and the RMS.
+std::pair<double, double> VertexErrors(const nlohmann::json& d, const MovedBump& m) {
+  double worst = 0.0, sum = 0.0;
+  for (const auto& v : d["mesh"]["vertices"]) {
+    const auto w = v["w"].get<std::vector<double>>();
+    const Eigen::Vector3d b = m.ToBump(Eigen::Vector3d(w[0], w[1], w[2]));
+    const double e =
+        std::abs(b.z() - std::exp(-0.5 * b.head<2>().squaredNorm()));  // vertical: an upper bound
+    worst = std::max(worst, e);
+    sum += e * e;
+  }
+  return {worst, std::sqrt(sum / static_cast<double>(d["mesh"]["vertices"].size()))};
+}
+
+TEST(FitDispatch, FeSurfaceFitsAMovedBumpAndRefinesWhereItBends) {
+  const fs::path dir = FreshDir("fe_surface");
+  const MovedBump m = WriteBump(dir / "bump.xyz", 3000, 0.005, false, 5);
+  FitOptions o;
+  o.file = (dir / "bump.xyz").string();
+  o.model = "fe-surface";
+  o.output = (dir / "bump").string();
+  const FitOutcome outcome = ComputeFit(o);
+  const nlohmann::json& d = outcome.document;
+  EXPECT_EQ(d["schema"], "scan2model.fe-surface/1");
+  EXPECT_EQ(d["method"], "sdm");
+  EXPECT_TRUE(d["converged"].get<bool>());
+  EXPECT_NEAR(d["residuals"]["rms"].get<double>(), 0.005, 0.0007);
+  // The plane's normal is the bump's axis (either sign).
+  const auto n = d["plane"]["normal"].get<std::vector<double>>();
+  EXPECT_GT(std::abs(Eigen::Vector3d(n[0], n[1], n[2]).dot(m.rotation.col(2))), 0.999);
+  // Refined where the surface bends: more triangles than the first mesh, and the surface's vertices on the
+  // true bump.
+  EXPECT_GT(d["mesh"]["refinement"]["refined"]["triangles"].get<int>(),
+            d["mesh"]["refinement"]["first"]["triangles"].get<int>());
+  const auto [worst, rms] = VertexErrors(d, m);
+  std::printf("fe-surface: %zu triangles, RMS %.5f, vertex error max %.5f RMS %.5f\n",
+              d["mesh"]["triangles"].size(), d["residuals"]["rms"].get<double>(), worst, rms);
+  EXPECT_LT(worst, 0.01);
+  EXPECT_TRUE(fs::exists(dir / "bump.json"));
+  EXPECT_GT(ReadPointCloud(dir / "bump.ply", PointCloudFormat::kPly).points.cols(), 1000);
+  EXPECT_NE(outcome.text.find("refinement"), std::string::npos);
+  // --elements N asks for about N triangles.
+  FitOptions hundred = o;
+  hundred.output.clear();
+  hundred.elements = "100";
+  const std::size_t triangles = ComputeFit(hundred).document["mesh"]["triangles"].size();
+  EXPECT_GT(triangles, 50u);
+  EXPECT_LT(triangles, 200u);
+}
+
+TEST(FitDispatch, FeSurfaceFillsAHoleInTheDataFairly) {
+  const fs::path dir = FreshDir("fe_surface_hole");
+  const MovedBump m = WriteBump(dir / "holed.xyz", 3000, 0.005, true, 6);
+  FitOptions o;
+  o.file = (dir / "holed.xyz").string();
+  o.model = "fe-surface";
+  const nlohmann::json d = ComputeFit(o).document;
+  const auto [worst, rms] = VertexErrors(d, m);
+  std::printf("fe-surface with a hole of radius 0.8: vertex error max %.5f RMS %.5f\n", worst, rms);
+  EXPECT_TRUE(d["converged"].get<bool>());
+  EXPECT_LT(worst, 0.03);
+}
+
+TEST(FitDispatch, FeSurfaceRefusesDegenerateInputWithAMessage) {
+  const fs::path dir = FreshDir("fe_surface_bad");
+  const auto failure = [](const FitOptions& o) -> std::pair<int, std::string> {
+    try {
+      ComputeFit(o);
+    } catch (const FitFailure& e) {
+      return {e.exit_code(), e.what()};
+    }
+    return {0, "no error"};
+  };
+  {
+    std::ofstream out(dir / "line.xyz");
+    for (int i = 0; i < 50; ++i) out << i * 0.1 << " " << i * 0.2 << " " << i * 0.3 << "\n";
+  }
+  FitOptions o;
+  o.file = (dir / "line.xyz").string();
+  o.model = "fe-surface";
+  EXPECT_NE(failure(o).second.find("lie on a line"), std::string::npos) << failure(o).second;
+  EXPECT_EQ(failure(o).first, kFitError);
+
+  WriteBump(dir / "bump.xyz", 500, 0.005, false, 7);
+  {
+    std::ofstream out(dir / "bowtie.xyz");  // a self-intersecting outline
+    out << "10 -5 3\n13 -5 3\n10 -2 3\n12 -1 3\n";
+  }
+  FitOptions bowtie = o;
+  bowtie.file = (dir / "bump.xyz").string();
+  bowtie.boundary = (dir / "bowtie.xyz").string();
+  const auto [code, message] = failure(bowtie);
+  EXPECT_EQ(code, kInputError);
+  EXPECT_NE(message.find("bowtie.xyz"), std::string::npos) << message;
+  EXPECT_NE(message.find("intersect"), std::string::npos) << message;
+
+  FitOptions method = o;
+  method.file = bowtie.file;
+  method.method = "cdm";
+  EXPECT_EQ(failure(method).first, kUsage);
+  FitOptions other = o;
+  other.model = "bspline-surface";
+  other.size = 0.5;
+  EXPECT_NE(failure(other).second.find("apply to --model fe-surface"), std::string::npos);
 }
 
 }  // namespace

@@ -1,0 +1,344 @@
+// `scan2model fit --model fe-surface`: a fair triangular finite-element surface (docs/fe-surfaces.md) fitted
+// to a patch of points parametrized by its projection onto the points' best plane.
+
+#include "fitting/fe_surface_fit.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "acquisition/format_error.h"
+#include "acquisition/point_cloud_io.h"
+#include "fitting/domain_mesh.h"
+#include "fitting/fe_surface.h"
+#include "pipeline/exit_code.h"
+#include "pipeline/fit_options.h"
+#include "pipeline/output.h"
+
+namespace s2m::pipeline {
+namespace {
+
+// The points' best plane: origin at the centroid, in-plane axes along the two largest principal directions,
+// the normal along the smallest (right-handed).
+struct PlaneFrame {
+  Eigen::Vector3d origin;
+  Eigen::Matrix3d axes;    // columns: u, v, normal
+  Eigen::Vector3d spread;  // standard deviations along the three axes
+};
+
+PlaneFrame FitPlaneFrame(const Eigen::Matrix3Xd& points) {
+  PlaneFrame f;
+  f.origin = points.rowwise().mean();
+  const Eigen::Matrix3Xd centred = points.colwise() - f.origin;
+  const Eigen::Matrix3d scatter = centred * centred.transpose() / static_cast<double>(points.cols());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);  // ascending eigenvalues
+  f.axes.col(0) = solver.eigenvectors().col(2);
+  f.axes.col(1) = solver.eigenvectors().col(1);
+  f.axes.col(2) = f.axes.col(0).cross(f.axes.col(1));
+  f.spread = solver.eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
+  return f;
+}
+
+// Andrew's monotone chain: the convex hull counter-clockwise, without collinear points.
+Eigen::Matrix2Xd ConvexHull(const Eigen::Matrix2Xd& uv) {
+  std::vector<Eigen::Vector2d> p(static_cast<std::size_t>(uv.cols()));
+  for (Eigen::Index i = 0; i < uv.cols(); ++i) p[static_cast<std::size_t>(i)] = uv.col(i);
+  std::sort(p.begin(), p.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  });
+  const auto cross = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return (a - o).x() * (b - o).y() - (a - o).y() * (b - o).x();
+  };
+  std::vector<Eigen::Vector2d> hull(2 * p.size());
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
+    hull[k++] = p[i];
+  }
+  for (std::size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
+    while (k >= t && cross(hull[k - 2], hull[k - 1], p[i - 1]) <= 0) --k;
+    hull[k++] = p[i - 1];
+  }
+  hull.resize(k > 0 ? k - 1 : 0);
+  Eigen::Matrix2Xd out(2, static_cast<Eigen::Index>(hull.size()));
+  for (std::size_t i = 0; i < hull.size(); ++i) out.col(static_cast<Eigen::Index>(i)) = hull[i];
+  return out;
+}
+
+// Drops polygon vertices closer than `spacing` to the previous kept one (the mesher would otherwise need
+// triangles as small as the shortest boundary segment); the polygon stays counter-clockwise. A dropped hull
+// vertex cuts a corner off the domain, so the spacing is kept small (a tenth of an element): the points
+// beyond the cut are then within a small fraction of an element of the boundary.
+Eigen::Matrix2Xd ThinPolygon(const Eigen::Matrix2Xd& polygon, double spacing) {
+  std::vector<Eigen::Vector2d> kept;
+  for (Eigen::Index i = 0; i < polygon.cols(); ++i)
+    if (kept.empty() || (polygon.col(i) - kept.back()).norm() >= spacing) kept.push_back(polygon.col(i));
+  while (kept.size() > 3 && (kept.back() - kept.front()).norm() < spacing) kept.pop_back();
+  Eigen::Matrix2Xd out(2, static_cast<Eigen::Index>(kept.size()));
+  for (std::size_t i = 0; i < kept.size(); ++i) out.col(static_cast<Eigen::Index>(i)) = kept[i];
+  return out;
+}
+
+double PolygonArea(const Eigen::Matrix2Xd& p) {
+  double twice = 0.0;
+  for (Eigen::Index i = 0; i < p.cols(); ++i) {
+    const Eigen::Index j = (i + 1) % p.cols();
+    twice += p(0, i) * p(1, j) - p(0, j) * p(1, i);
+  }
+  return 0.5 * twice;
+}
+
+FeMesh ToFeMesh(const DomainMesh& mesh) {
+  FeMesh out;
+  out.uv = mesh.vertices;
+  for (int t = 0; t < mesh.triangle_count(); ++t)
+    out.triangles.push_back({mesh.triangles(0, t), mesh.triangles(1, t), mesh.triangles(2, t)});
+  return out;
+}
+
+// The longest-edge bound for about `count` triangles over `area`: equilateral triangles of edge h have area
+// sqrt(3) h^2 / 4, and Delaunay refinement under a bound h leaves the median edge at about two thirds of it
+// (measured on the Gaussian bump's hull: median 0.47 under the bound 0.73), hence the factor 1.5.
+double EdgeForTriangleCount(double area, double count) {
+  return 1.5 * std::sqrt(4.0 * area / (std::sqrt(3.0) * count));
+}
+
+struct PatchFit {
+  DomainMesh domain;
+  std::unique_ptr<FeSurface> surface;
+  FeSurfaceFitResult result;
+};
+
+PatchFit FitPatch(const DomainPolygon& polygon, const DomainMeshOptions& mesh_options,
+                  const Eigen::Matrix3Xd& local, const Eigen::Matrix2Xd& uv,
+                  const FeSurfaceFitOptions& fit_options) {
+  PatchFit p;
+  p.domain = MeshDomain(polygon, mesh_options);
+  p.surface = std::make_unique<FeSurface>(ToFeMesh(p.domain));
+  const std::vector<int> pinned = SetPlanarChart(*p.surface);
+  p.result = FitFeSurface(local, uv, fit_options, *p.surface, pinned);
+  return p;
+}
+
+// The largest absolute principal curvature at a surface point (docs/fe-surfaces.md eq. P10).
+double MaxAbsCurvature(const FeSurfaceGeometry& g) {
+  const Eigen::Vector3d normal = g.d1.col(0).cross(g.d1.col(1)).normalized();
+  Eigen::Matrix2d first, second;
+  first << g.d1.col(0).squaredNorm(), g.d1.col(0).dot(g.d1.col(1)), g.d1.col(0).dot(g.d1.col(1)),
+      g.d1.col(1).squaredNorm();
+  second << normal.dot(g.d2.col(0)), normal.dot(g.d2.col(1)), normal.dot(g.d2.col(1)),
+      normal.dot(g.d2.col(2));
+  const double k =
+      (first.determinant() > 0) ? (second * first.inverse()).eigenvalues().cwiseAbs().maxCoeff() : 0.0;
+  return std::isfinite(k) ? k : 0.0;
+}
+
+nlohmann::json Vector(const Eigen::Vector3d& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
+}  // namespace
+
+FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
+  try {
+    std::string format, units, device = "file";
+    FitOutcome outcome;
+    const Eigen::MatrixXd read = ReadFitPoints(o, format, units, outcome.notes, device);
+    const std::string units_out = o.units.empty() ? units : o.units;
+    if (read.rows() != 3) throw FitFailure(kUsage, o.file + ": fe-surface needs 3-D points");
+    const Eigen::Matrix3Xd points = read;
+    if (points.cols() < 10)
+      throw FitFailure(kFitError, o.file + ": " + std::to_string(points.cols()) +
+                                      " points; a surface patch needs at least 10");
+    const PlaneFrame frame = FitPlaneFrame(points);
+    if (!(frame.spread(1) > 1e-6 * frame.spread(0)))
+      throw FitFailure(kFitError, o.file + ": the points lie on a line (spread " +
+                                      Format(frame.spread(0), 4) + " along it, " +
+                                      Format(frame.spread(1), 4) + " across): no surface patch spans them");
+    const Eigen::Matrix3Xd local = frame.axes.transpose() * (points.colwise() - frame.origin);
+    const Eigen::Matrix2Xd uv = local.topRows<2>();
+
+    // The domain: the given boundary projected onto the plane, or the points' convex hull.
+    DomainPolygon polygon;
+    std::string boundary_source = "auto (convex hull of the points' projection)";
+    if (!o.boundary.empty() && o.boundary != "auto") {
+      const Scan outline = ReadPointCloud(o.boundary, DetectFormat(o.boundary));
+      polygon.outer = (frame.axes.transpose() * (outline.points.colwise() - frame.origin)).topRows<2>();
+      if (polygon.outer.cols() >= 3 && PolygonArea(polygon.outer) < 0)
+        polygon.outer = polygon.outer.rowwise().reverse().eval();
+      boundary_source = o.boundary;
+    } else {
+      polygon.outer = ConvexHull(uv);
+    }
+    const double hull_area = std::abs(PolygonArea(polygon.outer));
+    if (!(hull_area > 0.0)) throw FitFailure(kFitError, o.file + ": the points' projection has no area");
+
+    // Element size: --size, or --elements N triangles, or auto (about 30 points per triangle, then refined
+    // where the fitted surface bends).
+    const bool adaptive = o.size <= 0 && (o.elements.empty() || o.elements == "auto");
+    double edge = o.size;
+    if (edge <= 0) {
+      double count = std::clamp(static_cast<double>(points.cols()) / 30.0, 24.0, 2000.0);
+      if (!adaptive) count = std::stod(o.elements);
+      edge = EdgeForTriangleCount(hull_area, count);
+    }
+    if (o.boundary.empty() || o.boundary == "auto") polygon.outer = ThinPolygon(polygon.outer, 0.1 * edge);
+    try {
+      polygon.Validate();
+    } catch (const std::invalid_argument& e) {
+      throw FitFailure(
+          o.boundary.empty() || o.boundary == "auto" ? kFitError : kInputError,
+          (o.boundary.empty() || o.boundary == "auto" ? o.file : o.boundary) + ": boundary: " + e.what());
+    }
+    DomainMeshOptions mesh_options;
+    mesh_options.max_edge = edge;
+
+    FeSurfaceFitOptions fit_options;
+    const std::string method = o.method.empty() ? "sdm" : o.method;
+    if (method == "pdm")
+      fit_options.method = FeFitMethod::kPdm;
+    else if (method == "tdm")
+      fit_options.method = FeFitMethod::kTdm;
+    else if (method == "sdm")
+      fit_options.method = FeFitMethod::kSdm;
+    else
+      throw FitFailure(kUsage, "--method " + method + ": fe-surface takes pdm, tdm or sdm");
+    fit_options.stretch = o.stretch;
+    fit_options.bending = o.bending_given ? o.bending : 1e-7;
+    fit_options.jump = o.beta2;
+    if (o.max_iterations > 0) fit_options.max_iterations = o.max_iterations;
+    std::string why;
+    if (!fit_options.IsValid(&why)) throw FitFailure(kUsage, "fe-surface: " + why);
+
+    if (o.progress) o.progress("meshing the domain and fitting");
+    PatchFit fit = FitPatch(polygon, mesh_options, local, uv, fit_options);
+    nlohmann::json refinement = nullptr;
+    if (adaptive) {
+      // Fang's refinement (thesis sec. 6.2): elements sized by the fitted surface's curvature, h(u, v) =
+      // angle / |kappa|max, between a third of the first size and the first size (eq. P10); then fitted
+      // again on the new mesh.
+      const double angle = 0.25;
+      const FeSurface& first = *fit.surface;
+      FeSurfacePoint walker;
+      mesh_options.size = [&first, &walker, angle, edge](double u, double v) {
+        first.Locate(Eigen::Vector2d(u, v), walker);
+        const double k = MaxAbsCurvature(first.Evaluate(walker));
+        return std::clamp(k > 0 ? angle / k : edge, edge / 3.0, edge);
+      };
+      if (o.progress) o.progress("refining the mesh where the surface bends, and fitting again");
+      const int first_triangles = fit.domain.triangle_count();
+      const double first_rms = fit.result.rms;
+      PatchFit refined = FitPatch(polygon, mesh_options, local, uv, fit_options);
+      refinement = {
+          {"angle_per_element", angle},
+          {"first", {{"triangles", first_triangles}, {"rms", first_rms}}},
+          {"refined", {{"triangles", refined.domain.triangle_count()}, {"rms", refined.result.rms}}}};
+      fit = std::move(refined);
+    }
+    const FeSurface& surface = *fit.surface;
+    const FeSurfaceFitResult& r = fit.result;
+
+    // The document: mesh and dofs in data coordinates (positions c + R w, slopes R w_u), docs/cli.md.
+    nlohmann::json& j = outcome.document;
+    j["schema"] = "scan2model.fe-surface/1";
+    j["input"] = {{"file", o.file}, {"format", format}, {"points", points.cols()}, {"units", units_out}};
+    j["model"] = "fe-surface";
+    j["method"] = method;
+    j["plane"] = {{"origin", Vector(frame.origin)},
+                  {"u_axis", Vector(frame.axes.col(0))},
+                  {"v_axis", Vector(frame.axes.col(1))},
+                  {"normal", Vector(frame.axes.col(2))}};
+    nlohmann::json outline = nlohmann::json::array();
+    for (Eigen::Index i = 0; i < polygon.outer.cols(); ++i)
+      outline.push_back({polygon.outer(0, i), polygon.outer(1, i)});
+    j["domain"] = {{"boundary", boundary_source}, {"polygon_uv", outline}, {"area", hull_area}};
+    nlohmann::json vertices = nlohmann::json::array(), triangles = nlohmann::json::array(),
+                   edges = nlohmann::json::array();
+    const Eigen::MatrixX3d& q = surface.dofs();
+    for (int v = 0; v < surface.vertex_count(); ++v) {
+      const Eigen::Vector3d w = frame.origin + frame.axes * q.row(surface.vertex_dof(v, 0)).transpose();
+      const Eigen::Vector3d wu = frame.axes * q.row(surface.vertex_dof(v, 1)).transpose();
+      const Eigen::Vector3d wv = frame.axes * q.row(surface.vertex_dof(v, 2)).transpose();
+      vertices.push_back({{"uv", {surface.mesh().uv(0, v), surface.mesh().uv(1, v)}},
+                          {"w", Vector(w)},
+                          {"w_u", Vector(wu)},
+                          {"w_v", Vector(wv)}});
+    }
+    for (const auto& t : surface.mesh().triangles) triangles.push_back({t[0], t[1], t[2]});
+    for (int e = 0; e < surface.edge_count(); ++e) {
+      const Eigen::Vector2d a = surface.mesh().uv.col(surface.edge(e)[0]),
+                            b = surface.mesh().uv.col(surface.edge(e)[1]);
+      const EdgeFrame ef = GlobalEdgeFrame(a, b);
+      edges.push_back({{"vertices", {surface.edge(e)[0], surface.edge(e)[1]}},
+                       {"normal_uv", {ef.normal.x(), ef.normal.y()}},
+                       {"w_n", Vector(frame.axes * q.row(surface.edge_dof(e)).transpose())}});
+    }
+    j["mesh"] = {{"vertices", vertices},
+                 {"triangles", triangles},
+                 {"edges", edges},
+                 {"dofs", surface.dof_count()},
+                 {"element", "Fang's 12-dof C1 triangle, docs/fe-surfaces.md eqs. T1-T9"}};
+    if (!refinement.is_null()) j["mesh"]["refinement"] = refinement;
+    j["weights"] = {
+        {"relative",
+         {{"stretch", fit_options.stretch}, {"bending", fit_options.bending}, {"jump", fit_options.jump}}},
+        {"absolute",
+         {{"stretch", r.weights.stretch}, {"bending", r.weights.bending}, {"jump", r.weights.jump2}}}};
+    j["energy"] = {{"closeness", r.rms * r.rms * static_cast<double>(points.cols())},
+                   {"stretch", r.energy.stretch},
+                   {"bending", r.energy.bending},
+                   {"jump", r.energy.jump}};
+    j["residuals"] = {{"rms", r.rms}, {"max", r.max_distance}, {"boundary_feet", r.boundary_feet}};
+    j["iterations"] = r.iterations;
+    j["converged"] = r.converged;
+    j["objective_history"] =
+        r.objective.size() > 1
+            ? nlohmann::json(std::vector<double>(r.objective.begin() + 1, r.objective.end()))
+            : nlohmann::json::array();
+
+    if (!o.output.empty()) {
+      WriteTextAtomically(o.output + ".json", j.dump(2) + "\n");
+      Scan samples;
+      const std::vector<FeSurfacePoint> at = surface.SamplePoints(6);
+      samples.points.resize(3, static_cast<Eigen::Index>(at.size()));
+      for (std::size_t i = 0; i < at.size(); ++i)
+        samples.points.col(static_cast<Eigen::Index>(i)) =
+            frame.origin + frame.axes * surface.Evaluate(at[i]).point;
+      samples.units = units_out;
+      WritePly(o.output + ".ply", samples);
+    }
+
+    std::ostringstream text;
+    text << "scan2model fit: fe-surface, " << surface.triangle_count() << " triangles ("
+         << surface.dof_count() << " vector dofs) to " << points.cols() << " points of " << o.file << " ("
+         << format << ", units " << units_out << ")\n\n"
+         << "  method            " << method << ", relative weights stretch "
+         << Format(fit_options.stretch, 4) << " / bending " << Format(fit_options.bending, 4) << " / jump "
+         << Format(fit_options.jump, 4) << "\n"
+         << "  domain            " << boundary_source << ", area " << Format(hull_area, 6) << " " << units_out
+         << "^2\n";
+    if (!refinement.is_null())
+      text << "  refinement        " << refinement["first"]["triangles"].get<int>() << " -> "
+           << refinement["refined"]["triangles"].get<int>() << " triangles where the surface bends (RMS "
+           << Format(refinement["first"]["rms"].get<double>(), 4) << " -> " << Format(r.rms, 4) << ")\n";
+    text << "  residuals         RMS " << Format(r.rms, 6) << ", max " << Format(r.max_distance, 6) << " "
+         << units_out
+         << (r.boundary_feet > 0
+                 ? ", " + std::to_string(r.boundary_feet) + " points with feet on the boundary"
+                 : "")
+         << "\n"
+         << "  energy            stretch " << Format(r.energy.stretch, 4) << ", bending "
+         << Format(r.energy.bending, 4) << ", jump " << Format(r.energy.jump, 4) << "\n"
+         << "  iterations        " << r.iterations
+         << (r.converged ? " (converged)" : " (stopped at the iteration limit: not converged)") << "\n";
+    outcome.text = text.str();
+    return outcome;
+  } catch (const FormatError& e) {
+    throw FitFailure(kInputError, e.what());
+  } catch (const std::invalid_argument& e) {
+    throw FitFailure(kFitError, o.file + ": fe-surface: " + e.what());
+  }
+}
+
+}  // namespace s2m::pipeline
