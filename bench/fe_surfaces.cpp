@@ -33,6 +33,12 @@ namespace s2m {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+std::string Short(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
 double Seconds(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
@@ -163,8 +169,7 @@ Data Sample(const Case& c, unsigned seed) {
 
 Row FeSurfaceRow(const Case& c, const Data& d, const Grid& g, double edge, double jump) {
   Row row;
-  row.method =
-      "FE surface, SDM, edge " + std::to_string(edge).substr(0, 4) + (jump > 0 ? ", C2 jump 1e-6" : "");
+  row.method = "FE surface, SDM, edge " + Short(edge) + (jump > 0 ? ", C2 jump " + Short(jump) : "");
   const auto start = Clock::now();
   DomainPolygon polygon;
   polygon.outer.resize(2, 6);
@@ -257,9 +262,10 @@ std::optional<Row> CloughTocherRow(const Case& c, const Data& d, const Grid& g, 
     for (int i = 0; i < g.side(); ++i)
       for (int j = 0; j < g.side(); ++j) grid << g.coordinate(i) << " " << g.coordinate(j) << "\n";
   }
-  const std::string command = "python3 '" + script + "' '" + (dir / "points.txt").string() + "' '" +
-                              (dir / "grid.txt").string() + "' '" + (dir / "z.txt").string() + "' > '" +
-                              (dir / "seconds.txt").string() + "' 2>/dev/null";
+  const std::string command = std::string(S2M_PYTHON) + " '" + script + "' '" +
+                              (dir / "points.txt").string() + "' '" + (dir / "grid.txt").string() + "' '" +
+                              (dir / "z.txt").string() + "' > '" + (dir / "seconds.txt").string() +
+                              "' 2>/dev/null";
   if (std::system(command.c_str()) != 0) return std::nullopt;
   Row row;
   row.method = "SciPy CloughTocher2DInterpolator (height field)";
@@ -304,6 +310,7 @@ int main(int argc, char** argv) {
     Measure(grid, c, z, truth);
     rows.push_back(truth);
     rows.push_back(FeSurfaceRow(c, data, grid, 0.75, 0.0));
+    rows.push_back(FeSurfaceRow(c, data, grid, 0.75, 1e-8));
     rows.push_back(FeSurfaceRow(c, data, grid, 0.75, 1e-6));
     rows.push_back(FeSurfaceRow(c, data, grid, 0.5, 0.0));
     rows.push_back(BSplineRow(c, data, grid, 12));
