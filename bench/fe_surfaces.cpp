@@ -9,6 +9,8 @@
 // runs only the cases whose name contains WORD.
 
 #include <Eigen/LU>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -284,6 +286,97 @@ std::optional<Row> CloughTocherRow(const Case& c, const Data& d, const Grid& g, 
   return row;
 }
 
+// Fang's question (thesis sec. 5.4): number the nodes for a small bandwidth (Gibbs-Poole-Stockmeyer root,
+// Cuthill-McKee levels: fitting/domain_mesh.h) and solve a banded system, or leave the ordering to a sparse
+// Cholesky (Eigen's SimplicialLDLT with its approximate minimum degree ordering). The matrix is one
+// coordinate's normal matrix of the first step of a fit, K + sum_i N_i^T N_i (docs/fe-surfaces.md eq. P7 with
+// PDM), on the hexagon meshed at three sizes; the factorization's fill (non-zeros of L) and its time (median
+// of 7) for: AMD on our dof order, no reordering on the GPS/Cuthill-McKee numbering (the band Fang solves),
+// and no reordering on the natural order (small meshes only: its band is nearly the whole matrix).
+void SolverOrderings() {
+  std::printf("\n### Sparse Cholesky orderings of the normal matrix (docs/fe-surfaces.md section 7)\n\n");
+  std::printf(
+      "| triangles | dofs | ordering | dof bandwidth | non-zeros of L | factorization ms "
+      "|\n|---:|---:|---|---:|---:|---:|\n");
+  const Case c{"gaussian", [](double x, double y) { return std::exp(-0.5 * (x * x + y * y)); }};
+  const Data data = Sample(c, 17);
+  for (double edge : {0.75, 0.3, 0.15}) {
+    DomainPolygon polygon;
+    polygon.outer.resize(2, 6);
+    for (int k = 0; k < 6; ++k)
+      polygon.outer.col(k) = kRadius * Eigen::Vector2d(std::cos(k * M_PI / 3), std::sin(k * M_PI / 3));
+    DomainMeshOptions mesh_options;
+    mesh_options.max_edge = edge;
+    const DomainMesh domain = MeshDomain(polygon, mesh_options);
+    FeMesh mesh;
+    mesh.uv = domain.vertices;
+    for (int t = 0; t < domain.triangle_count(); ++t)
+      mesh.triangles.push_back({domain.triangles(0, t), domain.triangles(1, t), domain.triangles(2, t)});
+    const FeSurface surface(mesh);
+    FairnessWeights weights;
+    weights.bending = 1e-7 * static_cast<double>(data.points.cols()) * std::pow(2 * kRadius, 4) /
+                      (1.5 * std::sqrt(3.0) * kRadius * kRadius);
+    Eigen::SparseMatrix<double> a = surface.EnergyMatrix(weights);
+    std::vector<Eigen::Triplet<double>> triplets;
+    FeSurfacePoint walker;
+    for (Eigen::Index i = 0; i < data.points.cols(); ++i) {
+      surface.Locate(data.points.col(i).head<2>(), walker);
+      const TriangleShape shape = surface.element(walker.triangle).Evaluate(walker.barycentric);
+      const auto& dofs = surface.element_dofs(walker.triangle);
+      for (int p = 0; p < 12; ++p)
+        for (int q = 0; q < 12; ++q)
+          triplets.emplace_back(dofs[static_cast<std::size_t>(p)], dofs[static_cast<std::size_t>(q)],
+                                shape.value(p) * shape.value(q));
+    }
+    Eigen::SparseMatrix<double> data_term(a.rows(), a.cols());
+    data_term.setFromTriplets(triplets.begin(), triplets.end());
+    a += data_term;
+    // The dof permutation of the node numbering: node by node, 3 dofs per vertex, 1 per mid-edge node.
+    Eigen::VectorXi dof_of(a.rows());
+    int next = 0;
+    for (Eigen::Index k = 0; k < domain.numbering.order.size(); ++k) {
+      const int node = domain.numbering.order(k);
+      if (node < domain.vertex_count())
+        for (int which = 0; which < 3; ++which) dof_of(surface.vertex_dof(node, which)) = next++;
+      else
+        dof_of(surface.edge_dof(node - domain.vertex_count())) = next++;
+    }
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> permutation(dof_of);
+    const Eigen::SparseMatrix<double> banded = permutation * a * permutation.transpose();
+    const auto bandwidth = [](const Eigen::SparseMatrix<double>& m) {
+      long long b = 0;
+      for (int col = 0; col < m.outerSize(); ++col)
+        for (Eigen::SparseMatrix<double>::InnerIterator it(m, col); it; ++it)
+          b = std::max<long long>(b, std::abs(it.row() - col));
+      return b;
+    };
+    const auto time = [](auto& solver, const Eigen::SparseMatrix<double>& m, long long& fill) {
+      std::vector<double> ms;
+      for (int r = 0; r < 7; ++r) {
+        const auto start = Clock::now();
+        solver.compute(m);
+        ms.push_back(1e3 * Seconds(start));
+      }
+      std::sort(ms.begin(), ms.end());
+      fill = solver.matrixL().nestedExpression().nonZeros();
+      return ms[3];
+    };
+    long long fill = 0;
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> amd;
+    const double t_amd = time(amd, a, fill);
+    std::printf("| %d | %lld | AMD (sparse Cholesky) | %lld | %lld | %.2f |\n", surface.triangle_count(),
+                static_cast<long long>(a.rows()), bandwidth(a), fill, t_amd);
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> natural;
+    const double t_band = time(natural, banded, fill);
+    std::printf("| %d | %lld | GPS + Cuthill-McKee, no reordering (banded) | %lld | %lld | %.2f |\n",
+                surface.triangle_count(), static_cast<long long>(a.rows()), bandwidth(banded), fill, t_band);
+    if (a.rows() > 3000) continue;  // the natural order's band is nearly the whole matrix: too slow to time
+    const double t_natural = time(natural, a, fill);
+    std::printf("| %d | %lld | natural, no reordering | %lld | %lld | %.2f |\n", surface.triangle_count(),
+                static_cast<long long>(a.rows()), bandwidth(a), fill, t_natural);
+  }
+}
+
 }  // namespace
 }  // namespace s2m
 
@@ -296,6 +389,7 @@ int main(int argc, char** argv) {
       {"ripple", [](double x, double y) { return 0.25 * std::sin(1.3 * x) * std::cos(1.1 * y); }},
   };
   const Grid grid;
+  if (only.empty() || only == "orderings") SolverOrderings();
   for (const Case& c : cases) {
     if (!only.empty() && c.name.find(only) == std::string::npos) continue;
     const Data data = Sample(c, 17);

@@ -190,7 +190,7 @@ TEST(Batch, FiftyObjectsSurviveAKillAndMatchSingleRuns) {
         {"shell_04", "spiral --max-iterations " + std::to_string(objects.shell_max_iterations)}}) {
     const std::string input = (dir / id / "views.json").lexically_normal().string();
     const Result single =
-        Shell("OMP_NUM_THREADS=1 " + Cli() + " fit --model " + model + " " + input + " --json 2>/dev/null");
+        Shell("OMP_NUM_THREADS=1 " + Cli() + " fit --model " + model + " " + input + " --json", false);
     ASSERT_EQ(single.exit_code, 0) << single.out;
     nlohmann::json alone = nlohmann::json::parse(single.out);
     nlohmann::json in_batch = ReadJson(out / "objects" / (id + ".json"))["result"];
