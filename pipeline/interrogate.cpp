@@ -1,0 +1,63 @@
+#include "pipeline/interrogate.h"
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+
+#include "acquisition/format_error.h"
+#include "pipeline/output.h"
+#include "pipeline/png.h"
+#include "pipeline/surface_model_json.h"
+
+namespace s2m::pipeline {
+
+InterrogateOutcome ComputeInterrogation(const InterrogateOptions& o) {
+  std::ifstream in(o.input);
+  if (!in) throw FormatError(o.input, "", "cannot open");
+  nlohmann::json document;
+  try {
+    document = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw FormatError(o.input, "", std::string("not valid JSON: ") + e.what());
+  }
+  if (!document.is_object()) throw FormatError(o.input, "", "not a result of scan2model fit");
+  // A batch object record holds its fit under "result".
+  const nlohmann::json& d =
+      document.value("schema", "") == "scan2model.batch_object/1" && document.contains("result")
+          ? document["result"]
+          : document;
+  std::vector<FittedSurface> surfaces;
+  try {
+    surfaces = FittedSurfaces(d);
+  } catch (const std::invalid_argument& e) {
+    throw FormatError(o.input, "", e.what());
+  }
+  if (surfaces.empty()) {
+    const std::string model =
+        d.contains("model") && d["model"].is_string() ? d["model"].get<std::string>() : "";
+    throw FormatError(o.input, "",
+                      "the document describes no surface to interrogate (model '" + model + "', schema '" +
+                          d.value("schema", "") +
+                          "'; B-spline surfaces and the multi-view kinematic surfaces are interrogated)");
+  }
+  const FittedSurface& f = surfaces.front();
+  SurfaceRenderOptions render = o.render;
+  ChooseView(*f.model, f.world_T_model, f.axis, render);
+  if (o.view) {
+    render.view = o.view->normalized();
+    if (render.view.cross(render.up).norm() < 1e-3) {
+      // The chosen up is along the given view: take the world axis least aligned with it instead.
+      Eigen::Index k;
+      render.view.cwiseAbs().minCoeff(&k);
+      render.up = Eigen::Vector3d::Unit(k);
+    }
+  }
+  if (o.light) render.light = o.light->normalized();
+  std::string why;
+  if (!render.IsValid(&why)) throw std::invalid_argument(why);
+  const SurfaceRendering r = RenderSurface(*f.model, f.world_T_model, render);
+  WriteTextAtomically(o.output, EncodePng(r.image));
+  return {f.label, r.caption, r.seen_pixels, r.singular_pixels};
+}
+
+}  // namespace s2m::pipeline
