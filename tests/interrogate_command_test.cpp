@@ -1,0 +1,123 @@
+// `scan2model interrogate` end to end (docs/interrogation.md, docs/cli.md): the demo's vase fitted jointly
+// with its views, then its curvature map and isophotes as PNG files and in the HTML report; clear errors for
+// a missing file, a curve's document, unusable members and NaN parameters.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "test_support.h"
+
+namespace s2m {
+namespace {
+
+namespace fs = std::filesystem;
+
+test::ShellResult RunCli(const std::string& args) {
+  return test::Shell(std::string(S2M_CLI_PATH) + " " + args);
+}
+
+std::string Read(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+class InterrogateCommand : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(test::FreshTempDir("interrogate"));
+    const test::ShellResult fit = RunCli("fit --model revolution " + std::string(S2M_SOURCE_DIR) +
+                                         "/recordings/demo_vase/views.json -o " + (*dir_ / "vase").string());
+    ASSERT_EQ(fit.exit_code, 0) << fit.out;
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*dir_);
+    delete dir_;
+  }
+  static fs::path* dir_;
+};
+fs::path* InterrogateCommand::dir_ = nullptr;
+
+TEST_F(InterrogateCommand, WritesTheVasesMapsAndIsophotes) {
+  const std::string fit = (*dir_ / "vase.json").string();
+  const nlohmann::json doc = nlohmann::json::parse(Read(fit));
+  ASSERT_TRUE(doc.contains("surface"));
+  EXPECT_EQ(doc["surface"]["kind"], "revolution");
+  for (const std::string& args :
+       {std::string("--map mean --range -0.05,0.05"), std::string("--isophotes 6"),
+        std::string("--reflection-lines 10 --light 0,0.3,1"), std::string("--zebra 8"),
+        std::string("--contours 12 --view 1,0,0 --size 300x200"), std::string("")}) {
+    const fs::path png = *dir_ / "out.png";
+    fs::remove(png);
+    const test::ShellResult r = RunCli("interrogate " + fit + " " + args + " -o " + png.string());
+    EXPECT_EQ(r.exit_code, 0) << args << ": " << r.out;
+    EXPECT_NE(r.out.find("surface of revolution"), std::string::npos) << r.out;
+    const std::string bytes = Read(png);
+    ASSERT_GT(bytes.size(), 8u) << args;
+    EXPECT_EQ(bytes.substr(0, 8), std::string("\x89PNG\r\n\x1a\n")) << args;
+  }
+  // The report shows the curvature maps and isophotes as embedded images with their parameters.
+  const fs::path html = *dir_ / "vase.html";
+  ASSERT_EQ(RunCli("report " + fit + " -o " + html.string()).exit_code, 0);
+  const std::string report = Read(html);
+  EXPECT_NE(report.find("Surface interrogation: surface of revolution"), std::string::npos);
+  for (const char* title : {"Gaussian curvature</b>", "Mean curvature</b>", "Isophotes</b>"})
+    EXPECT_NE(report.find(title), std::string::npos) << title;
+  std::size_t images = 0;
+  for (std::size_t at = report.find("data:image/png;base64,"); at != std::string::npos;
+       at = report.find("data:image/png;base64,", at + 1))
+    ++images;
+  EXPECT_EQ(images, 3u);
+  EXPECT_NE(report.find("light towards"), std::string::npos);
+}
+
+TEST_F(InterrogateCommand, BadInputIsRefusedClearly) {
+  const std::string fit = (*dir_ / "vase.json").string(), png = (*dir_ / "bad.png").string();
+  // A missing file: input error, the file named.
+  test::ShellResult r = RunCli("interrogate " + (*dir_ / "missing.json").string() + " -o " + png);
+  EXPECT_EQ(r.exit_code, 3) << r.out;
+  EXPECT_NE(r.out.find("missing.json"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("cannot open"), std::string::npos) << r.out;
+  // A curve's document: no surface to interrogate.
+  const fs::path curve = *dir_ / "curve.json";
+  std::ofstream(curve)
+      << nlohmann::json{{"schema", "scan2model.bspline/1"},
+                        {"model", "bspline-curve"},
+                        {"basis", {{"order", 4}, {"periodic", false}, {"knots", {0, 0, 0, 0, 1, 1, 1, 1}}}},
+                        {"control_points", {{0, 0}, {1, 1}, {2, 0}, {3, 1}}}}
+             .dump();
+  r = RunCli("interrogate " + curve.string() + " -o " + png);
+  EXPECT_EQ(r.exit_code, 3) << r.out;
+  EXPECT_NE(r.out.find("no surface"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bspline-curve"), std::string::npos) << r.out;
+  // Unusable members of a surface (a null where a radius belongs; JSON has no NaN).
+  nlohmann::json doc = nlohmann::json::parse(Read(fit));
+  doc["surface"]["profile"][1][0] = nullptr;
+  const fs::path broken = *dir_ / "broken.json";
+  std::ofstream(broken) << doc.dump();
+  r = RunCli("interrogate " + broken.string() + " -o " + png);
+  EXPECT_EQ(r.exit_code, 3) << r.out;
+  EXPECT_NE(r.out.find("unusable"), std::string::npos) << r.out;
+  // Not JSON at all.
+  const fs::path text = *dir_ / "text.json";
+  std::ofstream(text) << "not json";
+  EXPECT_EQ(RunCli("interrogate " + text.string() + " -o " + png).exit_code, 3);
+  // NaN and malformed parameters: usage errors naming the option.
+  for (const std::string& args :
+       {std::string("--light nan,0,1"), std::string("--view 0,0,0"), std::string("--range 1,nan"),
+        std::string("--range 2,1"), std::string("--map gauss"), std::string("--size 10x"),
+        std::string("--isophotes 4 --zebra 3"), std::string("--isophotes -2")}) {
+    r = RunCli("interrogate " + fit + " " + args + " -o " + png);
+    EXPECT_EQ(r.exit_code, 2) << args << ": " << r.out;
+    const std::string option = args.substr(0, args.find(' '));
+    EXPECT_NE(r.out.find(option), std::string::npos) << args << ": " << r.out;
+  }
+  EXPECT_FALSE(fs::exists(png));
+}
+
+}  // namespace
+}  // namespace s2m
