@@ -75,6 +75,31 @@ TEST_F(InterrogateCommand, WritesTheVasesMapsAndIsophotes) {
   EXPECT_NE(report.find("light towards"), std::string::npos);
 }
 
+TEST_F(InterrogateCommand, BSplineSurfaceFitsAreInterrogatedToo) {
+  // A saddle z = 0.3 (x^2 - y^2) sampled on a grid, fitted by a 5 x 5 B-spline surface.
+  const fs::path points = *dir_ / "saddle.xyz";
+  {
+    std::ofstream out(points);
+    for (int i = 0; i < 20; ++i) {
+      for (int j = 0; j < 20; ++j) {
+        const double x = -1 + 2.0 * i / 19, y = -1 + 2.0 * j / 19;
+        out << x << " " << y << " " << 0.3 * (x * x - y * y) << "\n";
+      }
+    }
+  }
+  const std::string prefix = (*dir_ / "saddle").string();
+  const test::ShellResult fit =
+      RunCli("fit --model bspline-surface --control-points 5x5 " + points.string() + " -o " + prefix);
+  ASSERT_EQ(fit.exit_code, 0) << fit.out;
+  const fs::path png = *dir_ / "saddle.png";
+  const test::ShellResult r = RunCli("interrogate " + prefix + ".json --map gaussian -o " + png.string());
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("B-spline surface"), std::string::npos) << r.out;
+  EXPECT_EQ(Read(png).substr(0, 8), std::string("\x89PNG\r\n\x1a\n"));
+  ASSERT_EQ(RunCli("report " + prefix + ".json -o " + prefix + ".html").exit_code, 0);
+  EXPECT_NE(Read(prefix + ".html").find("Surface interrogation: B-spline surface"), std::string::npos);
+}
+
 TEST_F(InterrogateCommand, BadInputIsRefusedClearly) {
   const std::string fit = (*dir_ / "vase.json").string(), png = (*dir_ / "bad.png").string();
   // A missing file: input error, the file named.
