@@ -8,6 +8,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 #include "pipeline/output.h"
 #include "pipeline/svg.h"
@@ -291,13 +292,16 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
   // grid's (u, v), kept within two grid cells of it (the same sheet) and inside the domain.
   const double period_u = domain.hi[0] - domain.lo[0], period_v = domain.hi[1] - domain.lo[1];
   std::vector<SurfacePointCurvature> curvature(out.pixels.size());
+  int seen = 0, exact = 0, singular = 0;
+  // Pixels are independent: rows in parallel (the model's Evaluate is const and thread-safe).
+#pragma omp parallel for schedule(dynamic, 4) reduction(+ : seen, exact, singular)
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
       const std::size_t index =
           static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
       SurfacePixel& px = out.pixels[index];
       if (!px.seen) continue;
-      ++out.seen_pixels;
+      ++seen;
       const Eigen::Vector2d target((x + 0.5 - out.x0) / out.scale, (out.y0 - (y + 0.5)) / out.scale);
       double u = px.u, v = px.v;
       for (int it = 0; it < 8; ++it) {
@@ -323,7 +327,7 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
           break;
       }
       if (px.exact) {
-        ++out.exact_pixels;
+        ++exact;
         px.u = u;
         px.v = v;
       }
@@ -339,15 +343,19 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
           const double kmax = c.kmax;
           c.kmax = -c.kmin;
           c.kmin = -kmax;
+          std::swap(c.direction_max, c.direction_min);
         }
         px.normal = c.normal;
       } else {
         px.normal.setConstant(kNaN);
-        ++out.singular_pixels;
+        ++singular;
       }
       curvature[index] = c;
     }
   }
+  out.seen_pixels = seen;
+  out.exact_pixels = exact;
+  out.singular_pixels = singular;
 
   // 4. The scalar each pixel shows, and the levels.
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
