@@ -8,6 +8,7 @@
 // library: the image is written by pipeline/png.h.
 
 #include <Eigen/Core>
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
