@@ -55,7 +55,12 @@ InterrogateOutcome ComputeInterrogation(const InterrogateOptions& o) {
   if (o.light) render.light = o.light->normalized();
   std::string why;
   if (!render.IsValid(&why)) throw std::invalid_argument(why);
-  const SurfaceRendering r = RenderSurface(*f.model, f.world_T_model, render);
+  SurfaceRendering r;
+  try {
+    r = RenderSurface(*f.model, f.world_T_model, render);
+  } catch (const std::invalid_argument& e) {  // the options are valid: the surface is not (non-finite points)
+    throw FormatError(o.input, "", e.what());
+  }
   WriteTextAtomically(o.output, EncodePng(r.image));
   return {f.label, r.caption, r.seen_pixels, r.singular_pixels};
 }
