@@ -300,6 +300,16 @@ TEST(SurfaceModelJson, KinematicSurfacesRoundTripExactly) {
         EXPECT_LT((a.d2 - b.d2).norm(), 1e-12) << model->name();
       }
     }
+    // The rebuilt surface renders: nearly every pixel it covers traced to its exact point.
+    SurfaceRenderOptions o;
+    o.width = 260;
+    o.height = 200;
+    o.colouring = SurfaceColouring::kCurvature;
+    o.curvature = CurvatureKind::kMean;
+    ChooseView(*back[0].model, back[0].world_T_model, back[0].axis, o);
+    const SurfaceRendering r = RenderSurface(*back[0].model, back[0].world_T_model, o);
+    EXPECT_GT(r.seen_pixels, 2000) << model->name();
+    EXPECT_GT(r.exact_pixels, r.seen_pixels * 95 / 100) << model->name();
     // Unusable members are named.
     doc["surface"]["profile"][0][0] = nullptr;
     EXPECT_THROW(FittedSurfaces(doc), std::invalid_argument);
