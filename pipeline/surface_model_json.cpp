@@ -106,6 +106,20 @@ std::vector<FittedSurface> FittedSurfaces(const nlohmann::json& document) {
       f.model = std::make_unique<BSplineSurface>(BasisFromJson(document.at("basis_u")),
                                                  BasisFromJson(document.at("basis_v")), cp);
       out.push_back(std::move(f));
+    } else if (schema == "scan2model.part_fit/1" && document.contains("faces")) {
+      // A part's spline-patch faces (the part frame is the world); its analytic faces are unbounded and not
+      // drawn.
+      for (const nlohmann::json& face : document.at("faces")) {
+        if (!face.contains("surface")) continue;
+        const nlohmann::json& s = face.at("surface");
+        const Eigen::MatrixXd cp = ControlPointsFromJson(s.at("control_points"));
+        if (cp.rows() != 3) throw std::invalid_argument("surface control points must be 3D");
+        FittedSurface f;
+        f.label = "spline patch '" + face.value("name", "") + "' of the part";
+        f.model = std::make_unique<BSplineSurface>(BasisFromJson(s.at("basis_u")),
+                                                   BasisFromJson(s.at("basis_v")), cp);
+        out.push_back(std::move(f));
+      }
     } else if (schema == "scan2model.multiview/1" && document.contains("surface")) {
       const nlohmann::json& s = document.at("surface");
       const std::string kind = s.at("kind").get<std::string>();

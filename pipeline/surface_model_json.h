@@ -1,8 +1,8 @@
 #pragma once
 // The fitted surface of a result document, rebuilt exactly from its JSON (the `surface` member of
-// scan2model.multiview/1 documents of kinematic surfaces, the bases and control points of
-// scan2model.bspline/1 surfaces; docs/cli.md), for the report's interrogation images and `scan2model
-// interrogate` (docs/interrogation.md).
+// scan2model.multiview/1 documents of kinematic surfaces and of a scan2model.part_fit/1 document's
+// spline-patch faces, the bases and control points of scan2model.bspline/1 surfaces; docs/cli.md), for the
+// report's interrogation images and `scan2model interrogate` (docs/interrogation.md).
 
 #include <Eigen/Core>
 #include <memory>
@@ -36,9 +36,10 @@ struct FittedSurface {
   std::optional<Eigen::Vector3d> axis;  // unit, in the world, for surfaces with an axis
 };
 
-// The fitted surfaces a result document describes (none for curves, primitives and parts, whose faces are
-// not rebuilt yet). Throws std::invalid_argument naming the member when a surface's members are unusable
-// (missing, wrong type, non-finite numbers, invalid knots).
+// The fitted surfaces a result document describes: a B-spline surface, a multi-view kinematic surface, the
+// spline-patch faces of a part (none for curves, primitives and a part's analytic faces, which are
+// unbounded). Throws std::invalid_argument naming the member when a surface's members are unusable (missing,
+// wrong type, non-finite numbers, invalid knots).
 std::vector<FittedSurface> FittedSurfaces(const nlohmann::json& document);
 
 }  // namespace s2m::pipeline

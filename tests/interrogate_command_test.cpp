@@ -10,6 +10,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "acquisition/scan_set_io.h"
+#include "synthetic/synthetic_cases.h"
 #include "test_support.h"
 
 namespace s2m {
@@ -98,6 +100,36 @@ TEST_F(InterrogateCommand, BSplineSurfaceFitsAreInterrogatedToo) {
   EXPECT_EQ(Read(png).substr(0, 8), std::string("\x89PNG\r\n\x1a\n"));
   ASSERT_EQ(RunCli("report " + prefix + ".json -o " + prefix + ".html").exit_code, 0);
   EXPECT_NE(Read(prefix + ".html").find("Surface interrogation: B-spline surface"), std::string::npos);
+}
+
+TEST_F(InterrogateCommand, APartsSplinePatchIsInterrogated) {
+  // The free-form plate (docs/examples/freeform_plate.part.json) fitted to the relief plate's views with the
+  // file's 4 x 4 net: its top patch is in the document exactly and is drawn; the analytic faces are not.
+  SyntheticCase c;
+  c.name = "relief plate";
+  c.views = ReliefPlateViews();
+  const fs::path manifest = *dir_ / "plate_views.json";
+  WriteScanSet(manifest, RecordedViews(c));
+  const std::string prefix = (*dir_ / "plate").string();
+  const test::ShellResult fit =
+      RunCli("fit --model part:" + std::string(S2M_SOURCE_DIR) + "/docs/examples/freeform_plate.part.json " +
+             manifest.string() + " --control-points file -o " + prefix);
+  ASSERT_EQ(fit.exit_code, 0) << fit.out;
+  const nlohmann::json doc = nlohmann::json::parse(Read(prefix + ".json"));
+  int patches = 0;
+  for (const nlohmann::json& face : doc["faces"]) {
+    EXPECT_EQ(face.contains("surface"), face["type"] == "spline_patch") << face.dump();
+    if (face.contains("surface")) {
+      ++patches;
+      EXPECT_EQ(face["surface"]["control_points"].size(), 16u);  // the file's 4 x 4 net
+    }
+  }
+  EXPECT_EQ(patches, 1);
+  const fs::path png = *dir_ / "plate.png";
+  const test::ShellResult r = RunCli("interrogate " + prefix + ".json --map mean -o " + png.string());
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("spline patch 'top' of the part"), std::string::npos) << r.out;
+  EXPECT_EQ(Read(png).substr(0, 8), std::string("\x89PNG\r\n\x1a\n"));
 }
 
 TEST_F(InterrogateCommand, BadInputIsRefusedClearly) {
