@@ -150,6 +150,9 @@ bool SurfaceRenderOptions::IsValid(std::string* why) const {
 void ChooseView(const ParametricModel& model, const RigidMotion& world_T_model,
                 const std::optional<Eigen::Vector3d>& axis, SurfaceRenderOptions& options) {
   const ParameterDomain d = model.domain();
+  if (d.dimension != 2 || model.ambient_dimension() != 3)
+    throw std::invalid_argument("only surfaces in 3D have a view (the model '" + model.name() +
+                                "' is not one)");
   Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero(), centre = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> points;
   const int n = 16;

@@ -98,7 +98,7 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
 // A view that shows the surface whole: for a surface with an axis (kinematic surfaces; `axis` the unit axis
 // in the world) from the side, 20 degrees above the plane across the axis, the axis up; otherwise along the
 // mean of the unit normals over the domain, the points' principal direction across it up. The light comes
-// from the viewer's side, from above and the left.
+// from the viewer's side, from above and the left. std::invalid_argument for curves.
 void ChooseView(const ParametricModel& model, const RigidMotion& world_T_model,
                 const std::optional<Eigen::Vector3d>& axis, SurfaceRenderOptions& options);
 

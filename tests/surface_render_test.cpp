@@ -260,6 +260,8 @@ TEST(SurfaceRender, RefusesCurvesAndInvalidOptions) {
   profile << 1, 1, 1, 1, 0, 1, 2, 3;
   const BSplineCurve curve(BSplineBasis::Clamped(4, {0, 0, 0, 0, 1, 1, 1, 1}), profile);
   EXPECT_THROW(RenderSurface(curve, RigidMotion::Identity(), {}), std::invalid_argument);
+  SurfaceRenderOptions chosen;
+  EXPECT_THROW(ChooseView(curve, RigidMotion::Identity(), std::nullopt, chosen), std::invalid_argument);
   const SphereModel sphere(Sphere{});
   SurfaceRenderOptions o;
   o.light = Eigen::Vector3d(std::nan(""), 0, 1);
