@@ -34,7 +34,7 @@ bool ParseNumbers(const std::string& text, std::size_t count, std::vector<double
 
 Runner AddInterrogateCommand(CLI::App& app) {
   struct Options {
-    std::string input, output, map, light, view, size = "640x480", range;
+    std::string input, output, map, light, view, eye, size = "640x480", range;
     int isophotes = 0, reflection_lines = 0, zebra = 0, contours = 0;
   };
   auto o = std::make_shared<Options>();
@@ -55,6 +55,10 @@ Runner AddInterrogateCommand(CLI::App& app) {
   cmd->add_option("--contours", o->contours, "N contours of the height along the image's up direction");
   cmd->add_option("--light", o->light, "x,y,z: towards the light (shading, isophotes, the light plane)");
   cmd->add_option("--view", o->view, "x,y,z: the direction the camera looks along");
+  cmd->add_option(
+      "--eye", o->eye,
+      "x,y,z: a perspective view from this point (default: orthographic), also the reflection lines' "
+      "eye; without --view it looks at the surface's centre");
   cmd->add_option("--size", o->size, "WxH pixels (default 640x480)");
   cmd->add_option("--range", o->range,
                   "a,b: the curvature map's colour range (default: symmetric, +-99th "
@@ -101,6 +105,11 @@ Runner AddInterrogateCommand(CLI::App& app) {
       if (!ParseNumbers(o->view, 3, numbers) || Eigen::Vector3d(numbers.data()).norm() == 0)
         return usage("--view must be three finite numbers x,y,z, not all zero (got '" + o->view + "')");
       options.view = Eigen::Vector3d(numbers.data());
+    }
+    if (!o->eye.empty()) {
+      if (!ParseNumbers(o->eye, 3, numbers))
+        return usage("--eye must be three finite numbers x,y,z (got '" + o->eye + "')");
+      options.eye = Eigen::Vector3d(numbers.data());
     }
     if (!o->range.empty()) {
       if (!ParseNumbers(o->range, 2, numbers) || !(numbers[0] < numbers[1]))

@@ -17,6 +17,9 @@ struct InterrogateOptions {
   // The colouring and its parameters; view, up and light are replaced by ChooseView's unless given below.
   SurfaceRenderOptions render;
   std::optional<Eigen::Vector3d> view, light;
+  // A perspective view from this point (and the reflection lines' eye); without `view` it looks at the
+  // surface's centre.
+  std::optional<Eigen::Vector3d> eye;
 };
 
 struct InterrogateOutcome {

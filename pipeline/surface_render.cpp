@@ -142,6 +142,7 @@ bool SurfaceRenderOptions::IsValid(std::string* why) const {
     return fail("the colour range must be finite with its low end below its high end");
   std::string plane_why;
   if (light_plane && !light_plane->IsValid(&plane_why)) return fail(plane_why);
+  if (eye && !eye->allFinite()) return fail("the eye point must be finite");
   if (contour_direction && (!contour_direction->allFinite() || contour_direction->norm() == 0))
     return fail("the contour direction must be finite and non-zero");
   return true;
@@ -208,8 +209,10 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
   out.image = RgbImage(width, height, 255);
   out.pixels.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), SurfacePixel{});
   const Eigen::Vector3d forward = options.view.normalized();
+  out.forward = forward;
   out.right = forward.cross(options.up).normalized();
   out.up = out.right.cross(forward);
+  out.eye = options.eye;
   const Eigen::Vector3d light = options.light.normalized();
 
   // 1. The grid's vertices, projected.
@@ -224,7 +227,11 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
           Evaluate(model, world_T_model, domain.lo[0] + du * i, domain.lo[1] + dv * j, 0).point;
       if (!p.allFinite()) throw std::invalid_argument("the surface has non-finite points");
       vertices.push_back(p);
-      const Eigen::Vector3d q(out.right.dot(p), out.up.dot(p), forward.dot(p));
+      if (out.eye && !(forward.dot(p - *out.eye) > 0))
+        throw std::invalid_argument(
+            "the surface must lie in front of the eye point (along the view direction)");
+      const Eigen::Vector2d a = out.ImagePlane(p);
+      const Eigen::Vector3d q(a.x(), a.y(), forward.dot(p));
       lo = lo.cwiseMin(q);
       hi = hi.cwiseMax(q);
     }
@@ -309,7 +316,7 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
       double u = px.u, v = px.v;
       for (int it = 0; it < 8; ++it) {
         const WorldJet w = Evaluate(model, world_T_model, u, v, 1);
-        const Eigen::Vector2d r(out.right.dot(w.point) - target.x(), out.up.dot(w.point) - target.y());
+        const Eigen::Vector2d r = out.ImagePlane(w.point) - target;
         if (r.norm() * out.scale < 1e-9) {
           px.exact = true;
           break;
@@ -317,6 +324,15 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
         Eigen::Matrix2d j;
         j << out.right.dot(w.d1.col(0)), out.right.dot(w.d1.col(1)), out.up.dot(w.d1.col(0)),
             out.up.dot(w.d1.col(1));
+        if (out.eye) {  // d/dt of (a.q) / (f.q): (a.q_t - (a.q / f.q) f.q_t) / f.q
+          const double eye_depth = forward.dot(w.point - *out.eye);
+          const Eigen::Vector2d a = out.ImagePlane(w.point);
+          for (int k = 0; k < 2; ++k) {
+            const double depth_t = forward.dot(w.d1.col(k));
+            j(0, k) = (j(0, k) - a.x() * depth_t) / eye_depth;
+            j(1, k) = (j(1, k) - a.y() * depth_t) / eye_depth;
+          }
+        }
         const double det = j.determinant();
         if (!(std::abs(det) > 0)) break;
         const Eigen::Vector2d step = -j.inverse() * r;
@@ -378,7 +394,7 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
     if (s.norm() < 1e-6) s = light.unitOrthogonal();
     plane.direction = s.normalized();
     plane.across = light.cross(plane.direction).normalized();
-    plane.eye = centre - 3 * radius * forward;
+    plane.eye = options.eye ? *options.eye : Eigen::Vector3d(centre - 3 * radius * forward);
   }
   out.light_plane = plane;
   const Eigen::Vector3d contour_direction =
@@ -517,8 +533,10 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
 
   // 6. The colour bar with its numbers, and the caption.
   std::ostringstream caption;
-  caption << ToString(options.colouring) << ", orthographic view along " << Vector(forward) << ", up "
-          << Vector(out.up) << ", light towards " << Vector(light);
+  caption << ToString(options.colouring) << ", "
+          << (out.eye ? "perspective view from " + Vector(*out.eye) + " along "
+                      : std::string("orthographic view along "))
+          << Vector(forward) << ", up " << Vector(out.up) << ", light towards " << Vector(light);
   if (bar) {
     const int bar_x = width - kBarStrip + 16, bar_w = 18, top = kMargin + 8, bottom = height - kMargin - 8;
     for (int y = top; y <= bottom; ++y) {

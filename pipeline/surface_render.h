@@ -1,11 +1,12 @@
 #pragma once
 // A small software renderer for surface interrogation (docs/interrogation.md): a fitted surface sampled over
-// its parameter domain into a triangle grid, projected orthographically along a view direction with a depth
-// buffer, and every pixel it covers traced back to its exact parameters (u, v) (the grid's barycentric (u,
-// v), refined by Newton until the exact surface point projects onto the pixel's centre); the pixel's colour
-// then comes from the exact derivatives there (fitting/surface_interrogation.h): Lambert shading, a curvature
-// map with a colour bar, isophotes, Klass reflection lines, zebra stripes or contours. No GPU, no image
-// library: the image is written by pipeline/png.h.
+// its parameter domain into a triangle grid, projected orthographically along a view direction (or in
+// perspective from an eye point) with a depth buffer, and every pixel it covers traced back to its exact
+// parameters (u, v) (the grid's barycentric (u, v), refined by Newton until the exact surface point projects
+// onto the pixel's centre); the pixel's colour then comes from the exact derivatives there
+// (fitting/surface_interrogation.h): Lambert shading, a curvature map with a colour bar, isophotes, Klass
+// reflection lines, zebra stripes or contours. No GPU, no image library: the image is written by
+// pipeline/png.h.
 
 #include <Eigen/Core>
 #include <array>
@@ -30,6 +31,9 @@ struct SurfaceRenderOptions {
   // the image (projected onto the image plane), both in the surface's world frame.
   Eigen::Vector3d view = Eigen::Vector3d(0, 0, -1);
   Eigen::Vector3d up = Eigen::Vector3d::UnitY();
+  // Set: a perspective view from this eye point (the whole surface must lie in front of it), which is also
+  // the reflection lines' eye; unset: an orthographic view.
+  std::optional<Eigen::Vector3d> eye;
   // Towards the light: Lambert shading and the isophotes' L.
   Eigen::Vector3d light = Eigen::Vector3d(0.3, 0.4, 1.0).normalized();
   // Grid cells per parameter direction (the triangles that find each pixel's surface point; the pixel's
@@ -71,11 +75,20 @@ struct SurfacePixel {
 struct SurfaceRendering {
   RgbImage image;
   std::vector<SurfacePixel> pixels;  // row-major, image.width * image.height
-  // The orthographic projection: pixel coordinates (x right, y down, centres at integer + 0.5) of a point.
-  Eigen::Vector3d right = Eigen::Vector3d::UnitX(), up = Eigen::Vector3d::UnitY();
-  double scale = 1.0, x0 = 0.0, y0 = 0.0;  // pixel = (x0 + scale right.p, y0 - scale up.p)
+  // The projection: pixel coordinates (x right, y down, centres at integer + 0.5) of a point, pixel = (x0 +
+  // scale X, y0 - scale Y) with the image-plane coordinates (X, Y) = ImagePlane(p).
+  Eigen::Vector3d right = Eigen::Vector3d::UnitX(), up = Eigen::Vector3d::UnitY(),
+                  forward = -Eigen::Vector3d::UnitZ();
+  std::optional<Eigen::Vector3d> eye;  // perspective: (X, Y) = (right.q, up.q) / forward.q, q = p - eye
+  double scale = 1.0, x0 = 0.0, y0 = 0.0;
+  Eigen::Vector2d ImagePlane(const Eigen::Vector3d& p) const {
+    if (!eye) return {right.dot(p), up.dot(p)};
+    const Eigen::Vector3d q = p - *eye;
+    return Eigen::Vector2d(right.dot(q), up.dot(q)) / forward.dot(q);
+  }
   Eigen::Vector2d Project(const Eigen::Vector3d& p) const {
-    return {x0 + scale * right.dot(p), y0 - scale * up.dot(p)};
+    const Eigen::Vector2d a = ImagePlane(p);
+    return {x0 + scale * a.x(), y0 - scale * a.y()};
   }
   // The levels the lines were drawn at (isophotes: N.L), or the curvature map's colour range.
   std::vector<double> levels;

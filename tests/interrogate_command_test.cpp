@@ -28,6 +28,12 @@ std::string Read(const fs::path& path) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+// A point off the fitted vase's axis point by (dx, dy, dz), as "x,y,z".
+std::string Eye(const nlohmann::json& fit, double dx, double dy, double dz) {
+  const auto p = fit["axis"]["point"].get<std::vector<double>>();
+  return std::to_string(p[0] + dx) + "," + std::to_string(p[1] + dy) + "," + std::to_string(p[2] + dz);
+}
+
 class InterrogateCommand : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -52,7 +58,8 @@ TEST_F(InterrogateCommand, WritesTheVasesMapsAndIsophotes) {
   for (const std::string& args :
        {std::string("--map mean --range -0.05,0.05"), std::string("--isophotes 6"),
         std::string("--reflection-lines 10 --light 0,0.3,1"), std::string("--zebra 8"),
-        std::string("--contours 12 --view 1,0,0 --size 300x200"), std::string("")}) {
+        std::string("--contours 12 --view 1,0,0 --size 300x200"),
+        "--isophotes 8 --eye " + Eye(doc, 0, 280, 60), std::string("")}) {
     const fs::path png = *dir_ / "out.png";
     fs::remove(png);
     const test::ShellResult r = RunCli("interrogate " + fit + " " + args + " -o " + png.string());
@@ -167,7 +174,8 @@ TEST_F(InterrogateCommand, BadInputIsRefusedClearly) {
   for (const std::string& args :
        {std::string("--light nan,0,1"), std::string("--view 0,0,0"), std::string("--range 1,nan"),
         std::string("--range 2,1"), std::string("--map gauss"), std::string("--size 10x"),
-        std::string("--isophotes 4 --zebra 3"), std::string("--isophotes -2")}) {
+        std::string("--isophotes 4 --zebra 3"), std::string("--isophotes -2"), std::string("--eye 1,nan,2"),
+        "--eye " + Eye(nlohmann::json::parse(Read(fit)), 0, 0, 0)}) {  // an eye inside the vase
     r = RunCli("interrogate " + fit + " " + args + " -o " + png);
     EXPECT_EQ(r.exit_code, 2) << args << ": " << r.out;
     const std::string option = args.substr(0, args.find(' '));

@@ -100,19 +100,24 @@ TEST(Png, Base64OfTheRfc4648Vectors) {
   EXPECT_EQ(Base64("foobar"), "Zm9vYmFy");
 }
 
-// The front intersection of the orthographic ray through pixel centre (x + 0.5, y + 0.5) with the sphere.
-std::optional<Eigen::Vector3d> RayHit(const SurfaceRendering& r, const Eigen::Vector3d& forward, int x, int y,
-                                      const Eigen::Vector3d& centre, double radius) {
+// The front intersection of the ray through pixel centre (x + 0.5, y + 0.5) with the sphere: orthographic
+// along the view, or from the eye in perspective.
+std::optional<Eigen::Vector3d> RayHit(const SurfaceRendering& r, int x, int y, const Eigen::Vector3d& centre,
+                                      double radius) {
   const double a = (x + 0.5 - r.x0) / r.scale, b = (r.y0 - (y + 0.5)) / r.scale;
-  const Eigen::Vector3d on_plane = a * r.right + b * r.up;  // a point of the ray (forward component 0)
-  const Eigen::Vector3d w = on_plane - centre;
-  const double half_b = w.dot(forward), c = w.squaredNorm() - radius * radius;
+  const Eigen::Vector3d origin = r.eye ? *r.eye : Eigen::Vector3d(a * r.right + b * r.up);
+  const Eigen::Vector3d direction =
+      r.eye ? Eigen::Vector3d((r.forward + a * r.right + b * r.up).normalized()) : r.forward;
+  const Eigen::Vector3d w = origin - centre;
+  const double half_b = w.dot(direction), c = w.squaredNorm() - radius * radius;
   const double disc = half_b * half_b - c;
   if (disc < 0) return std::nullopt;
-  return on_plane + (-half_b - std::sqrt(disc)) * forward;
+  return origin + (-half_b - std::sqrt(disc)) * direction;
 }
 
-TEST(SurfaceRender, SphereIsophotePixelsLieOnThePredictedCircles) {
+// A sphere rendered with isophotes (orthographic, or in perspective from `eye`): every exact pixel is the
+// ray's intersection with the sphere, and every isophote pixel lies on a predicted circle.
+void CheckSphereIsophotes(const std::optional<Eigen::Vector3d>& eye) {
   const Eigen::Vector3d centre(0.5, -1.0, 2.0);
   const double radius = 3.0;
   const SphereModel sphere(Sphere{centre, radius});
@@ -121,11 +126,11 @@ TEST(SurfaceRender, SphereIsophotePixelsLieOnThePredictedCircles) {
   o.height = 320;
   o.view = Eigen::Vector3d(0.2, -0.1, -1.0).normalized();
   o.up = Eigen::Vector3d::UnitY();
+  o.eye = eye;
   o.light = Eigen::Vector3d(0.4, 0.5, 1.0).normalized();
   o.colouring = SurfaceColouring::kIsophotes;
   o.isophote_angles_deg = {15, 30, 45, 60, 75};
   const SurfaceRendering r = RenderSurface(sphere, RigidMotion::Identity(), o);
-  const Eigen::Vector3d forward = o.view.normalized();
   ASSERT_GT(r.seen_pixels, 20000);
   // Every pixel the Newton step placed is the exact surface point under the pixel centre, its normal the
   // sphere's outward normal (the visible side).
@@ -136,7 +141,7 @@ TEST(SurfaceRender, SphereIsophotePixelsLieOnThePredictedCircles) {
     for (int x = 0; x < r.image.width; ++x) {
       const SurfacePixel& p = r.at(x, y);
       if (!p.seen || !p.exact) continue;
-      const std::optional<Eigen::Vector3d> hit = RayHit(r, forward, x, y, centre, radius);
+      const std::optional<Eigen::Vector3d> hit = RayHit(r, x, y, centre, radius);
       ASSERT_TRUE(hit) << x << " " << y;
       EXPECT_LT((p.point - *hit).norm(), 1e-8 * radius) << x << " " << y;
       EXPECT_LT((p.normal - (*hit - centre) / radius).norm(), 1e-8) << x << " " << y;
@@ -149,7 +154,7 @@ TEST(SurfaceRender, SphereIsophotePixelsLieOnThePredictedCircles) {
       for (std::size_t k = 0; k < o.isophote_angles_deg.size(); ++k) {
         const double c = std::cos(o.isophote_angles_deg[k] * M_PI / 180);
         for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{-1, 0}, std::pair{0, 1}, std::pair{0, -1}}) {
-          const std::optional<Eigen::Vector3d> n = RayHit(r, forward, x + dx, y + dy, centre, radius);
+          const std::optional<Eigen::Vector3d> n = RayHit(r, x + dx, y + dy, centre, radius);
           if (!n) continue;
           const double g = ((*n - centre) / radius).dot(o.light.normalized());
           if ((f - c) * (g - c) <= 0) {
@@ -180,6 +185,19 @@ TEST(SurfaceRender, SphereIsophotePixelsLieOnThePredictedCircles) {
       }
     }
   }
+}
+
+TEST(SurfaceRender, SphereIsophotePixelsLieOnThePredictedCircles) {
+  CheckSphereIsophotes(std::nullopt);
+}
+
+TEST(SurfaceRender, InPerspectiveTooFromAnEyePoint) {
+  // The eye 12 radii from the centre, against the view direction (the same view as above).
+  CheckSphereIsophotes(Eigen::Vector3d(0.5, -1.0, 2.0) - 12 * Eigen::Vector3d(0.2, -0.1, -1.0).normalized());
+  // An eye inside the surface's extent along the view is refused.
+  SurfaceRenderOptions o;
+  o.eye = Eigen::Vector3d::Zero();
+  EXPECT_THROW(RenderSurface(SphereModel(Sphere{}), RigidMotion::Identity(), o), std::invalid_argument);
 }
 
 TEST(SurfaceRender, TorusCurvatureMapHoldsTheClosedFormValues) {
