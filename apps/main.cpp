@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
   const s2m::app::Runner register_views = s2m::app::AddRegisterCommand(app);
   const s2m::app::Runner scan = s2m::app::AddScanCommand(app);
   const s2m::app::Runner devices = s2m::app::AddDevicesCommand(app);
+  const s2m::app::Runner interrogate = s2m::app::AddInterrogateCommand(app);
 #ifdef S2M_HAVE_HORUS
   const s2m::app::Runner calibrate = s2m::app::AddCalibrateCommand(app);
 #endif
@@ -55,6 +56,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("register")) return register_views();
     if (app.got_subcommand("scan")) return scan();
     if (app.got_subcommand("devices")) return devices();
+    if (app.got_subcommand("interrogate")) return interrogate();
 #ifdef S2M_HAVE_HORUS
     if (app.got_subcommand("calibrate")) return calibrate();
 #endif

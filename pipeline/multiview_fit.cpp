@@ -30,6 +30,7 @@
 #include "pipeline/interrogation_json.h"
 #include "pipeline/output.h"
 #include "pipeline/shell_growth.h"
+#include "pipeline/surface_model_json.h"
 #include "pipeline/views.h"
 #include "registration/scan_to_scan.h"
 
@@ -492,6 +493,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       j["profile"]["interrogation"] =
           InterrogationJson(InterrogateCurve(ToInterrogated(generatrix), {256, 0.0}), 2);
     }
+    // The surface itself, exactly, for its interrogation images (pipeline/surface_model_json.h).
+    j["surface"] = SurfaceModelJson(*model, world_T_model_fit);
     if (kinematic && kinematic->helical()) {
       j["pitch"] = MeasureHelix(kinematic->pitch(), UncertaintyOf(*model, r, "pitch"), units).ToJson();
     }

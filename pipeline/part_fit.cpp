@@ -23,6 +23,7 @@
 #include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
+#include "pipeline/surface_model_json.h"
 #include "pipeline/views.h"
 
 namespace s2m::pipeline {
@@ -252,6 +253,17 @@ FitOutcome ComputePartFit(const FitOptions& given) {
                             {"points", faces[f].count},
                             {"rms", faces[f].rms},
                             {"max_abs", faces[f].max_abs}});
+      // A spline patch as fitted, exactly (its control points at the fitted values, in the part frame = the
+      // world): the report and `scan2model interrogate` draw its interrogation (docs/interrogation.md).
+      if (d.faces[f].type == FaceType::kSplinePatch && d.faces[f].patch) {
+        const SplinePatch& patch = *d.faces[f].patch;
+        nlohmann::json control = nlohmann::json::array();
+        for (const std::array<LinearExpression, 3>& point : patch.control_points)
+          control.push_back(
+              {point[0].Evaluate(values), point[1].Evaluate(values), point[2].Evaluate(values)});
+        j["faces"].back()["surface"] = {
+            {"basis_u", BasisJson(patch.u)}, {"basis_v", BasisJson(patch.v)}, {"control_points", control}};
+      }
     }
     j["excluded_points"] = r.excluded_points;
     j["edge_margin"] = part.edge_margin();

@@ -12,6 +12,9 @@
 #include "pipeline/batch.h"
 #include "pipeline/domain_measures.h"
 #include "pipeline/output.h"
+#include "pipeline/png.h"
+#include "pipeline/surface_model_json.h"
+#include "pipeline/surface_render.h"
 #include "pipeline/svg.h"
 
 #ifndef S2M_VERSION
@@ -269,6 +272,51 @@ std::string FairCurve(const nlohmann::json& d, const nlohmann::json& q, const st
   return s.str();
 }
 
+// Every fitted surface's interrogation (docs/interrogation.md): Gaussian and mean curvature maps and
+// isophotes, rendered from the exact surface the document describes, as embedded PNG images with their
+// parameters beside them.
+std::string SurfaceInterrogation(const nlohmann::json& d) {
+  std::vector<FittedSurface> surfaces;
+  try {
+    surfaces = FittedSurfaces(d);
+  } catch (const std::invalid_argument& e) {
+    return "<h2>Surface interrogation</h2>\n<p class=\"fail\">Not available: " + Escape(e.what()) + "</p>\n";
+  }
+  std::ostringstream s;
+  for (const FittedSurface& f : surfaces) {
+    s << "<h2>Surface interrogation: " << Escape(f.label) << "</h2>\n<p class=\"note\">Every pixel is traced "
+      << "back to its exact surface parameters and coloured from the surface's exact first and second "
+         "derivatives there (docs/interrogation.md). Curvature in 1/"
+      << Escape(d["input"].value("units", "length unit")) << " (Gaussian: squared).</p>\n";
+    SurfaceRenderOptions o;
+    o.width = 600;
+    o.height = 450;
+    ChooseView(*f.model, f.world_T_model, f.axis, o);
+    struct Image {
+      SurfaceColouring colouring;
+      CurvatureKind kind;
+      const char* title;
+    };
+    for (const Image& image :
+         {Image{SurfaceColouring::kCurvature, CurvatureKind::kGaussian, "Gaussian curvature"},
+          Image{SurfaceColouring::kCurvature, CurvatureKind::kMean, "Mean curvature"},
+          Image{SurfaceColouring::kIsophotes, CurvatureKind::kGaussian, "Isophotes"}}) {
+      o.colouring = image.colouring;
+      o.curvature = image.kind;
+      try {
+        const SurfaceRendering r = RenderSurface(*f.model, f.world_T_model, o);
+        s << "<figure><img alt=\"" << image.title << "\" width=\"" << o.width << "\" height=\"" << o.height
+          << "\" src=\"data:image/png;base64," << Base64(EncodePng(r.image))
+          << "\"><figcaption class=\"note\"><b>" << image.title << "</b>: " << Escape(r.caption)
+          << ".</figcaption></figure>\n";
+      } catch (const std::exception& e) {
+        s << "<p class=\"fail\">" << image.title << " not rendered: " << Escape(e.what()) << "</p>\n";
+      }
+    }
+  }
+  return s.str();
+}
+
 std::string Convergence(const nlohmann::json& d) {
   svg::Series rms{{}, {}, "#1f5fa8", "RMS"}, max{{}, {}, "#b2182b", "max distance"};
   for (const nlohmann::json& h : d.value("history", nlohmann::json::array())) {
@@ -429,6 +477,7 @@ std::string ReportHtml(const nlohmann::json& in) {
     if (d.contains("interrogation")) body << FairCurve(d, d["interrogation"], "Fairness");
     if (d.contains("profile") && d["profile"].contains("interrogation"))
       body << FairCurve(d["profile"], d["profile"]["interrogation"], "Fairness of the generatrix (r, z)");
+    body << SurfaceInterrogation(d);
     body << Convergence(d) << Deviations(d) << Views(d);
   }
   std::ostringstream html;

@@ -27,6 +27,7 @@
 #include "pipeline/fit_options.h"
 #include "pipeline/interrogation_json.h"
 #include "pipeline/output.h"
+#include "pipeline/surface_model_json.h"
 #include "pipeline/views.h"
 
 namespace s2m::pipeline {
@@ -59,26 +60,6 @@ std::unique_ptr<ParametricModel> InitialCurve(const Eigen::MatrixXd& points, int
   return std::make_unique<BSplineCurve>(curve2d.basis(), control);
 }
 
-BSplineBasis BasisFromJson(const nlohmann::json& j) {
-  const int order = j.at("order").get<int>();
-  std::vector<double> knots = j.at("knots").get<std::vector<double>>();
-  return j.at("periodic").get<bool>() ? BSplineBasis::Periodic(order, std::move(knots))
-                                      : BSplineBasis::Clamped(order, std::move(knots));
-}
-
-Eigen::MatrixXd ControlPointsFromJson(const nlohmann::json& j) {
-  const auto rows = j.get<std::vector<std::vector<double>>>();
-  if (rows.empty()) throw std::invalid_argument("no control points");
-  Eigen::MatrixXd m(static_cast<Eigen::Index>(rows.front().size()), static_cast<Eigen::Index>(rows.size()));
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    if (rows[i].size() != rows.front().size())
-      throw std::invalid_argument("control points of different dimensions");
-    for (std::size_t c = 0; c < rows[i].size(); ++c)
-      m(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(i)) = rows[i][c];
-  }
-  return m;
-}
-
 // A user-given initial curve or surface: a scan2model.bspline/1 document (docs/method.md section 8).
 std::unique_ptr<ParametricModel> ReadInitialModel(const std::string& path, bool surface) {
   try {
@@ -98,11 +79,6 @@ std::unique_ptr<ParametricModel> ReadInitialModel(const std::string& path, bool 
   } catch (const std::exception& e) {  // JSON syntax, missing members, invalid knot vectors
     throw FormatError(path, "", std::string("unusable initial model: ") + e.what());
   }
-}
-
-nlohmann::json BasisJson(const BSplineBasis& b) {
-  return {
-      {"order", b.order()}, {"periodic", b.periodic()}, {"knots", b.knots()}, {"domain", {b.lo(), b.hi()}}};
 }
 
 // Samples of the fitted model (curve: 20 per knot span; surface: 10 x 10 per patch) for the PLY output.

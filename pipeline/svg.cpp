@@ -143,14 +143,19 @@ std::vector<double> NiceTicks(double lo, double hi, int target) {
   return ticks;
 }
 
-std::string DivergingColour(double t) {
+std::array<std::uint8_t, 3> DivergingRgb(double t) {
   t = std::clamp(std::isfinite(t) ? t : 0.0, -1.0, 1.0);
   // White at 0 to #2166ac (negative) or #b2182b (positive).
   const double a = std::abs(t);
   const int r0 = t < 0 ? 0x21 : 0xb2, g0 = t < 0 ? 0x66 : 0x18, b0 = t < 0 ? 0xac : 0x2b;
-  auto mix = [a](int c) { return static_cast<int>(std::lround(255.0 + (c - 255.0) * a)); };
+  auto mix = [a](int c) { return static_cast<std::uint8_t>(std::lround(255.0 + (c - 255.0) * a)); };
+  return {mix(r0), mix(g0), mix(b0)};
+}
+
+std::string DivergingColour(double t) {
+  const std::array<std::uint8_t, 3> c = DivergingRgb(t);
   char buffer[8];
-  std::snprintf(buffer, sizeof buffer, "#%02x%02x%02x", mix(r0), mix(g0), mix(b0));
+  std::snprintf(buffer, sizeof buffer, "#%02x%02x%02x", c[0], c[1], c[2]);
   return buffer;
 }
 

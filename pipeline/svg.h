@@ -3,6 +3,8 @@
 // function returns one well-formed <svg> element with its xmlns, usable inline in HTML or as a file.
 
 #include <Eigen/Core>
+#include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -23,6 +25,8 @@ std::string Line(double x1, double y1, double x2, double y2, const std::string& 
                  const std::string& extra = "");
 // A diverging colour for t in [-1, 1]: blue (negative), white (0), red (positive), as #rrggbb.
 std::string DivergingColour(double t);
+// The same colour as 8-bit red, green, blue (the raster images of pipeline/surface_render.h).
+std::array<std::uint8_t, 3> DivergingRgb(double t);
 
 struct Series {
   std::vector<double> x, y;

@@ -56,7 +56,9 @@ class Report : public ::testing::Test {
 TEST_F(Report, IsSelfContainedWithEverySection) {
   // No scripts, no external resources (the only URL is the SVG namespace, which is a name, not a fetch).
   EXPECT_EQ(html_.find("<script"), std::string::npos);
-  EXPECT_EQ(html_.find("src="), std::string::npos);
+  // Images only as inline PNG data (the surface interrogation, docs/interrogation.md).
+  for (std::size_t at = html_.find("src="); at != std::string::npos; at = html_.find("src=", at + 1))
+    EXPECT_EQ(html_.compare(at, 27, "src=\"data:image/png;base64,"), 0) << html_.substr(at, 60);
   EXPECT_EQ(html_.find("href="), std::string::npos);
   std::string without_namespace = html_;
   for (std::size_t at; (at = without_namespace.find("http://www.w3.org/2000/svg")) != std::string::npos;)
@@ -65,7 +67,8 @@ TEST_F(Report, IsSelfContainedWithEverySection) {
   for (const char* section :
        {"<h2>Parameters</h2>", "rim_diameter", "<h2>Model adequacy</h2>", "<h2>Vessel profile</h2>",
         "Residuals per iteration", "Residual histogram", "<h2>Deviation from the model</h2>",
-        "<h2>Views and pose corrections</h2>", "distance (log scale)"}) {
+        "<h2>Views and pose corrections</h2>", "distance (log scale)",
+        "<h2>Surface interrogation: surface of revolution</h2>", "Gaussian curvature</b>", "Isophotes</b>"}) {
     EXPECT_NE(html_.find(section), std::string::npos) << section;
   }
   // A primitive fit: its parameters with their uncertainties, its deviations; no views.
