@@ -300,7 +300,7 @@ void SolverOrderings() {
       "|\n|---:|---:|---|---:|---:|---:|\n");
   const Case c{"gaussian", [](double x, double y) { return std::exp(-0.5 * (x * x + y * y)); }};
   const Data data = Sample(c, 17);
-  for (double edge : {0.75, 0.3, 0.15}) {
+  for (double edge : {0.75, 0.4, 0.25}) {
     DomainPolygon polygon;
     polygon.outer.resize(2, 6);
     for (int k = 0; k < 6; ++k)
@@ -382,6 +382,7 @@ void SolverOrderings() {
 
 int main(int argc, char** argv) {
   using namespace s2m;
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);  // rows appear as they are measured
   const std::string only = argc > 1 ? argv[1] : "";
   const std::string script = std::string(S2M_BENCH_DIR) + "/clough_tocher_baseline.py";
   const std::vector<Case> cases = {

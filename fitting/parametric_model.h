@@ -153,6 +153,9 @@ class ParametricModel {
   }
   // Parameter values whose model points seed the foot-point search (spread over the whole domain).
   virtual std::vector<ParamT> SampleParameters() const = 0;
+  // Whether t belongs to the model: a model over a polygonal parameter domain (fitting/fe_surface_model.h)
+  // has domain()'s box around it, and the box's corners are not part of the surface.
+  virtual bool InDomain(const ParamT& /*t*/) const { return true; }
   // Models that compute their own foot points (closed form on primitives, docs/method.md section 10; per face
   // on parts) fill t and return true; the engine then skips its sample search and Newton.
   virtual bool ClosedFormFootPoint(const VecS& x, ParamT& t) const {

@@ -463,7 +463,7 @@ std::string ReportHtml(const nlohmann::json& in) {
     const std::string schema = d.value("schema", "");
     if (schema != "scan2model.fit/1" && schema != "scan2model.multiview/1" &&
         schema != "scan2model.part_fit/1" && schema != "scan2model.bspline/1" &&
-        schema != "scan2model.hermite/1") {
+        schema != "scan2model.hermite/1" && schema != "scan2model.fe-surface/1") {
       throw std::invalid_argument("not a result of scan2model fit (schema '" + schema + "')");
     }
     if (!record) title += " of " + d["input"].value("file", "");

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "fitting/bspline_models.h"
+#include "fitting/fe_surface_model.h"
 #include "fitting/kinematic_surfaces.h"
 
 namespace s2m::pipeline {
@@ -94,6 +95,54 @@ nlohmann::json SurfaceModelJson(const ParametricModel& model, const RigidMotion&
   return j;
 }
 
+namespace {
+
+Eigen::Vector3d Vector3FromJson(const nlohmann::json& j, const std::string& what) {
+  if (!j.is_array() || j.size() != 3) throw std::invalid_argument(what + " must be [x, y, z]");
+  return {Finite(j[0], what), Finite(j[1], what), Finite(j[2], what)};
+}
+
+}  // namespace
+
+FeSurface FeSurfaceFromJson(const nlohmann::json& mesh) {
+  const nlohmann::json& vertices = mesh.at("vertices");
+  const nlohmann::json& triangles = mesh.at("triangles");
+  const nlohmann::json& edges = mesh.at("edges");
+  FeMesh m;
+  m.uv.resize(2, static_cast<Eigen::Index>(vertices.size()));
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    const nlohmann::json& uv = vertices[i].at("uv");
+    if (!uv.is_array() || uv.size() != 2) throw std::invalid_argument("mesh.vertices[].uv must be [u, v]");
+    m.uv.col(static_cast<Eigen::Index>(i)) = Eigen::Vector2d(Finite(uv[0], "uv"), Finite(uv[1], "uv"));
+  }
+  for (const nlohmann::json& t : triangles) {
+    if (!t.is_array() || t.size() != 3) throw std::invalid_argument("mesh.triangles[] must be [i, j, k]");
+    m.triangles.push_back({t[0].get<int>(), t[1].get<int>(), t[2].get<int>()});
+  }
+  FeSurface surface(std::move(m));  // validates the triangles
+  if (static_cast<int>(edges.size()) != surface.edge_count())
+    throw std::invalid_argument("mesh.edges has " + std::to_string(edges.size()) + " edges, the triangles " +
+                                std::to_string(surface.edge_count()));
+  Eigen::MatrixX3d q(surface.dof_count(), 3);
+  for (int v = 0; v < surface.vertex_count(); ++v) {
+    const nlohmann::json& vertex = vertices[static_cast<std::size_t>(v)];
+    q.row(surface.vertex_dof(v, 0)) = Vector3FromJson(vertex.at("w"), "w").transpose();
+    q.row(surface.vertex_dof(v, 1)) = Vector3FromJson(vertex.at("w_u"), "w_u").transpose();
+    q.row(surface.vertex_dof(v, 2)) = Vector3FromJson(vertex.at("w_v"), "w_v").transpose();
+  }
+  for (int e = 0; e < surface.edge_count(); ++e) {
+    const nlohmann::json& edge = edges[static_cast<std::size_t>(e)];
+    const std::array<int, 2> ends = {edge.at("vertices").at(0).get<int>(),
+                                     edge.at("vertices").at(1).get<int>()};
+    if (std::minmax(ends[0], ends[1]) != std::minmax(surface.edge(e)[0], surface.edge(e)[1]))
+      throw std::invalid_argument("mesh.edges[" + std::to_string(e) +
+                                  "] does not join the vertices the triangles give it");
+    q.row(surface.edge_dof(e)) = Vector3FromJson(edge.at("w_n"), "w_n").transpose();
+  }
+  surface.set_dofs(q);
+  return surface;
+}
+
 std::vector<FittedSurface> FittedSurfaces(const nlohmann::json& document) {
   std::vector<FittedSurface> out;
   const std::string schema = document.value("schema", "");
@@ -105,6 +154,11 @@ std::vector<FittedSurface> FittedSurfaces(const nlohmann::json& document) {
       f.label = "B-spline surface";
       f.model = std::make_unique<BSplineSurface>(BasisFromJson(document.at("basis_u")),
                                                  BasisFromJson(document.at("basis_v")), cp);
+      out.push_back(std::move(f));
+    } else if (schema == "scan2model.fe-surface/1" && document.contains("mesh")) {
+      FittedSurface f;
+      f.label = "finite-element surface";
+      f.model = std::make_unique<FeSurfaceModel>(FeSurfaceFromJson(document.at("mesh")));
       out.push_back(std::move(f));
     } else if (schema == "scan2model.part_fit/1" && document.contains("faces")) {
       // A part's spline-patch faces (the part frame is the world); its analytic faces are unbounded and not

@@ -243,6 +243,14 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
   out.x0 = kMargin + 0.5 * (available_w - out.scale * extent_x) - out.scale * lo.x();
   out.y0 = kMargin + 0.5 * (available_h - out.scale * extent_y) + out.scale * hi.y();
 
+  // Grid vertices outside a polygonal domain (fitting/fe_surface_model.h) are not on the surface: the
+  // triangles touching them are left out.
+  std::vector<char> in_domain(vertices.size(), 1);
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= n; ++j)
+      in_domain[static_cast<std::size_t>(i * (n + 1) + j)] =
+          model.InDomain({domain.lo[0] + du * i, domain.lo[1] + dv * j, 0.0}) ? 1 : 0;
+
   // 2. Rasterize the triangles with a depth buffer; each covered pixel keeps the interpolated (u, v).
   std::vector<double> depth(out.pixels.size(), std::numeric_limits<double>::infinity());
   auto vertex = [&](int i, int j) -> const Eigen::Vector3d& {
@@ -253,6 +261,10 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
       const int corners[2][3][2] = {{{i, j}, {i + 1, j}, {i + 1, j + 1}},
                                     {{i, j}, {i + 1, j + 1}, {i, j + 1}}};
       for (const auto& tri : corners) {
+        if (!in_domain[static_cast<std::size_t>(tri[0][0] * (n + 1) + tri[0][1])] ||
+            !in_domain[static_cast<std::size_t>(tri[1][0] * (n + 1) + tri[1][1])] ||
+            !in_domain[static_cast<std::size_t>(tri[2][0] * (n + 1) + tri[2][1])])
+          continue;
         Eigen::Vector2d s[3];
         double z[3], pu[3], pv[3];
         for (int k = 0; k < 3; ++k) {
@@ -342,7 +354,7 @@ SurfaceRendering RenderSurface(const ParametricModel& model, const RigidMotion& 
             ParameterDistance(u, px.u, domain.periodic[0], period_u) > 2 * du ||
             ParameterDistance(v, px.v, domain.periodic[1], period_v) > 2 * dv ||
             (!domain.periodic[0] && (u < domain.lo[0] || u > domain.hi[0])) ||
-            (!domain.periodic[1] && (v < domain.lo[1] || v > domain.hi[1])))
+            (!domain.periodic[1] && (v < domain.lo[1] || v > domain.hi[1])) || !model.InDomain({u, v, 0.0}))
           break;
       }
       if (px.exact) {

@@ -10,6 +10,8 @@
 #include <random>
 
 #include "fitting/fe_surface_fit.h"
+#include "fitting/fe_surface_model.h"
+#include "fitting/model_checker.h"
 
 namespace s2m {
 namespace {
@@ -264,6 +266,47 @@ TEST(FeSurfaceFit, CurvatureJumpTermLowersTheJumpsAcrossEdges) {
     EXPECT_TRUE(fit.converged);
   }
   EXPECT_LT(jumps[1], 0.5 * jumps[0]);
+}
+
+TEST(FeSurfaceModel, PassesTheModelChecker) {
+  // The FE surface as a model of the engine: derivatives against differences, the shape Jacobian against
+  // parameter differences, similarity, clone and parameter round trip (fitting/model_checker.h). The samples
+  // lie inside the triangles, away from their edges (the second derivatives jump across edges and have no
+  // value at vertices).
+  FeSurface surface(SubdividedHexagon(3.0, 2));
+  surface.Interpolate(GaussianBump);
+  const FeSurfaceModel model(surface);
+  const ModelCheckReport report = CheckModel(model);
+  std::printf("%s", report.ToString().c_str());
+  EXPECT_TRUE(report.ok()) << report.ToString();
+}
+
+TEST(FeSurfaceModel, EvaluatesTheSurfaceAndKnowsItsPolygonalDomain) {
+  FeSurface surface(SubdividedHexagon(3.0, 3));
+  surface.Interpolate(GaussianBump);
+  const FeSurfaceModel model(surface);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> coordinate(-3.0, 3.0);
+  int inside = 0, outside = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const Eigen::Vector2d p(coordinate(rng), coordinate(rng));
+    const bool in = model.InDomain({p.x(), p.y(), 0.0});
+    EXPECT_EQ(in, InsideHexagon(p, 3.0)) << p.transpose();
+    if (!in) {
+      ++outside;
+      continue;
+    }
+    ++inside;
+    LocalGeometry g;
+    model.Evaluate({p.x(), p.y(), 0.0}, 2, g);
+    FeSurfacePoint at;
+    surface.Locate(p, at);
+    const FeSurfaceGeometry expected = surface.Evaluate(at);
+    EXPECT_LT((g.point - expected.point).norm(), 1e-12);
+    EXPECT_LT((g.d1 - expected.d1).norm(), 1e-10);
+  }
+  EXPECT_GT(inside, 100);
+  EXPECT_GT(outside, 50);  // the bounding box's corners are not the surface
 }
 
 }  // namespace

@@ -109,6 +109,30 @@ TEST_F(InterrogateCommand, BSplineSurfaceFitsAreInterrogatedToo) {
   EXPECT_NE(Read(prefix + ".html").find("Surface interrogation: B-spline surface"), std::string::npos);
 }
 
+TEST_F(InterrogateCommand, FiniteElementSurfacesAreInterrogatedOverTheirPolygon) {
+  // A saddle z = 0.3 (x^2 - y^2) over a disk (a domain no rectangle covers), fitted by `--model fe-surface`:
+  // the command draws its Gaussian map and the report shows its interrogation.
+  const fs::path points = *dir_ / "disk_saddle.xyz";
+  {
+    std::ofstream out(points);
+    for (int i = 0; i < 40; ++i)
+      for (int j = 0; j < 40; ++j) {
+        const double x = -1 + 2.0 * i / 39, y = -1 + 2.0 * j / 39;
+        if (x * x + y * y <= 1.0) out << x << " " << y << " " << 0.3 * (x * x - y * y) << "\n";
+      }
+  }
+  const std::string prefix = (*dir_ / "disk_saddle").string();
+  const test::ShellResult fit = RunCli("fit --model fe-surface " + points.string() + " -o " + prefix);
+  ASSERT_EQ(fit.exit_code, 0) << fit.out;
+  const fs::path png = *dir_ / "disk_saddle.png";
+  const test::ShellResult r = RunCli("interrogate " + prefix + ".json --map gaussian -o " + png.string());
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("finite-element surface"), std::string::npos) << r.out;
+  EXPECT_EQ(Read(png).substr(0, 8), std::string("\x89PNG\r\n\x1a\n"));
+  ASSERT_EQ(RunCli("report " + prefix + ".json -o " + prefix + ".html").exit_code, 0);
+  EXPECT_NE(Read(prefix + ".html").find("Surface interrogation: finite-element surface"), std::string::npos);
+}
+
 TEST_F(InterrogateCommand, APartsSplinePatchIsInterrogated) {
   // The free-form plate (docs/examples/freeform_plate.part.json) fitted to the relief plate's views with the
   // file's 4 x 4 net: its top patch is in the document exactly and is drawn; the analytic faces are not.
