@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <optional>
 #include <random>
 #include <string>
@@ -332,6 +333,10 @@ void SolverOrderings() {
     data_term.setFromTriplets(triplets.begin(), triplets.end());
     a += data_term;
     // The dof permutation of the node numbering: node by node, 3 dofs per vertex, 1 per mid-edge node.
+    // (The mesh and the surface number their edges independently: matched by their end vertices.)
+    std::map<std::pair<int, int>, int> fe_edge;
+    for (int e = 0; e < surface.edge_count(); ++e)
+      fe_edge[std::minmax(surface.edge(e)[0], surface.edge(e)[1])] = e;
     Eigen::VectorXi dof_of(a.rows());
     int next = 0;
     for (Eigen::Index k = 0; k < domain.numbering.order.size(); ++k) {
@@ -339,7 +344,9 @@ void SolverOrderings() {
       if (node < domain.vertex_count())
         for (int which = 0; which < 3; ++which) dof_of(surface.vertex_dof(node, which)) = next++;
       else
-        dof_of(surface.edge_dof(node - domain.vertex_count())) = next++;
+        dof_of(surface.edge_dof(fe_edge.at(std::minmax(domain.edges(0, node - domain.vertex_count()),
+                                                       domain.edges(1, node - domain.vertex_count()))))) =
+            next++;
     }
     Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> permutation(dof_of);
     const Eigen::SparseMatrix<double> banded = permutation * a * permutation.transpose();
