@@ -1,42 +1,16 @@
 #include "fitting/fe_surface_fit.h"
 
-#include <Eigen/Eigenvalues>
+#include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
-#include "registration/local_quadric.h"
+#include "fitting/geometric_fit.h"
 
 namespace s2m {
 namespace {
-
-// The surface point with its principal curvatures for SDM's error matrix (registration/local_quadric.h).
-SurfacePoint CurvatureFrame(const FeSurfaceGeometry& g) {
-  SurfacePoint s;
-  s.point = g.point;
-  const Eigen::Vector3d n = g.d1.col(0).cross(g.d1.col(1));
-  s.normal = n.normalized();
-  Eigen::Matrix2d first, second;
-  first << g.d1.col(0).squaredNorm(), g.d1.col(0).dot(g.d1.col(1)), g.d1.col(0).dot(g.d1.col(1)),
-      g.d1.col(1).squaredNorm();
-  second << s.normal.dot(g.d2.col(0)), s.normal.dot(g.d2.col(1)), s.normal.dot(g.d2.col(1)),
-      s.normal.dot(g.d2.col(2));
-  // Shape operator W = I^-1 II in the (u, v) basis; its eigenvectors mapped by d1 are the principal
-  // directions, its eigenvalues the curvatures, positive when the surface bends towards the normal.
-  const Eigen::Matrix2d shape = first.ldlt().solve(second);
-  Eigen::EigenSolver<Eigen::Matrix2d> solver(shape);
-  const Eigen::Vector2d k = solver.eigenvalues().real();
-  const int low = k(0) <= k(1) ? 0 : 1;
-  s.kappa1 = k(low);
-  s.kappa2 = k(1 - low);
-  Eigen::Vector3d t1 = g.d1 * solver.eigenvectors().col(low).real();
-  t1 = (t1 - t1.dot(s.normal) * s.normal).normalized();
-  s.direction1 = t1;
-  s.direction2 = s.normal.cross(t1);
-  return s;
-}
 
 double DomainArea(const FeSurface& surface) {
   double area = 0.0;
@@ -58,6 +32,9 @@ bool FeSurfaceFitOptions::IsValid(std::string* why) const {
   };
   if (!(stretch >= 0.0) || !(bending >= 0.0) || !(jump >= 0.0) || !std::isfinite(stretch + bending + jump))
     return fail("fairness weights must be finite and non-negative");
+  if (method != ErrorTerm::kPdm && method != ErrorTerm::kTdm && method != ErrorTerm::kSdm &&
+      method != ErrorTerm::kCdm)
+    return fail("the error term must be pdm, tdm, sdm or cdm");
   if (max_iterations < 1) return fail("max_iterations must be at least 1");
   if (!(tolerance > 0.0)) return fail("tolerance must be positive");
   return true;
@@ -176,12 +153,14 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
       const FeSurfaceGeometry g = surface.Evaluate(foot);
       const Eigen::Vector3d r = points.col(i) - g.point;
       Eigen::Matrix3d m = Eigen::Matrix3d::Identity();
-      if (options.method != FeFitMethod::kPdm && inside[static_cast<std::size_t>(i)] && !fixed_start) {
-        const SurfacePoint frame = CurvatureFrame(g);
-        if (options.method == FeFitMethod::kTdm)
-          m = frame.normal * frame.normal.transpose();
-        else
-          m = SdmErrorMatrix(frame, points.col(i));
+      if (options.method != ErrorTerm::kPdm && inside[static_cast<std::size_t>(i)] && !fixed_start) {
+        // The engine's error matrices (fitting/geometric_fit.h, docs/method.md section 2) in the principal
+        // frame at the foot, oriented towards the point.
+        LocalGeometry local;
+        local.point = g.point;
+        local.d1 = g.d1;
+        local.d2 = g.d2;
+        m = ErrorMatrix(options.method, ComputePrincipalFrame(local, VecS(points.col(i))), 3);
       }
       auto& block = blocks[static_cast<std::size_t>(foot.triangle)];
       const auto& element_dofs = surface.element_dofs(foot.triangle);

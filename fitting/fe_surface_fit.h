@@ -10,13 +10,12 @@
 #include <vector>
 
 #include "fitting/fe_surface.h"
+#include "fitting/geometric_fit.h"
 
 namespace s2m {
 
-enum class FeFitMethod { kPdm, kTdm, kSdm };
-
 struct FeSurfaceFitOptions {
-  FeFitMethod method = FeFitMethod::kSdm;
+  ErrorTerm method = ErrorTerm::kSdm;  // pdm, tdm, sdm or cdm (fitting/geometric_fit.h)
   // Relative (dimensionless) fairness weights of eq. P6: the energy enters as N * (weight * D^k / A) times
   // the integral, D the domain's diameter, A its area, k = 2 (stretch), 4 (bending), 3 (jump along edges), so
   // a weight means the same at any size and point count.

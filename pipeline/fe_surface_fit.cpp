@@ -12,6 +12,7 @@
 #include "acquisition/point_cloud_io.h"
 #include "fitting/domain_mesh.h"
 #include "fitting/fe_surface.h"
+#include "fitting/surface_interrogation.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
@@ -121,19 +122,6 @@ PatchFit FitPatch(const DomainPolygon& polygon, const DomainMeshOptions& mesh_op
   return p;
 }
 
-// The largest absolute principal curvature at a surface point (docs/fe-surfaces.md eq. P10).
-double MaxAbsCurvature(const FeSurfaceGeometry& g) {
-  const Eigen::Vector3d normal = g.d1.col(0).cross(g.d1.col(1)).normalized();
-  Eigen::Matrix2d first, second;
-  first << g.d1.col(0).squaredNorm(), g.d1.col(0).dot(g.d1.col(1)), g.d1.col(0).dot(g.d1.col(1)),
-      g.d1.col(1).squaredNorm();
-  second << normal.dot(g.d2.col(0)), normal.dot(g.d2.col(1)), normal.dot(g.d2.col(1)),
-      normal.dot(g.d2.col(2));
-  const double k =
-      (first.determinant() > 0) ? (second * first.inverse()).eigenvalues().cwiseAbs().maxCoeff() : 0.0;
-  return std::isfinite(k) ? k : 0.0;
-}
-
 nlohmann::json Vector(const Eigen::Vector3d& v) {
   return {v.x(), v.y(), v.z()};
 }
@@ -196,14 +184,9 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
 
     FeSurfaceFitOptions fit_options;
     const std::string method = o.method.empty() ? "sdm" : o.method;
-    if (method == "pdm")
-      fit_options.method = FeFitMethod::kPdm;
-    else if (method == "tdm")
-      fit_options.method = FeFitMethod::kTdm;
-    else if (method == "sdm")
-      fit_options.method = FeFitMethod::kSdm;
-    else
-      throw FitFailure(kUsage, "--method " + method + ": fe-surface takes pdm, tdm or sdm");
+    if (method != "pdm" && method != "tdm" && method != "sdm" && method != "cdm")
+      throw FitFailure(kUsage, "--method " + method + ": fe-surface takes sdm, tdm, pdm or cdm");
+    fit_options.method = ErrorTermFromString(method);
     fit_options.stretch = o.stretch;
     fit_options.bending = o.bending_given ? o.bending : 1e-7;
     fit_options.jump = o.beta2;
@@ -223,7 +206,9 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
       FeSurfacePoint walker;
       mesh_options.size = [&first, &walker, angle, edge](double u, double v) {
         first.Locate(Eigen::Vector2d(u, v), walker);
-        const double k = MaxAbsCurvature(first.Evaluate(walker));
+        const FeSurfaceGeometry g = first.Evaluate(walker);
+        const SurfacePointCurvature c = InterrogateSurfacePoint(g.point, g.d1, g.d2);
+        const double k = c.regular ? std::max(std::abs(c.kmax), std::abs(c.kmin)) : 0.0;
         return std::clamp(k > 0 ? angle / k : edge, edge / 3.0, edge);
       };
       if (o.progress) o.progress("refining the mesh where the surface bends, and fitting again");

@@ -220,8 +220,8 @@ TEST(FeSurfaceFit, GaussianBumpFromScatteredNoisyPoints) {
   // iterations it is still above SDM's objective.
   std::mt19937 rng(2024);
   const NoisyBump data = SampleNoisyBump(3000, 0.005, rng);
-  std::map<FeFitMethod, FeSurfaceFitResult> fits;
-  for (FeFitMethod method : {FeFitMethod::kPdm, FeFitMethod::kTdm, FeFitMethod::kSdm}) {
+  std::map<ErrorTerm, FeSurfaceFitResult> fits;
+  for (ErrorTerm method : {ErrorTerm::kPdm, ErrorTerm::kTdm, ErrorTerm::kSdm}) {
     FeSurface surface(SubdividedHexagon(3.0, 4));
     FeSurfaceFitOptions options;
     options.method = method;
@@ -237,10 +237,10 @@ TEST(FeSurfaceFit, GaussianBumpFromScatteredNoisyPoints) {
     EXPECT_NEAR(fit.rms, 0.005, 0.0005);  // isotropic noise 0.005 per coordinate: 0.005 along the normal
     fits[method] = fit;
   }
-  EXPECT_TRUE(fits[FeFitMethod::kTdm].converged);
-  EXPECT_TRUE(fits[FeFitMethod::kSdm].converged);
-  EXPECT_LT(fits[FeFitMethod::kSdm].iterations, 20);
-  EXPECT_GT(fits[FeFitMethod::kPdm].objective.back(), fits[FeFitMethod::kSdm].objective.back());
+  EXPECT_TRUE(fits[ErrorTerm::kTdm].converged);
+  EXPECT_TRUE(fits[ErrorTerm::kSdm].converged);
+  EXPECT_LT(fits[ErrorTerm::kSdm].iterations, 20);
+  EXPECT_GT(fits[ErrorTerm::kPdm].objective.back(), fits[ErrorTerm::kSdm].objective.back());
 }
 
 TEST(FeSurfaceFit, CurvatureJumpTermLowersTheJumpsAcrossEdges) {

@@ -81,13 +81,15 @@ TEST(FitDispatch, FailuresCarryTheirExitCodes) {
 }
 
 TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
-  EXPECT_EQ(ManifestOptionKeys(),
-            "alpha1, alpha2, alpha3, bending, beta2, beta3, c2, closed, contour, control_points, criterion, "
-            "degree, efd, elements, fairness_fraction, fill_height, geometric_variation, growth, initial, "
-            "interpolate, loss, max_iterations, method, "
-            "order, pitch, reference, rejected_output, relative_variation, robust, seed, solver, start, "
-            "step_control, stretch, "
-            "tolerance, uncertainty, units, wall");
+  EXPECT_EQ(
+      ManifestOptionKeys(),
+      "alpha1, alpha2, alpha3, bending, beta2, beta3, boundary, c2, closed, contour, control_points, "
+      "criterion, "
+      "degree, efd, elements, fairness_fraction, fill_height, geometric_variation, growth, initial, "
+      "interpolate, loss, max_iterations, method, "
+      "order, pitch, reference, rejected_output, relative_variation, robust, seed, size, solver, start, "
+      "step_control, stretch, "
+      "tolerance, uncertainty, units, wall");
   for (const FitOptionSpec& spec : FitOptionTable()) {
     EXPECT_TRUE(spec.set) << spec.key << spec.names;
     // Every manifest key but the solver (three flags) is also a command-line option with the dashed name.
@@ -727,7 +729,7 @@ TEST(FitDispatch, FeSurfaceRefusesDegenerateInputWithAMessage) {
 
   FitOptions method = o;
   method.file = bowtie.file;
-  method.method = "cdm";
+  method.method = "icp";  // not an error term
   EXPECT_EQ(failure(method).first, kUsage);
   FitOptions other = o;
   other.model = "bspline-surface";
