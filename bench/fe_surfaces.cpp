@@ -186,7 +186,7 @@ Row FeSurfaceRow(const Case& c, const Data& d, const Grid& g, double edge, doubl
   for (int t = 0; t < domain.triangle_count(); ++t)
     mesh.triangles.push_back({domain.triangles(0, t), domain.triangles(1, t), domain.triangles(2, t)});
   FeSurface surface(mesh);
-  const std::vector<int> pinned = SetPlanarChart(surface);
+  const std::vector<FeFixedDirection> pinned = SetPlanarChart(surface);
   FeSurfaceFitOptions options;
   options.jump = jump;
   const FeSurfaceFitResult fit = FitFeSurface(d.points, d.points.topRows<2>(), options, surface, pinned);

@@ -23,6 +23,47 @@ double DomainDiameter(const FeSurface& surface) {
   return (uv.rowwise().maxCoeff() - uv.rowwise().minCoeff()).norm();
 }
 
+// The reduced transformation of eq. P9 for constraints that fix components of single vector dofs: the step
+// delta = T y with T block-diagonal, one 3 x m_d block per dof whose orthonormal columns span the complement
+// of the dof's fixed directions (m_d = 3 for a free dof, 0 for a dof fixed in three independent directions).
+Eigen::SparseMatrix<double> ReducedBasis(const std::vector<FeFixedDirection>& fixed, int dofs) {
+  std::vector<std::vector<Eigen::Vector3d>> directions(static_cast<std::size_t>(dofs));
+  for (const FeFixedDirection& f : fixed) {
+    if (f.dof < 0 || f.dof >= dofs)
+      throw std::invalid_argument("finite-element surface fit: a fixed direction of dof " +
+                                  std::to_string(f.dof) + ", out of range (" + std::to_string(dofs) +
+                                  " dofs)");
+    if (!f.direction.allFinite() || !(f.direction.norm() > 0.0))
+      throw std::invalid_argument("finite-element surface fit: a fixed direction of dof " +
+                                  std::to_string(f.dof) + " is zero or not finite");
+    directions[static_cast<std::size_t>(f.dof)].push_back(f.direction.normalized());
+  }
+  std::vector<Eigen::Triplet<double>> triplets;
+  int column = 0;
+  for (int d = 0; d < dofs; ++d) {
+    const std::vector<Eigen::Vector3d>& mine = directions[static_cast<std::size_t>(d)];
+    Eigen::Matrix3d free = Eigen::Matrix3d::Identity();
+    int free_count = 3;
+    if (!mine.empty()) {
+      Eigen::Matrix3Xd a(3, static_cast<Eigen::Index>(mine.size()));
+      for (std::size_t i = 0; i < mine.size(); ++i) a.col(static_cast<Eigen::Index>(i)) = mine[i];
+      // The left singular vectors beyond the directions' rank span their orthogonal complement.
+      const Eigen::JacobiSVD<Eigen::Matrix3Xd> svd(a, Eigen::ComputeFullU);
+      int rank = 0;
+      for (Eigen::Index i = 0; i < svd.singularValues().size(); ++i)
+        if (svd.singularValues()(i) > 1e-10 * svd.singularValues()(0)) ++rank;
+      free_count = 3 - rank;
+      free.leftCols(free_count) = svd.matrixU().rightCols(free_count);
+    }
+    for (int j = 0; j < free_count; ++j, ++column)
+      for (int c = 0; c < 3; ++c)
+        if (free(c, j) != 0.0) triplets.emplace_back(3 * d + c, column, free(c, j));
+  }
+  Eigen::SparseMatrix<double> t(3 * dofs, column);
+  t.setFromTriplets(triplets.begin(), triplets.end());
+  return t;
+}
+
 }  // namespace
 
 bool FeSurfaceFitOptions::IsValid(std::string* why) const {
@@ -92,7 +133,7 @@ bool FeFootPoint(const FeSurface& surface, const Eigen::Vector3d& x, FeSurfacePo
 
 FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Matrix2Xd& start_uv,
                                 const FeSurfaceFitOptions& options, FeSurface& surface,
-                                const std::vector<int>& fixed) {
+                                const std::vector<FeFixedDirection>& fixed) {
   std::string why;
   if (!options.IsValid(&why)) throw std::invalid_argument("finite-element surface fit: " + why);
   if (points.cols() != start_uv.cols())
@@ -102,13 +143,7 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
   if (!points.allFinite() || !start_uv.allFinite())
     throw std::invalid_argument("finite-element surface fit: a point or start parameter is not finite");
   const int n = static_cast<int>(points.cols());
-  std::vector<char> is_fixed(static_cast<std::size_t>(3 * surface.dof_count()), 0);
-  for (int f : fixed) {
-    if (f < 0 || f >= 3 * surface.dof_count())
-      throw std::invalid_argument("finite-element surface fit: fixed unknown " + std::to_string(f) +
-                                  " out of range");
-    is_fixed[static_cast<std::size_t>(f)] = 1;
-  }
+  const Eigen::SparseMatrix<double> reduced_basis = ReducedBasis(fixed, surface.dof_count());
   FeSurfaceFitResult result;
   result.weights = AbsoluteFairnessWeights(options, surface, n);
   const Eigen::SparseMatrix<double> k = surface.EnergyMatrix(result.weights);
@@ -182,26 +217,23 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
           if (block(a, b) != 0.0) {
             const int row = 3 * element_dofs[static_cast<std::size_t>(a / 3)] + a % 3;
             const int col = 3 * element_dofs[static_cast<std::size_t>(b / 3)] + b % 3;
-            if (!is_fixed[static_cast<std::size_t>(row)] && !is_fixed[static_cast<std::size_t>(col)])
-              triplets.emplace_back(row, col, block(a, b));
+            triplets.emplace_back(row, col, block(a, b));
           }
     }
     for (int outer = 0; outer < k.outerSize(); ++outer)
       for (Eigen::SparseMatrix<double>::InnerIterator it(k, outer); it; ++it)
-        for (int c = 0; c < 3; ++c) {
-          const int row = 3 * static_cast<int>(it.row()) + c, col = 3 * static_cast<int>(it.col()) + c;
-          if (!is_fixed[static_cast<std::size_t>(row)] && !is_fixed[static_cast<std::size_t>(col)])
-            triplets.emplace_back(row, col, it.value());
-        }
-    // Fixed unknowns: their rows and columns are deleted (an identity row keeps the matrix's size).
-    for (std::size_t f = 0; f < is_fixed.size(); ++f)
-      if (is_fixed[f]) triplets.emplace_back(static_cast<int>(f), static_cast<int>(f), 1.0);
-    Eigen::SparseMatrix<double> normal(3 * dofs, 3 * dofs);
-    normal.setFromTriplets(triplets.begin(), triplets.end());
+        for (int c = 0; c < 3; ++c)
+          triplets.emplace_back(3 * static_cast<int>(it.row()) + c, 3 * static_cast<int>(it.col()) + c,
+                                it.value());
+    Eigen::SparseMatrix<double> full(3 * dofs, 3 * dofs);
+    full.setFromTriplets(triplets.begin(), triplets.end());
     const Eigen::MatrixX3d kq = k * surface.dofs();
     for (int d = 0; d < dofs; ++d) rhs.segment<3>(3 * d) -= kq.row(d).transpose();
-    for (std::size_t f = 0; f < is_fixed.size(); ++f)
-      if (is_fixed[f]) rhs(static_cast<Eigen::Index>(f)) = 0.0;
+    // Eq. P9: the step is delta = T y; y solves T^T N T y = T^T g.
+    const Eigen::SparseMatrix<double> normal =
+        Eigen::SparseMatrix<double>(reduced_basis.transpose() * full * reduced_basis);
+    const Eigen::VectorXd reduced_rhs = reduced_basis.transpose() * rhs;
+    const Eigen::Index unknowns = normal.rows();
     const Eigen::VectorXd diagonal = normal.diagonal();
     const double diagonal_scale = std::max(diagonal.maxCoeff(), 1e-300);
 
@@ -211,15 +243,16 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
       // Marquardt damping with a floor: the step is unique even where the dofs are unobservable (a tangential
       // drift of a flat region changes neither TDM's residuals nor the bending energy).
       Eigen::SparseMatrix<double> damped = normal;
-      for (int d = 0; d < 3 * dofs; ++d)
+      for (Eigen::Index d = 0; d < unknowns; ++d)
         damped.coeffRef(d, d) += damping * std::max(diagonal(d), 1e-12 * diagonal_scale);
       Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(damped);
-      const Eigen::VectorXd delta =
-          solver.info() == Eigen::Success ? Eigen::VectorXd(solver.solve(rhs)) : Eigen::VectorXd();
-      if (delta.size() == 0 || !delta.allFinite()) {
+      const Eigen::VectorXd y =
+          solver.info() == Eigen::Success ? Eigen::VectorXd(solver.solve(reduced_rhs)) : Eigen::VectorXd();
+      if (y.size() == 0 || !y.allFinite()) {
         damping *= 10.0;
         continue;
       }
+      const Eigen::VectorXd delta = reduced_basis * y;
       Eigen::MatrixX3d q = q0;
       for (int d = 0; d < dofs; ++d) q.row(d) += delta.segment<3>(3 * d).transpose();
       surface.set_dofs(q);
@@ -265,7 +298,20 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
   return result;
 }
 
-std::vector<int> SetPlanarChart(FeSurface& surface) {
+namespace {
+
+// The vertices on the domain's boundary.
+std::vector<char> BoundaryVertices(const FeSurface& surface) {
+  std::vector<char> boundary(static_cast<std::size_t>(surface.vertex_count()), 0);
+  for (int e = 0; e < surface.edge_count(); ++e)
+    if (surface.boundary_edge(e))
+      for (int v : surface.edge(e)) boundary[static_cast<std::size_t>(v)] = 1;
+  return boundary;
+}
+
+}  // namespace
+
+std::vector<FeFixedDirection> SetPlanarChart(FeSurface& surface) {
   surface.Interpolate([](const Eigen::Vector2d& p) {
     Eigen::Matrix3d f;
     f.col(0) = Eigen::Vector3d(p.x(), p.y(), 0.0);
@@ -273,17 +319,57 @@ std::vector<int> SetPlanarChart(FeSurface& surface) {
     f.col(2) = Eigen::Vector3d::UnitY();
     return f;
   });
-  std::vector<char> boundary_vertex(static_cast<std::size_t>(surface.vertex_count()), 0);
-  std::vector<int> fixed;
-  for (int e = 0; e < surface.edge_count(); ++e) {
-    if (!surface.boundary_edge(e)) continue;
-    for (int v : surface.edge(e)) boundary_vertex[static_cast<std::size_t>(v)] = 1;
-    for (int c = 0; c < 2; ++c) fixed.push_back(3 * surface.edge_dof(e) + c);
-  }
+  // Eq. P8: x and y of every boundary dof.
+  std::vector<FeFixedDirection> fixed;
+  const auto pin = [&fixed](int dof) {
+    fixed.push_back({dof, Eigen::Vector3d::UnitX()});
+    fixed.push_back({dof, Eigen::Vector3d::UnitY()});
+  };
+  for (int e = 0; e < surface.edge_count(); ++e)
+    if (surface.boundary_edge(e)) pin(surface.edge_dof(e));
+  const std::vector<char> boundary = BoundaryVertices(surface);
   for (int v = 0; v < surface.vertex_count(); ++v)
-    if (boundary_vertex[static_cast<std::size_t>(v)])
-      for (int which = 0; which < 3; ++which)
-        for (int c = 0; c < 2; ++c) fixed.push_back(3 * surface.vertex_dof(v, which) + c);
+    if (boundary[static_cast<std::size_t>(v)])
+      for (int which = 0; which < 3; ++which) pin(surface.vertex_dof(v, which));
+  return fixed;
+}
+
+std::vector<FeFixedDirection> SetCylindricalChart(FeSurface& surface, double radius) {
+  if (!(radius > 0.0) || !std::isfinite(radius))
+    throw std::invalid_argument("cylindrical chart: the radius must be positive and finite");
+  const Eigen::Matrix2Xd& uv = surface.mesh().uv;
+  const double width = uv.row(0).maxCoeff() - uv.row(0).minCoeff();
+  if (!(width < 2.0 * M_PI * radius))
+    throw std::invalid_argument("cylindrical chart: the domain is " + std::to_string(width) +
+                                " wide round the axis, the cylinder's circumference " +
+                                std::to_string(2.0 * M_PI * radius));
+  // Eq. P8c: w = R e_r(u/R) + v e_z, w_u = e_theta(u/R), w_v = e_z.
+  const auto radial = [radius](double u) {
+    return Eigen::Vector3d(std::cos(u / radius), std::sin(u / radius), 0);
+  };
+  const auto around = [radius](double u) {
+    return Eigen::Vector3d(-std::sin(u / radius), std::cos(u / radius), 0);
+  };
+  surface.Interpolate([&](const Eigen::Vector2d& p) {
+    Eigen::Matrix3d f;
+    f.col(0) = radius * radial(p.x()) + p.y() * Eigen::Vector3d::UnitZ();
+    f.col(1) = around(p.x());
+    f.col(2) = Eigen::Vector3d::UnitZ();
+    return f;
+  });
+  std::vector<FeFixedDirection> fixed;
+  const std::vector<char> boundary = BoundaryVertices(surface);
+  for (int v = 0; v < surface.vertex_count(); ++v) {
+    if (!boundary[static_cast<std::size_t>(v)]) continue;
+    const Eigen::Vector3d e_theta = around(uv(0, v));
+    for (int which : {0, 2}) {
+      fixed.push_back({surface.vertex_dof(v, which), e_theta});
+      fixed.push_back({surface.vertex_dof(v, which), Eigen::Vector3d::UnitZ()});
+    }
+    fixed.push_back({surface.vertex_dof(v, 1), Eigen::Vector3d::UnitZ()});
+  }
+  for (int e = 0; e < surface.edge_count(); ++e)
+    if (surface.boundary_edge(e)) fixed.push_back({surface.edge_dof(e), Eigen::Vector3d::UnitZ()});
   return fixed;
 }
 

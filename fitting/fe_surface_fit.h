@@ -44,22 +44,39 @@ struct FeSurfaceFitResult {
 // C1, so the steps see one smooth chart). Returns false when the foot is on the domain's boundary.
 bool FeFootPoint(const FeSurface& surface, const Eigen::Vector3d& x, FeSurfacePoint& at);
 
+// A linear constraint of the reduced transformation (docs/fe-surfaces.md eq. P9): the vector dof `dof` keeps
+// its current component along `direction` (any non-zero vector; several per dof span the fixed subspace).
+struct FeFixedDirection {
+  int dof = 0;
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
+};
+
 // Fits surface's dofs to the points. start_uv holds each point's parameter to start from (for a patch
-// projected onto a plane, its projection): the first step is the linear least-squares fit (PDM) with the
-// points held at these parameters, from the surface's current dofs; later steps re-find the feet. The
-// unknowns listed in `fixed` (index 3 dof + coordinate) keep their current values: the reduced transformation
-// of docs/fe-surfaces.md eq. P9 for constraints that fix dofs. Throws std::invalid_argument for mismatched
-// sizes, non-finite input, an out-of-range fixed unknown or invalid options.
+// projected onto a plane or a cylinder, its projection): the first step is the linear least-squares fit
+// (PDM) with the points held at these parameters, from the surface's current dofs; later steps re-find the
+// feet. Every dof keeps its components along its fixed directions: the steps are confined to the free
+// subspace by the reduced transformation of eq. P9. Throws std::invalid_argument for mismatched sizes,
+// non-finite input, a fixed direction of an out-of-range dof or a zero direction, or invalid options.
 FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Matrix2Xd& start_uv,
                                 const FeSurfaceFitOptions& options, FeSurface& surface,
-                                const std::vector<int>& fixed = {});
+                                const std::vector<FeFixedDirection>& fixed = {});
 
 // A patch parametrized by its projection onto a plane (the points expressed in the plane's frame: x, y in the
 // plane, z along its normal): sets the surface to the plane z = 0 with the identity chart w = (u, v, 0), and
-// returns the unknowns that pin the boundary's in-plane position and slopes to the domain polygon (x and y of
-// every boundary vertex's value and slopes and of every boundary edge's normal slope), so that the fitted
-// patch covers exactly the domain's projection and cannot shrink or slide along its plane.
-std::vector<int> SetPlanarChart(FeSurface& surface);
+// returns the constraints that pin the boundary's in-plane position and slopes to the domain polygon (x and
+// y of every boundary vertex's value and slopes and of every boundary edge's normal slope, eq. P8), so that
+// the fitted patch covers exactly the domain's projection and cannot shrink or slide along its plane.
+std::vector<FeFixedDirection> SetPlanarChart(FeSurface& surface);
+
+// A patch parametrized by its development onto a cylinder of radius R about the z axis (the points expressed
+// in the cylinder's frame): u = R theta (arc length round the axis), v = z. Sets the surface to the cylinder,
+// w = (R cos(u/R), R sin(u/R), v), and returns the constraints that let the boundary move only radially
+// (eq. P8c): every boundary vertex keeps w's and w_v's components along the cylinder's tangents e_theta(u)
+// and e_z, and w_u's and every boundary edge's w_n's component along e_z. A surface r(u, v) e_r(u) + v e_z
+// with any radius function r meets them all, so they fix the development, not the shape. Throws
+// std::invalid_argument for a radius that is not positive or a domain wider than the cylinder's
+// circumference.
+std::vector<FeFixedDirection> SetCylindricalChart(FeSurface& surface, double radius);
 
 // The absolute weights of eq. P6 for a point count and a surface's domain.
 FairnessWeights AbsoluteFairnessWeights(const FeSurfaceFitOptions& options, const FeSurface& surface,

@@ -1,5 +1,6 @@
 // `scan2model fit --model fe-surface`: a fair triangular finite-element surface (docs/fe-surfaces.md) fitted
-// to a patch of points parametrized by its projection onto the points' best plane.
+// to a patch of points parametrized by its projection onto the points' best plane or its development onto
+// their best cylinder.
 
 #include "fitting/fe_surface_fit.h"
 
@@ -12,6 +13,8 @@
 #include "acquisition/point_cloud_io.h"
 #include "fitting/domain_mesh.h"
 #include "fitting/fe_surface.h"
+#include "fitting/primitive_fit.h"
+#include "fitting/primitives.h"
 #include "fitting/surface_interrogation.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
@@ -39,6 +42,84 @@ PlaneFrame FitPlaneFrame(const Eigen::Matrix3Xd& points) {
   f.axes.col(2) = f.axes.col(0).cross(f.axes.col(1));
   f.spread = solver.eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
   return f;
+}
+
+// The chart the patch is parametrized over (docs/fe-surfaces.md section 6): a right-handed frame of the data
+// (origin, axes) and, for a cylinder, its radius about the frame's z axis.
+struct Chart {
+  bool cylinder = false;
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();  // columns: the frame's x, y, z in data coordinates
+  double radius = 0.0;
+  double angular_gap = 0.0;  // cylinder: the largest angle round the axis without points (radians)
+
+  Eigen::Matrix3Xd ToLocal(const Eigen::Matrix3Xd& points) const {
+    return axes.transpose() * (points.colwise() - origin);
+  }
+  // (u, v) of points in the frame: the projection (x, y), or the development (R atan2(y, x), z) with the
+  // angle's cut opposite the patch.
+  Eigen::Matrix2Xd Parameters(const Eigen::Matrix3Xd& local) const {
+    if (!cylinder) return local.topRows<2>();
+    Eigen::Matrix2Xd uv(2, local.cols());
+    for (Eigen::Index i = 0; i < local.cols(); ++i)
+      uv.col(i) = Eigen::Vector2d(radius * std::atan2(local(1, i), local(0, i)), local(2, i));
+    return uv;
+  }
+};
+
+Chart PlaneChart(const PlaneFrame& plane) {
+  Chart c;
+  c.origin = plane.origin;
+  c.axes = plane.axes;
+  return c;
+}
+
+// The points' best cylinder (least squares, fitting/primitive_fit.h) as a chart: z along the axis, the
+// origin on the axis at the points' mean height, x towards the middle of the points' angular range (the cut
+// of the angle at the middle of the largest gap round the axis). A patch that goes round the axis (largest
+// gap under 30 degrees) is refused: the development of a closed tube is not one polygon.
+Chart CylinderChart(const Eigen::Matrix3Xd& points, const std::string& file) {
+  Cylinder cylinder;
+  try {
+    cylinder = FitCylinder(points).shape;
+  } catch (const FitError& e) {
+    throw FitFailure(kFitError,
+                     file + ": --projection cylinder: no cylinder fits the points (" + e.what() + ")");
+  }
+  if (!(cylinder.radius > 0.0) || !std::isfinite(cylinder.radius) || !cylinder.axis_direction.allFinite() ||
+      !cylinder.axis_point.allFinite())
+    throw FitFailure(kFitError, file + ": --projection cylinder: the cylinder fit did not converge");
+  Chart c;
+  c.cylinder = true;
+  c.radius = cylinder.radius;
+  const Eigen::Matrix3d frame = FrameWithAxis(cylinder.axis_direction.normalized());
+  const Eigen::Vector3d centroid = points.rowwise().mean();
+  c.origin = cylinder.axis_point + frame.col(2) * frame.col(2).dot(centroid - cylinder.axis_point);
+  std::vector<double> angles(static_cast<std::size_t>(points.cols()));
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    const Eigen::Vector3d q = frame.transpose() * (points.col(i) - c.origin);
+    angles[static_cast<std::size_t>(i)] = std::atan2(q.y(), q.x());
+  }
+  std::sort(angles.begin(), angles.end());
+  double gap = angles.front() + 2.0 * M_PI - angles.back(), gap_middle = angles.back() + 0.5 * gap;
+  for (std::size_t i = 1; i < angles.size(); ++i)
+    if (angles[i] - angles[i - 1] > gap) {
+      gap = angles[i] - angles[i - 1];
+      gap_middle = angles[i - 1] + 0.5 * gap;
+    }
+  c.angular_gap = gap;
+  if (gap < M_PI / 6.0)
+    throw FitFailure(kFitError,
+                     file +
+                         ": --projection cylinder: the points go round the cylinder's axis (largest "
+                         "gap " +
+                         Format(gap * 180.0 / M_PI, 3) +
+                         " degrees); a closed tube is not one patch (its development needs a cut)");
+  const double middle = gap_middle + M_PI;
+  c.axes.col(0) = std::cos(middle) * frame.col(0) + std::sin(middle) * frame.col(1);
+  c.axes.col(2) = frame.col(2);
+  c.axes.col(1) = c.axes.col(2).cross(c.axes.col(0));
+  return c;
 }
 
 // Andrew's monotone chain: the convex hull counter-clockwise, without collinear points.
@@ -111,13 +192,14 @@ struct PatchFit {
   FeSurfaceFitResult result;
 };
 
-PatchFit FitPatch(const DomainPolygon& polygon, const DomainMeshOptions& mesh_options,
+PatchFit FitPatch(const Chart& chart, const DomainPolygon& polygon, const DomainMeshOptions& mesh_options,
                   const Eigen::Matrix3Xd& local, const Eigen::Matrix2Xd& uv,
                   const FeSurfaceFitOptions& fit_options) {
   PatchFit p;
   p.domain = MeshDomain(polygon, mesh_options);
   p.surface = std::make_unique<FeSurface>(ToFeMesh(p.domain));
-  const std::vector<int> pinned = SetPlanarChart(*p.surface);
+  const std::vector<FeFixedDirection> pinned =
+      chart.cylinder ? SetCylindricalChart(*p.surface, chart.radius) : SetPlanarChart(*p.surface);
   p.result = FitFeSurface(local, uv, fit_options, *p.surface, pinned);
   return p;
 }
@@ -144,15 +226,19 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
       throw FitFailure(kFitError, o.file + ": the points lie on a line (spread " +
                                       Format(frame.spread(0), 4) + " along it, " +
                                       Format(frame.spread(1), 4) + " across): no surface patch spans them");
-    const Eigen::Matrix3Xd local = frame.axes.transpose() * (points.colwise() - frame.origin);
-    const Eigen::Matrix2Xd uv = local.topRows<2>();
+    if (o.projection != "plane" && o.projection != "cylinder")
+      throw FitFailure(kUsage, "--projection " + o.projection + ": fe-surface takes plane or cylinder");
+    if (o.progress && o.projection == "cylinder") o.progress("fitting the points' cylinder");
+    const Chart chart = o.projection == "cylinder" ? CylinderChart(points, o.file) : PlaneChart(frame);
+    const Eigen::Matrix3Xd local = chart.ToLocal(points);
+    const Eigen::Matrix2Xd uv = chart.Parameters(local);
 
-    // The domain: the given boundary projected onto the plane, or the points' convex hull.
+    // The domain: the given boundary projected onto the chart, or the points' convex hull there.
     DomainPolygon polygon;
     std::string boundary_source = "auto (convex hull of the points' projection)";
     if (!o.boundary.empty() && o.boundary != "auto") {
       const Scan outline = ReadPointCloud(o.boundary, DetectFormat(o.boundary));
-      polygon.outer = (frame.axes.transpose() * (outline.points.colwise() - frame.origin)).topRows<2>();
+      polygon.outer = chart.Parameters(chart.ToLocal(outline.points));
       if (polygon.outer.cols() >= 3 && PolygonArea(polygon.outer) < 0)
         polygon.outer = polygon.outer.rowwise().reverse().eval();
       boundary_source = o.boundary;
@@ -195,7 +281,7 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
     if (!fit_options.IsValid(&why)) throw FitFailure(kUsage, "fe-surface: " + why);
 
     if (o.progress) o.progress("meshing the domain and fitting");
-    PatchFit fit = FitPatch(polygon, mesh_options, local, uv, fit_options);
+    PatchFit fit = FitPatch(chart, polygon, mesh_options, local, uv, fit_options);
     nlohmann::json refinement = nullptr;
     if (adaptive) {
       // Fang's refinement (thesis sec. 6.2): elements sized by the fitted surface's curvature, h(u, v) =
@@ -214,7 +300,7 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
       if (o.progress) o.progress("refining the mesh where the surface bends, and fitting again");
       const int first_triangles = fit.domain.triangle_count();
       const double first_rms = fit.result.rms;
-      PatchFit refined = FitPatch(polygon, mesh_options, local, uv, fit_options);
+      PatchFit refined = FitPatch(chart, polygon, mesh_options, local, uv, fit_options);
       refinement = {
           {"angle_per_element", angle},
           {"first", {{"triangles", first_triangles}, {"rms", first_rms}}},
@@ -230,10 +316,19 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
     j["input"] = {{"file", o.file}, {"format", format}, {"points", points.cols()}, {"units", units_out}};
     j["model"] = "fe-surface";
     j["method"] = method;
-    j["plane"] = {{"origin", Vector(frame.origin)},
-                  {"u_axis", Vector(frame.axes.col(0))},
-                  {"v_axis", Vector(frame.axes.col(1))},
-                  {"normal", Vector(frame.axes.col(2))}};
+    j["projection"] = chart.cylinder ? "cylinder" : "plane";
+    if (chart.cylinder)
+      j["cylinder"] = {{"origin", Vector(chart.origin)},
+                       {"x_axis", Vector(chart.axes.col(0))},
+                       {"y_axis", Vector(chart.axes.col(1))},
+                       {"axis", Vector(chart.axes.col(2))},
+                       {"radius", chart.radius},
+                       {"angular_gap_degrees", chart.angular_gap * 180.0 / M_PI}};
+    else
+      j["plane"] = {{"origin", Vector(frame.origin)},
+                    {"u_axis", Vector(frame.axes.col(0))},
+                    {"v_axis", Vector(frame.axes.col(1))},
+                    {"normal", Vector(frame.axes.col(2))}};
     nlohmann::json outline = nlohmann::json::array();
     for (Eigen::Index i = 0; i < polygon.outer.cols(); ++i)
       outline.push_back({polygon.outer(0, i), polygon.outer(1, i)});
@@ -242,9 +337,9 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
                    edges = nlohmann::json::array();
     const Eigen::MatrixX3d& q = surface.dofs();
     for (int v = 0; v < surface.vertex_count(); ++v) {
-      const Eigen::Vector3d w = frame.origin + frame.axes * q.row(surface.vertex_dof(v, 0)).transpose();
-      const Eigen::Vector3d wu = frame.axes * q.row(surface.vertex_dof(v, 1)).transpose();
-      const Eigen::Vector3d wv = frame.axes * q.row(surface.vertex_dof(v, 2)).transpose();
+      const Eigen::Vector3d w = chart.origin + chart.axes * q.row(surface.vertex_dof(v, 0)).transpose();
+      const Eigen::Vector3d wu = chart.axes * q.row(surface.vertex_dof(v, 1)).transpose();
+      const Eigen::Vector3d wv = chart.axes * q.row(surface.vertex_dof(v, 2)).transpose();
       vertices.push_back({{"uv", {surface.mesh().uv(0, v), surface.mesh().uv(1, v)}},
                           {"w", Vector(w)},
                           {"w_u", Vector(wu)},
@@ -257,7 +352,7 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
       const EdgeFrame ef = GlobalEdgeFrame(a, b);
       edges.push_back({{"vertices", {surface.edge(e)[0], surface.edge(e)[1]}},
                        {"normal_uv", {ef.normal.x(), ef.normal.y()}},
-                       {"w_n", Vector(frame.axes * q.row(surface.edge_dof(e)).transpose())}});
+                       {"w_n", Vector(chart.axes * q.row(surface.edge_dof(e)).transpose())}});
     }
     j["mesh"] = {{"vertices", vertices},
                  {"triangles", triangles},
@@ -289,7 +384,7 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
       samples.points.resize(3, static_cast<Eigen::Index>(at.size()));
       for (std::size_t i = 0; i < at.size(); ++i)
         samples.points.col(static_cast<Eigen::Index>(i)) =
-            frame.origin + frame.axes * surface.Evaluate(at[i]).point;
+            chart.origin + chart.axes * surface.Evaluate(at[i]).point;
       samples.units = units_out;
       WritePly(o.output + ".ply", samples);
     }
@@ -301,6 +396,11 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
          << "  method            " << method << ", relative weights stretch "
          << Format(fit_options.stretch, 4) << " / bending " << Format(fit_options.bending, 4) << " / jump "
          << Format(fit_options.jump, 4) << "\n"
+         << "  chart             "
+         << (chart.cylinder ? "cylinder of radius " + Format(chart.radius, 6) + " " + units_out +
+                                  " (the patch developed onto it: u = radius x angle, v = height)"
+                            : std::string("the points' best plane (the patch projected onto it)"))
+         << "\n"
          << "  domain            " << boundary_source << ", area " << Format(hull_area, 6) << " " << units_out
          << "^2\n";
     if (!refinement.is_null())

@@ -558,14 +558,11 @@ FitOutcome ComputeFit(const FitOptions& o) {
     throw FitFailure(
         kUsage, "--uncertainty applies to primitives and to revolution, helical and spiral fits (" + o.model +
                     " reports its parameters' standard uncertainties from the fit)");
-  if (((!o.boundary.empty() && o.boundary != "auto") || o.size > 0) && o.model != "fe-surface")
-    throw FitFailure(kUsage, "--boundary and --size apply to --model fe-surface");
+  if (((!o.boundary.empty() && o.boundary != "auto") || o.size > 0 || o.projection != "plane") &&
+      o.model != "fe-surface")
+    throw FitFailure(kUsage, "--boundary, --size and --projection apply to --model fe-surface");
   if (o.model == "bspline-curve" || o.model == "bspline-surface") return ComputeSplineFit(o);
   if (o.model == "hermite-curve") return ComputeHermiteFit(o);
-  if ((!o.boundary.empty() && o.boundary != "auto") || o.size > 0) {
-    if (o.model != "fe-surface")
-      throw FitFailure(kUsage, "--boundary and --size apply to --model fe-surface");
-  }
   if (o.model == "fe-surface") return ComputeFeSurfaceFit(o);
   if (o.wall && o.model != "revolution")
     throw FitFailure(kUsage, "--wall applies to --model revolution (a vessel's inner and outer surfaces)");

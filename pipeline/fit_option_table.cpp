@@ -133,6 +133,18 @@ std::vector<FitOptionSpec> MakeTable() {
        -1e300,
        1e300,
        [](FitOptions& o, const std::string& v) { o.boundary = v; }});
+  t.push_back({"projection",
+               "--projection",
+               K::kChoice,
+               "plane",
+               "fe-surface: the chart the patch is parametrized over: plane (its projection onto the points' "
+               "best plane) or cylinder (its development onto the points' best cylinder: u = radius x angle, "
+               "v = height; docs/fe-surfaces.md eq. P8c)",
+               {"plane", "cylinder"},
+               false,
+               -1e300,
+               1e300,
+               [](FitOptions& o, const std::string& v) { o.projection = v; }});
   t.push_back({"size",
                "--size",
                K::kNumber,

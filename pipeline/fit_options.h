@@ -48,6 +48,7 @@ struct FitOptions {
   // triangles' edge length (0: from --elements).
   std::string boundary = "auto";
   double size = 0.0;
+  std::string projection = "plane";  // fe-surface: the chart, plane or cylinder
   // Kinematic surfaces (revolution, helical, spiral): where the joint fit starts (docs/method.md section 19):
   // "auto" (the normals' start, and the global search only when that fit does not reach the noise band),
   // "normals" (the normals' start only), "global" (the global search always, the normals' start among its

@@ -170,7 +170,10 @@ struct BumpErrors {
 
 // Errors measured as the thesis does (Fang 1994, ch. 6): points sampled on the TRUE surface (not the noisy
 // input), each one's distance to the reconstruction.
-BumpErrors ErrorsToTheTrueBump(const FeSurface& surface, int samples, std::mt19937& rng) {
+// e_max and e_mean of the distances from points of the true surface `truth(u, v)` (parameters uniform over
+// the hexagon of circumradius 3) to the fitted surface, each point's foot searched from its parameter.
+template <typename Truth>
+BumpErrors ErrorsToTruth(const FeSurface& surface, int samples, std::mt19937& rng, const Truth& truth) {
   std::uniform_real_distribution<double> coordinate(-3.0, 3.0);
   BumpErrors errors;
   int count = 0;
@@ -178,16 +181,21 @@ BumpErrors ErrorsToTheTrueBump(const FeSurface& surface, int samples, std::mt199
   while (count < samples) {
     const Eigen::Vector2d p(coordinate(rng), coordinate(rng));
     if (!InsideHexagon(p, 3.0)) continue;
-    const Eigen::Vector3d truth = GaussianBump(p).col(0);
+    const Eigen::Vector3d x = truth(p);
     surface.Locate(p, at);
-    FeFootPoint(surface, truth, at);
-    const double e = (surface.Evaluate(at).point - truth).norm();
+    FeFootPoint(surface, x, at);
+    const double e = (surface.Evaluate(at).point - x).norm();
     errors.e_max = std::max(errors.e_max, e);
     errors.e_mean += e;
     ++count;
   }
   errors.e_mean /= count;
   return errors;
+}
+
+BumpErrors ErrorsToTheTrueBump(const FeSurface& surface, int samples, std::mt19937& rng) {
+  return ErrorsToTruth(surface, samples, rng,
+                       [](const Eigen::Vector2d& p) -> Eigen::Vector3d { return GaussianBump(p).col(0); });
 }
 
 struct NoisyBump {
@@ -225,7 +233,7 @@ TEST(FeSurfaceFit, GaussianBumpFromScatteredNoisyPoints) {
     FeSurface surface(SubdividedHexagon(3.0, 4));
     FeSurfaceFitOptions options;
     options.method = method;
-    const std::vector<int> boundary = SetPlanarChart(surface);
+    const std::vector<FeFixedDirection> boundary = SetPlanarChart(surface);
     const FeSurfaceFitResult fit = FitFeSurface(data.points, data.start_uv, options, surface, boundary);
     std::mt19937 check_rng(99);
     const BumpErrors errors = ErrorsToTheTrueBump(surface, 4000, check_rng);
@@ -255,7 +263,7 @@ TEST(FeSurfaceFit, CurvatureJumpTermLowersTheJumpsAcrossEdges) {
     FeSurface surface(SubdividedHexagon(3.0, 4));
     FeSurfaceFitOptions options;
     options.jump = jump;
-    const std::vector<int> boundary = SetPlanarChart(surface);
+    const std::vector<FeFixedDirection> boundary = SetPlanarChart(surface);
     const FeSurfaceFitResult fit = FitFeSurface(data.points, data.start_uv, options, surface, boundary);
     std::mt19937 check_rng(98);
     const BumpErrors errors = ErrorsToTheTrueBump(surface, 3000, check_rng);
@@ -266,6 +274,86 @@ TEST(FeSurfaceFit, CurvatureJumpTermLowersTheJumpsAcrossEdges) {
     EXPECT_TRUE(fit.converged);
   }
   EXPECT_LT(jumps[1], 0.5 * jumps[0]);
+}
+
+TEST(FeSurfaceFit, PatchOfACylinderDevelopedOntoIt) {
+  // A patch of a cylinder of radius 5 (about the z axis) with a Gaussian bump of unit height and sigma 1
+  // pushing it outwards, parametrized by its development (u = R theta, v = z) over the hexagon of
+  // circumradius 3 (0.6 rad either side): the chart of eq. P8c, the boundary free to move radially only. The
+  // errors to the true surface are bounded as for the planar bump; the boundary vertices keep their angle
+  // and height (the reduced transformation with directions that are not coordinate axes).
+  const double radius = 5.0;
+  const auto truth = [radius](const Eigen::Vector2d& p) -> Eigen::Vector3d {
+    const double r = radius + std::exp(-0.5 * p.squaredNorm());
+    return {r * std::cos(p.x() / radius), r * std::sin(p.x() / radius), p.y()};
+  };
+  std::mt19937 rng(2026);
+  std::uniform_real_distribution<double> coordinate(-3.0, 3.0);
+  std::normal_distribution<double> gauss(0.0, 0.005);
+  const int count = 3000;
+  Eigen::Matrix3Xd points(3, count);
+  Eigen::Matrix2Xd start_uv(2, count);
+  for (int i = 0; i < count;) {
+    const Eigen::Vector2d p(coordinate(rng), coordinate(rng));
+    if (!InsideHexagon(p, 3.0)) continue;
+    points.col(i) = truth(p) + Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    start_uv.col(i) = Eigen::Vector2d(radius * std::atan2(points(1, i), points(0, i)), points(2, i));
+    ++i;
+  }
+  FeSurface surface(SubdividedHexagon(3.0, 4));
+  const std::vector<FeFixedDirection> boundary = SetCylindricalChart(surface, radius);
+  const Eigen::MatrixX3d start = surface.dofs();
+  const FeSurfaceFitResult fit = FitFeSurface(points, start_uv, FeSurfaceFitOptions{}, surface, boundary);
+  std::mt19937 check_rng(97);
+  const BumpErrors errors = ErrorsToTruth(surface, 4000, check_rng, truth);
+  std::printf("cylinder patch: %d iterations%s, RMS %.5f, e_max %.5f, e_mean %.5f\n", fit.iterations,
+              fit.converged ? " (converged)" : "", fit.rms, errors.e_max, errors.e_mean);
+  EXPECT_TRUE(fit.converged);
+  EXPECT_LT(errors.e_max, 0.01);
+  EXPECT_LT(errors.e_mean, 0.002);
+  EXPECT_NEAR(fit.rms, 0.005, 0.0005);
+  int boundary_vertices = 0;
+  for (int e = 0; e < surface.edge_count(); ++e) {
+    if (!surface.boundary_edge(e)) continue;
+    for (int v : surface.edge(e)) {
+      const Eigen::Vector3d before = start.row(surface.vertex_dof(v, 0)).transpose();
+      const Eigen::Vector3d after = surface.dofs().row(surface.vertex_dof(v, 0)).transpose();
+      EXPECT_NEAR(std::atan2(after.y(), after.x()), std::atan2(before.y(), before.x()), 1e-12);
+      EXPECT_NEAR(after.z(), before.z(), 1e-12);
+      ++boundary_vertices;
+    }
+  }
+  EXPECT_GT(boundary_vertices, 0);
+
+  // The chart refuses a domain that would wrap round the axis.
+  FeSurface wide(SubdividedHexagon(3.0, 1));
+  EXPECT_THROW(SetCylindricalChart(wide, 0.5), std::invalid_argument);
+  EXPECT_THROW(SetCylindricalChart(wide, -1.0), std::invalid_argument);
+}
+
+TEST(FeSurfaceFit, ADofFixedInThreeDirectionsKeepsItsValue) {
+  // Three independent fixed directions (not the axes) leave a dof no freedom; a zero direction or a dof out
+  // of range is refused.
+  std::mt19937 rng(11);
+  const NoisyBump data = SampleNoisyBump(800, 0.005, rng);
+  FeSurface surface(SubdividedHexagon(3.0, 2));
+  std::vector<FeFixedDirection> fixed = SetPlanarChart(surface);
+  const int centre_dof = surface.vertex_dof(0, 0);
+  for (const Eigen::Vector3d& d :
+       {Eigen::Vector3d(1, 1, 0), Eigen::Vector3d(1, -1, 0), Eigen::Vector3d(0, 1, 1)})
+    fixed.push_back({centre_dof, d});
+  const Eigen::MatrixX3d before = surface.dofs();
+  FitFeSurface(data.points, data.start_uv, FeSurfaceFitOptions{}, surface, fixed);
+  EXPECT_LT((surface.dofs().row(centre_dof) - before.row(centre_dof)).norm(), 1e-12);
+  EXPECT_GT((surface.dofs() - before).cwiseAbs().maxCoeff(), 0.1);  // the bump was fitted around it
+  FeSurface other(SubdividedHexagon(3.0, 2));
+  SetPlanarChart(other);
+  EXPECT_THROW(
+      FitFeSurface(data.points, data.start_uv, FeSurfaceFitOptions{}, other, {{0, Eigen::Vector3d::Zero()}}),
+      std::invalid_argument);
+  EXPECT_THROW(FitFeSurface(data.points, data.start_uv, FeSurfaceFitOptions{}, other,
+                            {{other.dof_count(), Eigen::Vector3d::UnitX()}}),
+               std::invalid_argument);
 }
 
 TEST(FeSurfaceModel, PassesTheModelChecker) {

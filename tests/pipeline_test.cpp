@@ -81,15 +81,15 @@ TEST(FitDispatch, FailuresCarryTheirExitCodes) {
 }
 
 TEST(FitOptionTable, ManifestKeysAreTheOnesOfTheCommandLine) {
-  EXPECT_EQ(
-      ManifestOptionKeys(),
-      "alpha1, alpha2, alpha3, bending, beta2, beta3, boundary, c2, closed, contour, control_points, "
-      "criterion, "
-      "degree, efd, elements, fairness_fraction, fill_height, geometric_variation, growth, initial, "
-      "interpolate, loss, max_iterations, method, "
-      "order, pitch, reference, rejected_output, relative_variation, robust, seed, size, solver, start, "
-      "step_control, stretch, "
-      "tolerance, uncertainty, units, wall");
+  EXPECT_EQ(ManifestOptionKeys(),
+            "alpha1, alpha2, alpha3, bending, beta2, beta3, boundary, c2, closed, contour, control_points, "
+            "criterion, "
+            "degree, efd, elements, fairness_fraction, fill_height, geometric_variation, growth, initial, "
+            "interpolate, loss, max_iterations, method, "
+            "order, pitch, projection, reference, rejected_output, relative_variation, robust, seed, size, "
+            "solver, start, "
+            "step_control, stretch, "
+            "tolerance, uncertainty, units, wall");
   for (const FitOptionSpec& spec : FitOptionTable()) {
     EXPECT_TRUE(spec.set) << spec.key << spec.names;
     // Every manifest key but the solver (three flags) is also a command-line option with the dashed name.
@@ -692,6 +692,91 @@ TEST(FitDispatch, FeSurfaceFillsAHoleInTheDataFairly) {
   std::printf("fe-surface with a hole of radius 0.8: vertex error max %.5f RMS %.5f\n", worst, rms);
   EXPECT_TRUE(d["converged"].get<bool>());
   EXPECT_LT(worst, 0.03);
+}
+
+// A patch of a cylinder of radius 5 about the bump frame's z axis, 120 degrees round it and 6 high, with a
+// Gaussian bump of height 0.5 (sigma 1) pushing it out at angle 0, height 0; placed by the same rigid motion.
+double CylinderPatchRadius(double angle, double z) {
+  const double u = 5.0 * angle;
+  return 5.0 + 0.5 * std::exp(-0.5 * (u * u + z * z));
+}
+
+MovedBump WriteCylinderPatch(const fs::path& file, int count, double noise, double half_angle,
+                             unsigned seed) {
+  MovedBump m;
+  m.rotation = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 0.5).normalized()).toRotationMatrix();
+  m.offset = Eigen::Vector3d(10, -5, 3);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> angle(-half_angle, half_angle), height(-3.0, 3.0);
+  std::normal_distribution<double> gauss(0.0, noise);
+  std::ofstream out(file);
+  out.precision(12);
+  for (int i = 0; i < count; ++i) {
+    const double a = angle(rng), z = height(rng), r = CylinderPatchRadius(a, z);
+    const Eigen::Vector3d x = m.ToWorld(Eigen::Vector3d(r * std::cos(a), r * std::sin(a), z)) +
+                              Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    out << x.x() << " " << x.y() << " " << x.z() << "\n";
+  }
+  return m;
+}
+
+TEST(FitDispatch, FeSurfaceDevelopsACylindricalPatchOntoItsCylinder) {
+  const fs::path dir = FreshDir("fe_surface_cylinder");
+  const MovedBump m = WriteCylinderPatch(dir / "patch.xyz", 4000, 0.005, M_PI / 3.0, 8);
+  FitOptions o;
+  o.file = (dir / "patch.xyz").string();
+  o.model = "fe-surface";
+  o.projection = "cylinder";
+  const FitOutcome outcome = ComputeFit(o);
+  const nlohmann::json& d = outcome.document;
+  EXPECT_EQ(d["projection"], "cylinder");
+  EXPECT_TRUE(d["converged"].get<bool>());
+  EXPECT_NEAR(d["residuals"]["rms"].get<double>(), 0.005, 0.0007);
+  // The chart's axis is the patch's (either sign). Its radius is the least-squares cylinder's: the bump in the
+  // middle of the arc makes the arc look more curved, so it is below 5 (4.79 measured); the chart only has to
+  // be near the surface, the surface itself is measured below.
+  const auto axis = d["cylinder"]["axis"].get<std::vector<double>>();
+  EXPECT_GT(std::abs(Eigen::Vector3d(axis[0], axis[1], axis[2]).dot(m.rotation.col(2))), 0.99);
+  EXPECT_NEAR(d["cylinder"]["radius"].get<double>(), 5.0, 0.5);
+  // Every vertex on the true surface: its radius against the truth's at its angle and height (an upper bound
+  // of the distance).
+  double worst = 0.0;
+  for (const auto& v : d["mesh"]["vertices"]) {
+    const auto w = v["w"].get<std::vector<double>>();
+    const Eigen::Vector3d b = m.ToBump(Eigen::Vector3d(w[0], w[1], w[2]));
+    worst =
+        std::max(worst, std::abs(b.head<2>().norm() - CylinderPatchRadius(std::atan2(b.y(), b.x()), b.z())));
+  }
+  std::printf(
+      "fe-surface over a cylinder: radius %.4f, %zu triangles, RMS %.5f, vertex radial error max %.5f\n",
+      d["cylinder"]["radius"].get<double>(), d["mesh"]["triangles"].size(),
+      d["residuals"]["rms"].get<double>(), worst);
+  EXPECT_LT(worst, 0.015);
+  EXPECT_NE(outcome.text.find("cylinder of radius"), std::string::npos);
+
+  // A tube scanned all round is not one patch: refused with the reason.
+  WriteCylinderPatch(dir / "tube.xyz", 2000, 0.005, M_PI, 9);
+  FitOptions tube = o;
+  tube.file = (dir / "tube.xyz").string();
+  try {
+    ComputeFit(tube);
+    ADD_FAILURE() << "a closed tube was fitted as one patch";
+  } catch (const FitFailure& e) {
+    EXPECT_EQ(e.exit_code(), kFitError);
+    EXPECT_NE(std::string(e.what()).find("round the cylinder's axis"), std::string::npos) << e.what();
+  }
+  // --projection is an fe-surface option, and takes plane or cylinder only.
+  FitOptions other = o;
+  other.model = "bspline-surface";
+  EXPECT_THROW(ComputeFit(other), FitFailure);
+  FitOptions cone = o;
+  cone.projection = "cone";
+  try {
+    ComputeFit(cone);
+    ADD_FAILURE() << "--projection cone accepted";
+  } catch (const FitFailure& e) {
+    EXPECT_EQ(e.exit_code(), kUsage);
+  }
 }
 
 TEST(FitDispatch, FeSurfaceRefusesDegenerateInputWithAMessage) {
