@@ -19,8 +19,9 @@ Runner AddRegisterCommand(CLI::App& app) {
                   "The views: a views.json manifest, a Stanford .conf, a recording (.s2mrec) or an E57 file")
       ->required();
   cmd->add_option("--to", o->to,
-                  "Register the views to a nominal mesh (.stl binary or ASCII, .obj, .ply) or to the part a "
-                  "'fit --model part:' result measured (its -o PREFIX.json); default: to each other");
+                  "Register the views to a nominal mesh (.stl binary or ASCII, .obj, .ply), to the part a "
+                  "'fit --model part:' result measured or to the surface 'fit --model fe-surface' fitted "
+                  "(their -o PREFIX.json); default: to each other");
   cmd->add_option("--method", o->method,
                   "Error term: tdm (point-to-plane, default), sdm (squared distance), pdm (point-to-point)");
   cmd->add_option(

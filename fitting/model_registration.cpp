@@ -1,5 +1,6 @@
 #include "fitting/model_registration.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -8,6 +9,7 @@
 #include <limits>
 #include <optional>
 #include <stdexcept>
+#include <string>
 
 #include "fitting/foot_point.h"
 #include "fitting/linear_solver.h"
@@ -380,6 +382,25 @@ std::vector<ModelRegistrationResult> RegisterScansToModel(const ParametricModel&
     results.push_back(std::move(r));
   }
   return results;
+}
+
+double PoseConditioning(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals) {
+  if (points.cols() != normals.cols())
+    throw std::invalid_argument("PoseConditioning: " + std::to_string(points.cols()) + " points but " +
+                                std::to_string(normals.cols()) + " normals");
+  if (points.cols() < 6) return 0.0;
+  const Eigen::Vector3d c = points.rowwise().mean();
+  const double r = std::sqrt((points.colwise() - c).colwise().squaredNorm().mean());
+  if (!(r > 0.0)) return 0.0;
+  Eigen::Matrix<double, 6, 6> h = Eigen::Matrix<double, 6, 6>::Zero();
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    Eigen::Matrix<double, 6, 1> a;
+    a << (points.col(i) - c).cross(normals.col(i)) / r, normals.col(i);
+    h.selfadjointView<Eigen::Lower>().rankUpdate(a);
+  }
+  const Eigen::Matrix<double, 6, 1> eig =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(h, Eigen::EigenvaluesOnly).eigenvalues();
+  return eig(5) > 0.0 ? std::max(eig(0), 0.0) / eig(5) : 0.0;
 }
 
 }  // namespace s2m

@@ -1,8 +1,8 @@
 #pragma once
-// Registration of scans to a fixed model (docs/method.md section 5): the model stays, each scan moves rigidly.
-// Every iteration computes foot points of the scan's current points, builds the chosen error term at them,
-// solves for the velocity (c, cbar) and applies it as the exact helical motion; points are re-expressed from
-// the original scan every iteration, so no drift accumulates.
+// Registration of scans to a fixed model (docs/method.md section 5): the model stays, each scan moves
+// rigidly. Every iteration computes foot points of the scan's current points, builds the chosen error term at
+// them, solves for the velocity (c, cbar) and applies it as the exact helical motion; points are re-expressed
+// from the original scan every iteration, so no drift accumulates.
 
 #include <Eigen/Core>
 #include <vector>
@@ -79,5 +79,14 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
 std::vector<ModelRegistrationResult> RegisterScansToModel(const ParametricModel& model,
                                                           const RigidMotion& world_T_model, ScanSet& scans,
                                                           const ModelRegistrationOptions& options = {});
+
+// How well a fixed surface holds a rigid body through points x_i on it with unit normals n_i: the smallest
+// eigenvalue of the point-to-plane normal matrix sum a_i a_i^T, a_i = [(x_i - c) x n_i / r; n_i] (c the
+// points' centroid, r their RMS distance from it, so rotations and translations are on one scale), over its
+// largest (docs/method.md section 5). 0 when a motion leaves every point on its tangent plane (a plane leaves
+// three, a sphere three rotations, a cylinder the rotation about and the translation along its axis); a ratio
+// 1e-3 means the worst determined motion is sqrt(1000) = 32 times less well determined than the best one.
+// Returns 0 for fewer than 6 points or points that coincide. points and normals: 3 x n.
+double PoseConditioning(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals);
 
 }  // namespace s2m

@@ -41,33 +41,18 @@ Eigen::Matrix3Xd Columns(const Eigen::Matrix3Xd& points, const std::vector<Eigen
   return out;
 }
 
-// Whether the nominal's faces under the selected points fix all six motions of a rigid body well: the
-// point-to-plane normal matrix sum a a^T, a = [(x - c) x n / r; n] (c the points' centroid, r their RMS
-// radius, so rotations and translations are on one scale), has no eigenvalue below 1e-3 of its largest, i.e.
-// no motion is determined more than sqrt(1000) = 32 times worse than the best determined one. Two planes
-// leave the translation along their common line free (an eigenvalue of exactly zero: the normals are the
-// nominal's); a view that sees little more than that is better placed by the common pose of all views.
+// Whether the nominal's faces under the selected points fix all six motions of a rigid body well
+// (PoseConditioning of fitting/model_registration.h at least 1e-3: no motion determined more than 32 times
+// worse than the best determined one). Two planes leave the translation along their common line free; a view
+// that sees little more than that is better placed by the common pose of all views.
 bool FixesAllMotions(const TriangleMeshModel& nominal, const Eigen::Matrix3Xd& world,
                      const std::vector<Eigen::Index>& keep) {
-  if (keep.size() < 6) return false;
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (Eigen::Index i : keep) c += world.col(i);
-  c /= static_cast<double>(keep.size());
-  double r2 = 0;
-  for (Eigen::Index i : keep) r2 += (world.col(i) - c).squaredNorm();
-  const double r = std::sqrt(r2 / static_cast<double>(keep.size()));
-  if (!(r > 0)) return false;
-  Eigen::Matrix<double, 6, 6> h = Eigen::Matrix<double, 6, 6>::Zero();
-  for (Eigen::Index i : keep) {
-    const Eigen::Vector3d x = world.col(i);
-    const Eigen::Vector3d n = nominal.FaceNormal(nominal.Foot(x).triangle);
-    Eigen::Matrix<double, 6, 1> a;
-    a << (x - c).cross(n) / r, n;
-    h += a * a.transpose();
+  Eigen::Matrix3Xd points(3, static_cast<Eigen::Index>(keep.size())), normals(3, points.cols());
+  for (std::size_t i = 0; i < keep.size(); ++i) {
+    points.col(static_cast<Eigen::Index>(i)) = world.col(keep[i]);
+    normals.col(static_cast<Eigen::Index>(i)) = nominal.FaceNormal(nominal.Foot(world.col(keep[i])).triangle);
   }
-  const Eigen::Matrix<double, 6, 1> eig =
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(h).eigenvalues();
-  return eig.minCoeff() > 1e-3 * eig.maxCoeff();
+  return PoseConditioning(points, normals) > 1e-3;
 }
 
 }  // namespace

@@ -13,9 +13,11 @@
 #include "acquisition/point_cloud_io.h"
 #include "fitting/domain_mesh.h"
 #include "fitting/fe_surface.h"
+#include "fitting/noise_estimate.h"
 #include "fitting/primitive_fit.h"
 #include "fitting/primitives.h"
 #include "fitting/surface_interrogation.h"
+#include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
@@ -280,8 +282,42 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
     std::string why;
     if (!fit_options.IsValid(&why)) throw FitFailure(kUsage, "fe-surface: " + why);
 
+    // The scanner noise without a model (fitting/noise_estimate.h), for the weight's choice and the adequacy.
+    ScanSet single;
+    single.scans.emplace_back();
+    single.scans.back().points = points;
+    const double noise = EstimateNoise(single);
+
     if (o.progress) o.progress("meshing the domain and fitting");
     PatchFit fit = FitPatch(chart, polygon, mesh_options, local, uv, fit_options);
+    // Without --bending, the weight by Morozov's discrepancy principle (docs/fe-surfaces.md eq. P11): the
+    // largest of 1e-7, 1e-8, 1e-9, 1e-10 whose fit on the first mesh comes within the adequacy band of the
+    // noise (RMS <= 1.5 sigma); a weaker weight is not tried once it no longer lowers the RMS by 10 % (the
+    // mesh, not the fairness, then limits the fit).
+    nlohmann::json bending_choice = nullptr;
+    if (!o.bending_given) {
+      nlohmann::json tried = nlohmann::json::array();
+      tried.push_back({{"bending", fit_options.bending}, {"rms", fit.result.rms}});
+      const double band = kAdequacyThreshold * noise;
+      while (std::isfinite(noise) && fit.result.rms > band && fit_options.bending > 1.5e-10) {
+        FeSurfaceFitOptions weaker = fit_options;
+        weaker.bending = fit_options.bending / 10.0;
+        if (o.progress)
+          o.progress("RMS " + Format(fit.result.rms, 4) + " above 1.5 x the noise " + Format(noise, 4) +
+                     ": fitting again with the bending weight " + Format(weaker.bending, 3));
+        PatchFit next = FitPatch(chart, polygon, mesh_options, local, uv, weaker);
+        tried.push_back({{"bending", weaker.bending}, {"rms", next.result.rms}});
+        if (!(next.result.rms < 0.9 * fit.result.rms)) break;
+        fit_options = weaker;
+        fit = std::move(next);
+      }
+      bending_choice = {
+          {"rule", "discrepancy"},
+          {"noise_estimate", std::isfinite(noise) ? nlohmann::json(noise) : nlohmann::json(nullptr)},
+          {"band", std::isfinite(noise) ? nlohmann::json(band) : nlohmann::json(nullptr)},
+          {"tried", tried},
+          {"chosen", fit_options.bending}};
+    }
     nlohmann::json refinement = nullptr;
     if (adaptive) {
       // Fang's refinement (thesis sec. 6.2): elements sized by the fitted surface's curvature, h(u, v) =
@@ -364,12 +400,15 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
         {"relative",
          {{"stretch", fit_options.stretch}, {"bending", fit_options.bending}, {"jump", fit_options.jump}}},
         {"absolute",
-         {{"stretch", r.weights.stretch}, {"bending", r.weights.bending}, {"jump", r.weights.jump2}}}};
+         {{"stretch", r.weights.stretch}, {"bending", r.weights.bending}, {"jump", r.weights.jump2}}},
+        {"bending_choice", bending_choice}};
     j["energy"] = {{"closeness", r.rms * r.rms * static_cast<double>(points.cols())},
                    {"stretch", r.energy.stretch},
                    {"bending", r.energy.bending},
                    {"jump", r.energy.jump}};
     j["residuals"] = {{"rms", r.rms}, {"max", r.max_distance}, {"boundary_feet", r.boundary_feet}};
+    const Adequacy adequacy = AssessAdequacy(r.rms, noise);
+    j["adequacy"] = adequacy.ToJson();
     j["iterations"] = r.iterations;
     j["converged"] = r.converged;
     j["objective_history"] =
@@ -395,7 +434,11 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
          << format << ", units " << units_out << ")\n\n"
          << "  method            " << method << ", relative weights stretch "
          << Format(fit_options.stretch, 4) << " / bending " << Format(fit_options.bending, 4) << " / jump "
-         << Format(fit_options.jump, 4) << "\n"
+         << Format(fit_options.jump, 4)
+         << (bending_choice.is_null() ? std::string(" (bending as given)")
+             : std::isfinite(noise)   ? std::string(" (bending chosen from the noise estimate, eq. P11)")
+                                      : std::string(" (bending: the default; the noise is unknown)"))
+         << "\n"
          << "  chart             "
          << (chart.cylinder ? "cylinder of radius " + Format(chart.radius, 6) + " " + units_out +
                                   " (the patch developed onto it: u = radius x angle, v = height)"
@@ -416,7 +459,8 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
          << "  energy            stretch " << Format(r.energy.stretch, 4) << ", bending "
          << Format(r.energy.bending, 4) << ", jump " << Format(r.energy.jump, 4) << "\n"
          << "  iterations        " << r.iterations
-         << (r.converged ? " (converged)" : " (stopped at the iteration limit: not converged)") << "\n";
+         << (r.converged ? " (converged)" : " (stopped at the iteration limit: not converged)") << "\n"
+         << adequacy.Text();
     outcome.text = text.str();
     return outcome;
   } catch (const FormatError& e) {

@@ -44,8 +44,8 @@ struct FittedSurface {
 
 // The fitted surfaces a result document describes: a B-spline surface, an FE surface, a multi-view kinematic
 // surface, the spline-patch faces of a part (none for curves, primitives and a part's analytic faces, which
-// are unbounded). Throws std::invalid_argument naming the member when a surface's members are unusable (missing,
-// wrong type, non-finite numbers, invalid knots).
+// are unbounded). Throws std::invalid_argument naming the member when a surface's members are unusable
+// (missing, wrong type, non-finite numbers, invalid knots).
 std::vector<FittedSurface> FittedSurfaces(const nlohmann::json& document);
 
 }  // namespace s2m::pipeline

@@ -13,11 +13,14 @@
 #include "acquisition/mesh_io.h"
 #include "acquisition/part_file.h"
 #include "acquisition/scan_set_io.h"
+#include "fitting/fe_surface_model.h"
+#include "fitting/foot_point.h"
 #include "fitting/model_registration.h"
 #include "fitting/nominal_inspection.h"
 #include "fitting/part_model.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
+#include "pipeline/surface_model_json.h"
 #include "pipeline/views.h"
 #include "registration/scan_to_scan.h"
 
@@ -56,10 +59,12 @@ std::string ViewTable(const nlohmann::json& views, const std::string& units) {
   t << "\n  view   points        RMS        max    pairs   correction (deg, " << units << ")\n";
   for (std::size_t k = 0; k < views.size(); ++k) {
     const nlohmann::json& v = views[k];
+    const auto number = [&v](const char* key) {
+      return v[key].is_number() ? Format(v[key].get<double>(), 4) : std::string("-");
+    };
     t << "  " << std::setw(4) << k << std::setw(9) << v["points"].get<long long>() << std::setw(11)
-      << Format(v["rms"].get<double>(), 4) << std::setw(11) << Format(v["max"].get<double>(), 4)
-      << std::setw(9) << v["pairs"].get<long long>() << "   "
-      << Format(v["correction"]["rotation_deg"].get<double>(), 3) << ", "
+      << number("rms") << std::setw(11) << number("max") << std::setw(9) << v["pairs"].get<long long>()
+      << "   " << Format(v["correction"]["rotation_deg"].get<double>(), 3) << ", "
       << Format(v["correction"]["translation"].get<double>(), 3)
       << (v.value("registered", true) ? "" : "   NOT REGISTERED") << "\n";
   }
@@ -308,6 +313,139 @@ void ToFittedPart(const RegisterOptions& o, const nlohmann::json& fit, const Sca
   outcome.text = text.str();
 }
 
+// The points of a view at `world_T_scan` that have an orthogonal foot inside the FE surface's domain (the
+// others lie beyond the patch's edge: their nearest surface point is on its boundary and their residual is
+// not along the normal), with those feet's unit normals.
+struct PatchOverlap {
+  std::vector<Eigen::Index> inside;
+  Eigen::Matrix3Xd points, normals;  // of `inside`, in the world
+};
+
+PatchOverlap OverlapWithPatch(const FeSurfaceModel& surface, const Eigen::Matrix3Xd& scan,
+                              const RigidMotion& world_T_scan) {
+  const Eigen::Matrix3Xd world = world_T_scan.apply(scan);
+  std::vector<FootPoint> feet;
+  ComputeFootPoints(surface, world, feet);
+  PatchOverlap o;
+  std::vector<Eigen::Vector3d> normals;
+  LocalGeometry g;
+  for (Eigen::Index i = 0; i < world.cols(); ++i) {
+    const FootPoint& f = feet[static_cast<std::size_t>(i)];
+    if (f.on_boundary || f.excluded || !surface.InDomain(f.t)) continue;
+    surface.Evaluate(f.t, 1, g);
+    const Eigen::Vector3d n = Eigen::Vector3d(g.d1.col(0)).cross(Eigen::Vector3d(g.d1.col(1))).normalized();
+    const Eigen::Vector3d r = world.col(i) - Eigen::Vector3d(g.point);
+    // An orthogonal foot: the residual's tangential part is rounding error of Newton's stop (relative 1e-3
+    // allows for it); a foot held on the domain's edge leaves a tangential part of the order of the residual.
+    if ((r - r.dot(n) * n).norm() > 1e-3 * r.norm() + 1e-12) continue;
+    o.inside.push_back(i);
+    normals.push_back(n);
+  }
+  o.points.resize(3, static_cast<Eigen::Index>(o.inside.size()));
+  o.normals.resize(3, o.points.cols());
+  for (std::size_t k = 0; k < o.inside.size(); ++k) {
+    o.points.col(static_cast<Eigen::Index>(k)) = world.col(o.inside[k]);
+    o.normals.col(static_cast<Eigen::Index>(k)) = normals[k];
+  }
+  return o;
+}
+
+// Views registered to a fitted FE surface (scan2model.fe-surface/1, its mesh in data coordinates): each view
+// on its own from its manifest pose, with only its points whose foot is inside the patch (chosen again from
+// the new pose, up to 5 rounds, until the choice no longer changes). A view the patch does not hold (its
+// points' normals leave a motion free, PoseConditioning under 1e-3: a view of a flat or cylindrical part of
+// the patch, or fewer than 6 points on it) is reported as not registered and keeps its pose.
+void ToFittedFeSurface(const RegisterOptions& o, const nlohmann::json& fit, const ScanSet& views,
+                       const RegisterProgress& progress, RegisterOutcome& outcome,
+                       std::vector<RigidMotion>& world_T_scan) {
+  std::unique_ptr<FeSurfaceModel> surface;
+  try {
+    surface = std::make_unique<FeSurfaceModel>(FeSurfaceFromJson(fit.at("mesh")));
+  } catch (const nlohmann::json::exception& e) {
+    throw FitFailure(kInputError, o.to + ": malformed fe-surface document: " + e.what());
+  } catch (const std::invalid_argument& e) {
+    throw FitFailure(kInputError, o.to + ": malformed fe-surface document: " + e.what());
+  }
+  const std::string fit_units = fit.value("/input/units"_json_pointer, std::string("unknown"));
+  const std::string units = views.scans[0].units;
+  if (fit_units != "unknown" && !fit_units.empty() && units != "unknown" && fit_units != units)
+    throw FitFailure(kInputError, "the fitted surface " + o.to + " is in " + fit_units + " but the views " +
+                                      o.input + " are in " + units);
+  ModelRegistrationOptions options;
+  options.error_term = ErrorTermFromString(o.method);
+  if (progress)
+    progress("registering " + std::to_string(views.scans.size()) +
+             " views to the finite-element surface of " + o.to + " (" +
+             std::to_string(surface->surface().triangle_count()) + " triangles)");
+  constexpr double kMinConditioning = 1e-3;
+  const auto t0 = std::chrono::steady_clock::now();
+  nlohmann::json entries = nlohmann::json::array();
+  for (std::size_t k = 0; k < views.scans.size(); ++k) {
+    const Scan& scan = views.scans[k];
+    if (scan.empty())
+      throw FitFailure(kInputError, o.input + ": view " + std::to_string(k) + " has no points");
+    RigidMotion pose = scan.world_T_scan;
+    ModelRegistrationResult result;
+    PatchOverlap overlap = OverlapWithPatch(*surface, scan.points, pose);
+    double conditioning = PoseConditioning(overlap.points, overlap.normals);
+    bool moved = false;  // registered at least once
+    for (int round = 0; round < 5 && conditioning >= kMinConditioning; ++round) {
+      Eigen::Matrix3Xd chosen(3, static_cast<Eigen::Index>(overlap.inside.size()));
+      for (std::size_t i = 0; i < overlap.inside.size(); ++i)
+        chosen.col(static_cast<Eigen::Index>(i)) = scan.points.col(overlap.inside[i]);
+      try {
+        result = RegisterToModel(*surface, chosen, pose, options);
+      } catch (const std::invalid_argument& e) {
+        throw FitFailure(kFitError,
+                         "view " + std::to_string(k) + ": registration to the surface failed: " + e.what());
+      }
+      pose = result.model_T_scan;
+      moved = true;
+      PatchOverlap next = OverlapWithPatch(*surface, scan.points, pose);
+      const bool same = next.inside == overlap.inside;
+      overlap = std::move(next);
+      conditioning = PoseConditioning(overlap.points, overlap.normals);
+      if (same) break;
+    }
+    const bool registered = moved && conditioning >= kMinConditioning;
+    if (!registered) {
+      outcome.unregistered_views.push_back(k);
+      pose = scan.world_T_scan;
+    }
+    world_T_scan.push_back(pose);
+    nlohmann::json residuals = ModelRegistrationJson(result);
+    residuals["registered"] = registered;
+    residuals["points_on_patch"] = overlap.inside.size();
+    residuals["conditioning"] = conditioning;
+    if (!registered) {
+      residuals["rms"] = nullptr;
+      residuals["max"] = nullptr;
+    }
+    entries.push_back(ViewEntry(scan, pose, residuals));
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  nlohmann::json& j = outcome.document;
+  j["mode"] = "to-fe-surface";
+  j["fe_surface"] = {{"file", o.to},
+                     {"triangles", surface->surface().triangle_count()},
+                     {"dofs", surface->surface().dof_count()}};
+  j["min_conditioning"] = kMinConditioning;
+  j["seconds"] = seconds;
+  j["views"] = entries;
+  std::ostringstream text;
+  text << "scan2model register: " << views.scans.size() << " views of " << o.input
+       << " to the finite-element surface of " << o.to << " (" << o.method
+       << ", each view on its own, its points beyond the patch's edge left out), " << Format(seconds, 3)
+       << " s\n"
+       << ViewTable(entries, units)
+       << "\n  RMS and max: distances of each view's points on the patch to the surface (" << units << ")\n";
+  outcome.text = text.str();
+  if (!outcome.unregistered_views.empty())
+    outcome.unregistered_reason =
+        "the surface does not hold them: their points on the patch leave a motion free (conditioning under " +
+        Format(kMinConditioning, 3) + ", or fewer than 6 points on the patch); they keep their poses";
+}
+
 }  // namespace
 
 RegisterOutcome ComputeRegistration(const RegisterOptions& o, const RegisterProgress& progress) {
@@ -332,7 +470,8 @@ RegisterOutcome ComputeRegistration(const RegisterOptions& o, const RegisterProg
   if (o.to.empty()) {
     ScanToScan(o, views, progress, outcome, world_T_scan);
   } else if (std::filesystem::path(o.to).extension() == ".json") {
-    // A result document: the part a constrained-part fit measured. Other fits are refused: a primitive's or
+    // A result document: the part a constrained-part fit measured or a fitted FE surface. Other fits are
+    // refused: a primitive's or
     // a surface of revolution's symmetry leaves rotations of every view free (about a sphere's centre, about
     // an axis), so they cannot place views.
     nlohmann::json fit;
@@ -344,14 +483,18 @@ RegisterOutcome ComputeRegistration(const RegisterOptions& o, const RegisterProg
       throw FitFailure(kInputError, e.what());
     }
     const std::string schema = fit.is_object() ? fit.value("schema", "") : "";
-    if (schema != "scan2model.part_fit/1")
-      throw FitFailure(
-          kInputError,
-          o.to + ": --to takes a constrained part's fit (scan2model.part_fit/1) or a nominal mesh, not " +
-              (schema.empty() ? std::string("this document") : schema) +
-              " (a primitive's or a surface of revolution's symmetry leaves the views' rotations "
-              "about it free)");
-    ToFittedPart(o, fit, views, progress, outcome, world_T_scan);
+    if (schema == "scan2model.fe-surface/1")
+      ToFittedFeSurface(o, fit, views, progress, outcome, world_T_scan);
+    else if (schema == "scan2model.part_fit/1")
+      ToFittedPart(o, fit, views, progress, outcome, world_T_scan);
+    else
+      throw FitFailure(kInputError,
+                       o.to +
+                           ": --to takes a constrained part's fit (scan2model.part_fit/1), a finite-element "
+                           "surface's (scan2model.fe-surface/1) or a nominal mesh, not " +
+                           (schema.empty() ? std::string("this document") : schema) +
+                           " (a primitive's or a surface of revolution's symmetry leaves the views' "
+                           "rotations about it free)");
   } else {
     ToNominal(o, views, progress, outcome, world_T_scan);
   }
@@ -359,9 +502,11 @@ RegisterOutcome ComputeRegistration(const RegisterOptions& o, const RegisterProg
   if (!outcome.unregistered_views.empty()) {
     std::string list;
     for (std::size_t k : outcome.unregistered_views) list += (list.empty() ? "" : ", ") + std::to_string(k);
-    outcome.notes.push_back("view(s) " + list +
-                            " do not overlap the fixed view's group of views: their poses are " +
-                            "not registered" + (o.output.empty() ? "" : ", and no manifest was written"));
+    outcome.notes.push_back("view(s) " + list + " are not registered: " +
+                            (outcome.unregistered_reason.empty()
+                                 ? std::string("they do not overlap the fixed view's group of views")
+                                 : outcome.unregistered_reason) +
+                            (o.output.empty() ? "" : "; no manifest was written"));
     outcome.document["unregistered_views"] = outcome.unregistered_views;
     return outcome;
   }

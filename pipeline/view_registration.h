@@ -15,8 +15,9 @@ namespace s2m::pipeline {
 
 struct RegisterOptions {
   std::string input;  // the views: views.json, Stanford .conf, recording (.s2mrec) or E57
-  // Empty: scan-to-scan; a constrained part's fit document (.json, scan2model.part_fit/1: the part file with
-  // the fitted values); else a nominal mesh (.stl, .obj, .ply).
+  // Empty: scan-to-scan; a result document (.json): a constrained part's fit (scan2model.part_fit/1: the part
+  // file with the fitted values) or a finite-element surface's (scan2model.fe-surface/1); else a nominal mesh
+  // (.stl, .obj, .ply).
   std::string to;
   std::string method = "tdm";   // pdm, tdm or sdm
   std::string output;           // a views manifest (.json) to write, with one PLY per view beside it
@@ -32,9 +33,11 @@ struct RegisterOutcome {
   nlohmann::json document;  // scan2model.registration/1
   std::string text;
   std::vector<std::string> notes;
-  // Views whose poses the data do not determine (scan-to-scan: not linked to the fixed view by overlap).
-  // ComputeRegistration writes no manifest then, and the command exits with kFitError.
+  // Views whose poses the data do not determine (scan-to-scan: not linked to the fixed view by overlap; to
+  // an FE surface: their points on the patch leave a motion free). ComputeRegistration writes no manifest
+  // then, and the command exits with kFitError.
   std::vector<std::size_t> unregistered_views;
+  std::string unregistered_reason;  // why, when not the scan-to-scan reason
 };
 
 // Progress lines for long runs ("sweep 3: RMS 0.00012 m"); may be empty.

@@ -1,4 +1,7 @@
-// Rigid registration: the linearized step (docs/method.md section 5) and registration of scans to a fixed model.
+// Rigid registration: the linearized step (docs/method.md section 5) and registration of scans to a fixed
+// model.
+
+#include "fitting/model_registration.h"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +11,6 @@
 
 #include "fitting/bspline_models.h"
 #include "fitting/initial_models.h"
-#include "fitting/model_registration.h"
 #include "registration/rigid_step.h"
 
 namespace s2m {
@@ -116,6 +118,37 @@ TEST(ModelRegistration, RejectsBadInput) {
   Eigen::Matrix3Xd bad = Eigen::Matrix3Xd::Ones(3, 5);
   bad(2, 2) = std::nan("");
   EXPECT_THROW(RegisterToModel(sheet, bad, RigidMotion::Identity()), std::invalid_argument);
+}
+
+// A plane leaves three motions free and a sphere its three rotations (conditioning 0 up to rounding); three
+// faces of a box fix all six; a cylinder the rotation about and the translation along its axis.
+TEST(PoseConditioning, IsZeroExactlyWhenTheSurfaceLeavesAMotionFree) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const int n = 300;
+  Eigen::Matrix3Xd plane(3, n), plane_normals(3, n), sphere(3, n), sphere_normals(3, n), box(3, n),
+      box_normals(3, n), cylinder(3, n), cylinder_normals(3, n);
+  for (int i = 0; i < n; ++i) {
+    plane.col(i) = Eigen::Vector3d(u(rng), u(rng), 0);
+    plane_normals.col(i) = Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d d = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    sphere.col(i) = Eigen::Vector3d(1, 2, 3) + 2 * d;
+    sphere_normals.col(i) = d;
+    const int face = i % 3;
+    Eigen::Vector3d p(u(rng), u(rng), u(rng));
+    p(face) = 1;
+    box.col(i) = p;
+    box_normals.col(i) = Eigen::Vector3d::Unit(face);
+    const double a = 3 * u(rng);
+    cylinder.col(i) = Eigen::Vector3d(std::cos(a), std::sin(a), 2 * u(rng));
+    cylinder_normals.col(i) = Eigen::Vector3d(std::cos(a), std::sin(a), 0);
+  }
+  EXPECT_LT(PoseConditioning(plane, plane_normals), 1e-14);
+  EXPECT_LT(PoseConditioning(sphere, sphere_normals), 1e-14);
+  EXPECT_LT(PoseConditioning(cylinder, cylinder_normals), 1e-14);
+  EXPECT_GT(PoseConditioning(box, box_normals), 1e-2);
+  EXPECT_EQ(PoseConditioning(box.leftCols(5), box_normals.leftCols(5)), 0.0);
+  EXPECT_THROW(PoseConditioning(box, box_normals.leftCols(5)), std::invalid_argument);
 }
 
 }  // namespace
