@@ -23,11 +23,93 @@ double DomainDiameter(const FeSurface& surface) {
   return (uv.rowwise().maxCoeff() - uv.rowwise().minCoeff()).norm();
 }
 
-// The reduced transformation of eq. P9 for constraints that fix components of single vector dofs: the step
-// delta = T y with T block-diagonal, one 3 x m_d block per dof whose orthonormal columns span the complement
-// of the dof's fixed directions (m_d = 3 for a free dof, 0 for a dof fixed in three independent directions).
-Eigen::SparseMatrix<double> ReducedBasis(const std::vector<FeFixedDirection>& fixed, int dofs) {
-  std::vector<std::vector<Eigen::Vector3d>> directions(static_cast<std::size_t>(dofs));
+// The reduced transformation of eq. P9: the step delta = T y whose columns span the null space of the
+// constraint rows, so that every row keeps its value. The rows couple few unknowns (one dof's three
+// coordinates, or one vertex's two slopes), so T is block-diagonal over the groups of dofs that rows link
+// (union-find), each block the orthonormal null space of its rows by an SVD (rank to 1e-10 of the largest
+// singular value); a dof in no row keeps its three columns of the identity. Columns follow the dofs' order.
+Eigen::SparseMatrix<double> ReducedBasis(const std::vector<FeLinearConstraint>& rows, int dofs) {
+  const int unknowns = 3 * dofs;
+  std::vector<int> parent(static_cast<std::size_t>(dofs));
+  for (int d = 0; d < dofs; ++d) parent[static_cast<std::size_t>(d)] = d;
+  const auto root = [&parent](int d) {
+    while (parent[static_cast<std::size_t>(d)] != d)
+      d = parent[static_cast<std::size_t>(d)] =
+          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(d)])];
+    return d;
+  };
+  for (const FeLinearConstraint& row : rows) {
+    if (row.terms.empty())
+      throw std::invalid_argument("finite-element surface fit: a constraint without terms");
+    for (const auto& [unknown, coefficient] : row.terms) {
+      if (unknown < 0 || unknown >= unknowns)
+        throw std::invalid_argument("finite-element surface fit: a constraint on unknown " +
+                                    std::to_string(unknown) + ", out of range (" + std::to_string(unknowns) +
+                                    " unknowns)");
+      if (!std::isfinite(coefficient))
+        throw std::invalid_argument("finite-element surface fit: a constraint's coefficient is not finite");
+    }
+    const int first = root(row.terms.front().first / 3);
+    for (const auto& term : row.terms) parent[static_cast<std::size_t>(root(term.first / 3))] = first;
+  }
+  // The rows and the dofs of every group.
+  std::vector<std::vector<int>> group_rows(static_cast<std::size_t>(dofs)),
+      group_dofs(static_cast<std::size_t>(dofs));
+  for (std::size_t r = 0; r < rows.size(); ++r)
+    group_rows[static_cast<std::size_t>(root(rows[r].terms.front().first / 3))].push_back(
+        static_cast<int>(r));
+  for (int d = 0; d < dofs; ++d) group_dofs[static_cast<std::size_t>(root(d))].push_back(d);
+
+  std::vector<Eigen::Triplet<double>> triplets;
+  std::vector<char> done(static_cast<std::size_t>(dofs), 0);
+  int column = 0;
+  for (int d = 0; d < dofs; ++d) {
+    const int g = root(d);
+    if (done[static_cast<std::size_t>(g)]) continue;
+    done[static_cast<std::size_t>(g)] = 1;
+    const std::vector<int>& members = group_dofs[static_cast<std::size_t>(g)];
+    const std::vector<int>& mine = group_rows[static_cast<std::size_t>(g)];
+    if (mine.empty()) {
+      for (int c = 0; c < 3; ++c) triplets.emplace_back(3 * d + c, column++, 1.0);
+      continue;
+    }
+    // Local unknown index of every global unknown of the group.
+    const Eigen::Index local_count = 3 * static_cast<Eigen::Index>(members.size());
+    const auto local = [&members](int unknown) {
+      const auto at = std::lower_bound(members.begin(), members.end(), unknown / 3);
+      return 3 * static_cast<Eigen::Index>(at - members.begin()) + unknown % 3;
+    };
+    Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(mine.size()), local_count);
+    for (std::size_t r = 0; r < mine.size(); ++r) {
+      const FeLinearConstraint& row = rows[static_cast<std::size_t>(mine[r])];
+      for (const auto& [unknown, coefficient] : row.terms)
+        a(static_cast<Eigen::Index>(r), local(unknown)) += coefficient;
+      const double norm = a.row(static_cast<Eigen::Index>(r)).norm();
+      if (!(norm > 0.0))
+        throw std::invalid_argument(
+            "finite-element surface fit: a constraint whose coefficients are all zero");
+      a.row(static_cast<Eigen::Index>(r)) /= norm;
+    }
+    // The right singular vectors beyond the rows' rank span their null space.
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(a, Eigen::ComputeFullV);
+    Eigen::Index rank = 0;
+    for (Eigen::Index i = 0; i < svd.singularValues().size(); ++i)
+      if (svd.singularValues()(i) > 1e-10 * svd.singularValues()(0)) ++rank;
+    const Eigen::MatrixXd free = svd.matrixV().rightCols(local_count - rank);
+    for (Eigen::Index j = 0; j < free.cols(); ++j, ++column)
+      for (Eigen::Index i = 0; i < local_count; ++i)
+        if (std::abs(free(i, j)) > 1e-15)
+          triplets.emplace_back(3 * members[static_cast<std::size_t>(i / 3)] + static_cast<int>(i % 3),
+                                column, free(i, j));
+  }
+  Eigen::SparseMatrix<double> t(unknowns, column);
+  t.setFromTriplets(triplets.begin(), triplets.end());
+  return t;
+}
+
+// A fixed direction as a constraint row (eq. P9).
+std::vector<FeLinearConstraint> AsRows(const std::vector<FeFixedDirection>& fixed, int dofs) {
+  std::vector<FeLinearConstraint> rows;
   for (const FeFixedDirection& f : fixed) {
     if (f.dof < 0 || f.dof >= dofs)
       throw std::invalid_argument("finite-element surface fit: a fixed direction of dof " +
@@ -36,32 +118,12 @@ Eigen::SparseMatrix<double> ReducedBasis(const std::vector<FeFixedDirection>& fi
     if (!f.direction.allFinite() || !(f.direction.norm() > 0.0))
       throw std::invalid_argument("finite-element surface fit: a fixed direction of dof " +
                                   std::to_string(f.dof) + " is zero or not finite");
-    directions[static_cast<std::size_t>(f.dof)].push_back(f.direction.normalized());
+    FeLinearConstraint row;
+    for (int c = 0; c < 3; ++c)
+      if (f.direction(c) != 0.0) row.terms.emplace_back(3 * f.dof + c, f.direction(c));
+    rows.push_back(std::move(row));
   }
-  std::vector<Eigen::Triplet<double>> triplets;
-  int column = 0;
-  for (int d = 0; d < dofs; ++d) {
-    const std::vector<Eigen::Vector3d>& mine = directions[static_cast<std::size_t>(d)];
-    Eigen::Matrix3d free = Eigen::Matrix3d::Identity();
-    int free_count = 3;
-    if (!mine.empty()) {
-      Eigen::Matrix3Xd a(3, static_cast<Eigen::Index>(mine.size()));
-      for (std::size_t i = 0; i < mine.size(); ++i) a.col(static_cast<Eigen::Index>(i)) = mine[i];
-      // The left singular vectors beyond the directions' rank span their orthogonal complement.
-      const Eigen::JacobiSVD<Eigen::Matrix3Xd> svd(a, Eigen::ComputeFullU);
-      int rank = 0;
-      for (Eigen::Index i = 0; i < svd.singularValues().size(); ++i)
-        if (svd.singularValues()(i) > 1e-10 * svd.singularValues()(0)) ++rank;
-      free_count = 3 - rank;
-      free.leftCols(free_count) = svd.matrixU().rightCols(free_count);
-    }
-    for (int j = 0; j < free_count; ++j, ++column)
-      for (int c = 0; c < 3; ++c)
-        if (free(c, j) != 0.0) triplets.emplace_back(3 * d + c, column, free(c, j));
-  }
-  Eigen::SparseMatrix<double> t(3 * dofs, column);
-  t.setFromTriplets(triplets.begin(), triplets.end());
-  return t;
+  return rows;
 }
 
 }  // namespace
@@ -133,7 +195,8 @@ bool FeFootPoint(const FeSurface& surface, const Eigen::Vector3d& x, FeSurfacePo
 
 FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Matrix2Xd& start_uv,
                                 const FeSurfaceFitOptions& options, FeSurface& surface,
-                                const std::vector<FeFixedDirection>& fixed) {
+                                const std::vector<FeFixedDirection>& fixed,
+                                const std::vector<FeLinearConstraint>& linear) {
   std::string why;
   if (!options.IsValid(&why)) throw std::invalid_argument("finite-element surface fit: " + why);
   if (points.cols() != start_uv.cols())
@@ -143,7 +206,9 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
   if (!points.allFinite() || !start_uv.allFinite())
     throw std::invalid_argument("finite-element surface fit: a point or start parameter is not finite");
   const int n = static_cast<int>(points.cols());
-  const Eigen::SparseMatrix<double> reduced_basis = ReducedBasis(fixed, surface.dof_count());
+  std::vector<FeLinearConstraint> rows = AsRows(fixed, surface.dof_count());
+  rows.insert(rows.end(), linear.begin(), linear.end());
+  const Eigen::SparseMatrix<double> reduced_basis = ReducedBasis(rows, surface.dof_count());
   FeSurfaceFitResult result;
   result.weights = AbsoluteFairnessWeights(options, surface, n);
   const Eigen::SparseMatrix<double> k = surface.EnergyMatrix(result.weights);
@@ -371,6 +436,86 @@ std::vector<FeFixedDirection> SetCylindricalChart(FeSurface& surface, double rad
   for (int e = 0; e < surface.edge_count(); ++e)
     if (surface.boundary_edge(e)) fixed.push_back({surface.edge_dof(e), Eigen::Vector3d::UnitZ()});
   return fixed;
+}
+
+std::vector<FeLinearConstraint> SetBoundaryConformity(FeSurface& surface, const FeBoundaryTrace& trace) {
+  const int vertices = surface.vertex_count();
+  std::vector<std::vector<int>> boundary_edges(static_cast<std::size_t>(vertices));
+  for (int e = 0; e < surface.edge_count(); ++e)
+    if (surface.boundary_edge(e))
+      for (int v : surface.edge(e)) boundary_edges[static_cast<std::size_t>(v)].push_back(e);
+  const Eigen::Matrix2Xd& uv = surface.mesh().uv;
+  Eigen::MatrixX3d q = surface.dofs();
+  std::vector<FeLinearConstraint> rows;
+  const auto fix = [&rows](int dof, const Eigen::Vector2d& weights, int dof2) {
+    for (int c = 0; c < 3; ++c) {
+      FeLinearConstraint row;
+      if (weights(0) != 0.0) row.terms.emplace_back(3 * dof + c, weights(0));
+      if (dof2 >= 0 && weights(1) != 0.0) row.terms.emplace_back(3 * dof2 + c, weights(1));
+      rows.push_back(std::move(row));
+    }
+  };
+  for (int v = 0; v < vertices; ++v) {
+    const std::vector<int>& edges = boundary_edges[static_cast<std::size_t>(v)];
+    if (edges.empty()) continue;
+    const Eigen::Vector2d at = uv.col(v);
+    const auto where = [&at] { return "(" + std::to_string(at.x()) + ", " + std::to_string(at.y()) + ")"; };
+    // Eq. P12: the curve's point, and its slope along every boundary edge from the vertex.
+    const Eigen::Index k = static_cast<Eigen::Index>(edges.size());
+    Eigen::MatrixX2d directions(k, 2);
+    Eigen::MatrixX3d slopes(k, 3);
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();
+    for (Eigen::Index i = 0; i < k; ++i) {
+      const auto& ends = surface.edge(edges[static_cast<std::size_t>(i)]);
+      const int other = ends[0] == v ? ends[1] : ends[0];
+      const Eigen::Vector2d d = (uv.col(other) - at).normalized();
+      Eigen::Vector3d p, slope;
+      trace(at, d, p, slope);
+      if (!p.allFinite() || !slope.allFinite())
+        throw std::invalid_argument("boundary conformity: the boundary curve at " + where() +
+                                    " is not finite");
+      if (i == 0) point = p;
+      if ((p - point).norm() > 1e-9 * (1.0 + point.norm()))
+        throw std::invalid_argument(
+            "boundary conformity: the boundary curves do not meet at the domain vertex " + where() + " (" +
+            std::to_string((p - point).norm()) + " apart)");
+      directions.row(i) = d.transpose();
+      slopes.row(i) = slope.transpose();
+    }
+    q.row(surface.vertex_dof(v, 0)) = point.transpose();
+    for (int c = 0; c < 3; ++c) rows.push_back({{{3 * surface.vertex_dof(v, 0) + c, 1.0}}});
+
+    // The slopes w_u, w_v (rows of g) with directions g = slopes (Fang's eqs. 4.3.2-4.3.4): a corner (edges
+    // in two directions) fixes both; a vertex inside a straight side fixes their combination along the side.
+    const int du = surface.vertex_dof(v, 1), dv = surface.vertex_dof(v, 2);
+    Eigen::Matrix<double, 2, 3> g;
+    g.row(0) = q.row(du);
+    g.row(1) = q.row(dv);
+    const Eigen::JacobiSVD<Eigen::MatrixX2d> svd(directions, Eigen::ComputeFullV);
+    const bool corner = svd.singularValues()(1) > 1e-8 * svd.singularValues()(0);
+    if (corner) {
+      g = directions.colPivHouseholderQr().solve(slopes);
+      fix(du, Eigen::Vector2d(1, 0), -1);
+      fix(dv, Eigen::Vector2d(1, 0), -1);
+    } else {
+      const Eigen::Vector2d d = directions.row(0).transpose();
+      Eigen::RowVector3d along = slopes.row(0);
+      g += d * (along - d.transpose() * g);
+      fix(du, d, dv);
+    }
+    const double mismatch = (directions * g - slopes).norm();
+    if (mismatch > 1e-8 * (1.0 + slopes.norm()))
+      throw std::invalid_argument(
+          "boundary conformity: the boundary's slopes at the domain vertex " + where() + " disagree by " +
+          std::to_string(mismatch) +
+          (corner ? " (the directions at a corner over-determine them)"
+                  : " (along a straight side the curve's parametric speed must be proportional to the side's "
+                    "length: Fang's consistency condition)"));
+    q.row(du) = g.row(0);
+    q.row(dv) = g.row(1);
+  }
+  surface.set_dofs(q);
+  return rows;
 }
 
 }  // namespace s2m

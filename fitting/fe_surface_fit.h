@@ -6,7 +6,9 @@
 // the feet re-found on the surface after every step.
 
 #include <Eigen/Core>
+#include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fitting/fe_surface.h"
@@ -51,15 +53,25 @@ struct FeFixedDirection {
   Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
 };
 
+// A general linear constraint of the reduced transformation (eq. P9): sum of coefficient x unknown over its
+// terms (unknown = 3 dof + coordinate) keeps its current value. Rows may couple several dofs (a boundary
+// vertex's two slopes, eq. P12); set the dofs so that the rows hold their target values before fitting.
+struct FeLinearConstraint {
+  std::vector<std::pair<int, double>> terms;
+};
+
 // Fits surface's dofs to the points. start_uv holds each point's parameter to start from (for a patch
 // projected onto a plane or a cylinder, its projection): the first step is the linear least-squares fit
 // (PDM) with the points held at these parameters, from the surface's current dofs; later steps re-find the
 // feet. Every dof keeps its components along its fixed directions: the steps are confined to the free
-// subspace by the reduced transformation of eq. P9. Throws std::invalid_argument for mismatched sizes,
-// non-finite input, a fixed direction of an out-of-range dof or a zero direction, or invalid options.
+// subspace by the reduced transformation of eq. P9, as every row of `linear` keeps its value. Throws
+// std::invalid_argument for mismatched sizes, non-finite input, a fixed direction of an out-of-range dof or a
+// zero direction, a constraint row on an out-of-range unknown or with no non-zero coefficient, or invalid
+// options.
 FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Matrix2Xd& start_uv,
                                 const FeSurfaceFitOptions& options, FeSurface& surface,
-                                const std::vector<FeFixedDirection>& fixed = {});
+                                const std::vector<FeFixedDirection>& fixed = {},
+                                const std::vector<FeLinearConstraint>& linear = {});
 
 // A patch parametrized by its projection onto a plane (the points expressed in the plane's frame: x, y in the
 // plane, z along its normal): sets the surface to the plane z = 0 with the identity chart w = (u, v, 0), and
@@ -77,6 +89,22 @@ std::vector<FeFixedDirection> SetPlanarChart(FeSurface& surface);
 // std::invalid_argument for a radius that is not positive or a domain wider than the cylinder's
 // circumference.
 std::vector<FeFixedDirection> SetCylindricalChart(FeSurface& surface, double radius);
+
+// Where the domain's boundary runs along given space curves (Fang's n-sided patches; docs/fe-surfaces.md eq.
+// P12): for a point uv on the boundary and the unit direction of a boundary edge leaving it, the curves'
+// point there and their derivative per unit length of the domain along that direction.
+using FeBoundaryTrace = std::function<void(const Eigen::Vector2d& uv, const Eigen::Vector2d& direction,
+                                           Eigen::Vector3d& point, Eigen::Vector3d& slope)>;
+
+// Fang's boundary conformity (thesis 4.3.4.1; eq. P12): sets every boundary vertex's value to the curves'
+// point and its slopes so that the slope along each boundary edge is the curves' (at a corner of the polygon
+// both slopes follow; inside a straight side their combination along it), and returns the constraint rows
+// that keep them. Along a boundary edge the surface is the cubic Hermite interpolant of its ends' values and
+// slopes along the edge, so where the curves are cubic Hermite elements between the boundary vertices (the
+// boundary vertices at the curves' nodes, or splitting their elements) the surface's boundary IS the curves.
+// Throws std::invalid_argument when the curves do not meet at a vertex, or their slopes there disagree (at a
+// corner; along a straight side, Fang's consistency condition h1 / l1 = h2 / l2 violated).
+std::vector<FeLinearConstraint> SetBoundaryConformity(FeSurface& surface, const FeBoundaryTrace& trace);
 
 // The absolute weights of eq. P6 for a point count and a surface's domain.
 FairnessWeights AbsoluteFairnessWeights(const FeSurfaceFitOptions& options, const FeSurface& surface,

@@ -421,6 +421,7 @@ void ToFittedFeSurface(const RegisterOptions& o, const nlohmann::json& fit, cons
       residuals["rms"] = nullptr;
       residuals["max"] = nullptr;
     }
+    if (!moved) residuals["stop_reason"] = "not started: the surface does not hold the view at its start";
     entries.push_back(ViewEntry(scan, pose, residuals));
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

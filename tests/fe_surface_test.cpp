@@ -4,13 +4,16 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
 #include <random>
+#include <stdexcept>
 
 #include "fitting/fe_surface_fit.h"
 #include "fitting/fe_surface_model.h"
+#include "fitting/hermite_curve.h"
 #include "fitting/model_checker.h"
 
 namespace s2m {
@@ -354,6 +357,142 @@ TEST(FeSurfaceFit, ADofFixedInThreeDirectionsKeepsItsValue) {
   EXPECT_THROW(FitFeSurface(data.points, data.start_uv, FeSurfaceFitOptions{}, other,
                             {{other.dof_count(), Eigen::Vector3d::UnitX()}}),
                std::invalid_argument);
+}
+
+// A bump on a tilted, bent sheet (its boundary out of a plane): the graph (u, v, f) with its slopes.
+Eigen::Matrix3d BumpOnASheet(const Eigen::Vector2d& p) {
+  Eigen::Matrix3d f = GaussianBump(p);
+  f(2, 0) += 0.15 * p.x() + 0.05 * p.y() * p.y();
+  f(2, 1) += 0.15;
+  f(2, 2) += 0.1 * p.y();
+  return f;
+}
+
+// The six sides of the hexagon of circumradius 3 as open cubic Hermite curves of `elements` elements, their
+// nodes on the true surface with its exact slopes (the sides' boundary curves, as fitted boundary curves
+// would give them), and the trace of eq. P12 they define.
+struct HexagonBoundary {
+  std::vector<Eigen::Vector2d> corners;
+  std::vector<HermiteCurve> sides;
+
+  explicit HexagonBoundary(int elements) {
+    for (int k = 0; k <= 6; ++k)
+      corners.emplace_back(3.0 * std::cos(k * M_PI / 3.0), 3.0 * std::sin(k * M_PI / 3.0));
+    for (int k = 0; k < 6; ++k) {
+      const Eigen::Vector2d a = corners[static_cast<std::size_t>(k)],
+                            b = corners[static_cast<std::size_t>(k + 1)];
+      Eigen::MatrixXd dofs(3, 2 * (elements + 1));
+      for (int n = 0; n <= elements; ++n) {
+        const Eigen::Matrix3d f = BumpOnASheet(a + (b - a) * n / static_cast<double>(elements));
+        dofs.col(2 * n) = f.col(0);
+        dofs.col(2 * n + 1) =
+            f.col(1) * (b - a).x() + f.col(2) * (b - a).y();  // d/du, u in [0, 1] along the side
+      }
+      sides.push_back(HermiteCurve::Uniform(3, elements, dofs, false));
+    }
+  }
+  // The side through uv parallel to d, and the curve's point and slope per unit length along d.
+  void Trace(const Eigen::Vector2d& uv, const Eigen::Vector2d& d, Eigen::Vector3d& point,
+             Eigen::Vector3d& slope) const {
+    for (int k = 0; k < 6; ++k) {
+      const Eigen::Vector2d a = corners[static_cast<std::size_t>(k)],
+                            b = corners[static_cast<std::size_t>(k + 1)];
+      const Eigen::Vector2d t = (b - a) / (b - a).norm();
+      const double along = (uv - a).dot(t), length = (b - a).norm();
+      const double off = std::abs((uv - a).x() * t.y() - (uv - a).y() * t.x());
+      if (off > 1e-9 || along < -1e-9 || along > length + 1e-9 ||
+          std::abs(d.x() * t.y() - d.y() * t.x()) > 1e-9)
+        continue;
+      Eigen::MatrixXd jet;
+      sides[static_cast<std::size_t>(k)].EvaluateJet(std::clamp(along / length, 0.0, 1.0), 1, jet);
+      point = jet.col(0);
+      slope = jet.col(1) / length * d.dot(t);
+      return;
+    }
+    throw std::invalid_argument("not on the hexagon's boundary");
+  }
+};
+
+TEST(FeSurfaceFit, BoundaryConformsExactlyToHermiteBoundaryCurves) {
+  // Fang's n-sided patch (thesis 4.3.4.1, docs/fe-surfaces.md eq. P12): the boundary given as six cubic
+  // Hermite curves with nodes at the mesh's boundary vertices; the conformity rows, kept by the reduced
+  // transformation (eq. P9) through the fit, make the surface's boundary the curves themselves, while the
+  // inside fits the points as well as with a planar chart.
+  const HexagonBoundary boundary(4);
+  const auto trace = [&boundary](const Eigen::Vector2d& uv, const Eigen::Vector2d& d, Eigen::Vector3d& point,
+                                 Eigen::Vector3d& slope) { boundary.Trace(uv, d, point, slope); };
+  std::mt19937 rng(2027);
+  std::uniform_real_distribution<double> coordinate(-3.0, 3.0);
+  std::normal_distribution<double> gauss(0.0, 0.005);
+  Eigen::Matrix3Xd points(3, 3000);
+  Eigen::Matrix2Xd start_uv(2, 3000);
+  for (int i = 0; i < 3000;) {
+    const Eigen::Vector2d p(coordinate(rng), coordinate(rng));
+    if (!InsideHexagon(p, 3.0)) continue;
+    points.col(i) = BumpOnASheet(p).col(0) + Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    start_uv.col(i) = points.col(i).head<2>();
+    ++i;
+  }
+  FeSurface surface(SubdividedHexagon(3.0, 4));
+  SetPlanarChart(surface);  // the inside starts flat; its returned pins are not used
+  const std::vector<FeLinearConstraint> conformity = SetBoundaryConformity(surface, trace);
+  const FeSurfaceFitResult fit =
+      FitFeSurface(points, start_uv, FeSurfaceFitOptions{}, surface, {}, conformity);
+  // The boundary, sampled along every side, against the curves.
+  double boundary_error = 0.0;
+  FeSurfacePoint at;
+  for (int k = 0; k < 6; ++k)
+    for (int i = 0; i <= 40; ++i) {
+      const Eigen::Vector2d a = boundary.corners[static_cast<std::size_t>(k)],
+                            b = boundary.corners[static_cast<std::size_t>(k + 1)];
+      const Eigen::Vector2d uv = a + (b - a) * (i / 40.0);
+      surface.Locate(uv, at);
+      Eigen::MatrixXd jet;
+      boundary.sides[static_cast<std::size_t>(k)].EvaluateJet(i / 40.0, 0, jet);
+      boundary_error =
+          std::max(boundary_error, (surface.Evaluate(at).point - Eigen::Vector3d(jet.col(0))).norm());
+    }
+  std::mt19937 check_rng(98);
+  const BumpErrors errors =
+      ErrorsToTruth(surface, 4000, check_rng,
+                    [](const Eigen::Vector2d& p) -> Eigen::Vector3d { return BumpOnASheet(p).col(0); });
+  std::printf(
+      "boundary curves: %d iterations%s, RMS %.5f, boundary off the curves %.2e, e_max %.5f, e_mean %.5f\n",
+      fit.iterations, fit.converged ? " (converged)" : "", fit.rms, boundary_error, errors.e_max,
+      errors.e_mean);
+  EXPECT_TRUE(fit.converged);
+  EXPECT_LT(boundary_error, 1e-10);
+  EXPECT_LT(errors.e_max, 0.01);
+  EXPECT_LT(errors.e_mean, 0.002);
+  EXPECT_NEAR(fit.rms, 0.005, 0.0005);
+
+  // Curves that do not meet at a corner, and a side whose curve runs at another speed than the side's length
+  // (Fang's consistency condition): refused with the reason.
+  FeSurface gap(SubdividedHexagon(3.0, 4));
+  const auto apart = [&boundary](const Eigen::Vector2d& uv, const Eigen::Vector2d& d, Eigen::Vector3d& point,
+                                 Eigen::Vector3d& slope) {
+    boundary.Trace(uv, d, point, slope);
+    if ((uv - boundary.corners[0]).norm() < 1e-9 && d.y() > 0.1)
+      point.z() += 0.01;  // the side towards corner 1
+  };
+  try {
+    SetBoundaryConformity(gap, apart);
+    ADD_FAILURE() << "curves apart at a corner accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("do not meet"), std::string::npos) << e.what();
+  }
+  const auto uneven = [&boundary](const Eigen::Vector2d& uv, const Eigen::Vector2d& d, Eigen::Vector3d& point,
+                                  Eigen::Vector3d& slope) {
+    boundary.Trace(uv, d, point, slope);
+    if (uv.y() > 2.0 && std::abs(d.y()) < 1e-9 && d.x() > 0) slope *= 1.2;  // the top side, towards +x
+  };
+  FeSurface fast(SubdividedHexagon(3.0, 4));
+  try {
+    SetBoundaryConformity(fast, uneven);
+    ADD_FAILURE() << "inconsistent slopes accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("disagree"), std::string::npos) << e.what();
+  }
 }
 
 TEST(FeSurfaceModel, PassesTheModelChecker) {
