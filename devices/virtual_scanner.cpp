@@ -523,7 +523,11 @@ VirtualScannerOptions ParseVirtualDevice(const std::string& spec, std::string& s
   mesh_units = "mm";
   VirtualScannerOptions o;
   o.name = std::filesystem::path(scene).stem().string();
-  for (const auto& [key, value] : device.options) {
+  for (const auto& option : device.options) {
+    // Named references, not structured bindings: lambdas may capture bindings only from C++20 (clang 14,
+    // Debian 12's, refuses them).
+    const std::string& key = option.first;
+    const std::string& value = option.second;
     auto number = [&]() { return DeviceOptionNumber(key, value); };
     auto integer = [&]() { return DeviceOptionInteger(key, value, 0, 1000000000); };
     if (key == "sensor") {

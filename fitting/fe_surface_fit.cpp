@@ -518,4 +518,38 @@ std::vector<FeLinearConstraint> SetBoundaryConformity(FeSurface& surface, const 
   return rows;
 }
 
+void FairFill(FeSurface& surface, const std::vector<FeLinearConstraint>& rows) {
+  // Eq. P14: minimize the thin-plate energy trace(Q^T K Q) over Q = Q0 + T y (the rows keep their values):
+  // (T^T (K (x) I3) T) y = -T^T (K (x) I3) Q0.
+  FairnessWeights thin_plate;
+  thin_plate.bending = 1.0;
+  const Eigen::SparseMatrix<double> k = surface.EnergyMatrix(thin_plate);
+  const int dofs = surface.dof_count();
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (int outer = 0; outer < k.outerSize(); ++outer)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(k, outer); it; ++it)
+      for (int c = 0; c < 3; ++c)
+        triplets.emplace_back(3 * static_cast<int>(it.row()) + c, 3 * static_cast<int>(it.col()) + c,
+                              it.value());
+  Eigen::SparseMatrix<double> full(3 * dofs, 3 * dofs);
+  full.setFromTriplets(triplets.begin(), triplets.end());
+  const Eigen::SparseMatrix<double> t = ReducedBasis(rows, dofs);
+  Eigen::VectorXd q0(3 * dofs);
+  for (int d = 0; d < dofs; ++d) q0.segment<3>(3 * d) = surface.dofs().row(d).transpose();
+  const Eigen::SparseMatrix<double> reduced = Eigen::SparseMatrix<double>(t.transpose() * full * t);
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(reduced);
+  const Eigen::VectorXd y = solver.info() == Eigen::Success
+                                ? Eigen::VectorXd(solver.solve(-(t.transpose() * (full * q0))))
+                                : Eigen::VectorXd();
+  if (y.size() != reduced.rows() || !y.allFinite() || solver.vectorD().minCoeff() <= 0.0)
+    throw std::invalid_argument(
+        "fair fill: the thin-plate energy with these constraints has no unique minimum (the constraints do "
+        "not "
+        "hold the surface: too few fixed values?)");
+  const Eigen::VectorXd q = q0 + t * y;
+  Eigen::MatrixX3d out(dofs, 3);
+  for (int d = 0; d < dofs; ++d) out.row(d) = q.segment<3>(3 * d).transpose();
+  surface.set_dofs(out);
+}
+
 }  // namespace s2m

@@ -106,6 +106,12 @@ using FeBoundaryTrace = std::function<void(const Eigen::Vector2d& uv, const Eige
 // corner; along a straight side, Fang's consistency condition h1 / l1 = h2 / l2 violated).
 std::vector<FeLinearConstraint> SetBoundaryConformity(FeSurface& surface, const FeBoundaryTrace& trace);
 
+// The fairest surface that keeps the constraint rows (docs/fe-surfaces.md eq. P14): the dofs minimizing the
+// thin-plate energy with every row at its current value, e.g. the patch spanning its boundary curves after
+// SetBoundaryConformity, where a fit starts. Throws std::invalid_argument when the rows do not make the
+// minimum unique.
+void FairFill(FeSurface& surface, const std::vector<FeLinearConstraint>& rows);
+
 // The absolute weights of eq. P6 for a point count and a surface's domain.
 FairnessWeights AbsoluteFairnessWeights(const FeSurfaceFitOptions& options, const FeSurface& surface,
                                         int point_count);

@@ -7,12 +7,15 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <sstream>
 
 #include "acquisition/format_error.h"
 #include "acquisition/point_cloud_io.h"
 #include "fitting/domain_mesh.h"
 #include "fitting/fe_surface.h"
+#include "fitting/fe_surface_model.h"
+#include "fitting/foot_point.h"
 #include "fitting/noise_estimate.h"
 #include "fitting/primitive_fit.h"
 #include "fitting/primitives.h"
@@ -21,6 +24,7 @@
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
+#include "pipeline/patch_boundary.h"
 
 namespace s2m::pipeline {
 namespace {
@@ -196,10 +200,26 @@ struct PatchFit {
 
 PatchFit FitPatch(const Chart& chart, const DomainPolygon& polygon, const DomainMeshOptions& mesh_options,
                   const Eigen::Matrix3Xd& local, const Eigen::Matrix2Xd& uv,
-                  const FeSurfaceFitOptions& fit_options) {
+                  const FeSurfaceFitOptions& fit_options, const CurvedBoundary* curves) {
   PatchFit p;
   p.domain = MeshDomain(polygon, mesh_options);
   p.surface = std::make_unique<FeSurface>(ToFeMesh(p.domain));
+  if (curves) {
+    // An n-sided patch (docs/fe-surfaces.md section 6a): the boundary conforms to the curves (eq. P12), the
+    // inside starts as the fairest surface spanning them (eq. P14), and each point starts from its foot there
+    // (global search).
+    const std::vector<FeLinearConstraint> rows = SetBoundaryConformity(*p.surface, curves->Trace());
+    FairFill(*p.surface, rows);
+    const FeSurfaceModel start(*p.surface);
+    std::vector<FootPoint> feet;
+    ComputeFootPoints(start, local, feet);
+    Eigen::Matrix2Xd start_uv(2, local.cols());
+    for (Eigen::Index i = 0; i < local.cols(); ++i)
+      start_uv.col(i) =
+          Eigen::Vector2d(feet[static_cast<std::size_t>(i)].t[0], feet[static_cast<std::size_t>(i)].t[1]);
+    p.result = FitFeSurface(local, start_uv, fit_options, *p.surface, {}, rows);
+    return p;
+  }
   const std::vector<FeFixedDirection> pinned =
       chart.cylinder ? SetCylindricalChart(*p.surface, chart.radius) : SetPlanarChart(*p.surface);
   p.result = FitFeSurface(local, uv, fit_options, *p.surface, pinned);
@@ -230,15 +250,33 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
                                       Format(frame.spread(1), 4) + " across): no surface patch spans them");
     if (o.projection != "plane" && o.projection != "cylinder")
       throw FitFailure(kUsage, "--projection " + o.projection + ": fe-surface takes plane or cylinder");
+    // An n-sided patch bounded by fitted curves lives in the data's coordinates (an identity chart); the
+    // curves, not a projection, make its domain.
+    const bool curve_boundary = !o.boundary.empty() && o.boundary != "auto" && IsCurveBoundary(o.boundary);
+    if (curve_boundary && o.projection != "plane")
+      throw FitFailure(kUsage,
+                       "--projection does not apply to a boundary of curves (the curves make the domain)");
+    std::optional<CurvedBoundary> curves;
+    if (curve_boundary) {
+      if (o.progress) o.progress("reading the boundary curves and closing their domain polygon");
+      curves.emplace(ReadCurvedBoundary(o.boundary));
+    }
+    const CurvedBoundary* curves_ptr = curves ? &*curves : nullptr;
     if (o.progress && o.projection == "cylinder") o.progress("fitting the points' cylinder");
-    const Chart chart = o.projection == "cylinder" ? CylinderChart(points, o.file) : PlaneChart(frame);
+    const Chart chart = curve_boundary               ? Chart{}
+                        : o.projection == "cylinder" ? CylinderChart(points, o.file)
+                                                     : PlaneChart(frame);
     const Eigen::Matrix3Xd local = chart.ToLocal(points);
     const Eigen::Matrix2Xd uv = chart.Parameters(local);
 
-    // The domain: the given boundary projected onto the chart, or the points' convex hull there.
+    // The domain: the boundary curves' polygon, the given outline projected onto the chart, or the points'
+    // convex hull there.
     DomainPolygon polygon;
     std::string boundary_source = "auto (convex hull of the points' projection)";
-    if (!o.boundary.empty() && o.boundary != "auto") {
+    if (curves) {
+      polygon = curves->polygon;
+      boundary_source = std::to_string(curves->sides.size()) + " boundary curves (" + o.boundary + ")";
+    } else if (!o.boundary.empty() && o.boundary != "auto") {
       const Scan outline = ReadPointCloud(o.boundary, DetectFormat(o.boundary));
       polygon.outer = chart.Parameters(chart.ToLocal(outline.points));
       if (polygon.outer.cols() >= 3 && PolygonArea(polygon.outer) < 0)
@@ -289,7 +327,7 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
     const double noise = EstimateNoise(single);
 
     if (o.progress) o.progress("meshing the domain and fitting");
-    PatchFit fit = FitPatch(chart, polygon, mesh_options, local, uv, fit_options);
+    PatchFit fit = FitPatch(chart, polygon, mesh_options, local, uv, fit_options, curves_ptr);
     // Without --bending, the weight by Morozov's discrepancy principle (docs/fe-surfaces.md eq. P11): the
     // largest of 1e-7, 1e-8, 1e-9, 1e-10 whose fit on the first mesh comes within the adequacy band of the
     // noise (RMS <= 1.5 sigma); a weaker weight is not tried once it no longer lowers the RMS by 10 % (the
@@ -305,7 +343,7 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
         if (o.progress)
           o.progress("RMS " + Format(fit.result.rms, 4) + " above 1.5 x the noise " + Format(noise, 4) +
                      ": fitting again with the bending weight " + Format(weaker.bending, 3));
-        PatchFit next = FitPatch(chart, polygon, mesh_options, local, uv, weaker);
+        PatchFit next = FitPatch(chart, polygon, mesh_options, local, uv, weaker, curves_ptr);
         tried.push_back({{"bending", weaker.bending}, {"rms", next.result.rms}});
         if (!(next.result.rms < 0.9 * fit.result.rms)) break;
         fit_options = weaker;
@@ -336,7 +374,7 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
       if (o.progress) o.progress("refining the mesh where the surface bends, and fitting again");
       const int first_triangles = fit.domain.triangle_count();
       const double first_rms = fit.result.rms;
-      PatchFit refined = FitPatch(chart, polygon, mesh_options, local, uv, fit_options);
+      PatchFit refined = FitPatch(chart, polygon, mesh_options, local, uv, fit_options, curves_ptr);
       refinement = {
           {"angle_per_element", angle},
           {"first", {{"triangles", first_triangles}, {"rms", first_rms}}},
@@ -352,8 +390,10 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
     j["input"] = {{"file", o.file}, {"format", format}, {"points", points.cols()}, {"units", units_out}};
     j["model"] = "fe-surface";
     j["method"] = method;
-    j["projection"] = chart.cylinder ? "cylinder" : "plane";
-    if (chart.cylinder)
+    j["projection"] = curves ? "boundary curves" : chart.cylinder ? "cylinder" : "plane";
+    if (curves)
+      j["boundary_curves"] = curves->ToJson();
+    else if (chart.cylinder)
       j["cylinder"] = {{"origin", Vector(chart.origin)},
                        {"x_axis", Vector(chart.axes.col(0))},
                        {"y_axis", Vector(chart.axes.col(1))},
@@ -440,9 +480,15 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
                                       : std::string(" (bending: the default; the noise is unknown)"))
          << "\n"
          << "  chart             "
-         << (chart.cylinder ? "cylinder of radius " + Format(chart.radius, 6) + " " + units_out +
-                                  " (the patch developed onto it: u = radius x angle, v = height)"
-                            : std::string("the points' best plane (the patch projected onto it)"))
+         << (curves
+                 ? "the boundary curves' polygon (" + std::to_string(curves->sides.size()) +
+                       " sides, closed in " + std::to_string(curves->closure.outer_iterations) +
+                       " multiplier updates; the curves' ends joined, at most " +
+                       Format(*std::max_element(curves->corner_gaps.begin(), curves->corner_gaps.end()), 3) +
+                       " " + units_out + " apart)"
+             : chart.cylinder ? "cylinder of radius " + Format(chart.radius, 6) + " " + units_out +
+                                    " (the patch developed onto it: u = radius x angle, v = height)"
+                              : std::string("the points' best plane (the patch projected onto it)"))
          << "\n"
          << "  domain            " << boundary_source << ", area " << Format(hull_area, 6) << " " << units_out
          << "^2\n";

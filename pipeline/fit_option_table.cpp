@@ -126,8 +126,12 @@ std::vector<FitOptionSpec> MakeTable() {
        "--boundary",
        K::kText,
        "auto",
-       "fe-surface: the domain's outline, a point file (PLY, PCD, XYZ) of its corners in order, projected "
-       "onto the points' plane; auto: the convex hull of the points' projection",
+       "fe-surface: boundary curves, 3 or more comma-separated cubic hermite-curve documents (.json) in "
+       "their "
+       "order round an n-sided patch (docs/fe-surfaces.md section 6a); or the domain's outline, a point file "
+       "(PLY, PCD, XYZ) of its corners in order, projected onto the points' plane; auto: the convex hull of "
+       "the "
+       "points' projection",
        {},
        false,
        -1e300,

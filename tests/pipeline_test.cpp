@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
 
@@ -732,9 +733,9 @@ TEST(FitDispatch, FeSurfaceDevelopsACylindricalPatchOntoItsCylinder) {
   EXPECT_EQ(d["projection"], "cylinder");
   EXPECT_TRUE(d["converged"].get<bool>());
   EXPECT_NEAR(d["residuals"]["rms"].get<double>(), 0.005, 0.0007);
-  // The chart's axis is the patch's (either sign). Its radius is the least-squares cylinder's: the bump in the
-  // middle of the arc makes the arc look more curved, so it is below 5 (4.79 measured); the chart only has to
-  // be near the surface, the surface itself is measured below.
+  // The chart's axis is the patch's (either sign). Its radius is the least-squares cylinder's: the bump in
+  // the middle of the arc makes the arc look more curved, so it is below 5 (4.79 measured); the chart only
+  // has to be near the surface, the surface itself is measured below.
   const auto axis = d["cylinder"]["axis"].get<std::vector<double>>();
   EXPECT_GT(std::abs(Eigen::Vector3d(axis[0], axis[1], axis[2]).dot(m.rotation.col(2))), 0.99);
   EXPECT_NEAR(d["cylinder"]["radius"].get<double>(), 5.0, 0.5);
@@ -776,6 +777,138 @@ TEST(FitDispatch, FeSurfaceDevelopsACylindricalPatchOntoItsCylinder) {
     ADD_FAILURE() << "--projection cone accepted";
   } catch (const FitFailure& e) {
     EXPECT_EQ(e.exit_code(), kUsage);
+  }
+}
+
+// z of a bump on a tilted, bent sheet, and its gradient.
+double SheetBump(double x, double y, Eigen::Vector2d* gradient = nullptr) {
+  const double g = std::exp(-0.5 * (x * x + y * y));
+  if (gradient) *gradient = Eigen::Vector2d(-x * g + 0.15, -y * g + 0.1 * y);
+  return g + 0.15 * x + 0.05 * y * y;
+}
+
+// Side k of the hexagon of circumradius 3 as a scan2model.hermite/1 document: a cubic Hermite curve on the
+// surface z = SheetBump over the side's line from 10 % before its first corner to 10 % past its second (as
+// fitted curves run a little past their ends), nodes exact but lifted by `lift`; `reversed` writes it the
+// other way round.
+void WriteSideCurve(const fs::path& file, int k, bool reversed, double lift) {
+  const Eigen::Vector2d a(3 * std::cos(k * M_PI / 3), 3 * std::sin(k * M_PI / 3)),
+      b(3 * std::cos((k + 1) * M_PI / 3), 3 * std::sin((k + 1) * M_PI / 3));
+  const int elements = 4;
+  nlohmann::json nodes = nlohmann::json::array();
+  std::vector<double> knots;
+  for (int n = 0; n <= elements; ++n) {
+    const double u = static_cast<double>(n) / elements;
+    const double s = reversed ? 1.1 - 1.2 * u : -0.1 + 1.2 * u;  // along the side, 0 and 1 at its corners
+    const Eigen::Vector2d xy = a + s * (b - a);
+    const Eigen::Vector2d dxy = (reversed ? -1.2 : 1.2) * (b - a);
+    Eigen::Vector2d gradient;
+    const double z = SheetBump(xy.x(), xy.y(), &gradient);
+    knots.push_back(u);
+    nodes.push_back({{"u", u},
+                     {"position", {xy.x(), xy.y(), z + lift}},
+                     {"first_derivative", {dxy.x(), dxy.y(), gradient.dot(dxy)}}});
+  }
+  std::ofstream(file) << nlohmann::json{
+      {"schema", "scan2model.hermite/1"},
+      {"degree", 3},
+      {"closed", false},
+      {"dimension", 3},
+      {"knots", knots},
+      {"nodes", nodes}}.dump();
+}
+
+TEST(FitDispatch, FeSurfaceSpansBoundaryCurvesAsAnNSidedPatch) {
+  // Fang's n-sided patch from the command line: six boundary curves (one given the other way round, one
+  // lifted by 0.001 so that its ends miss its neighbours', each running past its corners), the domain polygon
+  // closed from their lengths and turns, the surface conforming to them and fitted to the points inside.
+  const fs::path dir = FreshDir("fe_surface_curves");
+  std::string boundary;
+  for (int k = 0; k < 6; ++k) {
+    const fs::path file = dir / ("side" + std::to_string(k) + ".json");
+    WriteSideCurve(file, k, k == 2, k == 4 ? 0.001 : 0.0);
+    boundary += (k ? "," : "") + file.string();
+  }
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> coordinate(-3.0, 3.0);
+  std::normal_distribution<double> gauss(0.0, 0.005);
+  {
+    std::ofstream out(dir / "patch.xyz");
+    out.precision(12);
+    for (int i = 0; i < 3000;) {
+      const Eigen::Vector2d p(coordinate(rng), coordinate(rng));
+      if (!InsideHexagon3(p)) continue;
+      out << p.x() + gauss(rng) << " " << p.y() + gauss(rng) << " " << SheetBump(p.x(), p.y()) + gauss(rng)
+          << "\n";
+      ++i;
+    }
+  }
+  FitOptions o;
+  o.file = (dir / "patch.xyz").string();
+  o.model = "fe-surface";
+  o.boundary = boundary;
+  const FitOutcome outcome = ComputeFit(o);
+  const nlohmann::json& d = outcome.document;
+  EXPECT_EQ(d["projection"], "boundary curves");
+  EXPECT_TRUE(d["converged"].get<bool>());
+  const nlohmann::json& curves = d["boundary_curves"];
+  EXPECT_LT(curves["closure"]["error"].get<double>(), 1e-12);
+  double worst_gap = 0.0, sum_turns = 0.0;
+  for (const auto& c : curves["curves"]) {
+    worst_gap = std::max(worst_gap, c["gap_after"].get<double>());
+    sum_turns += c["closed_turn_deg"].get<double>();
+    // Trimmed at the corners: each side's arc length is its length on the surface (the chord 3 and a little).
+    EXPECT_GT(c["arc_length"].get<double>(), 3.0);
+    EXPECT_LT(c["arc_length"].get<double>(), 3.1);
+  }
+  EXPECT_NEAR(sum_turns, 360.0, 1e-9);
+  // Every vertex on the true surface (vertical error, an upper bound of the distance); the boundary vertices
+  // on the curves, which are the surface up to their cubic interpolation.
+  double worst = 0.0, worst_boundary = 0.0;
+  for (const auto& v : d["mesh"]["vertices"]) {
+    const auto w = v["w"].get<std::vector<double>>();
+    const double e = std::abs(w[2] - SheetBump(w[0], w[1]));
+    worst = std::max(worst, e);
+    if (!InsideHexagon3(Eigen::Vector2d(w[0], w[1]) * (1.0 + 1e-6)))
+      worst_boundary = std::max(worst_boundary, e);
+  }
+  std::printf(
+      "n-sided patch: corners %.2e apart, %zu triangles, RMS %.5f, vertex error max %.5f (boundary "
+      "%.5f), %d iterations\n",
+      worst_gap, d["mesh"]["triangles"].size(), d["residuals"]["rms"].get<double>(), worst, worst_boundary,
+      d["iterations"].get<int>());
+  EXPECT_GT(worst_gap, 0.0005);  // the lifted side's corners, joined half way
+  EXPECT_LT(worst_gap, 0.0011);
+  EXPECT_NEAR(d["residuals"]["rms"].get<double>(), 0.005, 0.0007);
+  EXPECT_LT(worst, 0.015);
+  EXPECT_LT(worst_boundary, 0.0015);  // the lifted side's 0.001, and the curves' own interpolation error
+  EXPECT_NE(outcome.text.find("boundary curves' polygon"), std::string::npos);
+
+  // Curves out of their order round the patch do not meet, and fewer than three are no patch.
+  FitOptions shuffled = o;
+  shuffled.boundary = (dir / "side0.json").string() + "," + (dir / "side3.json").string() + "," +
+                      (dir / "side1.json").string() + "," + (dir / "side2.json").string() + "," +
+                      (dir / "side4.json").string() + "," + (dir / "side5.json").string();
+  try {
+    ComputeFit(shuffled);
+    ADD_FAILURE() << "curves out of order accepted";
+  } catch (const FitFailure& e) {
+    EXPECT_EQ(e.exit_code(), kFitError) << e.what();
+  }
+  FitOptions two = o;
+  two.boundary = (dir / "side0.json").string() + "," + (dir / "side1.json").string();
+  EXPECT_THROW(ComputeFit(two), FitFailure);
+  // Not a Hermite curve's document.
+  std::ofstream(dir / "other.json") << R"({"schema": "scan2model.fit/1"})";
+  FitOptions other = o;
+  other.boundary = (dir / "other.json").string() + "," + (dir / "side1.json").string() + "," +
+                   (dir / "side2.json").string();
+  try {
+    ComputeFit(other);
+    ADD_FAILURE() << "a primitive's document taken for a curve";
+  } catch (const FitFailure& e) {
+    EXPECT_EQ(e.exit_code(), kInputError);
+    EXPECT_NE(std::string(e.what()).find("other.json"), std::string::npos) << e.what();
   }
 }
 
