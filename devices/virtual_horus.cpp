@@ -394,7 +394,11 @@ VirtualHorusOptions ParseVirtualHorus(const std::string& spec, std::string& scen
   scene = device.scene;
   mesh_units = "mm";
   VirtualHorusOptions o;
-  for (const auto& [key, value] : device.options) {
+  for (const auto& option : device.options) {
+    // Named references, not structured bindings: lambdas may capture bindings only from C++20 (clang 14,
+    // Debian 12's, refuses them).
+    const std::string& key = option.first;
+    const std::string& value = option.second;
     auto number = [&]() { return DeviceOptionNumber(key, value); };
     auto integer = [&]() { return DeviceOptionInteger(key, value, 1, 1000000); };
     const std::map<std::string, double*> numbers = {{"fx", &o.fx},

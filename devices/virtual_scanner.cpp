@@ -9,8 +9,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "synthetic/synthetic_cases.h"
 #include "devices/device_options.h"
+#include "synthetic/synthetic_cases.h"
 
 namespace s2m {
 

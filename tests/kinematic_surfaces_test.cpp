@@ -334,7 +334,7 @@ TEST(SpiralSurface, GrowingTubeFromRaupAgainstTheTrajectory) {
   for (const auto& [w, d, t] : {std::tuple{2.5, 0.3, 1.2}, std::tuple{10.0, -0.2, 0.4},
                                 std::tuple{1.3, 0.6, -0.8}, std::tuple{3.0, 0.1, 0.0}}) {
     const SpiralSurface::GrowingTube g = SpiralSurface::GrowingTubeFromRaup({w, d, t});
-    auto centre = [&](double theta) {
+    auto centre = [w = w, d = d, t = t](double theta) {  // bindings captured by copy (clang 14: not by [&])
       const double r_c = std::pow(w, theta / (2 * M_PI)) * (1 + d) / (1 - d);
       return Eigen::Vector3d(r_c * std::cos(theta), r_c * std::sin(theta), t * r_c);
     };
