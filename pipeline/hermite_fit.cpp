@@ -3,8 +3,10 @@
 
 #include "fitting/hermite_fit.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <sstream>
 
 #include "acquisition/format_error.h"
@@ -86,6 +88,36 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
     const HermiteFitResult r = FitHermiteCurve(data, h);
     const HermiteCurve& curve = r.curve;
     const CurveInterrogation q = InterrogateCurve(ToInterrogated(curve), {256, 0.0});
+    // An open curve's free ends are held by nothing in the default energy (a straight run of points costs no
+    // curvature variation however far it extends or folds back): say so when the data do not reach the ends
+    // or the tangent turns back.
+    double covered_lo = 1.0, covered_hi = 0.0;
+    for (const FootPoint& f : r.foot_points) {
+      covered_lo = std::min(covered_lo, f.t[0]);
+      covered_hi = std::max(covered_hi, f.t[0]);
+    }
+    std::optional<double> fold_at;
+    if (!curve.closed()) {
+      Eigen::MatrixXd jet;
+      curve.EvaluateJet(0.0, 1, jet);
+      Eigen::VectorXd previous = jet.col(1);
+      for (int k = 1; k <= 400 && !fold_at; ++k) {
+        curve.EvaluateJet(k / 400.0, 1, jet);
+        if (jet.col(1).dot(previous) <= 0.0) fold_at = k / 400.0;
+        previous = jet.col(1);
+      }
+      if (covered_lo > 0.01 || covered_hi < 0.99)
+        outcome.notes.push_back(
+            "the curve runs past its data: the points' feet cover u in [" + Format(covered_lo, 3) + ", " +
+            Format(covered_hi, 3) +
+            "] only (an open curve's ends are not held by the curvature-variation energy; "
+            "add --alpha1 or --alpha2, or use the covered range)");
+      if (fold_at)
+        outcome.notes.push_back(
+            "the curve folds back on itself near u = " + Format(*fold_at, 3) +
+            " (its tangent reverses): not a faithful curve of the points; add --alpha1 or "
+            "--alpha2");
+    }
 
     nlohmann::json& j = outcome.document;
     j["schema"] = "scan2model.hermite/1";
@@ -141,6 +173,10 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
     j["seconds"] = r.seconds;
     j["history"] = HistoryJson(r.history);
     if (!r.note.empty()) j["note"] = r.note;
+    if (!curve.closed()) {
+      j["data_range"] = {covered_lo, covered_hi};
+      j["folds_at"] = fold_at ? nlohmann::json(*fold_at) : nlohmann::json(nullptr);
+    }
     j["interrogation"] = InterrogationJson(q, curve.ambient_dimension());
 
     std::string history_path = o.history;
