@@ -459,6 +459,43 @@ namespace {
 // `fit --model hermite-curve` in-process: the JSON members of docs/cli.md, the curve evaluated from the JSON
 // alone by the documented formula (docs/fair-curves.md eqs. F2-F3) against the document's own samples, the
 // report's fairness section, and bad options.
+// An open curve through a straight run of noisy points: with the curvature-variation energy alone its free
+// ends are held by nothing (a straight or quadratically parametrized line has w''' = 0), and the document
+// says where the data stop and whether the curve folds; a bending weight holds it.
+TEST(FitDispatch, HermiteCurveSaysWhenItsOpenEndsRunPastTheData) {
+  const fs::path dir = FreshDir("hermite_line");
+  {
+    std::mt19937 rng(1);
+    std::normal_distribution<double> gauss(0.0, 0.002);
+    std::ofstream out(dir / "line.xyz");
+    out.precision(12);
+    for (int i = 0; i < 200; ++i) {
+      const double x = 1.5 - 3.0 * i / 199.0;
+      out << x + gauss(rng) << " " << 2.6 + gauss(rng) << " " << 0.5 + gauss(rng) << "\n";
+    }
+  }
+  FitOptions o;
+  o.file = (dir / "line.xyz").string();
+  o.model = "hermite-curve";
+  ApplyFitOption(*FindManifestOption("degree"), "3", o);
+  const FitOutcome loose = ComputeFit(o);
+  const auto range = loose.document["data_range"].get<std::vector<double>>();
+  const bool runs_past = range[0] > 0.01 || range[1] < 0.99;
+  const bool folds = !loose.document["folds_at"].is_null();
+  std::printf("alpha3 alone: data cover u in [%.3f, %.3f], folds %s, %zu notes\n", range[0], range[1],
+              folds ? "yes" : "no", loose.notes.size());
+  // Whatever the free ends did, the document and the notes tell it.
+  EXPECT_TRUE(runs_past || folds);
+  bool noted = false;
+  for (const std::string& n : loose.notes)
+    noted = noted || n.find("runs past its data") != std::string::npos ||
+            n.find("folds back") != std::string::npos;
+  EXPECT_TRUE(noted);
+  ApplyFitOption(*FindManifestOption("alpha2"), "1e-6", o);
+  const FitOutcome held = ComputeFit(o);
+  EXPECT_TRUE(held.document["folds_at"].is_null());
+}
+
 TEST(FitDispatch, HermiteCurveDocumentIsSelfContained) {
   const fs::path dir = FreshDir("hermite");
   {
