@@ -268,6 +268,8 @@ class Reader {
       j = Json::parse(text);
     } catch (const nlohmann::json::parse_error& e) {
       Fail("byte " + std::to_string(e.byte), std::string("not valid JSON: ") + e.what());
+    } catch (const nlohmann::json::out_of_range& e) {  // a number beyond double's range
+      Fail("", std::string("not valid JSON: ") + e.what());
     }
     if (!j.is_object() || j.value("format", std::string()) != "scan2model.part/1")
       Fail("format", "not a scan2model.part/1 file (its \"format\" must be \"scan2model.part/1\")");

@@ -89,14 +89,23 @@ ScanSet ReadManifest(const fs::path& manifest) {
     j = nlohmann::json::parse(formats::ReadFileBytes(file));
   } catch (const nlohmann::json::parse_error& e) {
     throw FormatError(file, AtByte(e.byte), "invalid JSON");
+  } catch (const nlohmann::json::out_of_range& e) {  // a number beyond double's range
+    throw FormatError(file, "", std::string("invalid JSON: ") + e.what());
   }
-  if (j.value("schema", "") != "scan2model.views/1")
+  // A string member or the fallback; a member of another type is the file's error, not a crash (found by
+  // fuzzing: a document that is a bare string, tests/data/fuzz/scan_set/).
+  const auto text = [&j, &file](const char* key, const std::string& fallback) {
+    if (!j.contains(key)) return fallback;
+    if (!j[key].is_string()) throw FormatError(file, "", std::string("'") + key + "' is not a string");
+    return j[key].get<std::string>();
+  };
+  if (!j.is_object() || text("schema", "") != "scan2model.views/1")
     throw FormatError(file, "", "not a scan2model.views/1 manifest");
   if (!j.contains("views") || !j["views"].is_array() || j["views"].empty())
     throw FormatError(file, "", "no views");
   ScanSet set;
-  set.name = j.value("name", manifest.stem().string());
-  const std::string units = j.value("units", "unknown");
+  set.name = text("name", manifest.stem().string());
+  const std::string units = text("units", "unknown");
   for (std::size_t i = 0; i < j["views"].size(); ++i) {
     const nlohmann::json& v = j["views"][i];
     const std::string where = "view " + std::to_string(i);

@@ -96,6 +96,8 @@ BatchManifest ReadJsonManifest(const std::string& path, const fs::path& base) {
     j = nlohmann::json::parse(in);
   } catch (const nlohmann::json::parse_error& e) {
     throw FormatError(path, "", std::string("not valid JSON: ") + e.what());
+  } catch (const nlohmann::json::out_of_range& e) {  // a number beyond double's range (found by fuzzing)
+    throw FormatError(path, "", std::string("not valid JSON: ") + e.what());
   }
   if (!j.is_object() || j.value("schema", "") != "scan2model.batch/1")
     throw FormatError(path, "",

@@ -43,6 +43,8 @@ HermiteCurve ReadCurve(const std::string& file) {
     j = nlohmann::json::parse(formats::ReadFileBytes(file));
   } catch (const nlohmann::json::parse_error& e) {
     throw FitFailure(kInputError, file + ": invalid JSON (" + e.what() + ")");
+  } catch (const nlohmann::json::out_of_range& e) {  // a number beyond double's range
+    throw FitFailure(kInputError, file + ": invalid JSON (" + e.what() + ")");
   } catch (const FormatError& e) {
     throw FitFailure(kInputError, e.what());
   }

@@ -480,6 +480,8 @@ RegisterOutcome ComputeRegistration(const RegisterOptions& o, const RegisterProg
       fit = nlohmann::json::parse(formats::ReadFileBytes(o.to));
     } catch (const nlohmann::json::parse_error& e) {
       throw FitFailure(kInputError, o.to + ": invalid JSON (" + e.what() + ")");
+    } catch (const nlohmann::json::out_of_range& e) {  // a number beyond double's range
+      throw FitFailure(kInputError, o.to + ": invalid JSON (" + e.what() + ")");
     } catch (const FormatError& e) {
       throw FitFailure(kInputError, e.what());
     }
