@@ -37,8 +37,14 @@ for t in $targets; do
   corpus="$build/corpus/$t"
   findings="$build/findings/$t"
   mkdir -p "$corpus" "$findings"
-  seeds=("$root/fuzz/corpus/$t")
+  # libFuzzer takes only folders that exist: a target may have no seed folder (recordings are seeded with the
+  # shipped recordings, copied into the working corpus) and no findings yet.
+  seeds=()
+  [ -d "$root/fuzz/corpus/$t" ] && seeds+=("$root/fuzz/corpus/$t")
   [ -d "$root/tests/data/fuzz/$t" ] && seeds+=("$root/tests/data/fuzz/$t")
+  if [ "$t" = recording ]; then
+    for r in "$root"/recordings/*.s2mrec; do [ -f "$r" ] && cp -n "$r" "$corpus/"; done
+  fi
   dict=()
   [ -f "$root/fuzz/dict/$t.dict" ] && dict=(-dict="$root/fuzz/dict/$t.dict")
   echo "[fuzz] $t for ${seconds} s"
