@@ -372,6 +372,19 @@ std::vector<ParamT> HermiteCurve::SampleParameters() const {
   return out;
 }
 
+std::optional<double> HermiteCurve::FirstFold(int samples) const {
+  Eigen::MatrixXd jet;
+  EvaluateJet(0.0, 1, jet);
+  Eigen::VectorXd previous = jet.col(1);
+  for (int k = 1; k <= samples; ++k) {
+    const double u = static_cast<double>(k) / samples;
+    EvaluateJet(u, 1, jet);
+    if (jet.col(1).dot(previous) <= 0.0) return u;
+    previous = jet.col(1);
+  }
+  return std::nullopt;
+}
+
 HermiteCurve HermiteCurve::Refined(const std::vector<int>& elements) const {
   std::vector<bool> split(static_cast<std::size_t>(num_elements()), elements.empty());
   for (int e : elements)

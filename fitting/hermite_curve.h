@@ -11,6 +11,7 @@
 // the two end slopes) as parameters; its interior slopes follow from them.
 
 #include <Eigen/Core>
+#include <optional>
 #include <vector>
 
 #include "fitting/element_energy.h"
@@ -25,8 +26,8 @@ Eigen::MatrixXd HermiteShapeCoefficients(int degree, double h);
 // The element as an ElementBasis (y = t on [0, 1]).
 ElementBasis HermiteElementBasis(int degree, double h);
 
-// The fairness weights of Fang's energy (docs/fair-curves.md eq. F1): alpha_p integral |w^(p)|^2 du, p = 1..3,
-// and beta_p sum over junctions |jump of w^(p)|^2, p = 2, 3; on the parameter domain [0, 1].
+// The fairness weights of Fang's energy (docs/fair-curves.md eq. F1): alpha_p integral |w^(p)|^2 du for
+// p = 1..3, and beta_p sum over junctions |jump of w^(p)|^2 for p = 2, 3; on the parameter domain [0, 1].
 struct HermiteFairness {
   double alpha1 = 0.0;  // stretch
   double alpha2 = 0.0;  // bending
@@ -69,6 +70,10 @@ class HermiteCurve final : public ParametricModel {
   // The curve with every element split at its middle (the same curve: a polynomial element is determined by
   // its Hermite data at both ends), or only the elements listed.
   HermiteCurve Refined(const std::vector<int>& elements) const;
+  // The first u (of `samples` + 1 evenly spaced) where the tangent w' turns back against the previous
+  // sample's (w'(u_k) . w'(u_{k-1}) <= 0): where the curve folds over itself or stops; empty when it runs one
+  // way.
+  std::optional<double> FirstFold(int samples = 400) const;
 
   // K of E(Q) = Q^T K Q for the parameters (docs/fair-curves.md eqs. F5-F10), a full-size matrix.
   Eigen::MatrixXd FairnessMatrixOf(const HermiteFairness& weights) const;

@@ -98,14 +98,7 @@ FitOutcome ComputeHermiteFit(const FitOptions& o) {
     }
     std::optional<double> fold_at;
     if (!curve.closed()) {
-      Eigen::MatrixXd jet;
-      curve.EvaluateJet(0.0, 1, jet);
-      Eigen::VectorXd previous = jet.col(1);
-      for (int k = 1; k <= 400 && !fold_at; ++k) {
-        curve.EvaluateJet(k / 400.0, 1, jet);
-        if (jet.col(1).dot(previous) <= 0.0) fold_at = k / 400.0;
-        previous = jet.col(1);
-      }
+      fold_at = curve.FirstFold();
       if (covered_lo > 0.01 || covered_hi < 0.99)
         outcome.notes.push_back(
             "the curve runs past its data: the points' feet cover u in [" + Format(covered_lo, 3) + ", " +

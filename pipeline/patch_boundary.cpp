@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -226,19 +227,13 @@ CurvedBoundary ReadCurvedBoundary(const std::string& boundary) {
   }
   // A side runs one way: a curve whose tangent turns back between neighbouring samples folds over itself
   // (a fit whose free ends ran past the data and back); its corners and length would mean nothing.
-  for (std::size_t i = 0; i < n; ++i) {
-    Eigen::Vector3d previous = At(curves[i], 0, 1);
-    for (int k = 1; k <= 400; ++k) {
-      const Eigen::Vector3d tangent = At(curves[i], k / 400.0, 1);
-      if (tangent.dot(previous) <= 0.0) {
-        const Eigen::Vector3d p = At(curves[i], k / 400.0, 0);
-        throw FitFailure(kFitError, "--boundary: the curve " + b.files[i] + " folds back on itself near (" +
-                                        Format(p.x(), 4) + ", " + Format(p.y(), 4) + ", " + Format(p.z(), 4) +
-                                        "): it is not one side of a patch (refit it)");
-      }
-      previous = tangent;
+  for (std::size_t i = 0; i < n; ++i)
+    if (const std::optional<double> fold = curves[i].FirstFold()) {
+      const Eigen::Vector3d p = At(curves[i], *fold, 0);
+      throw FitFailure(kFitError, "--boundary: the curve " + b.files[i] + " folds back on itself near (" +
+                                      Format(p.x(), 4) + ", " + Format(p.y(), 4) + ", " + Format(p.z(), 4) +
+                                      "): it is not one side of a patch (refit it)");
     }
-  }
   for (const HermiteCurve& c : curves) b.lengths.push_back(ArcLength(c));
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t next = (i + 1) % n;
