@@ -126,7 +126,108 @@ std::vector<FeLinearConstraint> AsRows(const std::vector<FeFixedDirection>& fixe
   return rows;
 }
 
+// K (x) I3: the scalar dofs' matrix acting on x, y and z alike (unknown 3 dof + c), as the energy decouples.
+Eigen::SparseMatrix<double> ForEachCoordinate(const Eigen::SparseMatrix<double>& k) {
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(static_cast<std::size_t>(k.nonZeros()) * 3);
+  for (int outer = 0; outer < k.outerSize(); ++outer)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(k, outer); it; ++it)
+      for (int c = 0; c < 3; ++c)
+        triplets.emplace_back(3 * static_cast<int>(it.row()) + c, 3 * static_cast<int>(it.col()) + c,
+                              it.value());
+  Eigen::SparseMatrix<double> full(3 * k.rows(), 3 * k.cols());
+  full.setFromTriplets(triplets.begin(), triplets.end());
+  return full;
+}
+
+using ElementBlock = Eigen::Matrix<double, 36, 36>;
+
+// Per-triangle 36 x 36 blocks (the element's 12 dofs x 3 coordinates) summed into the global sparse matrix.
+Eigen::SparseMatrix<double> FromElementBlocks(const FeSurface& surface,
+                                              const std::vector<ElementBlock>& blocks) {
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(blocks.size() * 36 * 36);
+  for (int t = 0; t < surface.triangle_count(); ++t) {
+    const auto& element_dofs = surface.element_dofs(t);
+    const auto& block = blocks[static_cast<std::size_t>(t)];
+    for (int a = 0; a < 36; ++a)
+      for (int b = 0; b < 36; ++b)
+        if (block(a, b) != 0.0) {
+          const int row = 3 * element_dofs[static_cast<std::size_t>(a / 3)] + a % 3;
+          const int col = 3 * element_dofs[static_cast<std::size_t>(b / 3)] + b % 3;
+          triplets.emplace_back(row, col, block(a, b));
+        }
+  }
+  Eigen::SparseMatrix<double> full(3 * surface.dof_count(), 3 * surface.dof_count());
+  full.setFromTriplets(triplets.begin(), triplets.end());
+  return full;
+}
+
+Eigen::VectorXd Stacked(const Eigen::MatrixX3d& q) {
+  Eigen::VectorXd v(3 * q.rows());
+  for (Eigen::Index d = 0; d < q.rows(); ++d) v.segment<3>(3 * d) = q.row(d).transpose();
+  return v;
+}
+
+Eigen::MatrixX3d Unstacked(const Eigen::VectorXd& v) {
+  Eigen::MatrixX3d q(v.size() / 3, 3);
+  for (Eigen::Index d = 0; d < q.rows(); ++d) q.row(d) = v.segment<3>(3 * d).transpose();
+  return q;
+}
+
+// Fang's generalized spring forces (thesis eqs. 5.1.5-5.1.6 and 5.1.11; docs/fe-surfaces.md eq. P15): the
+// force r_i = P_i - w(foot_i) is spread over the foot's host triangle as the linear load
+// p(L) = (3 / area) (Lbar_i . L) r_i (Lbar_i the foot's barycentric coordinates), whose integral is r_i, and
+// F_a = integral over the triangle of p N_a, by the element's quadrature: with the rule's weights w_q summing
+// to 1/2 (area 1/2 of the reference triangle), F_a = sum_q 6 w_q (Lbar_i . L_q) N_a(L_q) r_i.
+class SpringForces {
+ public:
+  explicit SpringForces(const FeSurface& surface) : surface_(surface), rule_(CollapsedGaussRule(4)) {
+    shapes_.reserve(static_cast<std::size_t>(surface.triangle_count()));
+    for (int t = 0; t < surface.triangle_count(); ++t) {
+      Eigen::Matrix<double, 12, Eigen::Dynamic> at(12, static_cast<Eigen::Index>(rule_.weights.size()));
+      for (std::size_t q = 0; q < rule_.weights.size(); ++q)
+        at.col(static_cast<Eigen::Index>(q)) = surface.element(t).Evaluate(rule_.barycentric[q]).value;
+      shapes_.push_back(std::move(at));
+    }
+  }
+
+  Eigen::VectorXd operator()(const Eigen::Matrix3Xd& points, const std::vector<FeSurfacePoint>& feet) const {
+    Eigen::VectorXd forces = Eigen::VectorXd::Zero(3 * surface_.dof_count());
+    for (Eigen::Index i = 0; i < points.cols(); ++i) {
+      const FeSurfacePoint& foot = feet[static_cast<std::size_t>(i)];
+      const Eigen::Vector3d r = points.col(i) - surface_.Evaluate(foot).point;
+      const auto& element_dofs = surface_.element_dofs(foot.triangle);
+      const auto& shapes = shapes_[static_cast<std::size_t>(foot.triangle)];
+      Eigen::Matrix<double, 12, 1> work = Eigen::Matrix<double, 12, 1>::Zero();
+      for (std::size_t q = 0; q < rule_.weights.size(); ++q)
+        work += (6.0 * rule_.weights[q] * foot.barycentric.dot(rule_.barycentric[q])) *
+                shapes.col(static_cast<Eigen::Index>(q));
+      for (int a = 0; a < 12; ++a)
+        forces.segment<3>(3 * element_dofs[static_cast<std::size_t>(a)]) += work(a) * r;
+    }
+    return forces;
+  }
+
+ private:
+  const FeSurface& surface_;
+  TriangleQuadrature rule_;
+  std::vector<Eigen::Matrix<double, 12, Eigen::Dynamic>> shapes_;
+};
+
 }  // namespace
+
+Eigen::VectorXd FangSpringForces(const FeSurface& surface, const Eigen::Matrix3Xd& points,
+                                 const std::vector<FeSurfacePoint>& feet) {
+  if (static_cast<std::size_t>(points.cols()) != feet.size())
+    throw std::invalid_argument("spring forces: " + std::to_string(points.cols()) + " points but " +
+                                std::to_string(feet.size()) + " feet");
+  for (const FeSurfacePoint& foot : feet)
+    if (foot.triangle < 0 || foot.triangle >= surface.triangle_count())
+      throw std::invalid_argument("spring forces: a foot in triangle " + std::to_string(foot.triangle) +
+                                  ", out of range");
+  return SpringForces(surface)(points, feet);
+}
 
 bool FeSurfaceFitOptions::IsValid(std::string* why) const {
   const auto fail = [why](const char* message) {
@@ -236,116 +337,170 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
     return sum;
   };
 
-  double objective = std::numeric_limits<double>::infinity();
-  result.objective.push_back(objective);
-  double damping = 1e-9;
-  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
-    // Eq. P7: the normal equations of the step delta (3 dofs x, y, z per scalar dof, index 3 dof + c):
-    //   (sum_i (N_i^T N_i) (x) M_i + K (x) I3 + damping diag) delta = sum_i N_i^T (x) M_i r_i - (K (x) I3) q,
-    // M_i the point's error matrix (PDM: I; TDM: n n^T; SDM: Pottmann-Hofer's, docs/method.md eq. 5); feet on
-    // the boundary use PDM (their residual is not along the normal).
-    std::vector<Eigen::Matrix<double, 36, 36>> blocks(static_cast<std::size_t>(surface.triangle_count()),
-                                                      Eigen::Matrix<double, 36, 36>::Zero());
-    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(3 * dofs);
-    for (int i = 0; i < n; ++i) {
-      const FeSurfacePoint& foot = result.feet[static_cast<std::size_t>(i)];
-      const TriangleShape s = surface.element(foot.triangle).Evaluate(foot.barycentric);
-      const FeSurfaceGeometry g = surface.Evaluate(foot);
-      const Eigen::Vector3d r = points.col(i) - g.point;
-      Eigen::Matrix3d m = Eigen::Matrix3d::Identity();
-      if (options.method != ErrorTerm::kPdm && inside[static_cast<std::size_t>(i)] && !fixed_start) {
-        // The engine's error matrices (fitting/geometric_fit.h, docs/method.md section 2) in the principal
-        // frame at the foot, oriented towards the point.
-        LocalGeometry local;
-        local.point = g.point;
-        local.d1 = g.d1;
-        local.d2 = g.d2;
-        m = ErrorMatrix(options.method, ComputePrincipalFrame(local, VecS(points.col(i))), 3);
+  const Eigen::SparseMatrix<double> plate = ForEachCoordinate(k);
+  if (options.solver == FeSolver::kFangSprings) {
+    // Fang's SQP (thesis 5.1.3-5.1.4; docs/fe-surfaces.md eq. P16): the step d minimizes g^T d + d^T H d with
+    // g / 2 = (K (x) I3) q - F, F the distributed spring forces (eq. P15), and H the plate's stiffness (plus
+    // the springs' at the first feet); H does not change, so it is factored once.
+    Eigen::SparseMatrix<double> model = plate;
+    if (options.spring_hessian == FeSpringHessian::kPlateOnSprings) {
+      std::vector<ElementBlock> blocks(static_cast<std::size_t>(surface.triangle_count()),
+                                       ElementBlock::Zero());
+      for (int i = 0; i < n; ++i) {
+        const FeSurfacePoint& foot = result.feet[static_cast<std::size_t>(i)];
+        const TriangleShape shape = surface.element(foot.triangle).Evaluate(foot.barycentric);
+        auto& block = blocks[static_cast<std::size_t>(foot.triangle)];
+        for (int a = 0; a < 12; ++a)
+          for (int b = 0; b < 12; ++b)
+            block.block<3, 3>(3 * a, 3 * b).diagonal().array() += shape.value(a) * shape.value(b);
       }
-      auto& block = blocks[static_cast<std::size_t>(foot.triangle)];
-      const auto& element_dofs = surface.element_dofs(foot.triangle);
-      const Eigen::Vector3d mr = m * r;
-      for (int a = 0; a < 12; ++a) {
-        const double na = s.value(a);
-        if (na == 0.0) continue;
-        rhs.segment<3>(3 * element_dofs[static_cast<std::size_t>(a)]) += na * mr;
-        for (int b = 0; b < 12; ++b) block.block<3, 3>(3 * a, 3 * b) += (na * s.value(b)) * m;
-      }
+      model += FromElementBlocks(surface, blocks);
     }
-    std::vector<Eigen::Triplet<double>> triplets;
-    triplets.reserve(blocks.size() * 36 * 36 + static_cast<std::size_t>(k.nonZeros()) * 3);
-    for (int t = 0; t < surface.triangle_count(); ++t) {
-      const auto& element_dofs = surface.element_dofs(t);
-      const auto& block = blocks[static_cast<std::size_t>(t)];
-      for (int a = 0; a < 36; ++a)
-        for (int b = 0; b < 36; ++b)
-          if (block(a, b) != 0.0) {
-            const int row = 3 * element_dofs[static_cast<std::size_t>(a / 3)] + a % 3;
-            const int col = 3 * element_dofs[static_cast<std::size_t>(b / 3)] + b % 3;
-            triplets.emplace_back(row, col, block(a, b));
-          }
-    }
-    for (int outer = 0; outer < k.outerSize(); ++outer)
-      for (Eigen::SparseMatrix<double>::InnerIterator it(k, outer); it; ++it)
-        for (int c = 0; c < 3; ++c)
-          triplets.emplace_back(3 * static_cast<int>(it.row()) + c, 3 * static_cast<int>(it.col()) + c,
-                                it.value());
-    Eigen::SparseMatrix<double> full(3 * dofs, 3 * dofs);
-    full.setFromTriplets(triplets.begin(), triplets.end());
-    const Eigen::MatrixX3d kq = k * surface.dofs();
-    for (int d = 0; d < dofs; ++d) rhs.segment<3>(3 * d) -= kq.row(d).transpose();
-    // Eq. P9: the step is delta = T y; y solves T^T N T y = T^T g.
-    const Eigen::SparseMatrix<double> normal =
-        Eigen::SparseMatrix<double>(reduced_basis.transpose() * full * reduced_basis);
-    const Eigen::VectorXd reduced_rhs = reduced_basis.transpose() * rhs;
-    const Eigen::Index unknowns = normal.rows();
-    const Eigen::VectorXd diagonal = normal.diagonal();
-    const double diagonal_scale = std::max(diagonal.maxCoeff(), 1e-300);
-
-    bool accepted = false;
-    const Eigen::MatrixX3d q0 = surface.dofs();
-    for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
-      // Marquardt damping with a floor: the step is unique even where the dofs are unobservable (a tangential
-      // drift of a flat region changes neither TDM's residuals nor the bending energy).
-      Eigen::SparseMatrix<double> damped = normal;
-      for (Eigen::Index d = 0; d < unknowns; ++d)
-        damped.coeffRef(d, d) += damping * std::max(diagonal(d), 1e-12 * diagonal_scale);
-      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(damped);
-      const Eigen::VectorXd y =
-          solver.info() == Eigen::Success ? Eigen::VectorXd(solver.solve(reduced_rhs)) : Eigen::VectorXd();
-      if (y.size() == 0 || !y.allFinite()) {
-        damping *= 10.0;
-        continue;
+    const Eigen::SparseMatrix<double> reduced_model =
+        Eigen::SparseMatrix<double>(reduced_basis.transpose() * model * reduced_basis);
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(reduced_model);
+    if (solver.info() != Eigen::Success ||
+        !(solver.vectorD().minCoeff() > 1e-12 * solver.vectorD().cwiseAbs().maxCoeff()))
+      throw std::invalid_argument(
+          "finite-element surface fit: the plate alone does not hold the surface with these constraints "
+          "(Fang's "
+          "quadratic model is singular: hold the boundary on curves, or let the springs' stiffness into the "
+          "model)");
+    const SpringForces spring_forces(surface);
+    double objective = fairness(surface.dofs());
+    for (int i = 0; i < n; ++i)
+      objective +=
+          (points.col(i) - surface.Evaluate(result.feet[static_cast<std::size_t>(i)]).point).squaredNorm();
+    result.objective.push_back(objective);
+    for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+      const Eigen::MatrixX3d q0 = surface.dofs();
+      const Eigen::VectorXd half_gradient = plate * Stacked(q0) - spring_forces(points, result.feet);
+      const Eigen::VectorXd step =
+          reduced_basis * Eigen::VectorXd(solver.solve(-(reduced_basis.transpose() * half_gradient)));
+      if (!step.allFinite()) break;
+      // The thesis takes the full step; halving it until the objective falls keeps the iteration from
+      // diverging where the springs are stiffer than the plate (measured in docs/fe-surfaces.md section 4b).
+      bool accepted = false;
+      double length = 1.0;
+      for (int attempt = 0; attempt < 12 && !accepted; ++attempt, length *= 0.5) {
+        surface.set_dofs(q0 + length * Unstacked(step));
+        std::vector<FeSurfacePoint> feet = result.feet;
+        std::vector<char> in = inside;
+        const double trial = closeness(feet, in) + fairness(surface.dofs());
+        if (trial < objective) {
+          accepted = true;
+          const double previous = objective;
+          objective = trial;
+          result.feet = std::move(feet);
+          inside = std::move(in);
+          result.objective.push_back(objective);
+          result.step_lengths.push_back(length);
+          result.iterations = iteration + 1;
+          if (previous - objective <= options.tolerance * previous) result.converged = true;
+        }
       }
-      const Eigen::VectorXd delta = reduced_basis * y;
-      Eigen::MatrixX3d q = q0;
-      for (int d = 0; d < dofs; ++d) q.row(d) += delta.segment<3>(3 * d).transpose();
-      surface.set_dofs(q);
-      std::vector<FeSurfacePoint> feet = result.feet;
-      std::vector<char> in = inside;
-      const double trial = closeness(feet, in) + fairness(q);
-      if (trial <= objective) {
-        accepted = true;
-        const double previous = objective;
-        objective = trial;
-        result.feet = std::move(feet);
-        inside = std::move(in);
-        damping = std::max(damping / 100.0, 1e-12);
-        result.objective.push_back(objective);
-        result.iterations = iteration + 1;
-        fixed_start = false;
-        if (std::isfinite(previous) && previous - objective <= options.tolerance * previous)
-          result.converged = true;
-      } else {
+      if (!accepted) {
+        // No step along Fang's direction lowers the objective: the springs' equilibrium, to the resolution of
+        // the distributed loads (they are not the exact gradient of the point distances).
         surface.set_dofs(q0);
-        damping *= 10.0;
+        result.converged = true;
       }
+      if (result.converged) break;
     }
-    if (!accepted) {
-      result.converged = true;  // no step lowers the objective: a minimum to the damping's resolution
-      break;
+  } else {
+    double objective = std::numeric_limits<double>::infinity();
+    result.objective.push_back(objective);
+    double damping = 1e-9;
+    for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+      // Eq. P7: the normal equations of the step delta (3 dofs x, y, z per scalar dof, index 3 dof + c):
+      //   (sum_i (N_i^T N_i) (x) M_i + K (x) I3 + damping diag) delta = sum_i N_i^T (x) M_i r_i - (K (x) I3)
+      //   q,
+      // M_i the point's error matrix (PDM: I; TDM: n n^T; SDM: Pottmann-Hofer's, docs/method.md eq. 5); feet
+      // on the boundary use PDM (their residual is not along the normal).
+      std::vector<ElementBlock> blocks(static_cast<std::size_t>(surface.triangle_count()),
+                                       ElementBlock::Zero());
+      Eigen::VectorXd rhs = Eigen::VectorXd::Zero(3 * dofs);
+      for (int i = 0; i < n; ++i) {
+        const FeSurfacePoint& foot = result.feet[static_cast<std::size_t>(i)];
+        const TriangleShape s = surface.element(foot.triangle).Evaluate(foot.barycentric);
+        const FeSurfaceGeometry g = surface.Evaluate(foot);
+        const Eigen::Vector3d r = points.col(i) - g.point;
+        Eigen::Matrix3d m = Eigen::Matrix3d::Identity();
+        if (options.method != ErrorTerm::kPdm && inside[static_cast<std::size_t>(i)] && !fixed_start) {
+          // The engine's error matrices (fitting/geometric_fit.h, docs/method.md section 2) in the principal
+          // frame at the foot, oriented towards the point.
+          LocalGeometry local;
+          local.point = g.point;
+          local.d1 = g.d1;
+          local.d2 = g.d2;
+          m = ErrorMatrix(options.method, ComputePrincipalFrame(local, VecS(points.col(i))), 3);
+        }
+        auto& block = blocks[static_cast<std::size_t>(foot.triangle)];
+        const auto& element_dofs = surface.element_dofs(foot.triangle);
+        const Eigen::Vector3d mr = m * r;
+        for (int a = 0; a < 12; ++a) {
+          const double na = s.value(a);
+          if (na == 0.0) continue;
+          rhs.segment<3>(3 * element_dofs[static_cast<std::size_t>(a)]) += na * mr;
+          for (int b = 0; b < 12; ++b) block.block<3, 3>(3 * a, 3 * b) += (na * s.value(b)) * m;
+        }
+      }
+      const Eigen::SparseMatrix<double> full = FromElementBlocks(surface, blocks) + plate;
+      const Eigen::MatrixX3d kq = k * surface.dofs();
+      for (int d = 0; d < dofs; ++d) rhs.segment<3>(3 * d) -= kq.row(d).transpose();
+      // Eq. P9: the step is delta = T y; y solves T^T N T y = T^T g.
+      const Eigen::SparseMatrix<double> normal =
+          Eigen::SparseMatrix<double>(reduced_basis.transpose() * full * reduced_basis);
+      const Eigen::VectorXd reduced_rhs = reduced_basis.transpose() * rhs;
+      const Eigen::Index unknowns = normal.rows();
+      const Eigen::VectorXd diagonal = normal.diagonal();
+      const double diagonal_scale = std::max(diagonal.maxCoeff(), 1e-300);
+
+      bool accepted = false;
+      const Eigen::MatrixX3d q0 = surface.dofs();
+      for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
+        // Marquardt damping with a floor: the step is unique even where the dofs are unobservable (a
+        // tangential drift of a flat region changes neither TDM's residuals nor the bending energy).
+        Eigen::SparseMatrix<double> damped = normal;
+        for (Eigen::Index d = 0; d < unknowns; ++d)
+          damped.coeffRef(d, d) += damping * std::max(diagonal(d), 1e-12 * diagonal_scale);
+        Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(damped);
+        const Eigen::VectorXd y =
+            solver.info() == Eigen::Success ? Eigen::VectorXd(solver.solve(reduced_rhs)) : Eigen::VectorXd();
+        if (y.size() == 0 || !y.allFinite()) {
+          damping *= 10.0;
+          continue;
+        }
+        const Eigen::VectorXd delta = reduced_basis * y;
+        Eigen::MatrixX3d q = q0;
+        for (int d = 0; d < dofs; ++d) q.row(d) += delta.segment<3>(3 * d).transpose();
+        surface.set_dofs(q);
+        std::vector<FeSurfacePoint> feet = result.feet;
+        std::vector<char> in = inside;
+        const double trial = closeness(feet, in) + fairness(q);
+        if (trial <= objective) {
+          accepted = true;
+          const double previous = objective;
+          objective = trial;
+          result.feet = std::move(feet);
+          inside = std::move(in);
+          damping = std::max(damping / 100.0, 1e-12);
+          result.objective.push_back(objective);
+          result.iterations = iteration + 1;
+          fixed_start = false;
+          if (std::isfinite(previous) && previous - objective <= options.tolerance * previous)
+            result.converged = true;
+        } else {
+          surface.set_dofs(q0);
+          damping *= 10.0;
+        }
+      }
+      if (!accepted) {
+        result.converged = true;  // no step lowers the objective: a minimum to the damping's resolution
+        break;
+      }
+      if (result.converged) break;
     }
-    if (result.converged) break;
   }
   result.distances.resize(static_cast<std::size_t>(n));
   double sum = 0.0;
@@ -525,17 +680,9 @@ void FairFill(FeSurface& surface, const std::vector<FeLinearConstraint>& rows) {
   thin_plate.bending = 1.0;
   const Eigen::SparseMatrix<double> k = surface.EnergyMatrix(thin_plate);
   const int dofs = surface.dof_count();
-  std::vector<Eigen::Triplet<double>> triplets;
-  for (int outer = 0; outer < k.outerSize(); ++outer)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(k, outer); it; ++it)
-      for (int c = 0; c < 3; ++c)
-        triplets.emplace_back(3 * static_cast<int>(it.row()) + c, 3 * static_cast<int>(it.col()) + c,
-                              it.value());
-  Eigen::SparseMatrix<double> full(3 * dofs, 3 * dofs);
-  full.setFromTriplets(triplets.begin(), triplets.end());
+  const Eigen::SparseMatrix<double> full = ForEachCoordinate(k);
   const Eigen::SparseMatrix<double> t = ReducedBasis(rows, dofs);
-  Eigen::VectorXd q0(3 * dofs);
-  for (int d = 0; d < dofs; ++d) q0.segment<3>(3 * d) = surface.dofs().row(d).transpose();
+  const Eigen::VectorXd q0 = Stacked(surface.dofs());
   const Eigen::SparseMatrix<double> reduced = Eigen::SparseMatrix<double>(t.transpose() * full * t);
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(reduced);
   const Eigen::VectorXd y = solver.info() == Eigen::Success
@@ -544,12 +691,8 @@ void FairFill(FeSurface& surface, const std::vector<FeLinearConstraint>& rows) {
   if (y.size() != reduced.rows() || !y.allFinite() || solver.vectorD().minCoeff() <= 0.0)
     throw std::invalid_argument(
         "fair fill: the thin-plate energy with these constraints has no unique minimum (the constraints do "
-        "not "
-        "hold the surface: too few fixed values?)");
-  const Eigen::VectorXd q = q0 + t * y;
-  Eigen::MatrixX3d out(dofs, 3);
-  for (int d = 0; d < dofs; ++d) out.row(d) = q.segment<3>(3 * d).transpose();
-  surface.set_dofs(out);
+        "not hold the surface: too few fixed values?)");
+  surface.set_dofs(Unstacked(q0 + t * y));
 }
 
 }  // namespace s2m

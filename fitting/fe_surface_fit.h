@@ -16,8 +16,22 @@
 
 namespace s2m {
 
+// How the closeness is minimized. kGaussNewton: the engine's error terms (method) by damped Gauss-Newton
+// steps (eq. P7). kFangSprings: Fang's sliding springs (thesis 5.1-5.2; docs/fe-surfaces.md section 4b):
+// every point's spring force spread as a linear load over its foot's host triangle (eq. P15), the step from a
+// quadratic model whose Hessian is the plate's stiffness (eq. P16), factored once for the whole fit.
+enum class FeSolver { kGaussNewton, kFangSprings };
+
+// The Hessian of Fang's quadratic model (eq. P16). kPlate: the plate's stiffness K alone, as in the thesis;
+// it holds the surface only when the constraints do (boundary curves, eq. P12), and the iteration contracts
+// only as fast as the plate resists the springs. kPlateOnSprings: K plus the springs' stiffness at the first
+// feet (a plate on an elastic foundation), which holds any patch and contracts at Gauss-Newton's rate.
+enum class FeSpringHessian { kPlate, kPlateOnSprings };
+
 struct FeSurfaceFitOptions {
-  ErrorTerm method = ErrorTerm::kSdm;  // pdm, tdm, sdm or cdm (fitting/geometric_fit.h)
+  ErrorTerm method = ErrorTerm::kSdm;  // pdm, tdm, sdm or cdm (fitting/geometric_fit.h); kGaussNewton only
+  FeSolver solver = FeSolver::kGaussNewton;
+  FeSpringHessian spring_hessian = FeSpringHessian::kPlateOnSprings;  // kFangSprings only
   // Relative (dimensionless) fairness weights of eq. P6: the energy enters as N * (weight * D^k / A) times
   // the integral, D the domain's diameter, A its area, k = 2 (stretch), 4 (bending), 3 (jump along edges), so
   // a weight means the same at any size and point count.
@@ -40,11 +54,21 @@ struct FeSurfaceFitResult {
   std::vector<FeSurfacePoint> feet;
   std::vector<double> distances;
   int boundary_feet = 0;  // points whose foot is on the domain's boundary
+  // kFangSprings: the step length the line search took at every iteration (1 = Fang's full step).
+  std::vector<double> step_lengths;
 };
 
 // The foot of x on the surface by Newton steps in (u, v) from `at`, walking across triangles (the surface is
 // C1, so the steps see one smooth chart). Returns false when the foot is on the domain's boundary.
 bool FeFootPoint(const FeSurface& surface, const Eigen::Vector3d& x, FeSurfacePoint& at);
+
+// Fang's generalized spring forces (docs/fe-surfaces.md eq. P15): the force P_i - w(foot_i) of every point
+// spread as a linear load over its foot's host triangle, integrated against the shape functions; entry
+// 3 dof + c is coordinate c of the force on a dof. The load keeps each force's total and direction; its
+// work on a linear field is that of the force applied at barycentric (1/4) (1, 1, 1) + Lbar / 4, not at the
+// foot Lbar itself (eq. P15a).
+Eigen::VectorXd FangSpringForces(const FeSurface& surface, const Eigen::Matrix3Xd& points,
+                                 const std::vector<FeSurfacePoint>& feet);
 
 // A linear constraint of the reduced transformation (docs/fe-surfaces.md eq. P9): the vector dof `dof` keeps
 // its current component along `direction` (any non-zero vector; several per dof span the fixed subspace).

@@ -536,5 +536,157 @@ TEST(FeSurfaceModel, EvaluatesTheSurfaceAndKnowsItsPolygonalDomain) {
   EXPECT_GT(outside, 50);  // the bounding box's corners are not the surface
 }
 
+// The bump's boundary curves (the true surface's boundary): Fang's setting, where the boundary holds the
+// plate.
+void BumpBoundaryTrace(const Eigen::Vector2d& uv, const Eigen::Vector2d& d, Eigen::Vector3d& point,
+                       Eigen::Vector3d& slope) {
+  const double height = std::exp(-0.5 * uv.squaredNorm());
+  point = Eigen::Vector3d(uv.x(), uv.y(), height);
+  slope = Eigen::Vector3d(d.x(), d.y(), -height * uv.dot(d));
+}
+
+TEST(FangSpringForces, KeepEachForceAndApplyItBetweenTheFootAndTheCentroid) {
+  // Eq. P15a: the linear load over the host triangle has the force's total and direction; its work on a
+  // linear field is the force's work at barycentric (1, 1, 1) / 4 + Lbar / 4 (at the centroid: the foot).
+  FeSurface surface(SubdividedHexagon(3.0, 2));
+  surface.Interpolate([](const Eigen::Vector2d& p) {
+    Eigen::Matrix3d f;
+    f << p.x(), 1.0, 0.0, p.y(), 0.0, 1.0, std::sin(p.x()) * p.y(), std::cos(p.x()) * p.y(), std::sin(p.x());
+    return f;
+  });
+  // Affine virtual displacements dw(u, v) = a + B (u, v), as dof vectors (the element reproduces them).
+  const Eigen::Vector3d a(0.3, -1.2, 0.7);
+  Eigen::Matrix<double, 3, 2> b;
+  b << 0.5, -0.25, 1.5, 0.75, -1.0, 2.0;
+  FeSurface field = surface;
+  field.Interpolate([&](const Eigen::Vector2d& p) {
+    Eigen::Matrix3d f;
+    f.col(0) = a + b * p;
+    f.rightCols<2>() = b;
+    return f;
+  });
+  Eigen::VectorXd displacement(3 * field.dof_count());
+  for (int d = 0; d < field.dof_count(); ++d)
+    displacement.segment<3>(3 * d) = field.dofs().row(d).transpose();
+
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(0.05, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    FeSurfacePoint foot;
+    foot.triangle = trial % surface.triangle_count();
+    foot.barycentric = Eigen::Vector3d(unit(rng), unit(rng), unit(rng));
+    if (trial == 0) foot.barycentric.setOnes();
+    foot.barycentric /= foot.barycentric.sum();
+    const Eigen::Vector3d force(unit(rng) - 0.5, unit(rng) - 0.5, unit(rng));
+    Eigen::Matrix3Xd point(3, 1);
+    point.col(0) = surface.Evaluate(foot).point + force;
+    const Eigen::VectorXd forces = FangSpringForces(surface, point, {foot});
+    // The total on the value dofs (a translation's work) is the force.
+    Eigen::Vector3d total = Eigen::Vector3d::Zero();
+    for (int v = 0; v < surface.vertex_count(); ++v) total += forces.segment<3>(3 * surface.vertex_dof(v, 0));
+    EXPECT_LT((total - force).norm(), 1e-12 * force.norm());
+    FeSurfacePoint applied = foot;
+    applied.barycentric = Eigen::Vector3d::Constant(0.25) + foot.barycentric / 4.0;
+    const double expected = force.dot(a + b * surface.ParameterOf(applied));
+    EXPECT_NEAR(forces.dot(displacement), expected, 1e-12 * (1.0 + std::abs(expected)));
+    if (trial == 0) {  // at the centroid, the concentrated force's work
+      EXPECT_NEAR(forces.dot(displacement), force.dot(a + b * surface.ParameterOf(foot)), 1e-12);
+    }
+  }
+  EXPECT_THROW(FangSpringForces(surface, Eigen::Matrix3Xd::Zero(3, 2), {FeSurfacePoint{}}),
+               std::invalid_argument);
+}
+
+TEST(FeSurfaceFit, FangSpringsOnThePlateOnSpringsApproachTheLeastSquaresFitAsTheElementsShrink) {
+  // Fang's sliding springs (eqs. P15-P16) with the springs' stiffness at the first feet in the quadratic
+  // model: the scan patch's setting (the boundary free along the plane's normal). The iteration stops at the
+  // distributed loads' equilibrium, which is not the least-squares minimum: each load acts between its foot
+  // and its triangle's centroid (eq. P15a), so the data are blurred over an element. Halving the elements
+  // must bring the equilibrium closer to the minimum (SDM's, converged).
+  std::mt19937 rng(2024);
+  const NoisyBump data = SampleNoisyBump(3000, 0.005, rng);
+  std::vector<double> gaps;
+  for (int subdivisions : {4, 8}) {
+    FeSurface surface(SubdividedHexagon(3.0, subdivisions));
+    FeSurface reference = surface;
+    FeSurfaceFitOptions options;
+    options.solver = FeSolver::kFangSprings;
+    options.max_iterations = 400;
+    const FeSurfaceFitResult fit =
+        FitFeSurface(data.points, data.start_uv, options, surface, SetPlanarChart(surface));
+    const FeSurfaceFitResult exact =
+        FitFeSurface(data.points, data.start_uv, FeSurfaceFitOptions{}, reference, SetPlanarChart(reference));
+    std::mt19937 check_rng(99);
+    const BumpErrors errors = ErrorsToTheTrueBump(surface, 4000, check_rng);
+    std::mt19937 check_rng2(99);
+    const BumpErrors exact_errors = ErrorsToTheTrueBump(reference, 4000, check_rng2);
+    gaps.push_back(fit.objective.back() / exact.objective.back() - 1.0);
+    std::printf(
+        "springs (plate on springs), %d triangles: %d iterations%s, objective %.8f (%.3f %% above SDM's), "
+        "RMS "
+        "%.5f, e_max %.5f, e_mean %.5f; SDM e_max %.5f, e_mean %.5f\n",
+        surface.triangle_count(), fit.iterations, fit.converged ? " (converged)" : "", fit.objective.back(),
+        100.0 * gaps.back(), fit.rms, errors.e_max, errors.e_mean, exact_errors.e_max, exact_errors.e_mean);
+    EXPECT_TRUE(fit.converged);
+    EXPECT_GE(gaps.back(), 0.0);
+    for (std::size_t k = 1; k < fit.objective.size(); ++k) EXPECT_LT(fit.objective[k], fit.objective[k - 1]);
+  }
+  EXPECT_LT(gaps[1], gaps[0]);
+}
+
+TEST(FeSurfaceFit, FangsPlateAloneNeedsItsBoundaryHeldAndShortStepsWhenTheSpringsAreStiffer) {
+  // The thesis' quadratic model (eq. P16 with K alone). Without boundary curves the plate can float along
+  // the plane's normal and tilt at no energy: refused. With the boundary on curves: when the plate is stiff
+  // (bending 1e-3) Fang's full steps converge; when the springs are stiffer (1e-5) the full step overshoots
+  // and the line search shortens it; both end at the springs' equilibrium, whose objective is that of the
+  // engine's PDM minimum to a fraction of a percent (the distributed loads are not the exact gradient).
+  std::mt19937 rng(2024);
+  const NoisyBump data = SampleNoisyBump(3000, 0.005, rng);
+  {
+    FeSurface surface(SubdividedHexagon(3.0, 4));
+    FeSurfaceFitOptions options;
+    options.solver = FeSolver::kFangSprings;
+    options.spring_hessian = FeSpringHessian::kPlate;
+    const std::vector<FeFixedDirection> boundary = SetPlanarChart(surface);
+    try {
+      FitFeSurface(data.points, data.start_uv, options, surface, boundary);
+      ADD_FAILURE() << "the floating plate was not refused";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("does not hold the surface"), std::string::npos) << e.what();
+    }
+  }
+  for (double bending : {1e-3, 1e-5}) {
+    FeSurface surface(SubdividedHexagon(3.0, 4));
+    SetPlanarChart(surface);
+    const std::vector<FeLinearConstraint> rows = SetBoundaryConformity(surface, BumpBoundaryTrace);
+    FeSurface reference = surface;
+    FeSurfaceFitOptions options;
+    options.solver = FeSolver::kFangSprings;
+    options.spring_hessian = FeSpringHessian::kPlate;
+    options.bending = bending;
+    options.max_iterations = 100;
+    const FeSurfaceFitResult fit = FitFeSurface(data.points, data.start_uv, options, surface, {}, rows);
+    FeSurfaceFitOptions pdm;
+    pdm.method = ErrorTerm::kPdm;
+    pdm.bending = bending;
+    pdm.max_iterations = 200;
+    const FeSurfaceFitResult exact = FitFeSurface(data.points, data.start_uv, pdm, reference, {}, rows);
+    const double shortest = *std::min_element(fit.step_lengths.begin(), fit.step_lengths.end());
+    std::printf(
+        "springs (plate alone), bending %g: %d iterations%s, shortest step %.4f, objective %.6f; PDM %d "
+        "iterations%s, objective %.6f\n",
+        bending, fit.iterations, fit.converged ? " (converged)" : "", shortest, fit.objective.back(),
+        exact.iterations, exact.converged ? " (converged)" : "", exact.objective.back());
+    EXPECT_TRUE(fit.converged);
+    EXPECT_TRUE(exact.converged);
+    if (bending == 1e-3) {
+      EXPECT_EQ(shortest, 1.0);
+    } else {
+      EXPECT_LT(shortest, 1.0);
+    }
+    EXPECT_NEAR(fit.objective.back() / exact.objective.back(), 1.0, 0.01);
+  }
+}
+
 }  // namespace
 }  // namespace s2m
