@@ -310,9 +310,18 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
 
     FeSurfaceFitOptions fit_options;
     const std::string method = o.method.empty() ? "sdm" : o.method;
-    if (method != "pdm" && method != "tdm" && method != "sdm" && method != "cdm")
-      throw FitFailure(kUsage, "--method " + method + ": fe-surface takes sdm, tdm, pdm or cdm");
-    fit_options.method = ErrorTermFromString(method);
+    if (method == "spring") {
+      // Fang's sliding springs (docs/fe-surfaces.md section 4b) with the springs' stiffness in the model: a
+      // patch's boundary is free along its normal, where the plate alone would float. It stops by itself at
+      // the loads' equilibrium, linearly as the feet slide, so it gets more iterations.
+      fit_options.solver = FeSolver::kFangSprings;
+      fit_options.spring_hessian = FeSpringHessian::kPlateOnSprings;
+      fit_options.max_iterations = 400;
+    } else if (method == "pdm" || method == "tdm" || method == "sdm" || method == "cdm") {
+      fit_options.method = ErrorTermFromString(method);
+    } else {
+      throw FitFailure(kUsage, "--method " + method + ": fe-surface takes sdm, tdm, pdm, cdm or spring");
+    }
     fit_options.stretch = o.stretch;
     fit_options.bending = o.bending_given ? o.bending : 1e-7;
     fit_options.jump = o.beta2;
