@@ -170,9 +170,11 @@ Data Sample(const Case& c, unsigned seed) {
   return d;
 }
 
-Row FeSurfaceRow(const Case& c, const Data& d, const Grid& g, double edge, double jump) {
+Row FeSurfaceRow(const Case& c, const Data& d, const Grid& g, double edge, double jump,
+                 bool springs = false) {
   Row row;
-  row.method = "FE surface, SDM, edge " + Short(edge) + (jump > 0 ? ", C2 jump " + Short(jump) : "");
+  row.method = std::string(springs ? "FE surface, Fang's springs" : "FE surface, SDM") + ", edge " +
+               Short(edge) + (jump > 0 ? ", C2 jump " + Short(jump) : "");
   const auto start = Clock::now();
   DomainPolygon polygon;
   polygon.outer.resize(2, 6);
@@ -189,6 +191,10 @@ Row FeSurfaceRow(const Case& c, const Data& d, const Grid& g, double edge, doubl
   const std::vector<FeFixedDirection> pinned = SetPlanarChart(surface);
   FeSurfaceFitOptions options;
   options.jump = jump;
+  if (springs) {  // as `fit --model fe-surface --method spring`
+    options.solver = FeSolver::kFangSprings;
+    options.max_iterations = 400;
+  }
   const FeSurfaceFitResult fit = FitFeSurface(d.points, d.points.topRows<2>(), options, surface, pinned);
   row.seconds = Seconds(start);
   row.dofs = 3LL * surface.dof_count();
@@ -415,6 +421,8 @@ int main(int argc, char** argv) {
     rows.push_back(FeSurfaceRow(c, data, grid, 0.75, 1e-8));
     rows.push_back(FeSurfaceRow(c, data, grid, 0.75, 1e-6));
     rows.push_back(FeSurfaceRow(c, data, grid, 0.5, 0.0));
+    rows.push_back(FeSurfaceRow(c, data, grid, 0.75, 0.0, true));
+    rows.push_back(FeSurfaceRow(c, data, grid, 0.5, 0.0, true));
     rows.push_back(BSplineRow(c, data, grid, 12));
     rows.push_back(BSplineRow(c, data, grid, 18));
     if (std::optional<Row> ct = CloughTocherRow(c, data, grid, script))
