@@ -40,8 +40,9 @@ std::vector<FitOptionSpec> MakeTable() {
        K::kChoice,
        "",
        "Error term per iteration: pdm, tdm, sdm, cdm, gtdm or gn (primitives: tdm or sdm; hermite-curve: "
-       "spring, sdm, tdm or pdm, spring being Fang's sliding springs). Default: tdm for primitives and "
-       "multi-view fits, sdm for splines and Hermite curves",
+       "spring, sdm, tdm or pdm; fe-surface: sdm, tdm, pdm, cdm or spring; spring being Fang's sliding "
+       "springs). Default: tdm for primitives and multi-view fits, sdm for splines, Hermite curves and FE "
+       "surfaces",
        {"pdm", "tdm", "sdm", "cdm", "gtdm", "gn", "spring"},
        false,
        -1e300,
