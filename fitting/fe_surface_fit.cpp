@@ -363,9 +363,8 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
         !(solver.vectorD().minCoeff() > 1e-12 * solver.vectorD().cwiseAbs().maxCoeff()))
       throw std::invalid_argument(
           "finite-element surface fit: the plate alone does not hold the surface with these constraints "
-          "(Fang's "
-          "quadratic model is singular: hold the boundary on curves, or let the springs' stiffness into the "
-          "model)");
+          "(Fang's quadratic model is singular): hold the boundary on curves, or let the springs' stiffness "
+          "into the model");
     const SpringForces spring_forces(surface);
     double objective = fairness(surface.dofs());
     for (int i = 0; i < n; ++i)
@@ -412,9 +411,9 @@ FeSurfaceFitResult FitFeSurface(const Eigen::Matrix3Xd& points, const Eigen::Mat
     result.objective.push_back(objective);
     double damping = 1e-9;
     for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
-      // Eq. P7: the normal equations of the step delta (3 dofs x, y, z per scalar dof, index 3 dof + c):
-      //   (sum_i (N_i^T N_i) (x) M_i + K (x) I3 + damping diag) delta = sum_i N_i^T (x) M_i r_i - (K (x) I3)
-      //   q,
+      // Eq. P7: the normal equations of the step delta (3 dofs x, y, z per scalar dof, index 3 dof + c),
+      //   (sum_i (N_i^T N_i) (x) M_i + K (x) I3 + damping diag) delta
+      //     = sum_i N_i^T (x) M_i r_i - (K (x) I3) q,
       // M_i the point's error matrix (PDM: I; TDM: n n^T; SDM: Pottmann-Hofer's, docs/method.md eq. 5); feet
       // on the boundary use PDM (their residual is not along the normal).
       std::vector<ElementBlock> blocks(static_cast<std::size_t>(surface.triangle_count()),

@@ -2,8 +2,8 @@
 // Fitting a fair finite-element surface (fitting/fe_surface.h) to scattered points (docs/fe-surfaces.md
 // section 4, eqs. P5-P8): minimize the sum over the points of their squared distance to the surface plus the
 // fairness energy Q^T K Q, the distances in the PDM, TDM or SDM approximation of docs/method.md (after Y.
-// Liu) and the energy of Fang's plate (after L. Fang), by damped Gauss-Newton steps on all dofs at once, with
-// the feet re-found on the surface after every step.
+// Liu) and the energy of Fang's plate (after L. Fang), by damped Gauss-Newton steps on all dofs at once, or
+// by Fang's own sliding springs and SQP (section 4b), with the feet re-found on the surface after every step.
 
 #include <Eigen/Core>
 #include <functional>
