@@ -241,7 +241,7 @@ class RegistrationProblem : public NonlinearProblem {
   ErrorTerm term_;
   double weight_;
   FootPointContext context_;
-  const SquaredDistanceField* field_;
+  SquaredDistanceField* field_;
   bool surface_;
   RobustWeighting weighting_;
   bool field_phase_;
@@ -282,7 +282,9 @@ void RegistrationProblem::Pass(const Eigen::Matrix3Xd& points, bool warm, bool u
   else
     out_geometry.resize(static_cast<std::size_t>(points.cols()));
   out_exact.resize(static_cast<std::size_t>(points.cols()));
-  const SquaredDistanceField* field = field_;
+  SquaredDistanceField* field = field_;
+  // A lazy field computes the cells these points fall in first (once each; nothing for a field built whole).
+  if (use_field) field->Prepare(points);
   const ErrorTerm term = term_;
   // The previous pass kept Newton's geometry only when it assembled equations in the exact phase.
   const bool warm_geometry = warm && geometry_.size() == feet_.size() && exact_.size() == feet_.size();

@@ -50,8 +50,10 @@ struct ModelRegistrationOptions {
   // from the field's foot parameters, then from the previous exact feet with their geometry), so the
   // final pose and residuals are the model's exact ones
   // (0: no exact step, only the exact feet at the field's final pose for the residuals). The field's accuracy
-  // is set by its cell size.
-  const SquaredDistanceField* squared_distance_field = nullptr;
+  // is set by its cell size. A lazy field (SquaredDistanceField::Options::lazy) gains the cells the scan
+  // visits as the registration goes (hence not const); one field may serve many scans of the model in turn,
+  // not at the same time.
+  SquaredDistanceField* squared_distance_field = nullptr;
   double field_step_tolerance = 1e-7;
   int exact_final_iterations = 1;
 };

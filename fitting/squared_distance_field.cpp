@@ -13,12 +13,16 @@
 namespace s2m {
 namespace {
 
-constexpr int kBlock = 4;  // cells per block edge: whole blocks far from the model are skipped at once
+// Cells per block edge. Built whole, blocks far from the model are skipped at once by one foot of their
+// centre; built lazily, a block is the unit computed on demand, and smaller blocks waste fewer cells beside
+// the scan while their centres' feet (one per block) cost more (measured in docs/registration.md).
+constexpr int kBlockWhole = 4;
+constexpr int kBlockLazy = 2;
 
 }  // namespace
 
 SquaredDistanceField::SquaredDistanceField(const ParametricModel& model, const Options& options)
-    : options_(options), domain_(model.domain()) {
+    : options_(options), model_(model), domain_(model.domain()) {
   const auto start = std::chrono::steady_clock::now();
   if (model.ambient_dimension() != 3 || domain_.dimension != 2)
     throw std::invalid_argument("squared distance field: the model (" + model.name() +
@@ -56,36 +60,76 @@ SquaredDistanceField::SquaredDistanceField(const ParametricModel& model, const O
                                 " grid cells exceed the limit " + std::to_string(options_.max_grid_cells) +
                                 " (larger cells or a smaller box)");
   index_.assign(static_cast<std::size_t>(total), -1);
+  block_edge_ = options_.lazy ? kBlockLazy : kBlockWhole;
+  for (std::size_t a = 0; a < 3; ++a) blocks_[a] = (dims_[a] + block_edge_ - 1) / block_edge_;
+  const std::int64_t block_count = blocks_[0] * blocks_[1] * blocks_[2];
+  block_built_.assign(static_cast<std::size_t>(block_count), 0);
+  context_ = std::make_unique<FootPointContext>(model);
+  if (!options_.lazy) {
+    std::vector<std::int64_t> every(static_cast<std::size_t>(block_count));
+    for (std::int64_t b = 0; b < block_count; ++b) every[static_cast<std::size_t>(b)] = b;
+    BuildBlocks(every);
+  }
+  build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 
-  const std::array<std::int64_t, 3> blocks{(dims_[0] + kBlock - 1) / kBlock, (dims_[1] + kBlock - 1) / kBlock,
-                                           (dims_[2] + kBlock - 1) / kBlock};
-  const std::int64_t block_count = blocks[0] * blocks[1] * blocks[2];
-  std::vector<std::vector<Cell>> block_cells(static_cast<std::size_t>(block_count));
-  std::vector<std::vector<std::int64_t>> block_index(static_cast<std::size_t>(block_count));
-  std::vector<std::size_t> block_untrusted(static_cast<std::size_t>(block_count), 0);
+void SquaredDistanceField::Prepare(const Eigen::Matrix3Xd& points) {
+  if (!options_.lazy) return;
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<std::int64_t> wanted;
+  for (Eigen::Index j = 0; j < points.cols(); ++j) {
+    const Eigen::Vector3d g = (points.col(j) - origin_) * inverse_cell_;
+    if (!(g.minCoeff() >= 0.0)) continue;  // outside the box (or NaN): Query answers no there
+    std::array<std::int64_t, 3> c{};
+    bool inside = true;
+    for (int a = 0; a < 3; ++a) {
+      c[static_cast<std::size_t>(a)] = static_cast<std::int64_t>(g[a]);
+      inside = inside && c[static_cast<std::size_t>(a)] < dims_[static_cast<std::size_t>(a)];
+    }
+    if (!inside) continue;
+    const std::int64_t b =
+        ((c[2] / block_edge_) * blocks_[1] + c[1] / block_edge_) * blocks_[0] + c[0] / block_edge_;
+    std::uint8_t& built = block_built_[static_cast<std::size_t>(b)];
+    if (built) continue;
+    built = 1;
+    wanted.push_back(b);
+  }
+  if (!wanted.empty()) BuildBlocks(wanted);
+  build_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+void SquaredDistanceField::BuildBlocks(const std::vector<std::int64_t>& wanted) {
+  const ParametricModel& model = model_;
+  const FootPointContext& context = *context_;
+  const double h = options_.cell_size;
+  const auto wanted_count = static_cast<std::int64_t>(wanted.size());
+  std::vector<std::vector<Cell>> block_cells(wanted.size());
+  std::vector<std::vector<std::int64_t>> block_index(wanted.size());
+  std::vector<std::size_t> block_untrusted(wanted.size(), 0);
   const double keep = options_.band + 0.5 * std::sqrt(3.0) * h;  // every point within `band` finds its cell
-  const FootPointContext context(model);
 #pragma omp parallel
   {
     LocalGeometry g;
 #pragma omp for schedule(dynamic, 8)
-    for (std::int64_t b = 0; b < block_count; ++b) {
-      const std::array<std::int64_t, 3> bi{b % blocks[0], (b / blocks[0]) % blocks[1],
-                                           b / (blocks[0] * blocks[1])};
+    for (std::int64_t w = 0; w < wanted_count; ++w) {
+      const std::int64_t b = wanted[static_cast<std::size_t>(w)];
+      block_built_[static_cast<std::size_t>(b)] = 1;
+      const std::array<std::int64_t, 3> bi{b % blocks_[0], (b / blocks_[0]) % blocks_[1],
+                                           b / (blocks_[0] * blocks_[1])};
       std::array<std::int64_t, 3> c0{}, c1{};
       for (std::size_t a = 0; a < 3; ++a) {
-        c0[a] = bi[a] * kBlock;
-        c1[a] = std::min(c0[a] + kBlock, dims_[a]);
+        c0[a] = bi[a] * block_edge_;
+        c1[a] = std::min(c0[a] + block_edge_, dims_[a]);
       }
       const Eigen::Vector3d centre = origin_ + 0.5 * h *
                                                    Eigen::Vector3d(static_cast<double>(c0[0] + c1[0]),
                                                                    static_cast<double>(c0[1] + c1[1]),
                                                                    static_cast<double>(c0[2] + c1[2]));
-      const double radius = 0.5 * h * std::sqrt(3.0) * kBlock;
+      const double radius = 0.5 * h * std::sqrt(3.0) * block_edge_;
       const FootPoint block_foot = FootPointOf(context, centre, nullptr, WarmStart::kVerified, g);
       if (block_foot.distance - radius > keep) continue;  // distance is 1-Lipschitz: no cell of it is kept
       ParamT previous = block_foot.t;
-      const auto ub = static_cast<std::size_t>(b);
+      const auto ub = static_cast<std::size_t>(w);
       for (std::int64_t k = c0[2]; k < c1[2]; ++k)
         for (std::int64_t j = c0[1]; j < c1[1]; ++j)
           for (std::int64_t i = c0[0]; i < c1[0]; ++i) {
@@ -135,7 +179,7 @@ SquaredDistanceField::SquaredDistanceField(const ParametricModel& model, const O
           }
     }
   }
-  std::size_t count = 0;
+  std::size_t count = cells_.size();
   for (const auto& v : block_cells) count += v.size();
   cells_.reserve(count);
   for (std::size_t b = 0; b < block_cells.size(); ++b) {
@@ -145,7 +189,6 @@ SquaredDistanceField::SquaredDistanceField(const ParametricModel& model, const O
       cells_.push_back(block_cells[b][c]);
     }
   }
-  build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 bool SquaredDistanceField::Query(const Eigen::Vector3d& y, Answer& out, bool tangents) const {

@@ -22,11 +22,21 @@
 // boundary of the model (within 2 cells), and cells near a focal point (|k| (|d| + h) >= 0.5, where the
 // distance function stops being smooth). Points near the medial axis of a strongly curved model (two distant
 // feet at about the same distance) are not detected: keep `band` below the model's curvature radii.
+//
+// Built whole (the default), the field costs one exact foot per cell of the band around the entire model,
+// most of which a registration never visits: a scan near its pose touches a layer one or two cells thick over
+// the part of the model it covers. Built lazily (Options::lazy), the constructor only lays out the grid and
+// Prepare(points) computes the blocks of cells the given points fall in, once each, by the same code: a
+// registration calls it with the scan's points at every pose it evaluates, so the field holds exactly the
+// cells the scans have visited and later scans of the same model reuse them. Queries are identical.
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
+#include "fitting/foot_point.h"
 #include "fitting/parametric_model.h"
 
 namespace s2m {
@@ -40,6 +50,8 @@ class SquaredDistanceField {
     // (ParametricModel::SampleParameters) grown by `band`; give it for unbounded models (cylinders).
     Eigen::Vector3d box_min = Eigen::Vector3d::Constant(1.0), box_max = Eigen::Vector3d::Constant(-1.0);
     double max_grid_cells = 2e8;  // the dense cell index's size limit (4 bytes per grid cell)
+    // Compute cells on demand (Prepare) instead of all at once. The model must then outlive the field.
+    bool lazy = false;
   };
 
   // The SDM approximant of d^2 at one query point, in the form the error terms use: the approximate foot q,
@@ -55,8 +67,14 @@ class SquaredDistanceField {
   };
 
   // Builds the field of `model` (a surface in 3D): the exact foot points of all cell centres near the model,
-  // in parallel. Throws std::invalid_argument for other models or a grid beyond max_grid_cells.
+  // in parallel; with options.lazy only the grid (cells come with Prepare). Throws std::invalid_argument for
+  // other models or a grid beyond max_grid_cells.
   SquaredDistanceField(const ParametricModel& model, const Options& options);
+
+  // Lazy fields: computes (in parallel) every not yet computed block of cells that holds one of `points`
+  // (3 x n), so that Query answers for them. Does nothing for a field built whole. Not to be called while
+  // another thread queries the field.
+  void Prepare(const Eigen::Matrix3Xd& points);
 
   // False when y is outside the box, its cell is not stored or cannot be trusted: use an exact foot point.
   // Without `tangents` only the normal of out.frame is set (enough for TDM).
@@ -65,7 +83,8 @@ class SquaredDistanceField {
   const Options& options() const { return options_; }
   std::size_t cell_count() const { return cells_.size(); }         // stored (trusted) cells
   std::size_t untrusted_cell_count() const { return untrusted_; }  // in the band but left to exact feet
-  double build_seconds() const { return build_seconds_; }          // wall time of the constructor
+  // Wall time of the constructor and every Prepare so far.
+  double build_seconds() const { return build_seconds_; }
 
  private:
   struct Cell {
@@ -80,12 +99,20 @@ class SquaredDistanceField {
     Eigen::Matrix<double, 2, 3> t_second = Eigen::Matrix<double, 2, 3>::Zero();
     ParamT t{0.0, 0.0, 0.0};
   };
+  // Computes the cells of the given blocks (indices into the grid of blocks), in parallel, and stores them.
+  void BuildBlocks(const std::vector<std::int64_t>& blocks);
+
   Options options_;
+  const ParametricModel& model_;
+  std::unique_ptr<FootPointContext> context_;  // seeds for the exact feet, kept for lazy blocks
   ParameterDomain domain_;
   Eigen::Vector3d origin_;
   double inverse_cell_ = 1.0;
   std::array<std::int64_t, 3> dims_{0, 0, 0};
-  std::vector<std::int32_t> index_;  // dense over the grid: -1 or the cell's index in cells_
+  std::vector<std::int32_t> index_;              // dense over the grid: -1 or the cell's index in cells_
+  int block_edge_ = 1;                           // cells per block edge
+  std::array<std::int64_t, 3> blocks_{0, 0, 0};  // blocks of block_edge_^3 cells along each axis
+  std::vector<std::uint8_t> block_built_;        // 1 once a block's cells are computed
   std::vector<Cell> cells_;
   std::size_t untrusted_ = 0;
   double build_seconds_ = 0.0;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iostream>
 #include <random>
 
 #include "fitting/bspline_models.h"
@@ -143,7 +144,7 @@ TEST(SquaredDistanceField, RegistrationWithTheFieldRecoversThePose) {
   const BSplineSurface patch = BumpyPatch(0.03);
   SquaredDistanceField::Options fo;
   fo.cell_size = 1.0;
-  const SquaredDistanceField field(patch, fo);
+  SquaredDistanceField field(patch, fo);
   const Eigen::Matrix3Xd on_model = PointsAround(patch, 3000, 0.0, 0.1, 0.9, 9);
   const auto [truth, start] = test::ThreeDegreeRegistrationPoses();
   const Eigen::Matrix3Xd scan = truth.inverse().apply(on_model);
@@ -163,6 +164,41 @@ TEST(SquaredDistanceField, RegistrationWithTheFieldRecoversThePose) {
     const RigidMotion field_pose = r.pose_history[static_cast<std::size_t>(r.field_iterations - 1)];
     EXPECT_LT((field_pose.apply(scan) - on_model).colwise().norm().maxCoeff(), 1e-3) << ToString(term);
   }
+}
+
+// A lazy field holds only the cells of blocks it was prepared for, and each of them answers as the field
+// built whole does: the same cells (the same trust tests), and the same approximant up to the exact feet's
+// Newton tolerance (the cells' warm starts come from different neighbours).
+TEST(SquaredDistanceField, LazyCellsAnswerAsTheWholeFieldDoes) {
+  const BSplineSurface patch = BumpyPatch(0.03);
+  SquaredDistanceField::Options o;
+  const SquaredDistanceField whole(patch, o);
+  o.lazy = true;
+  SquaredDistanceField lazy(patch, o);
+  EXPECT_EQ(lazy.cell_count(), 0u);
+  const Eigen::Matrix3Xd y = PointsAround(patch, 5000, 1.0, 0.3, 0.7, 5);
+  SquaredDistanceField::Answer a, b;
+  for (Eigen::Index j = 0; j < y.cols(); ++j) ASSERT_FALSE(lazy.Query(y.col(j), a));  // nothing built yet
+  lazy.Prepare(y);
+  EXPECT_GT(lazy.cell_count(), 0u);
+  EXPECT_LT(lazy.cell_count(), whole.cell_count() / 4);  // the middle of the patch, 1 mm either side
+  for (Eigen::Index j = 0; j < y.cols(); ++j) {
+    const bool answered = whole.Query(y.col(j), a);
+    ASSERT_EQ(lazy.Query(y.col(j), b), answered) << j;
+    if (!answered) continue;
+    EXPECT_LT((a.foot - b.foot).norm(), 1e-9) << j;
+    EXPECT_NEAR(a.squared_distance, b.squared_distance, 1e-9) << j;
+    EXPECT_LT((a.frame.normals[0] - b.frame.normals[0]).norm(), 1e-9) << j;
+    EXPECT_NEAR(a.frame.curvatures[0], b.frame.curvatures[0], 1e-9) << j;
+  }
+  // Preparing the same points again computes nothing more.
+  const std::size_t cells = lazy.cell_count();
+  lazy.Prepare(y);
+  EXPECT_EQ(lazy.cell_count(), cells);
+  // A field built whole ignores Prepare.
+  SquaredDistanceField whole_copy(patch, SquaredDistanceField::Options());
+  whole_copy.Prepare(y);
+  EXPECT_EQ(whole_copy.cell_count(), whole.cell_count());
 }
 
 // The scan of the registration tests below: the patch's inner part with Gaussian noise of 0.02 mm along the
@@ -227,7 +263,7 @@ TEST(SquaredDistanceField, ParameterOfTheApproximateFootIsNearTheExactOne) {
 // sample tree) from the field's final pose, on a noisy scan, to rounding.
 TEST(SquaredDistanceField, WarmStartedExactIterationEqualsTheColdOne) {
   const BSplineSurface patch = BumpyPatch(0.03);
-  const SquaredDistanceField field(patch, SquaredDistanceField::Options());
+  SquaredDistanceField field(patch, SquaredDistanceField::Options());
   const NoisyScan s = MakeNoisyScan(patch, 4000);
   for (const ErrorTerm term : {ErrorTerm::kSdm, ErrorTerm::kTdm}) {
     ModelRegistrationOptions o;
@@ -254,6 +290,42 @@ TEST(SquaredDistanceField, WarmStartedExactIterationEqualsTheColdOne) {
     // Noise of 0.02 mm: the pose is recovered to a small fraction of it.
     EXPECT_LT(MaxDisplacement(s.scan, warm.model_T_scan, s.truth), 1e-2) << ToString(term);
     EXPECT_NEAR(warm.residuals.rms, 0.02, 2e-3) << ToString(term);
+  }
+}
+
+// Registration with a lazy field ends at the pose the field built whole gives (both end with an exact
+// iteration), computing only the cells the scan visited; a second scan of the model reuses them.
+TEST(SquaredDistanceField, LazyFieldRegistersAsTheWholeOneWithFewerCells) {
+  const BSplineSurface patch = BumpyPatch(0.03);
+  SquaredDistanceField whole(patch, SquaredDistanceField::Options());
+  SquaredDistanceField::Options lazy_options;
+  lazy_options.lazy = true;
+  const NoisyScan s = MakeNoisyScan(patch, 4000);
+  for (const ErrorTerm term : {ErrorTerm::kSdm, ErrorTerm::kTdm}) {
+    SquaredDistanceField lazy(patch, lazy_options);
+    ModelRegistrationOptions o;
+    o.error_term = term;
+    o.rotation_tolerance = 1e-9;
+    o.translation_tolerance = 1e-9;
+    o.squared_distance_field = &whole;
+    const ModelRegistrationResult a = RegisterToModel(patch, s.scan, s.start, o);
+    o.squared_distance_field = &lazy;
+    const ModelRegistrationResult b = RegisterToModel(patch, s.scan, s.start, o);
+    EXPECT_EQ(a.field_iterations, b.field_iterations) << ToString(term);
+    EXPECT_LT(MaxDisplacement(s.scan, a.model_T_scan, b.model_T_scan), 1e-7) << ToString(term);
+    EXPECT_LT(MaxDisplacement(s.scan, b.model_T_scan, s.truth), 1e-2) << ToString(term);
+    std::cout << ToString(term) << ": lazy field " << lazy.cell_count() << " cells in "
+              << lazy.build_seconds() << " s, whole field " << whole.cell_count() << " cells in "
+              << whole.build_seconds() << " s\n";
+    EXPECT_LT(lazy.cell_count(), whole.cell_count() / 2) << ToString(term);
+    // The same scan from a start nearby visits (almost) no new cells.
+    const std::size_t cells = lazy.cell_count();
+    const RigidMotion nearby =
+        RigidMotion(RotationAboutAxis(Eigen::Vector3d::UnitZ(), 0.002), Eigen::Vector3d(0.1, 0.0, 0.0)) *
+        s.start;
+    const ModelRegistrationResult c = RegisterToModel(patch, s.scan, nearby, o);
+    EXPECT_LT(MaxDisplacement(s.scan, c.model_T_scan, b.model_T_scan), 1e-7) << ToString(term);
+    EXPECT_LT(lazy.cell_count(), cells + cells / 10) << ToString(term);
   }
 }
 
