@@ -14,10 +14,12 @@ namespace s2m {
 namespace {
 
 // Cells per block edge. Built whole, blocks far from the model are skipped at once by one foot of their
-// centre; built lazily, a block is the unit computed on demand, and smaller blocks waste fewer cells beside
-// the scan while their centres' feet (one per block) cost more (measured in docs/registration.md).
+// centre, and the cells of a block warm-start from each other. Built lazily, a block is the unit computed on
+// demand: single cells, each from the exact foot of its own centre, since larger blocks mostly compute cells
+// the scan never visits (measured on the benchmark's registration at 100k points, docs/registration.md: about
+// 11,000 cells with blocks of 1, 20,000 with blocks of 2 and 36,000 with blocks of 4, in the least time).
 constexpr int kBlockWhole = 4;
-constexpr int kBlockLazy = 2;
+constexpr int kBlockLazy = 1;
 
 }  // namespace
 
