@@ -71,6 +71,7 @@ SquaredDistanceField::SquaredDistanceField(const ParametricModel& model, const O
     std::vector<std::int64_t> every(static_cast<std::size_t>(block_count));
     for (std::int64_t b = 0; b < block_count; ++b) every[static_cast<std::size_t>(b)] = b;
     BuildBlocks(every);
+    context_.reset();  // the seeds are needed again only for lazy cells; the model may now go
   }
   build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }

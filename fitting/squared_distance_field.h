@@ -104,7 +104,7 @@ class SquaredDistanceField {
 
   Options options_;
   const ParametricModel& model_;
-  std::unique_ptr<FootPointContext> context_;  // seeds for the exact feet, kept for lazy blocks
+  std::unique_ptr<FootPointContext> context_;  // seeds for the exact feet, kept by lazy fields only
   ParameterDomain domain_;
   Eigen::Vector3d origin_;
   double inverse_cell_ = 1.0;
