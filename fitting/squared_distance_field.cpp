@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -184,7 +185,9 @@ void SquaredDistanceField::BuildBlocks(const std::vector<std::int64_t>& wanted) 
   }
   std::size_t count = cells_.size();
   for (const auto& v : block_cells) count += v.size();
-  cells_.reserve(count);
+  // Geometric growth: a lazy field grows by a few cells per Prepare, which exact reserves would copy each
+  // time.
+  if (count > cells_.capacity()) cells_.reserve(std::max(count, 2 * cells_.capacity()));
   for (std::size_t b = 0; b < block_cells.size(); ++b) {
     untrusted_ += block_untrusted[b];
     for (std::size_t c = 0; c < block_cells[b].size(); ++c) {

@@ -26,7 +26,7 @@
 // Built whole (the default), the field costs one exact foot per cell of the band around the entire model,
 // most of which a registration never visits: a scan near its pose touches a layer one or two cells thick over
 // the part of the model it covers. Built lazily (Options::lazy), the constructor only lays out the grid and
-// Prepare(points) computes the blocks of cells the given points fall in, once each, by the same code: a
+// Prepare(points) computes the cells the given points fall in, once each, by the same code: a
 // registration calls it with the scan's points at every pose it evaluates, so the field holds exactly the
 // cells the scans have visited and later scans of the same model reuse them. Queries are identical.
 
