@@ -229,6 +229,15 @@ NoisyScan MakeNoisyScan(const ParametricModel& model, int count) {
   return s;
 }
 
+// Registration of the noisy scan: the given term, run until its steps fall below 1e-9.
+ModelRegistrationOptions NoisyScanRegistration(ErrorTerm term) {
+  ModelRegistrationOptions o;
+  o.error_term = term;
+  o.rotation_tolerance = 1e-9;
+  o.translation_tolerance = 1e-9;
+  return o;
+}
+
 // The largest displacement of the scan's points between two poses.
 double MaxDisplacement(const Eigen::Matrix3Xd& scan, const RigidMotion& a, const RigidMotion& b) {
   return (a.apply(scan) - b.apply(scan)).colwise().norm().maxCoeff();
@@ -266,10 +275,7 @@ TEST(SquaredDistanceField, WarmStartedExactIterationEqualsTheColdOne) {
   SquaredDistanceField field(patch, SquaredDistanceField::Options());
   const NoisyScan s = MakeNoisyScan(patch, 4000);
   for (const ErrorTerm term : {ErrorTerm::kSdm, ErrorTerm::kTdm}) {
-    ModelRegistrationOptions o;
-    o.error_term = term;
-    o.rotation_tolerance = 1e-9;
-    o.translation_tolerance = 1e-9;
+    ModelRegistrationOptions o = NoisyScanRegistration(term);
     o.squared_distance_field = &field;
     const ModelRegistrationResult warm = RegisterToModel(patch, s.scan, s.start, o);
     ASSERT_EQ(warm.iterations - warm.field_iterations, 1) << ToString(term);
@@ -303,10 +309,7 @@ TEST(SquaredDistanceField, LazyFieldRegistersAsTheWholeOneWithFewerCells) {
   const NoisyScan s = MakeNoisyScan(patch, 4000);
   for (const ErrorTerm term : {ErrorTerm::kSdm, ErrorTerm::kTdm}) {
     SquaredDistanceField lazy(patch, lazy_options);
-    ModelRegistrationOptions o;
-    o.error_term = term;
-    o.rotation_tolerance = 1e-9;
-    o.translation_tolerance = 1e-9;
+    ModelRegistrationOptions o = NoisyScanRegistration(term);
     o.squared_distance_field = &whole;
     const ModelRegistrationResult a = RegisterToModel(patch, s.scan, s.start, o);
     o.squared_distance_field = &lazy;
