@@ -42,6 +42,7 @@
 #include "acquisition/scan_set_io.h"
 #include "bench/fitting_method_cases.h"
 #include "bench/icp_baselines.h"
+#include "bench/model_families.h"
 #include "fitting/bspline_models.h"
 #include "fitting/initial_models.h"
 #include "fitting/joint_fit.h"
@@ -856,6 +857,7 @@ struct ScalingResult {
   double seconds_per_iteration = NAN;
   double setup_seconds = NAN;
   long long points = 0;
+  int views = 0;
   int iterations = 0;
   double peak_rss_mb = NAN;
   double cores_used = NAN;  // process CPU time / wall time of the fit (2 = both cores busy with it)
@@ -890,46 +892,20 @@ std::string LoadAverage() {
   return buffer;
 }
 
-// The vase profile refined to 12 control points: a surface of revolution 150 mm tall.
-KinematicSurface TwelvePointVase() {
-  const KinematicSurface eight = KinematicSurface::Revolution(
-      UnitSpacedClamped(4, 8),
-      (Eigen::Matrix2Xd(2, 8) << 30, 42, 58, 66, 55, 38, 34, 41, 0, 20, 45, 70, 95, 120, 135, 150)
-          .finished());
-  Eigen::Matrix2Xd profile(2, 12);
-  const double lo = eight.basis().lo(), hi = eight.basis().hi();
-  for (int i = 0; i < 12; ++i) profile.col(i) = eight.ProfilePoint(lo + (hi - lo) * i / 11.0);
-  return KinematicSurface::Revolution(UnitSpacedClamped(4, 12), profile);
-}
-
-ScalingResult RunScaling(long long points, int views, int iterations) {
-  const KinematicSurface truth = TwelvePointVase();
-  const std::vector<Eigen::Vector3d> directions = RingOfDirections(views, 20 * kDegree);
-  ViewOptions vo;
-  vo.noise = 0.02;
-  vo.rotation_error = 0.5 * kDegree;
-  vo.translation_error = 0.5;
-  vo.seed = 5;
-  // A pilot sampling tells how many of the sampled points the views see (with repeats across views).
-  const SurfaceSample pilot =
-      SampleAroundAxis(truth, truth.basis().lo(), truth.basis().hi(), -M_PI, M_PI, 4000, 3);
-  long long seen = 0;
-  for (const auto& sc : ScanFromDirections(pilot, directions, vo).scans) seen += sc.cols();
-  const double per_sample = static_cast<double>(seen) / 4000.0;
-  const int count = static_cast<int>(std::ceil(static_cast<double>(points) / per_sample));
-  const SyntheticViews v = ScanFromDirections(
-      SampleAroundAxis(truth, truth.basis().lo(), truth.basis().hi(), -M_PI, M_PI, count, 4), directions, vo);
+ScalingResult RunScaling(const std::string& family, long long points, int views, int iterations) {
+  bench::FamilyCase c = bench::MakeFamilyCase(family, points, views);
   ScalingResult out;
-  for (const auto& sc : v.scans) out.points += sc.cols();
-  KinematicSurface start = KinematicSurface::Revolution(truth.basis(), truth.profile() * 1.01);
-  JointFitOptions o;
+  for (const auto& sc : c.views.scans) out.points += sc.cols();
+  out.views = static_cast<int>(c.views.scans.size());
+  JointFitOptions o = c.options;
   o.error_term = ErrorTerm::kSdm;
   o.optimizer.max_iterations = iterations;
-  o.shared_motion_iterations = 0;
   o.optimizer.objective_tolerance = 0.0;
+  o.optimizer.step_tolerance = 0.0;
+  o.optimizer.gradient_tolerance = 0.0;
   const double cpu0 = CpuSeconds();
   const auto wall0 = Clock::now();
-  const JointFitResult r = FitJointly(start, v.scans, v.model_T_scan_recorded, o);
+  const JointFitResult r = FitJointly(*c.start, c.views.scans, c.views.model_T_scan_recorded, o);
   out.cores_used = (CpuSeconds() - cpu0) / Since(wall0);
   // Per iteration: the differences of the iteration clock after the first (which also pays the first foot
   // points from the seed samples).
@@ -947,7 +923,7 @@ ScalingResult RunScaling(long long points, int views, int iterations) {
 // Runs one scaling configuration in a fresh process (this program re-executed with --scaling-child: a forked
 // copy of a process that already ran OpenMP regions would hang in its first parallel region) and returns its
 // result; the child measures its own peak memory.
-ScalingResult InChild(long long points, int views, int iterations) {
+ScalingResult InChild(const std::string& family, long long points, int views, int iterations) {
   int fd[2];
   if (pipe(fd) != 0) throw std::runtime_error("pipe failed");
   std::fflush(stdout);
@@ -957,7 +933,7 @@ ScalingResult InChild(long long points, int views, int iterations) {
     close(fd[0]);
     dup2(fd[1], STDOUT_FILENO);
     const std::string n = std::to_string(points), k = std::to_string(views), it = std::to_string(iterations);
-    execl("/proc/self/exe", "compare", "--scaling-child", n.c_str(), k.c_str(), it.c_str(),
+    execl("/proc/self/exe", "compare", "--scaling-child", n.c_str(), k.c_str(), it.c_str(), family.c_str(),
           static_cast<char*>(nullptr));
     _exit(127);
   }
@@ -973,18 +949,18 @@ ScalingResult InChild(long long points, int views, int iterations) {
   std::istringstream in(text);
   int ok = 0;
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 ||
-      !(in >> r.seconds_per_iteration >> r.setup_seconds >> r.points >> r.iterations >> r.peak_rss_mb >>
-        r.cores_used >> ok))
+      !(in >> r.seconds_per_iteration >> r.setup_seconds >> r.points >> r.views >> r.iterations >>
+        r.peak_rss_mb >> r.cores_used >> ok))
     return {};
   r.ok = ok != 0;
   return r;
 }
 
-int ScalingChild(long long points, int views, int iterations) {
+int ScalingChild(const std::string& family, long long points, int views, int iterations) {
   try {
-    const ScalingResult r = RunScaling(points, views, iterations);
-    std::printf("%.9g %.9g %lld %d %.9g %.9g %d\n", r.seconds_per_iteration, r.setup_seconds, r.points,
-                r.iterations, r.peak_rss_mb, r.cores_used, r.ok ? 1 : 0);
+    const ScalingResult r = RunScaling(family, points, views, iterations);
+    std::printf("%.9g %.9g %lld %d %d %.9g %.9g %d\n", r.seconds_per_iteration, r.setup_seconds, r.points,
+                r.views, r.iterations, r.peak_rss_mb, r.cores_used, r.ok ? 1 : 0);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "scaling case failed: %s\n", e.what());
@@ -1058,7 +1034,7 @@ void SectionScaling(const Settings& s, Csv& csv, ScalingSummary& summary) {
       "cores "
       "used |\n|---|---|---|---|---|---|---|\n");
   for (const auto& [n, k] : configs) {
-    const ScalingResult r = InChild(n, k, iterations);
+    const ScalingResult r = InChild("revolution-12", n, k, iterations);
     if (!r.ok) {
       std::printf("| %lld | %d | failed | | | | |\n", n, k);
       continue;
@@ -1080,6 +1056,45 @@ void SectionScaling(const Settings& s, Csv& csv, ScalingSummary& summary) {
     row.peak_rss_mb = r.peak_rss_mb;
     row.metric = "seconds: per joint iteration (median); error: first iteration seconds";
     row.note = "cores used " + Fmt("%.2f", r.cores_used);
+    csv.Add(row);
+  }
+
+  // The same measure for every model family: what a point costs in one joint iteration depends on the
+  // family's foot points (closed form on primitives, Newton on splines, per face on parts) and on the shape
+  // Jacobian's size.
+  const long long family_points = s.quick ? 10000 : 1000000;
+  std::printf(
+      "\nCost of one joint iteration per point, by model family: about %lld points, SDM, per-view motions, "
+      "the same %d iterations and measures as above (the reference cases with their own views, poses off by "
+      "2 deg / 2 mm, and starts; the others 8 views, poses off by 0.5 deg / 0.5 mm, shape 1 %% off).\n\n",
+      family_points, iterations);
+  std::printf(
+      "| family | model | points | views | s / iteration | us / point / iteration | first iteration (s) | "
+      "peak memory (MB) | cores used |\n|---|---|---|---|---|---|---|---|---|\n");
+  for (const std::string& family : bench::CostFamilyNames()) {
+    const std::string description = bench::FamilyDescription(family);
+    const ScalingResult r = InChild(family, family_points, 8, iterations);
+    if (!r.ok) {
+      std::printf("| %s | %s | failed | | | | | | |\n", family.c_str(), description.c_str());
+      continue;
+    }
+    std::printf("| %s | %s | %lld | %d | %.3f | %.3f | %.3f | %.0f | %.2f |\n", family.c_str(),
+                description.c_str(), r.points, r.views, r.seconds_per_iteration,
+                r.seconds_per_iteration * 1e6 / static_cast<double>(r.points), r.setup_seconds, r.peak_rss_mb,
+                r.cores_used);
+    std::fflush(stdout);
+    Row row;
+    row.section = "4 families";
+    row.case_name = family;
+    row.method = "joint SDM";
+    row.points = r.points;
+    row.views = r.views;
+    row.iterations = r.iterations;
+    row.seconds = r.seconds_per_iteration;
+    row.error = r.setup_seconds;
+    row.peak_rss_mb = r.peak_rss_mb;
+    row.metric = "seconds: per joint iteration (median); error: first iteration seconds";
+    row.note = description + "; cores used " + Fmt("%.2f", r.cores_used);
     csv.Add(row);
   }
 }
@@ -1191,8 +1206,9 @@ void PrintTargets(const RegistrationSummary& reg, double threshold, const Fittin
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc == 5 && std::string(argv[1]) == "--scaling-child")
-    return ScalingChild(std::atoll(argv[2]), std::atoi(argv[3]), std::atoi(argv[4]));
+  if ((argc == 5 || argc == 6) && std::string(argv[1]) == "--scaling-child")
+    return ScalingChild(argc == 6 ? argv[5] : "revolution-12", std::atoll(argv[2]), std::atoi(argv[3]),
+                        std::atoi(argv[4]));
   if ((argc == 4 || argc == 5) && std::string(argv[1]) == "--registration-child")
     return RegistrationChild(std::atoll(argv[2]), argv[3], argc == 5 ? std::atof(argv[4]) : 1.0);
   Settings s;

@@ -64,7 +64,7 @@ TEST(CompareDriver, QuickModeWritesAWellFormedCsv) {
                                              "start",       "iterations", "seconds", "error",  "final_error",
                                              "peak_rss_mb", "metric",     "note"};
   ASSERT_EQ(header, expected);
-  std::set<std::string> sections;
+  std::set<std::string> sections, families;
   int rows = 0;
   while (std::getline(in, line)) {
     ++rows;
@@ -74,12 +74,19 @@ TEST(CompareDriver, QuickModeWritesAWellFormedCsv) {
     EXPECT_FALSE(f[2].empty()) << line;
     for (std::size_t k = 3; k <= 10; ++k) EXPECT_TRUE(IsNumberOrEmpty(f[k])) << header[k] << " in " << line;
     sections.insert(f[0].substr(0, 1));
+    if (f[0] == "4 families") {
+      families.insert(f[1]);
+      EXPECT_GT(std::strtod(f[7].c_str(), nullptr), 0.0) << "a family's time per iteration: " << line;
+    }
   }
   // Section 2 needs ../shared/data; the others always run.
   EXPECT_TRUE(sections.count("1"));
   EXPECT_TRUE(sections.count("3"));
   EXPECT_TRUE(sections.count("4"));
   EXPECT_GE(rows, 10);
+  // Section 4's cost per point of every model family (CostFamilyNames of bench/model_families.h): one row
+  // each, a failed fit writes none.
+  EXPECT_EQ(families.size(), 9u);
   std::filesystem::remove(csv);
 }
 

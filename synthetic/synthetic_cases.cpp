@@ -413,7 +413,13 @@ std::vector<std::string> SyntheticCaseNames() {
   return {"vase", "helical", "spiral", "part", "freeform"};
 }
 
-SyntheticCase MakeSyntheticCase(const std::string& name) {
+SyntheticCase MakeSyntheticCase(const std::string& name, double sample_scale) {
+  if (!(sample_scale > 0.0) || !std::isfinite(sample_scale))
+    throw std::invalid_argument("the sample scale must be a positive number");
+  // The surface samples' sizes; the views see a part of each.
+  const auto samples = [sample_scale](int count) {
+    return static_cast<int>(std::lround(count * sample_scale));
+  };
   SyntheticCase c;
   c.name = name;
   c.noise = 0.02;
@@ -427,7 +433,7 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
     auto truth =
         std::make_unique<KinematicSurface>(KinematicSurface::Revolution(UnitSpacedClamped(4, 8), profile));
     const SurfaceSample s =
-        SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -M_PI, M_PI, 8000, 11);
+        SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -M_PI, M_PI, samples(8000), 11);
     c.views = ScanFromDirections(s, RingOfDirections(8, 20 * kDegree), StandardErrors(12));
     // The automatic initial model of `scan2model fit --model revolution`: axis and profile from the views
     // merged at their recorded poses.
@@ -469,7 +475,7 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
     auto truth = std::make_unique<KinematicSurface>(
         KinematicSurface::Helical(UnitSpacedClamped(4, 6), profile, 4.0, 2.0));
     const SurfaceSample s = SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(),
-                                             -2 * M_PI + 1.0, 2 * M_PI - 1.0, 12000, 21);
+                                             -2 * M_PI + 1.0, 2 * M_PI - 1.0, samples(12000), 21);
     // Views from above and below: the thread's flanks face both ways.
     std::vector<Eigen::Vector3d> directions = RingOfDirections(3, 30 * kDegree);
     for (const Eigen::Vector3d& below : RingOfDirections(3, -30 * kDegree, 60 * kDegree))
@@ -503,7 +509,7 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
         -8, -6, -2, 2, 6, 8;
     auto truth = std::make_unique<SpiralSurface>(UnitSpacedClamped(4, 6), whorl, 0.12, -2.0, 6.0);
     const SurfaceSample s =
-        SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -1.8, 5.8, 12000, 31);
+        SampleAroundAxis(*truth, truth->basis().lo(), truth->basis().hi(), -1.8, 5.8, samples(12000), 31);
     // From above and below: the whorl's cross-section opens both ways.
     std::vector<Eigen::Vector3d> directions = RingOfDirections(3, 30 * kDegree);
     for (const Eigen::Vector3d& below : RingOfDirections(3, -30 * kDegree, 60 * kDegree))
@@ -553,7 +559,7 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
                bore("counterbore", 3),
                PlaneFace("counterbore floor", Eigen::Vector3d::UnitZ(), {height, {{4, -1.0}}})};
     auto truth = std::make_unique<PartModel>(d);
-    const SurfaceSample s = SampleCounterboredBlock(values, 16000, 41);
+    const SurfaceSample s = SampleCounterboredBlock(values, samples(16000), 41);
     // The block lies on a table: 6 views from 45 degrees above, 2 from 70 degrees; the bottom is never seen.
     const std::vector<Eigen::Vector3d> directions = TableViewDirections();
     c.views = ScanFromDirections(s, directions, StandardErrors(42));
@@ -581,7 +587,7 @@ SyntheticCase MakeSyntheticCase(const std::string& name) {
       for (int j = 0; j < 4; ++j) bump(i, j) = 0.8 * std::sin(1.3 * i + 0.7) * std::cos(0.9 * j - 0.4);
     const PartDefinition d = FreeformPlate(50.0, 30.0, bump);
     auto truth = std::make_unique<PartModel>(d);
-    const SurfaceSample s = SampleFreeformPlate(*truth, 12000, 51);
+    const SurfaceSample s = SampleFreeformPlate(*truth, samples(12000), 51);
     const std::vector<Eigen::Vector3d> directions = TableViewDirections();
     c.views = ScanFromDirections(s, directions, StandardErrors(52));
     c.gauge_directions = 1;
