@@ -45,6 +45,11 @@ std::unique_ptr<IcpBaseline> MakePclPointToPoint(const IcpProblem& problem);
 std::unique_ptr<IcpBaseline> MakePclPointToPlane(const IcpProblem& problem);
 std::unique_ptr<IcpBaseline> MakeOpen3dPointToPlane(const IcpProblem& problem);
 
+// Open3D's own normals of `points` (PointCloud::EstimateNormals over the `neighbours` nearest points, its
+// k-d tree included), as a user of its point-to-plane ICP computes them for the target; empty when Open3D is
+// absent from this build.
+Eigen::Matrix3Xd Open3dEstimateNormals(const Eigen::Matrix3Xd& points, int neighbours);
+
 // Open3D's multiway registration (its tutorial's pipeline, the anchor of the global scan-to-scan comparison):
 // normals by EstimateNormals (12 nearest neighbours), point-to-plane ICP of every pair of views (each view's
 // `samples` evenly spaced points against the other's full cloud, from the relative pose of `world_T_scan`),

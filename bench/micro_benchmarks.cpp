@@ -23,7 +23,6 @@
 #include <random>
 #include <string>
 
-#include "synthetic/synthetic_cases.h"
 #include "fitting/bspline_models.h"
 #include "fitting/foot_point.h"
 #include "fitting/geometric_fit.h"
@@ -31,6 +30,7 @@
 #include "fitting/primitive_models.h"
 #include "fitting/squared_distance_field.h"
 #include "registration/rigid_step.h"
+#include "synthetic/synthetic_cases.h"
 
 using namespace s2m;
 

@@ -8,6 +8,9 @@ bool HaveOpen3d() {
 std::unique_ptr<IcpBaseline> MakeOpen3dPointToPlane(const IcpProblem&) {
   return nullptr;
 }
+Eigen::Matrix3Xd Open3dEstimateNormals(const Eigen::Matrix3Xd&, int) {
+  return {};
+}
 std::vector<RigidMotion> Open3dMultiway(const std::vector<Eigen::Matrix3Xd>&, const std::vector<RigidMotion>&,
                                         int, double) {
   return {};

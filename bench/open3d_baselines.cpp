@@ -62,6 +62,15 @@ std::unique_ptr<IcpBaseline> MakeOpen3dPointToPlane(const IcpProblem& problem) {
   return std::make_unique<Open3dPointToPlane>(problem);
 }
 
+Eigen::Matrix3Xd Open3dEstimateNormals(const Eigen::Matrix3Xd& points, int neighbours) {
+  const auto cloud = ToCloud(points, Eigen::Matrix3Xd());
+  cloud->EstimateNormals(open3d::geometry::KDTreeSearchParamKNN(neighbours));
+  Eigen::Matrix3Xd normals(3, points.cols());
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    normals.col(i) = cloud->normals_[static_cast<std::size_t>(i)];
+  return normals;
+}
+
 std::vector<RigidMotion> Open3dMultiway(const std::vector<Eigen::Matrix3Xd>& views,
                                         const std::vector<RigidMotion>& world_T_scan, int samples,
                                         double max_correspondence_distance) {
