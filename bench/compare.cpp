@@ -997,8 +997,19 @@ int RegistrationChild(long long n, const std::string& term_name, double cell) {
     const Eigen::Vector3d centre = scan_model.points.rowwise().mean();
     std::mt19937_64 rng(100 + static_cast<std::uint64_t>(n));
     const RigidMotion start = Perturbed(truth, centre, 3 * kDegree, 2.0, rng);
+    const auto ends_with = [&term_name](const std::string& tail) {
+      return term_name.size() > tail.size() &&
+             term_name.compare(term_name.size() - tail.size(), tail.size(), tail) == 0;
+    };
+    const ErrorTerm term = term_name.rfind("tdm", 0) == 0 ? ErrorTerm::kTdm : ErrorTerm::kSdm;
+    if (ends_with("-shared")) {  // the ten scans sharing one lazy field (cells of 1 mm)
+      const Trajectory t = OursWithSharedLazyField(model, n, 0.02, truth, start, term, 0.01, 50);
+      std::printf("ten scans, one lazy field: mean to threshold %.4f s, mean whole registration %.4f s; %s\n",
+                  t.seconds_to_threshold, t.total_seconds, t.note.c_str());
+      return 0;
+    }
     std::unique_ptr<SquaredDistanceField> field;
-    if (term_name.size() > 6 && term_name.substr(term_name.size() - 6) == "-field") {
+    if (ends_with("-field")) {
       SquaredDistanceField::Options fo;
       fo.cell_size = cell;
       field = std::make_unique<SquaredDistanceField>(model, fo);
@@ -1006,9 +1017,7 @@ int RegistrationChild(long long n, const std::string& term_name, double cell) {
                   fo.cell_size, fo.band, field->cell_count(), field->untrusted_cell_count(),
                   field->build_seconds());
     }
-    const Trajectory t =
-        OursToModel(model, scan, start, term_name.rfind("tdm", 0) == 0 ? ErrorTerm::kTdm : ErrorTerm::kSdm,
-                    measure, 0.01, 50, field.get());
+    const Trajectory t = OursToModel(model, scan, start, term, measure, 0.01, 50, field.get());
     for (std::size_t i = 0; i < t.errors.size(); ++i)
       std::printf("iteration %zu: pose error %.6e mm\n", i + 1, t.errors[i]);
     std::printf("to threshold: %d iterations, %.4f s; whole registration %.4f s; final %.6e mm; %s\n",
@@ -1293,9 +1302,9 @@ int main(int argc, char** argv) {
       std::printf(
           "usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234] [--points N]\n"
           "       --points N: section 1 at N points only\n"
-          "       compare --registration-child POINTS sdm|tdm|sdm-field|tdm-field [CELL_MM]   (one run of "
-          "section 1, for profiling; -field: with the squared distance field, cells of CELL_MM, default "
-          "1)\n"
+          "       compare --registration-child POINTS sdm|tdm|sdm-field|tdm-field|sdm-shared|tdm-shared "
+          "[CELL_MM]   (one run of section 1, for profiling; -field: with the squared distance field, cells "
+          "of CELL_MM, default 1; -shared: ten scans sharing one lazy field)\n"
           "       compare --pair-child DATA_DIR VIEW_A VIEW_B tdm|sdm REPEATS   (one bunny pair of section "
           "2, "
           "ours only, for profiling)\n");
