@@ -567,6 +567,9 @@ nlohmann::json VesselMeasures::ToJson() const {
   nlohmann::json rows = nlohmann::json::array();
   for (const ProfileSample& s : profile)
     rows.push_back({s.height_above_base, s.radius, NumberOrNull(s.radius_uncertainty)});
+  nlohmann::json inner_rows = nlohmann::json::array();  // the same columns; empty for one surface
+  for (const ProfileSample& s : inner_profile)
+    inner_rows.push_back({s.height_above_base, s.radius, NumberOrNull(s.radius_uncertainty)});
   nlohmann::json j = {
       {"units", units},
       {"up", pipeline::ToJson(up)},
@@ -587,6 +590,7 @@ nlohmann::json VesselMeasures::ToJson() const {
       {"covered_turn_fraction", NumberOrNull(covered_turn)},
       {"profile_columns", {"height_above_base", "radius", "radius_uncertainty"}},
       {"profile", rows},
+      {"inner_profile", inner_rows},
       {"convention",
        sherd && sherd->up_from == "rim"
            ? "up from the base to the rim the sherd's level edge shows; base = lower end of the profile"
@@ -636,6 +640,12 @@ VesselMeasures VesselMeasures::FromJson(const nlohmann::json& j) {
   for (const nlohmann::json& row : j.at("profile")) {
     v.profile.push_back(
         {row.at(0).get<double>(), row.at(1).get<double>(), NumberOr(row.at(2), std::nan(""))});
+  }
+  if (j.contains("inner_profile")) {  // absent in records written before wall sections were drawn
+    for (const nlohmann::json& row : j.at("inner_profile")) {
+      v.inner_profile.push_back(
+          {row.at(0).get<double>(), row.at(1).get<double>(), NumberOr(row.at(2), std::nan(""))});
+    }
   }
   return v;
 }
@@ -797,6 +807,15 @@ std::string ProfileCsv(const VesselMeasures& vessel) {
   return csv.str();
 }
 
+std::vector<Eigen::Vector2d> WallSection(const VesselMeasures& v) {
+  std::vector<Eigen::Vector2d> outline;
+  if (v.inner_profile.empty() || v.profile.empty()) return outline;
+  for (const ProfileSample& row : v.profile) outline.emplace_back(row.radius, row.height_above_base);
+  for (auto row = v.inner_profile.rbegin(); row != v.inner_profile.rend(); ++row)
+    outline.emplace_back(row->radius, row->height_above_base);
+  return outline;
+}
+
 std::string ProfileSvg(const VesselMeasures& v) {
   using svg::Num;
   const std::string& units = v.units;
@@ -807,6 +826,10 @@ std::string ProfileSvg(const VesselMeasures& v) {
     max_r = std::max(max_r, profile.back().x());
     min_h = std::min(min_h, profile.back().y());
     max_h = std::max(max_h, profile.back().y());
+  }
+  for (const ProfileSample& row : v.inner_profile) {  // a wall's inner surface may reach above the outer
+    min_h = std::min(min_h, row.height_above_base);
+    max_h = std::max(max_h, row.height_above_base);
   }
   constexpr double kWidth = 520, kHeight = 520, kMargin = 60;
   const double scale = std::min((kWidth - 2 * kMargin) / std::max(2 * max_r, 1e-9),
@@ -822,6 +845,13 @@ std::string ProfileSvg(const VesselMeasures& v) {
   s << "<line x1=\"" << Num(axis_x) << "\" y1=\"" << Num(Y(max_h) - 3) << "\" x2=\"" << Num(axis_x)
     << "\" y2=\"" << Num(Y(min_h) + 20)
     << "\" stroke=\"#000\" stroke-width=\"0.8\" stroke-dasharray=\"12 3 2 3\"/>\n";
+  // A wall: the section between the two surfaces filled, under the outer profile's heavy line.
+  if (const std::vector<Eigen::Vector2d> section = WallSection(v); !section.empty()) {
+    s << "<polygon points=\"";
+    for (const Eigen::Vector2d& p : section) s << Num(X(-p.x())) << "," << Num(Y(p.y())) << " ";
+    s << "\" fill=\"#000\" stroke=\"#000\" stroke-width=\"1\"><title>section through the "
+         "wall</title></polygon>\n";
+  }
   std::ostringstream left, right;
   for (const Eigen::Vector2d& p : profile) {
     left << Num(X(-p.x())) << "," << Num(Y(p.y())) << " ";
@@ -890,10 +920,11 @@ class DxfWriter {
     Pair(21, b.y());
     Pair(31, 0.0);
   }
-  void Polyline(const std::string& layer, const std::vector<Eigen::Vector2d>& points) {
+  void Polyline(const std::string& layer, const std::vector<Eigen::Vector2d>& points, bool closed = false) {
     Pair(0, "POLYLINE");
     Pair(8, layer);
-    Pair(66, "1");  // vertices follow
+    Pair(66, "1");              // vertices follow
+    if (closed) Pair(70, "1");  // polyline flag 1: closed
     Pair(10, 0.0);
     Pair(20, 0.0);
     Pair(30, 0.0);
@@ -926,10 +957,12 @@ class DxfWriter {
 
 std::string ProfileDxf(const VesselMeasures& v) {
   double max_r = 0, min_h = 0, max_h = 0;
-  for (const ProfileSample& row : v.profile) {
-    max_r = std::max(max_r, row.radius);
-    min_h = std::min(min_h, row.height_above_base);
-    max_h = std::max(max_h, row.height_above_base);
+  for (const std::vector<ProfileSample>* rows : {&v.profile, &v.inner_profile}) {
+    for (const ProfileSample& row : *rows) {
+      max_r = std::max(max_r, row.radius);
+      min_h = std::min(min_h, row.height_above_base);
+      max_h = std::max(max_h, row.height_above_base);
+    }
   }
   const double text_height = std::max(0.03 * std::max(max_h - min_h, 2 * max_r), 1e-6);
   DxfWriter dxf;
@@ -948,6 +981,11 @@ std::string ProfileDxf(const VesselMeasures& v) {
     exterior.emplace_back(row.radius, row.height_above_base);
   }
   dxf.Polyline("SECTION", section);
+  // A wall: its section as one closed outline (outer profile up, inner profile down).
+  if (std::vector<Eigen::Vector2d> wall = WallSection(v); !wall.empty()) {
+    for (Eigen::Vector2d& p : wall) p.x() = -p.x();
+    dxf.Polyline("SECTION", wall, /*closed=*/true);
+  }
   // A fragment's mirrored outline is reconstructed, not preserved: its own layer (for a dashed line type).
   dxf.Polyline(v.IsFragment() ? "RECONSTRUCTED" : "EXTERIOR", exterior);
   if (v.IsFragment())

@@ -196,6 +196,10 @@ struct VesselMeasures {
   Measure height, base_diameter, rim_diameter, max_diameter;
   double max_diameter_height = 0.0;  // above the base
   std::vector<ProfileSample> profile;
+  // A wall fit's inner surface (docs/archaeology.md section 10), sampled as `profile` (heights above the same
+  // base, from its lower end to its upper end); empty when only one surface was fitted. The drawing fills
+  // the section between the two.
+  std::vector<ProfileSample> inner_profile;
   // The volume enclosed by the fitted surface between the base plane and the rim plane (units^3), with its
   // standard uncertainty propagated from the shape covariance (docs/archaeology.md eqs. A1-A4): the capacity
   // when the fitted surface is the vessel's inner one. NaN when not computed.
@@ -291,13 +295,19 @@ std::string UnitOf(ParameterKind kind, const std::string& length_units);
 
 // The profile as CSV: height_above_base,radius,radius_uncertainty.
 std::string ProfileCsv(const VesselMeasures& vessel);
+// The section of a wall fit as a closed outline, (radius, height above base) points: the outer profile from
+// the base up to the rim, then the inner one from its upper end down to its lower end (the outline closes
+// from there to the outer's base). Empty without an inner profile.
+std::vector<Eigen::Vector2d> WallSection(const VesselMeasures& vessel);
 // The profile drawing (SVG, standalone) in the vessel's units: axis vertical, the profile (section) left of
 // the axis, the vessel's outline mirrored right of it as a thin line, rim and base marked by horizontal lines
-// with their diameters, a scale bar.
+// with their diameters, a scale bar. With a wall fit's inner profile, the section between the two surfaces is
+// filled (the archaeological convention: the cut through the wall drawn solid).
 std::string ProfileSvg(const VesselMeasures& vessel);
 // The same drawing as DXF (AutoCAD R12, ASCII; docs/archaeology.md section 6), in the vessel's units (1
 // drawing unit = 1 unit): x across the axis, y the height above the base; layers AXIS, SECTION (the profile,
-// x <= 0), EXTERIOR (its mirror), RIM, BASE, SCALE and TEXT.
+// x <= 0; with a wall fit's inner profile, also the wall's section as one closed polyline, for the CAD tool's
+// hatch: R12 has no hatch entity), EXTERIOR (its mirror), RIM, BASE, SCALE and TEXT.
 std::string ProfileDxf(const VesselMeasures& vessel);
 // The profile in the rim-first, base-at-origin convention of Kotyle (docs/archaeology.md section 6): points
 // from the rim down to the base, x the radius, y the height above the base (the base's centre at the origin),

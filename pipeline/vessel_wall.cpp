@@ -621,6 +621,15 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     }
     VesselMeasures vessel =
         MeasureVessel(axis_point, up_sign * axis_direction, height_radius, radius_uncertainty, units);
+    // The inner surface sampled as the outer (for the drawing's section through the wall).
+    for (int i = 0; i <= 50; ++i) {
+      const Eigen::Vector2d rz =
+          inner.ProfilePoint(inner.basis().lo() + (inner.basis().hi() - inner.basis().lo()) * i / 50);
+      vessel.inner_profile.push_back({above_base(rz.y()), rz.x(), std::nan("")});
+    }
+    // From its lower end up, as the outer profile (the generatrix may run either way along the axis).
+    if (vessel.inner_profile.front().height_above_base > vessel.inner_profile.back().height_above_base)
+      std::reverse(vessel.inner_profile.begin(), vessel.inner_profile.end());
     vessel.covered_turn = covered_turn;
     if (sherd) vessel.sherd = SummarizeSherd(*sherd, up_sign, up_sign * z_base);
     const std::string cubic = units + "^3";

@@ -14,6 +14,7 @@
 
 #include "one_cloud_fit.h"
 #include "pipeline/batch.h"
+#include "pipeline/domain_measures.h"
 #include "pipeline/exit_code.h"
 #include "pipeline/fit_options.h"
 #include "registration/scan.h"
@@ -72,6 +73,29 @@ TEST(VesselWall, WholeVesselThicknessAndCapacity) {
     EXPECT_TRUE(columns.count(name)) << name;
   EXPECT_NE(outcome.text.find("  capacity          "), std::string::npos);
   EXPECT_NE(outcome.text.find("  wall              thickness "), std::string::npos);
+  // The drawing's section through the wall (docs/archaeology.md section 6): the inner surface sampled as the
+  // outer, read back from the JSON; at every height both reach, the radial gap between them is at least the
+  // wall's thickness (measured along the normal, the shortest way across); the SVG fills the section and the
+  // DXF has it as a closed outline.
+  const pipeline::VesselMeasures vessel = pipeline::VesselMeasures::FromJson(d["vessel"]);
+  ASSERT_EQ(vessel.inner_profile.size(), 51u);
+  int compared = 0;
+  for (const pipeline::ProfileSample& in : vessel.inner_profile) {
+    for (std::size_t i = 1; i < vessel.profile.size(); ++i) {
+      const pipeline::ProfileSample &a = vessel.profile[i - 1], &b = vessel.profile[i];
+      if (in.height_above_base < a.height_above_base || in.height_above_base > b.height_above_base) continue;
+      const double f = (in.height_above_base - a.height_above_base) /
+                       std::max(b.height_above_base - a.height_above_base, 1e-12);
+      EXPECT_GT(a.radius + f * (b.radius - a.radius) - in.radius, truth.thickness - 3 * noise)
+          << "at height " << in.height_above_base;
+      ++compared;
+      break;
+    }
+  }
+  EXPECT_GT(compared, 40);
+  EXPECT_EQ(pipeline::WallSection(vessel).size(), 102u);
+  EXPECT_NE(pipeline::ProfileSvg(vessel).find("<polygon"), std::string::npos);
+  EXPECT_NE(pipeline::ProfileDxf(vessel).find("POLYLINE\n8\nSECTION\n66\n1\n70\n1\n"), std::string::npos);
   std::printf("whole vessel: thickness %.4f-%.4f, capacity %.1f +- %.1f (truth %.1f)\n",
               w["thickness"]["min"].get<double>(), w["thickness"]["max"].get<double>(), capacity, capacity_u,
               truth.capacity);
