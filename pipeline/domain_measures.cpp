@@ -531,7 +531,8 @@ nlohmann::json SherdJson(const SherdSummary& s) {
           {"band_points", s.band_points},
           {"edges",
            {{"top", edge(s.top_spread, s.top_expected, s.top_level)},
-            {"bottom", edge(s.bottom_spread, s.bottom_expected, s.bottom_level)}}}};
+            {"bottom", edge(s.bottom_spread, s.bottom_expected, s.bottom_level)}}},
+          {"uncertainties_calibrated", s.uncertainties_calibrated}};
 }
 
 SherdSummary SherdFromJson(const nlohmann::json& j) {
@@ -548,6 +549,7 @@ SherdSummary SherdFromJson(const nlohmann::json& j) {
   s.band_lo = number(j, "band_height_lo");
   s.band_hi = number(j, "band_height_hi");
   s.band_points = j.value("band_points", 0LL);
+  s.uncertainties_calibrated = j.value("uncertainties_calibrated", true);
   if (j.contains("edges")) {
     const nlohmann::json& top = j.at("edges").at("top");
     const nlohmann::json& bottom = j.at("edges").at("bottom");
@@ -702,6 +704,10 @@ std::string VesselMeasures::Text(std::optional<bool> trusted) const {
       t << "  preserved         " << with_u(sherd->preserved_fraction) << " of the circumference ("
         << (sherd->preserved_where == "rim" ? "at the rim" : "the widest band") << ", "
         << Format(sherd->band_lo, 4) << "-" << Format(sherd->band_hi, 4) << " above the base)\n";
+    if (!sherd->uncertainties_calibrated)
+      t << "                    (under " << Format(100 * kCalibratedSherdFraction, 2)
+        << " % of the circumference: the uncertainties of the axis, the diameters and the preserved "
+           "fraction are lower bounds)\n";
   }
   return t.str();
 }

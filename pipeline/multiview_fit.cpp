@@ -720,6 +720,19 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       if (sherd) {
         const double base = std::min(up_sign * samples.front()[0], up_sign * samples.back()[0]);
         vessel->sherd = SummarizeSherd(*sherd, up_sign, base);
+        // Said where the fit's type-A uncertainties are known to fall short (kCalibratedSherdFraction): on a
+        // short arc the profile's approximation error leaks into the axis, which the covariance does not
+        // hold.
+        const double preserved = vessel->sherd->preserved_fraction.value;
+        if (std::isfinite(preserved) && preserved < kCalibratedSherdFraction) {
+          vessel->sherd->uncertainties_calibrated = false;
+          outcome.notes.push_back(
+              "the sherd preserves about " + Format(100 * preserved, 2) + " % of the circumference: under " +
+              Format(100 * kCalibratedSherdFraction, 2) +
+              " % the stated uncertainties of the axis, the diameters and the preserved fraction are too "
+              "small (on synthetic sherds the errors were 1.2 to 1.8 times them; docs/archaeology.md section "
+              "9): read them as lower bounds");
+        }
       }
       // The volume the fitted surface encloses, closed by the planes through the generatrix's ends, and up
       // to a fill plane above the base (the end lower along up, as in MeasureVessel), with standard

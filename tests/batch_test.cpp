@@ -95,7 +95,9 @@ TEST(Batch, FiftyObjectsSurviveAKillAndMatchSingleRuns) {
   // writes, leaving that write's `.partial` (nothing can remove it then); its object has no record yet, so
   // the re-run computes it again and replaces the `.partial` (checked after the re-run).
   for (const auto& e : fs::directory_iterator(out / "objects")) {
-    if (e.path().extension() == ".json") EXPECT_NO_THROW(ReadJson(e.path())) << e.path();
+    if (e.path().extension() == ".json") {
+      EXPECT_NO_THROW(ReadJson(e.path())) << e.path();
+    }
   }
   std::map<std::string, std::string> finished;
   int finished_ok = 0;
@@ -157,6 +159,7 @@ TEST(Batch, FiftyObjectsSurviveAKillAndMatchSingleRuns) {
   EXPECT_NE(line.find("rim_diameter,rim_diameter_uncertainty"), std::string::npos);
   EXPECT_NE(line.find("whorl_expansion_rate"), std::string::npos);
   EXPECT_NE(line.find("raup_d,raup_d_uncertainty"), std::string::npos) << line;
+  EXPECT_NE(line.find("uncertainties_calibrated"), std::string::npos) << line;
   while (std::getline(csv, line)) ++lines;
   EXPECT_EQ(lines, 50);
   // Reports of objects computed by the re-run (the shells come last in the manifest), also with unknown pose
@@ -182,6 +185,7 @@ TEST(Batch, FiftyObjectsSurviveAKillAndMatchSingleRuns) {
     EXPECT_GT(u, 0.0) << id << sherd;
     EXPECT_GT(fraction, 0.5 - 3 * u) << id << sherd;
     EXPECT_LT(fraction, 0.75 + 3 * u) << id << sherd;
+    EXPECT_EQ(sherd["uncertainties_calibrated"], true) << id;  // over 30 % of the circumference
     if (sherd["edges"]["top"]["level"] == true && sherd["edges"]["bottom"]["level"] == true)
       EXPECT_EQ(sherd["up_from"], "world") << id << sherd;
     else

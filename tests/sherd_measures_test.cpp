@@ -25,6 +25,7 @@
 #include "fitting/kinematic_surfaces.h"
 #include "one_cloud_fit.h"
 #include "pipeline/batch.h"
+#include "pipeline/domain_measures.h"
 #include "pipeline/fit_options.h"
 #include "registration/scan.h"
 #include "synthetic/synthetic_cases.h"
@@ -190,6 +191,16 @@ SherdFitError FitSherd(const SherdSpec& spec, bool print) {
   // The text says how the sherd was set up and what is preserved, and gives the axis' uncertainty.
   EXPECT_NE(outcome.text.find("  sherd             "), std::string::npos);
   EXPECT_NE(outcome.text.find("  axis uncertainty  tilt "), std::string::npos);
+  // Under kCalibratedSherdFraction of the circumference the uncertainties are said to be lower bounds, in
+  // the document and in a note; above it they are not.
+  const double preserved = Number(s["preserved_fraction"]);
+  if (std::isfinite(preserved)) {
+    const bool small = preserved < pipeline::kCalibratedSherdFraction;
+    EXPECT_EQ(s["uncertainties_calibrated"], !small) << preserved;
+    bool noted = false;
+    for (const std::string& note : outcome.notes) noted |= note.find("lower bounds") != std::string::npos;
+    EXPECT_EQ(noted, small) << preserved;
+  }
   e.adequate = doc["adequacy"]["adequate"] == true;
   e.rim_up = s["up_from"] == "rim" && vec(v["up"]).dot(c.axis_direction) > 0;
   e.rim_wrong = s["up_from"] == "rim" && !e.rim_up;
