@@ -229,6 +229,23 @@ void BSplineCurve::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Jaco
   }
 }
 
+bool BSplineCurve::FactoredShapeJacobian(const ParamT& t, FactoredJacobian& out) const {
+  if (basis_.order() > FactoredJacobian::kMaxWeights) return false;
+  BSplineBasis::Values v;
+  basis_.Evaluate(t[0], 0, v);
+  const int s = ambient_dimension();
+  out.weight_count = basis_.order();
+  for (int i = 0; i < basis_.order(); ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    out.first_index[k] = s * basis_.ControlIndex(v.first, i);
+    out.weights[k] = v.values[0][k];
+  }
+  out.direction_count = s;
+  out.directions = Eigen::Matrix3d::Identity();
+  if (s < 3) out.directions.rightCols(3 - s).setZero();
+  return true;
+}
+
 Eigen::MatrixXd BSplineCurve::FairnessMatrix(const FairnessWeights& w) const {
   if (w.IsZero()) return {};
   // F_1 = integral |C'|^2 = P^T (G1 (x) I) P and F_2 likewise (docs/method.md section 3; Wang et al. 2006,
@@ -499,6 +516,27 @@ void BSplineSurface::ShapeJacobian(const ParamT& t, bool with_dt, std::vector<Ja
       }
     }
   }
+}
+
+bool BSplineSurface::FactoredShapeJacobian(const ParamT& t, FactoredJacobian& out) const {
+  if (basis_u_.order() * basis_v_.order() > FactoredJacobian::kMaxWeights) return false;
+  BSplineBasis::Values bu, bv;
+  basis_u_.Evaluate(t[0], 0, bu);
+  basis_v_.Evaluate(t[1], 0, bv);
+  const int nv = basis_v_.num_control();
+  int k = 0;
+  for (int i = 0; i < basis_u_.order(); ++i) {
+    for (int j = 0; j < basis_v_.order(); ++j, ++k) {
+      const int point = basis_u_.ControlIndex(bu.first, i) * nv + basis_v_.ControlIndex(bv.first, j);
+      out.first_index[static_cast<std::size_t>(k)] = 3 * point;
+      out.weights[static_cast<std::size_t>(k)] =
+          bu.values[0][static_cast<std::size_t>(i)] * bv.values[0][static_cast<std::size_t>(j)];
+    }
+  }
+  out.weight_count = k;
+  out.direction_count = 3;
+  out.directions = Eigen::Matrix3d::Identity();
+  return true;
 }
 
 Eigen::MatrixXd BSplineSurface::FairnessMatrix(const FairnessWeights& w) const {

@@ -53,6 +53,8 @@ class BSplineCurve final : public ParametricModel {
   void ApplySimilarity(double scale, const VecS& offset) override;
   void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  // Control point i moves C by B_i(t) along each coordinate: weights B_i(t), directions the unit axes.
+  bool FactoredShapeJacobian(const ParamT& t, FactoredJacobian& out) const override;
   Eigen::MatrixXd FairnessMatrix(const FairnessWeights& weights) const override;
   std::vector<ParamT> SampleParameters() const override;
 
@@ -83,6 +85,9 @@ class BSplineSurface final : public ParametricModel {
   void ApplySimilarity(double scale, const VecS& offset) override;
   void Evaluate(const ParamT& t, int derivatives, LocalGeometry& out) const override;
   void ShapeJacobian(const ParamT& t, bool with_dt, std::vector<JacobianEntry>& out) const override;
+  // Control point (i, j) moves S by B_i(u) B_j(v) along each axis: weights B_i(u) B_j(v), directions the unit
+  // axes; false when a span has more control points than FactoredJacobian holds (above bicubic).
+  bool FactoredShapeJacobian(const ParamT& t, FactoredJacobian& out) const override;
   Eigen::MatrixXd FairnessMatrix(const FairnessWeights& weights) const override;
   std::vector<ParamT> SampleParameters() const override;
 

@@ -74,6 +74,12 @@ struct Partial {
   }
 };
 
+// The shape block h_dd of the sums is symmetric, and the factored assembly fills its lower triangle only: the
+// whole block from its lower triangle (the other assemblies fill both, which this leaves as they are).
+Eigen::MatrixXd MirrorShapeBlock(const Eigen::MatrixXd& h_dd) {
+  return h_dd.selfadjointView<Eigen::Lower>();
+}
+
 // A point's non-zero shape Jacobian columns side by side (a B-spline model has a few: (p+1) or (p+1)^2
 // control points times their coordinates); more fall back to one column at a time.
 constexpr int kMaxEntries = 48;
@@ -116,13 +122,19 @@ void AccumulatePoint(const ParametricModel& model, const Eigen::Vector3d& x, con
       const double wi = J.weights[static_cast<std::size_t>(i)];
       const int ci = J.first_index[static_cast<std::size_t>(i)];
       for (int c = 0; c < q; ++c) {
-        acc.g_d[ci + c] -= wi * g[c];
-        acc.h_bd.col(ci + c).noalias() -= wi * h_bd.col(c);
-        double* column = &acc.h_dd(0, ci + c);
+        const int col = ci + c;
+        acc.g_d[col] -= wi * g[c];
+        acc.h_bd.col(col).noalias() -= wi * h_bd.col(c);
+        // The lower triangle only (h_dd is symmetric; MirrorShapeBlock completes it after the sums): half
+        // the work of the (weights x directions)^2 products, the bulk of a point's cost on a surface patch.
+        double* column = &acc.h_dd(0, col);
         for (int j = 0; j < J.weight_count; ++j) {
           const double wij = wi * J.weights[static_cast<std::size_t>(j)];
           const int cj = J.first_index[static_cast<std::size_t>(j)];
-          for (int d = 0; d < q; ++d) column[cj + d] += wij * G(d, c);
+          if (cj + q <= col) continue;  // every row of this block lies above the diagonal
+          for (int d = 0; d < q; ++d) {
+            if (cj + d >= col) column[cj + d] += wij * G(d, c);
+          }
         }
       }
     }
@@ -605,7 +617,7 @@ void JointFitProblem::Project(const State::Sums& sums, bool one_motion, BlockArr
     system.h_db[b] = hdb6 * B;
     system.g_b[b] = B.transpose() * g6;
   }
-  system.h_dd = sums.h_dd;
+  system.h_dd = MirrorShapeBlock(sums.h_dd);
   system.g_d = sums.g_d;
 }
 
@@ -735,7 +747,7 @@ JointNormalEquations LinearizeJointFit(const ParametricModel& model,
     }
     // The same sums the solver projects onto its gauge bases (eq. 20): shape block, motion block, coupling.
     const Eigen::Index o = r + 6 * k;
-    out.H.topLeftCorner(r, r) += acc.h_dd;
+    out.H.topLeftCorner(r, r) += MirrorShapeBlock(acc.h_dd);
     out.H.block(o, o, 6, 6) = acc.h_bb;
     out.H.block(0, o, r, 6) = acc.h_bd.transpose();
     out.H.block(o, 0, 6, r) = acc.h_bd;

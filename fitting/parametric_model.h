@@ -60,7 +60,9 @@ struct JacobianEntry {
 // direction_count). The assembly of normal equations then forms D^T M D once per point instead of J^T M J
 // over all (weight_count x direction_count) columns.
 struct FactoredJacobian {
-  static constexpr int kMaxWeights = 8;  // B-spline orders up to 8 (BSplineBasis::kMaxOrder)
+  // Curves of B-spline order up to 8 (BSplineBasis::kMaxOrder), tensor-product surfaces up to 16 control
+  // points per span (bicubic); models with more use ShapeJacobian.
+  static constexpr int kMaxWeights = 16;
   int weight_count = 0;
   std::array<int, kMaxWeights> first_index{};
   std::array<double, kMaxWeights> weights{};

@@ -256,8 +256,11 @@ TEST(ModelChecker, OptionalChecksRunWhereTheModelProvidesThem) {
   EXPECT_FALSE(spiral.Find(kCheckInvariantMotions)->applicable);
   const ModelCheckReport part = CheckModel(*PartWithEveryFaceType());
   EXPECT_TRUE(part.Find(kCheckClosedFormFeet)->applicable);
+  // B-spline curves and surfaces (up to bicubic) factor their shape Jacobians; an ellipse does not.
   const ModelCheckReport curve = CheckModel(*OpenCurve2d());
-  EXPECT_FALSE(curve.Find(kCheckFactoredJacobian)->applicable);
+  EXPECT_TRUE(curve.Find(kCheckFactoredJacobian)->applicable);
+  EXPECT_TRUE(CheckModel(*BicubicSurface()).Find(kCheckFactoredJacobian)->applicable);
+  EXPECT_FALSE(CheckModel(*Ellipse()).Find(kCheckFactoredJacobian)->applicable);
   EXPECT_FALSE(curve.Find(kCheckClosedFormFeet)->applicable);
   // n/a checks pass and say so.
   EXPECT_TRUE(curve.Find(kCheckClosedFormFeet)->passed);
