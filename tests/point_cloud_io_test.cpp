@@ -352,12 +352,19 @@ TEST_F(PointCloudIo, HugeClaimedCountsAreRefusedBeforeAllocating) {
       "ply\nformat binary_little_endian 1.0\nelement vertex 1099511627776\nproperty double x\n"
       "property double y\nproperty double z\nend_header\n" +
       std::string(24, '\0');
+  // A vertex record with a list (variable size): at least its scalars and the list's count per record (the
+  // first coverage-guided run found this one allocating the claimed count; tests/data/fuzz/point_cloud/).
+  const std::string ply_binary_list =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 21474836485\nproperty float x\n"
+      "property float y\nproperty float z\nproperty list uchar int indices\nend_header\n" +
+      std::string(40, '\0');
   const std::string pcd_header =
       "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1000000000\nHEIGHT 1\n"
       "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1000000000\nDATA ";
   const fs::path files[] = {
       Write("two_to_the_forty.ply", ply_ascii),
       Write("two_to_the_forty_binary.ply", ply_binary),
+      Write("huge_binary_with_a_list.ply", ply_binary_list),
       Write("billion_ascii.pcd", pcd_header + "ascii\n1 2 3\n"),
       Write("billion_binary.pcd", pcd_header + "binary\n" + std::string(12, '\0')),
       // 2^32 - 1 bytes uncompressed declared for 12 compressed bytes (a billion points of 12 bytes do not fit

@@ -302,20 +302,25 @@ class PlyParser {
   void ReadBinaryElement(const Element& e, bool is_vertex) {
     const bool little = encoding_ == Encoding::kBinaryLittle;
     if (offset_ == 0) offset_ = lines_.position();
-    // Fixed-size records let us check the declared count against the bytes left before allocating anything.
+    // The declared count against the bytes left, before allocating anything (docs/reliability.md): a record
+    // takes its scalars' bytes and, for each list, at least the list's count (an empty list); fixed-size
+    // records exactly that.
     bool fixed = true;
     std::size_t record = 0;
     for (const Property& p : e.properties) {
-      if (p.is_list)
+      if (p.is_list) {
         fixed = false;
-      else
+        record += SizeOf(p.count_type);
+      } else {
         record += SizeOf(p.type);
+      }
     }
     const std::size_t left = bytes_.size() - offset_;
-    if (fixed && record > 0 && e.count > left / record) {
+    if (record > 0 && e.count > left / record) {
       Fail(AtByte(offset_), "truncated: element '" + e.name + "' declares " + std::to_string(e.count) +
-                                " entries (" + std::to_string(e.count) + " x " + std::to_string(record) +
-                                " bytes) but only " + std::to_string(left) + " bytes follow");
+                                " entries (" + std::to_string(e.count) + " x " + (fixed ? "" : "at least ") +
+                                std::to_string(record) + " bytes) but only " + std::to_string(left) +
+                                " bytes follow");
     }
     if (is_vertex) Allocate(e.count);
     const bool is_face = faces_ != nullptr && &e == face_element_;
