@@ -6,7 +6,8 @@
 //   2. scan-to-scan registration of Stanford bunny views against PCL and Open3D point-to-plane ICP;
 //   3. fitting methods (PDM, TDM, SDM, CDM, GTDM, GN) to a common RMS, and joint against alternating
 //      registration + fitting on the multi-view vase;
-//   4. scaling of a joint iteration with points and views, with each configuration's peak memory;
+//   4. scaling of a joint iteration with points and views, with each configuration's peak memory, and the
+//      cost per point per iteration of every model family (bench/model_families.h);
 // then the targets, met or not, with the measured ratios. Prints markdown tables, writes one CSV.
 //
 // Usage: compare [--quick] [--csv FILE] [--data DIR] [--sections 1234] [--points N]
