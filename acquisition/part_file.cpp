@@ -151,6 +151,20 @@ class Reader {
     throw FormatError(source_, where, problem);
   }
 
+  // An optional member of an object that must be a string (bool) when present: `fallback` when absent, a
+  // FormatError naming it when of another type (Json::value would throw its own type_error).
+  std::string OptionalText(const Json& object, const char* key, const std::string& fallback,
+                           const std::string& where) const {
+    if (!object.contains(key)) return fallback;
+    if (!object[key].is_string()) Fail(where, std::string("\"") + key + "\" must be a string");
+    return object[key].get<std::string>();
+  }
+  bool OptionalFlag(const Json& object, const char* key, bool fallback, const std::string& where) const {
+    if (!object.contains(key)) return fallback;
+    if (!object[key].is_boolean()) Fail(where, std::string("\"") + key + "\" must be true or false");
+    return object[key].get<bool>();
+  }
+
   LinearExpression Expression(const Json& value, const std::string& where, bool angle) {
     if (value.is_number()) {
       const double v = value.get<double>();
@@ -271,11 +285,12 @@ class Reader {
     } catch (const nlohmann::json::out_of_range& e) {  // a number beyond double's range
       Fail("", std::string("not valid JSON: ") + e.what());
     }
-    if (!j.is_object() || j.value("format", std::string()) != "scan2model.part/1")
+    if (!j.is_object() || !j.contains("format") || !j["format"].is_string() ||
+        j["format"].get<std::string>() != "scan2model.part/1")
       Fail("format", "not a scan2model.part/1 file (its \"format\" must be \"scan2model.part/1\")");
     PartFile out;
-    out.definition.name = j.value("name", std::string());
-    out.units = j.value("units", std::string());
+    out.definition.name = OptionalText(j, "name", std::string(), "name");
+    out.units = OptionalText(j, "units", std::string(), "units");
     if (j.contains("parameters")) {
       if (!j["parameters"].is_object()) Fail("parameters", "expected an object of named parameters");
       for (const auto& [name, spec] : j["parameters"].items()) {
@@ -286,8 +301,8 @@ class Reader {
           info.value = spec.get<double>();
         } else if (spec.is_object() && spec.contains("value") && spec["value"].is_number()) {
           info.value = spec["value"].get<double>();
-          fixed = spec.value("fixed", false);
-          const std::string unit = spec.value("unit", std::string());
+          fixed = OptionalFlag(spec, "fixed", false, where);
+          const std::string unit = OptionalText(spec, "unit", std::string(), where);
           if (unit == "deg") {
             info.angle = true;
           } else if (!unit.empty() && unit != "length") {
@@ -318,7 +333,8 @@ class Reader {
     for (std::size_t i = 0; i < j["faces"].size(); ++i) {
       const Json& fj = j["faces"][i];
       PartFace f;
-      f.name = fj.is_object() ? fj.value("name", "face " + std::to_string(i)) : "face " + std::to_string(i);
+      f.name = "face " + std::to_string(i);
+      if (fj.is_object()) f.name = OptionalText(fj, "name", f.name, f.name);
       const std::string where = "face '" + f.name + "'";
       if (!fj.is_object() || !fj.contains("type") || !fj["type"].is_string())
         Fail(where, "each face is an object with a \"type\"");
@@ -379,7 +395,13 @@ class Reader {
 }  // namespace
 
 PartFile ParsePartFile(const std::string& text, const std::string& source) {
-  return Reader(source).Parse(text);
+  try {
+    return Reader(source).Parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    // A member of a type the reader does not check by name: still the file's error, said with the library's
+    // words (the members the reader reads are checked by name above).
+    throw FormatError(source, "", std::string("a member of an unexpected type: ") + e.what());
+  }
 }
 
 PartFile ReadPartFile(const std::string& path) {

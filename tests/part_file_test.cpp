@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "acquisition/format_error.h"
-#include "synthetic/synthetic_cases.h"
 #include "fitting/part_model.h"
+#include "synthetic/synthetic_cases.h"
 
 namespace s2m {
 namespace {
@@ -345,6 +345,17 @@ TEST(PartFile, ParameterAndDocumentErrorsNameTheProblem) {
   ExpectError(R"([1, 2])", {"format", "not a scan2model.part/1 file"});
   ExpectError(R"({"format": "scan2model.part/1", "faces": [)", {"not valid JSON"});
   ExpectError("", {"not valid JSON"});
+  // Members of the wrong type are named (the first found by coverage-guided fuzzing: a face whose name is an
+  // array, tests/data/fuzz/part_file/).
+  ExpectError(PartText("{}", R"([{"name": [0, 0, 1], "type": "plane", "normal": [0, 0, 1], "offset": 1}])"),
+              {"face 0", "\"name\" must be a string"});
+  ExpectError(PartText(R"({"w": {"value": 3, "fixed": "yes"}})", lid),
+              {"parameter 'w'", "\"fixed\" must be true or false"});
+  ExpectError(PartText(R"({"w": {"value": 3, "unit": 7}})", lid),
+              {"parameter 'w'", "\"unit\" must be a string"});
+  ExpectError(R"({"format": ["scan2model.part/1"], "faces": []})",
+              {"format", "not a scan2model.part/1 file"});
+  ExpectError(R"({"format": "scan2model.part/1", "units": 1, "faces": []})", {"units", "must be a string"});
 }
 
 TEST(PartFile, MissingFileIsAFormatErrorNamingIt) {
