@@ -99,7 +99,8 @@ BatchManifest ReadJsonManifest(const std::string& path, const fs::path& base) {
   } catch (const nlohmann::json::out_of_range& e) {  // a number beyond double's range (found by fuzzing)
     throw FormatError(path, "", std::string("not valid JSON: ") + e.what());
   }
-  if (!j.is_object() || j.value("schema", "") != "scan2model.batch/1")
+  if (!j.is_object() || !j.contains("schema") || !j["schema"].is_string() ||
+      j["schema"].get<std::string>() != "scan2model.batch/1")
     throw FormatError(path, "",
                       "not a scan2model.batch/1 manifest (\"schema\": \"scan2model.batch/1\" missing)");
   if (!j.contains("objects") || !j["objects"].is_array())
@@ -125,6 +126,8 @@ BatchManifest ReadJsonManifest(const std::string& path, const fs::path& base) {
       if (!o.is_object()) throw FormatError(where, "", "\"options\" must be an object");
       for (const auto& [key, value] : o.items()) options[key] = value;
     }
+    if (defaults.contains("model") && !defaults["model"].is_string())
+      throw FormatError(path, "", "\"defaults\": \"model\" must be a string");
     const std::string id = e.value("id", "");
     const std::string model =
         e.contains("model") ? e["model"].get<std::string>() : defaults.value("model", "");

@@ -428,6 +428,14 @@ TEST(BatchEngine, ManifestErrorsNameTheProblem) {
   EXPECT_NE(error("c.csv", "id,input,model,solver\nx,y.json,revolution,sideways\n")
                 .find("solver 'sideways' (joint, alternating, register-then-fit)"),
             std::string::npos);
+  // JSON members of the wrong type are format errors, not escaping JSON exceptions.
+  EXPECT_NE(error("d.json", R"({"schema": ["scan2model.batch/1"], "objects": []})")
+                .find("not a scan2model.batch/1 manifest"),
+            std::string::npos);
+  EXPECT_NE(error("e.json", R"({"schema": "scan2model.batch/1", "defaults": {"model": 3},
+                               "objects": [{"id": "x", "input": "y.ply"}]})")
+                .find("\"model\" must be a string"),
+            std::string::npos);
   fs::remove_all(dir);
 }
 
