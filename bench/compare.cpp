@@ -1075,6 +1075,24 @@ struct ScalingSummary {
   double eight_views_1m = NAN;
 };
 
+// One CSV row of section 4: a joint iteration's time (median) and the first iteration's.
+Row ScalingRow(const std::string& section, const std::string& case_name, const ScalingResult& r, int views,
+               const std::string& note) {
+  Row row;
+  row.section = section;
+  row.case_name = case_name;
+  row.method = "joint SDM";
+  row.points = r.points;
+  row.views = views;
+  row.iterations = r.iterations;
+  row.seconds = r.seconds_per_iteration;
+  row.error = r.setup_seconds;
+  row.peak_rss_mb = r.peak_rss_mb;
+  row.metric = "seconds: per joint iteration (median); error: first iteration seconds";
+  row.note = note;
+  return row;
+}
+
 void SectionScaling(const Settings& s, Csv& csv, ScalingSummary& summary) {
   std::printf("\n## 4. Scaling of one joint iteration\n\n");
   const int iterations = s.quick ? 2 : 4;
@@ -1109,19 +1127,8 @@ void SectionScaling(const Settings& s, Csv& csv, ScalingSummary& summary) {
                 r.cores_used);
     std::fflush(stdout);
     if (n == 1000000 && k == 8) summary.eight_views_1m = r.seconds_per_iteration;
-    Row row;
-    row.section = "4 scaling";
-    row.case_name = "revolution, 12 control points";
-    row.method = "joint SDM";
-    row.points = r.points;
-    row.views = k;
-    row.iterations = r.iterations;
-    row.seconds = r.seconds_per_iteration;
-    row.error = r.setup_seconds;
-    row.peak_rss_mb = r.peak_rss_mb;
-    row.metric = "seconds: per joint iteration (median); error: first iteration seconds";
-    row.note = "cores used " + Fmt("%.2f", r.cores_used);
-    csv.Add(row);
+    csv.Add(ScalingRow("4 scaling", "revolution, 12 control points", r, k,
+                       "cores used " + Fmt("%.2f", r.cores_used)));
   }
 
   // The same measure for every model family: what a point costs in one joint iteration depends on the
@@ -1148,19 +1155,8 @@ void SectionScaling(const Settings& s, Csv& csv, ScalingSummary& summary) {
                 r.seconds_per_iteration * 1e6 / static_cast<double>(r.points), r.setup_seconds, r.peak_rss_mb,
                 r.cores_used);
     std::fflush(stdout);
-    Row row;
-    row.section = "4 families";
-    row.case_name = family;
-    row.method = "joint SDM";
-    row.points = r.points;
-    row.views = r.views;
-    row.iterations = r.iterations;
-    row.seconds = r.seconds_per_iteration;
-    row.error = r.setup_seconds;
-    row.peak_rss_mb = r.peak_rss_mb;
-    row.metric = "seconds: per joint iteration (median); error: first iteration seconds";
-    row.note = description + "; cores used " + Fmt("%.2f", r.cores_used);
-    csv.Add(row);
+    csv.Add(ScalingRow("4 families", family, r, r.views,
+                       description + "; cores used " + Fmt("%.2f", r.cores_used)));
   }
 }
 
