@@ -37,6 +37,9 @@ for t in $targets; do
   corpus="$build/corpus/$t"
   findings="$build/findings/$t"
   mkdir -p "$corpus" "$findings"
+  # An earlier run's artifacts were copied to tests/data/fuzz/<target>/ when it found them; left here they would
+  # be reported again as this run's findings.
+  rm -f "$findings"/crash-* "$findings"/leak-* "$findings"/timeout-* "$findings"/oom-*
   # libFuzzer takes only folders that exist: a target may have no seed folder (recordings are seeded with the
   # shipped recordings, copied into the working corpus) and no findings yet.
   seeds=()

@@ -138,6 +138,12 @@ TEST(MeshIo, RejectsTruncatedAndCorruptFiles) {
   ExpectRejected(dir / "range.obj", "vertex index 4 is out of range");
   WriteBytes(dir / "short.obj", "v 0 0 0\nv 1 0 0\nf 1 2\n");
   ExpectRejected(dir / "short.obj", "at least 3 vertices");
+  // A PLY face label no 64-bit integer holds (the fuzzer's finding: undefined behaviour before the check).
+  WriteBytes(dir / "label.ply",
+             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+             "element face 1\nproperty list uchar int vertex_indices\nproperty int label\nend_header\n0 0 0\n"
+             "1 0 0\n0 1 0\n3 0 1 2 55555555555555555555551\n");
+  ExpectRejected(dir / "label.ply", "is not an integer a 64-bit label can hold");
   WriteBytes(dir / "junk.obj", "v 0 0 0\nbogus 1 2\n");
   ExpectRejected(dir / "junk.obj", "unknown OBJ statement");
   WriteBytes(dir / "points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
@@ -151,7 +157,8 @@ TEST(MeshIo, RejectsTruncatedAndCorruptFiles) {
   WriteBytes(dir / "range.ply", header + "3 0 1 2\n3 0 1 5\n");
   ExpectRejected(dir / "range.ply", "out of range");
   WriteBytes(dir / "negative.ply", header + "3 0 1 2\n3 0 -1 2\n");
-  ExpectRejected(dir / "negative.ply", "line 14: face 1: vertex index -1.000000 is not a non-negative integer");
+  ExpectRejected(dir / "negative.ply",
+                 "line 14: face 1: vertex index -1.000000 is not a non-negative integer");
   WriteBytes(dir / "cloud.ply",
              "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
              "end_header\n0 0 0\n");

@@ -236,6 +236,26 @@ TEST_F(PointCloudIo, PcdLabelsFollowTheValidPoints) {
   EXPECT_EQ(s.labels, (std::vector<std::int64_t>{20, 30}));
 }
 
+// A label is an integer field, but its value may still be one a 64-bit label cannot hold (a text of 1e30, an
+// unsigned 64-bit value above 2^63): an error naming the point, not a conversion with undefined behaviour.
+TEST_F(PointCloudIo, PcdLabelsBeyondTheInt64RangeAreRefused) {
+  const std::string ascii =
+      "FIELDS label x y z\nSIZE 4 4 4 4\nTYPE U F F F\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA ascii\n";
+  ExpectError(Write("big.pcd", ascii + "20 1 2 3\n1e30 4 5 6\n"), {"line 9", "point 1", "label"});
+  ExpectError(Write("nan.pcd", ascii + "nan 1 2 3\n1 4 5 6\n"), {"point 0", "label"});
+  std::string binary =
+      "FIELDS x y z label\nSIZE 4 4 4 8\nTYPE F F F U\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary\n";
+  for (std::uint64_t label : {std::uint64_t{7}, std::uint64_t{0xFFFFFFFFFFFFFFFFull}})
+    binary += Bytes(1.f) + Bytes(2.f) + Bytes(3.f) + Bytes<std::uint64_t>(label);
+  ExpectError(Write("big_binary.pcd", binary), {"byte", "point 1", "label"});
+  const std::string max_label =
+      "FIELDS x y z label\nSIZE 4 4 4 8\nTYPE F F F I\nWIDTH 1\nHEIGHT 1\nPOINTS "
+      "1\nDATA binary\n" +
+      Bytes(1.f) + Bytes(2.f) + Bytes(3.f) + Bytes<std::int64_t>(-(std::int64_t{1} << 62));
+  EXPECT_EQ(ReadPointCloud(Write("ok_binary.pcd", max_label)).labels,
+            (std::vector<std::int64_t>{-(std::int64_t{1} << 62)}));
+}
+
 // The labelled mOSD scene (binary_compressed, organized 640 x 480 with NaNs): the labels survive the
 // dropping of invalid points.
 TEST_F(PointCloudIo, ReadsTheLabelledClutterScene) {

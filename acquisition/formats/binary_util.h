@@ -2,6 +2,7 @@
 // Internal: typed scalar reads from a byte buffer with explicit endianness.
 
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -78,6 +79,13 @@ inline double LoadAsDouble(const char* p, ScalarType t, bool little_endian) {
       return LoadScalar<double>(p, little_endian);
   }
   return 0.0;
+}
+
+// True when v is a whole number std::int64_t holds (-2^63 <= v < 2^63). Converting any other double (NaN,
+// an infinity, a fraction's truncation aside, or a value out of range) to an integer type is undefined
+// behaviour, so every label or index a file states as a number is checked with this first.
+inline bool IsWholeInt64(double v) {
+  return v == std::floor(v) && v >= -9223372036854775808.0 && v < 9223372036854775808.0;
 }
 
 }  // namespace s2m::formats

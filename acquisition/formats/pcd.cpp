@@ -93,6 +93,15 @@ class PcdParser {
     throw FormatError(file_, location, problem);
   }
 
+  // A point's segmentation label: an integer field, but its text (or an unsigned 64-bit value) may still be
+  // one that std::int64_t cannot hold.
+  std::int64_t Label(double value, std::size_t point, const std::string& where) const {
+    if (!IsWholeInt64(value))
+      Fail(where, "point " + std::to_string(point) + ": label " + std::to_string(value) +
+                      " is not an integer a 64-bit label can hold");
+    return static_cast<std::int64_t>(value);
+  }
+
   int FieldIndex(const char* name) const {
     for (std::size_t i = 0; i < fields_.size(); ++i) {
       if (fields_[i].name == name) return static_cast<int>(i);
@@ -252,7 +261,7 @@ class PcdParser {
       raw_.col(col) << number(cx), number(cy), number(cz);
       if (HasNormals())
         raw_normals_.col(col) << number(Column(nx_)), number(Column(ny_)), number(Column(nz_));
-      if (label_ >= 0) raw_labels_[i] = static_cast<std::int64_t>(number(Column(label_)));
+      if (label_ >= 0) raw_labels_[i] = Label(number(Column(label_)), i, where);
     }
   }
 
@@ -272,7 +281,7 @@ class PcdParser {
       const auto col = static_cast<Eigen::Index>(i);
       raw_.col(col) << value(x_), value(y_), value(z_);
       if (HasNormals()) raw_normals_.col(col) << value(nx_), value(ny_), value(nz_);
-      if (label_ >= 0) raw_labels_[i] = static_cast<std::int64_t>(value(label_));
+      if (label_ >= 0) raw_labels_[i] = Label(value(label_), i, AtByte(data_start_ + i * record_size_));
     }
   }
 
@@ -313,7 +322,7 @@ class PcdParser {
       const auto col = static_cast<Eigen::Index>(i);
       raw_.col(col) << value(x_), value(y_), value(z_);
       if (HasNormals()) raw_normals_.col(col) << value(nx_), value(ny_), value(nz_);
-      if (label_ >= 0) raw_labels_[i] = static_cast<std::int64_t>(value(label_));
+      if (label_ >= 0) raw_labels_[i] = Label(value(label_), i, "compressed data");
     }
   }
 

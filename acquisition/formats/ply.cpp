@@ -293,9 +293,9 @@ class PlyParser {
 
   void StoreFaceLabel(const std::vector<double>& values, const std::string& where) {
     const double label = values[static_cast<std::size_t>(face_label_)];
-    if (!std::isfinite(label) || label != std::floor(label))
+    if (!IsWholeInt64(label))
       Fail(where, "face " + std::to_string(faces_->labels.size()) + ": label " + std::to_string(label) +
-                      " is not an integer");
+                      " is not an integer a 64-bit label can hold");
     faces_->labels.push_back(static_cast<std::int64_t>(label));
   }
 
