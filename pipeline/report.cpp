@@ -272,9 +272,9 @@ std::string FairCurve(const nlohmann::json& d, const nlohmann::json& q, const st
   return s.str();
 }
 
-// Every fitted surface's interrogation (docs/interrogation.md): Gaussian and mean curvature maps and
-// isophotes, rendered from the exact surface the document describes, as embedded PNG images with their
-// parameters beside them.
+// Every fitted surface's interrogation (docs/interrogation.md): the Gaussian, mean and principal curvature
+// maps, isophotes, Klass reflection lines, zebra stripes and contours, rendered from the exact surface the
+// document describes, as embedded PNG images with their parameters beside them.
 std::string SurfaceInterrogation(const nlohmann::json& d) {
   std::vector<FittedSurface> surfaces;
   try {
@@ -300,7 +300,12 @@ std::string SurfaceInterrogation(const nlohmann::json& d) {
     for (const Image& image :
          {Image{SurfaceColouring::kCurvature, CurvatureKind::kGaussian, "Gaussian curvature"},
           Image{SurfaceColouring::kCurvature, CurvatureKind::kMean, "Mean curvature"},
-          Image{SurfaceColouring::kIsophotes, CurvatureKind::kGaussian, "Isophotes"}}) {
+          Image{SurfaceColouring::kCurvature, CurvatureKind::kMax, "Maximum principal curvature"},
+          Image{SurfaceColouring::kCurvature, CurvatureKind::kMin, "Minimum principal curvature"},
+          Image{SurfaceColouring::kIsophotes, CurvatureKind::kGaussian, "Isophotes"},
+          Image{SurfaceColouring::kReflectionLines, CurvatureKind::kGaussian, "Reflection lines"},
+          Image{SurfaceColouring::kZebra, CurvatureKind::kGaussian, "Zebra stripes"},
+          Image{SurfaceColouring::kContours, CurvatureKind::kGaussian, "Contours"}}) {
       o.colouring = image.colouring;
       o.curvature = image.kind;
       try {

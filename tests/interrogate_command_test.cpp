@@ -69,18 +69,21 @@ TEST_F(InterrogateCommand, WritesTheVasesMapsAndIsophotes) {
     ASSERT_GT(bytes.size(), 8u) << args;
     EXPECT_EQ(bytes.substr(0, 8), std::string("\x89PNG\r\n\x1a\n")) << args;
   }
-  // The report shows the curvature maps and isophotes as embedded images with their parameters.
+  // The report shows the curvature maps, isophotes, reflection lines, zebra stripes and contours as embedded
+  // images with their parameters.
   const fs::path html = *dir_ / "vase.html";
   ASSERT_EQ(RunCli("report " + fit + " -o " + html.string()).exit_code, 0);
   const std::string report = Read(html);
   EXPECT_NE(report.find("Surface interrogation: surface of revolution"), std::string::npos);
-  for (const char* title : {"Gaussian curvature</b>", "Mean curvature</b>", "Isophotes</b>"})
+  for (const char* title : {"Gaussian curvature</b>", "Mean curvature</b>", "Maximum principal curvature</b>",
+                            "Minimum principal curvature</b>", "Isophotes</b>", "Reflection lines</b>",
+                            "Zebra stripes</b>", "Contours</b>"})
     EXPECT_NE(report.find(title), std::string::npos) << title;
   std::size_t images = 0;
   for (std::size_t at = report.find("data:image/png;base64,"); at != std::string::npos;
        at = report.find("data:image/png;base64,", at + 1))
     ++images;
-  EXPECT_EQ(images, 3u);
+  EXPECT_EQ(images, 8u);
   EXPECT_NE(report.find("light towards"), std::string::npos);
 }
 
