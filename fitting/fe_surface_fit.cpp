@@ -279,7 +279,10 @@ bool FeFootPoint(const FeSurface& surface, const Eigen::Vector3d& x, FeSurfacePo
       const bool next_inside = surface.Locate(uv + step, next);
       const FeSurfaceGeometry ng = surface.Evaluate(next);
       const double nd2 = (x - ng.point).squaredNorm();
-      if (nd2 <= distance2) {
+      // Near the foot the squared distance is stationary: a Newton step that gains less than its rounding
+      // would be refused by a strict comparison, leaving the residual's tangential part at about
+      // sqrt(machine epsilon) of the distance; a tie within rounding is taken as progress.
+      if (nd2 <= distance2 * (1.0 + 1e-14)) {
         const double moved = (surface.ParameterOf(next) - uv).norm();
         at = next;
         g = ng;

@@ -154,17 +154,55 @@ Eigen::Matrix2Xd ConvexHull(const Eigen::Matrix2Xd& uv) {
   return out;
 }
 
-// Drops polygon vertices closer than `spacing` to the previous kept one (the mesher would otherwise need
-// triangles as small as the shortest boundary segment); the polygon stays counter-clockwise. A dropped hull
-// vertex cuts a corner off the domain, so the spacing is kept small (a tenth of an element): the points
-// beyond the cut are then within a small fraction of an element of the boundary.
-Eigen::Matrix2Xd ThinPolygon(const Eigen::Matrix2Xd& polygon, double spacing) {
-  std::vector<Eigen::Vector2d> kept;
-  for (Eigen::Index i = 0; i < polygon.cols(); ++i)
-    if (kept.empty() || (polygon.col(i) - kept.back()).norm() >= spacing) kept.push_back(polygon.col(i));
-  while (kept.size() > 3 && (kept.back() - kept.front()).norm() < spacing) kept.pop_back();
-  Eigen::Matrix2Xd out(2, static_cast<Eigen::Index>(kept.size()));
-  for (std::size_t i = 0; i < kept.size(); ++i) out.col(static_cast<Eigen::Index>(i)) = kept[i];
+// Merges the ends of a convex polygon's edges shorter than `spacing` (the mesher would otherwise need
+// triangles as small as the shortest boundary edge) without cutting anything off: the short edge b c is
+// replaced by the point X where its neighbours' lines a b and d c meet beyond it, so the polygon stays
+// convex, counter-clockwise and CONTAINS the old one (every point of the hull stays inside the domain;
+// dropping b or c instead would cut a corner off and leave points beyond the patch's edge, with their
+// distance to it counted as misfit). X lies at height |bc| sin(tb) sin(tc) / sin(tb + tc) over b c (tb, tc
+// the turns at b and c); an edge whose merge would bulge out further than `spacing` (turns adding up to
+// nearly half a turn) is kept.
+Eigen::Matrix2Xd ThinConvexPolygon(const Eigen::Matrix2Xd& polygon, double spacing) {
+  std::vector<Eigen::Vector2d> p;
+  for (Eigen::Index i = 0; i < polygon.cols(); ++i) p.push_back(polygon.col(i));
+  const auto cross = [](const Eigen::Vector2d& u, const Eigen::Vector2d& v) {
+    return u.x() * v.y() - u.y() * v.x();
+  };
+  std::vector<char> keep_edge(p.size(), 0);  // edges found not to merge (indexed by their first vertex)
+  while (p.size() > 3) {
+    const std::size_t n = p.size();
+    std::size_t shortest = n;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double length = (p[(i + 1) % n] - p[i]).norm();
+      if (!keep_edge[i] && length < spacing &&
+          (shortest == n || length < (p[(shortest + 1) % n] - p[shortest]).norm()))
+        shortest = i;
+    }
+    if (shortest == n) break;
+    const Eigen::Vector2d& a = p[(shortest + n - 1) % n];
+    const Eigen::Vector2d& b = p[shortest];
+    const Eigen::Vector2d& c = p[(shortest + 1) % n];
+    const Eigen::Vector2d& d = p[(shortest + 2) % n];
+    // X = b + s (b - a) = c + t (c - d): solve s (b - a) - t (c - d) = c - b.
+    const Eigen::Vector2d ab = b - a, dc = c - d;
+    const double det = cross(ab, -dc);
+    bool merged = false;
+    if (det != 0.0) {
+      const double s = cross(c - b, -dc) / det, t = cross(ab, c - b) / det;
+      const Eigen::Vector2d x = b + s * ab;
+      const Eigen::Vector2d bc = c - b;
+      const double height = std::abs(cross(bc, x - b)) / bc.norm();
+      if (s >= 0.0 && t >= 0.0 && height <= spacing) {
+        p[shortest] = x;
+        p.erase(p.begin() + static_cast<std::ptrdiff_t>((shortest + 1) % n));
+        keep_edge.assign(p.size(), 0);
+        merged = true;
+      }
+    }
+    if (!merged) keep_edge[shortest] = 1;
+  }
+  Eigen::Matrix2Xd out(2, static_cast<Eigen::Index>(p.size()));
+  for (std::size_t i = 0; i < p.size(); ++i) out.col(static_cast<Eigen::Index>(i)) = p[i];
   return out;
 }
 
@@ -297,7 +335,8 @@ FitOutcome ComputeFeSurfaceFit(const FitOptions& o) {
       if (!adaptive) count = std::stod(o.elements);
       edge = EdgeForTriangleCount(hull_area, count);
     }
-    if (o.boundary.empty() || o.boundary == "auto") polygon.outer = ThinPolygon(polygon.outer, 0.1 * edge);
+    if (o.boundary.empty() || o.boundary == "auto")
+      polygon.outer = ThinConvexPolygon(polygon.outer, 0.1 * edge);
     try {
       polygon.Validate();
     } catch (const std::invalid_argument& e) {

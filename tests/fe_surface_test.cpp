@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -357,6 +358,88 @@ TEST(FeSurfaceFit, ADofFixedInThreeDirectionsKeepsItsValue) {
   EXPECT_THROW(FitFeSurface(data.points, data.start_uv, FeSurfaceFitOptions{}, other,
                             {{other.dof_count(), Eigen::Vector3d::UnitX()}}),
                std::invalid_argument);
+}
+
+TEST(FeSurfaceFit, AFixedPointAndATangentPlaneAtAVertexAreKeptExactly) {
+  // The geometric constraints of the reduced transformation (eq. P9) beside the chart's: the centre vertex
+  // is held at a point on the bump and its tangent plane at a given tilt (w_u . n0 = w_v . n0 = 0, two fixed
+  // directions of its slope dofs); the fit moves everything else.
+  std::mt19937 rng(12);
+  const NoisyBump data = SampleNoisyBump(1500, 0.005, rng);
+  FeSurface surface(SubdividedHexagon(3.0, 3));
+  std::vector<FeFixedDirection> fixed = SetPlanarChart(surface);
+  const Eigen::Vector3d n0 = Eigen::Vector3d(0.3, -0.2, 1.0).normalized();
+  const Eigen::Vector3d point(0.0, 0.0, 1.05);
+  Eigen::MatrixX3d q = surface.dofs();
+  q.row(surface.vertex_dof(0, 0)) = point.transpose();
+  q.row(surface.vertex_dof(0, 1)) = Eigen::Vector3d(1, 0, -n0.x() / n0.z()).transpose();
+  q.row(surface.vertex_dof(0, 2)) = Eigen::Vector3d(0, 1, -n0.y() / n0.z()).transpose();
+  surface.set_dofs(q);
+  ASSERT_NEAR(surface.mesh().uv.col(0).norm(), 0.0, 1e-12);  // vertex 0 is the centre
+  for (int axis = 0; axis < 3; ++axis)
+    fixed.push_back({surface.vertex_dof(0, 0), Eigen::Vector3d::Unit(axis)});
+  fixed.push_back({surface.vertex_dof(0, 1), n0});
+  fixed.push_back({surface.vertex_dof(0, 2), n0});
+  const Eigen::MatrixX3d before = surface.dofs();
+  const FeSurfaceFitResult r =
+      FitFeSurface(data.points, data.start_uv, FeSurfaceFitOptions{}, surface, fixed);
+  const Eigen::Vector3d w_u = surface.dofs().row(surface.vertex_dof(0, 1)).transpose();
+  const Eigen::Vector3d w_v = surface.dofs().row(surface.vertex_dof(0, 2)).transpose();
+  EXPECT_LT((surface.dofs().row(surface.vertex_dof(0, 0)).transpose() - point).norm(), 1e-12);
+  EXPECT_LT(std::abs(w_u.dot(n0)), 1e-12);
+  EXPECT_LT(std::abs(w_v.dot(n0)), 1e-12);
+  EXPECT_LT((w_u.cross(w_v).normalized() - n0).norm(), 1e-12);  // the surface's normal there is n0
+  // The slopes themselves were free within the plane, and the rest of the bump was fitted.
+  EXPECT_GT((surface.dofs().row(surface.vertex_dof(0, 1)) - before.row(surface.vertex_dof(0, 1))).norm(),
+            1e-4);
+  EXPECT_GT((surface.dofs() - before).cwiseAbs().maxCoeff(), 0.5);
+  EXPECT_LT(r.rms, 0.05);
+}
+
+TEST(FeSurface, FootPointWalksAcrossTrianglesToTheOrthogonalFoot) {
+  // A bump surface; points off it along its normal by +-0.1 at random parameters, each foot searched from
+  // the triangle farthest from it: the walk must reach the true foot (the offset's parameter) and stop
+  // with the residual orthogonal to both tangents. A point beyond the domain ends on the boundary (false).
+  FeSurface surface(SubdividedHexagon(3.0, 4));
+  surface.Interpolate(GaussianBump);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> coordinate(-2.4, 2.4), side(-1.0, 1.0);
+  int checked = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const Eigen::Vector2d uv(coordinate(rng), coordinate(rng));
+    if (!InsideHexagon(uv, 2.4)) continue;
+    FeSurfacePoint truth;
+    ASSERT_TRUE(surface.Locate(uv, truth));
+    const FeSurfaceGeometry g = surface.Evaluate(truth);
+    const Eigen::Vector3d normal = g.d1.col(0).cross(g.d1.col(1)).normalized();
+    const Eigen::Vector3d x = g.point + (side(rng) > 0 ? 0.1 : -0.1) * normal;
+    // Start in the triangle whose centroid is farthest from uv.
+    FeSurfacePoint at;
+    double farthest = -1.0;
+    for (int t = 0; t < surface.triangle_count(); ++t) {
+      const double d = (surface.ParameterOf({t, Eigen::Vector3d::Constant(1.0 / 3.0)}) - uv).norm();
+      if (d > farthest) {
+        farthest = d;
+        at = {t, Eigen::Vector3d::Constant(1.0 / 3.0)};
+      }
+    }
+    ASSERT_TRUE(FeFootPoint(surface, x, at)) << "trial " << trial;
+    const FeSurfaceGeometry foot = surface.Evaluate(at);
+    EXPECT_LT((surface.ParameterOf(at) - uv).norm(), 1e-8) << "trial " << trial;
+    EXPECT_LT(std::abs((x - foot.point).dot(foot.d1.col(0))), 1e-10);
+    EXPECT_LT(std::abs((x - foot.point).dot(foot.d1.col(1))), 1e-10);
+    ++checked;
+  }
+  EXPECT_GT(checked, 100);
+  FeSurfacePoint at;
+  EXPECT_FALSE(FeFootPoint(surface, Eigen::Vector3d(5.0, 0.3, 0.0), at));
+  const Eigen::Vector2d edge = surface.ParameterOf(at);
+  double support = 0.0;  // the hexagon's support function: its apothem on the boundary
+  for (int k = 0; k < 6; ++k)
+    support = std::max(
+        support, edge.x() * std::cos((k + 0.5) * M_PI / 3.0) + edge.y() * std::sin((k + 0.5) * M_PI / 3.0));
+  EXPECT_NEAR(support, 3.0 * std::cos(M_PI / 6.0), 1e-9);
+  EXPECT_GT(edge.x(), 2.0);
 }
 
 // A bump on a tilted, bent sheet (its boundary out of a plane): the graph (u, v, f) with its slopes.
