@@ -160,6 +160,19 @@ TEST_F(PointCloudIo, BrokenPlyFilesGetClearErrors) {
               {"truncated", "element 'face'"});
   ExpectError(Write("type.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n"),
               {"line 4", "unknown property type"});
+  // A signed list count that is negative (the mesh fuzzer's finding: undefined behaviour converting it to a
+  // size), and, in ASCII, a count so large that adding it to the token index wrapped round.
+  const std::string signed_list =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty "
+      "float z\nelement face 1\nproperty list int8 int vertex_indices\nend_header\n";
+  ExpectError(
+      Write("negative_list.ply", signed_list + std::string(12, '\0') + Bytes<int8_t>(-3) + "abcdefghijkl"),
+      {"element 'face' entry 0", "count -3", "not a non-negative integer"});
+  const std::string ascii_list =
+      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n1 2 3\n";
+  ExpectError(Write("wrapping_list.ply", ascii_list + "18446744073709551615 0 0 0\n"),
+              {"line 11", "declares 18446744073709551615 items"});
   ExpectError(Write("zero.ply", ""), {"empty file"});
 }
 
@@ -378,6 +391,12 @@ TEST_F(PointCloudIo, HugeClaimedCountsAreRefusedBeforeAllocating) {
       "ply\nformat binary_little_endian 1.0\nelement vertex 21474836485\nproperty float x\n"
       "property float y\nproperty float z\nproperty list uchar int indices\nend_header\n" +
       std::string(40, '\0');
+  // An element without properties claiming 2^34 entries: records of no bytes, nothing to read (the point
+  // cloud fuzzer's finding: the reader spun through the count).
+  const std::string ply_empty_element =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 17179869184\nend_header\n" +
+      std::string(12, '\0');
   const std::string pcd_header =
       "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1000000000\nHEIGHT 1\n"
       "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1000000000\nDATA ";
@@ -395,6 +414,7 @@ TEST_F(PointCloudIo, HugeClaimedCountsAreRefusedBeforeAllocating) {
   };
   for (const fs::path& file : files)
     EXPECT_EXIT(ReadUnderAddressLimitAndExit(file), ::testing::ExitedWithCode(0), "") << file;
+  EXPECT_EQ(ReadPointCloud(Write("empty_element.ply", ply_empty_element)).size(), 1);
 }
 
 }  // namespace

@@ -267,7 +267,7 @@ class PlyParser {
         if (prop.is_list) {
           std::size_t n = 0;
           if (!ParseInteger(tok[t], n)) Fail(where, "bad list length " + Quoted(tok[t]));
-          if (t + 1 + n > tok.size())
+          if (n > tok.size() - t - 1)  // (t + 1 + n could wrap round for a huge n)
             Fail(where,
                  "list '" + prop.name + "' declares " + std::to_string(n) + " items, the line has fewer");
           const bool keep = is_face && static_cast<int>(p) == face_list_;
@@ -322,6 +322,9 @@ class PlyParser {
                                 std::to_string(record) + " bytes) but only " + std::to_string(left) +
                                 " bytes follow");
     }
+    // An element without properties has records of no bytes: nothing to read, however many it declares (a
+    // loop over a claimed 2^34 of them would only spin).
+    if (record == 0) return;
     if (is_vertex) Allocate(e.count);
     const bool is_face = faces_ != nullptr && &e == face_element_;
     std::vector<double> values(e.properties.size());
@@ -330,7 +333,14 @@ class PlyParser {
       for (std::size_t p = 0; p < e.properties.size(); ++p) {
         const Property& prop = e.properties[p];
         if (prop.is_list) {
-          const std::size_t n = static_cast<std::size_t>(Take(prop.count_type, little, e, i));
+          // The count's type may be signed: only a whole number from 0 is a count, and converting a negative
+          // one to an unsigned size is undefined behaviour.
+          const double count = Take(prop.count_type, little, e, i);
+          if (!(count >= 0.0) || count != std::floor(count))
+            Fail(AtByte(record_start), "element '" + e.name + "' entry " + std::to_string(i) + ": list '" +
+                                           prop.name + "' has the count " + std::to_string(count) +
+                                           ", not a non-negative integer");
+          const auto n = static_cast<std::size_t>(count);
           const std::size_t need = n * SizeOf(prop.type);
           if (need / std::max<std::size_t>(1, SizeOf(prop.type)) != n || need > bytes_.size() - offset_)
             TruncatedAt(e, i);
