@@ -383,6 +383,24 @@ TEST(Cli, HelicalAndSpiralFitsFromRecordedViews) {
                 3 * tube["t_uncertainty"].get<double>());
     }
     EXPECT_EQ(doc["views"].size(), 6u);
+    // The fitted kinematic surface is interrogated from its exact representation (docs/interrogation.md):
+    // a principal curvature map and reflection lines of it, and the report's eight images.
+    const std::filesystem::path fit_json = dir / name / "fit.json";
+    std::ofstream(fit_json) << r.out;
+    for (const std::string& image : {std::string("--map kmax"), std::string("--reflection-lines 8")}) {
+      const std::filesystem::path png = dir / name / "image.png";
+      const Result drawn = RunCli(
+          "interrogate " + fit_json.string() + " " + image + " --size 240x180 -o " + png.string(), false);
+      EXPECT_EQ(drawn.exit_code, 0) << model << " " << image << ": " << drawn.out;
+      EXPECT_NE(drawn.out.find(model + " surface"), std::string::npos) << drawn.out;
+      EXPECT_TRUE(std::filesystem::exists(png)) << model << " " << image;
+    }
+    const std::filesystem::path html = dir / name / "fit.html";
+    ASSERT_EQ(RunCli("report " + fit_json.string() + " -o " + html.string(), false).exit_code, 0) << model;
+    std::ifstream report_file(html);
+    const std::string report((std::istreambuf_iterator<char>(report_file)), std::istreambuf_iterator<char>());
+    EXPECT_NE(report.find("Surface interrogation: " + model + " surface"), std::string::npos) << model;
+    EXPECT_EQ(report.find("not rendered"), std::string::npos) << model;
   }
   std::filesystem::remove_all(dir);
 }

@@ -164,6 +164,11 @@ TEST_F(InterrogateCommand, APartsSplinePatchIsInterrogated) {
   EXPECT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("spline patch 'top' of the part"), std::string::npos) << r.out;
   EXPECT_EQ(Read(png).substr(0, 8), std::string("\x89PNG\r\n\x1a\n"));
+  // The part's report interrogates the same patch.
+  ASSERT_EQ(RunCli("report " + prefix + ".json -o " + prefix + ".html").exit_code, 0);
+  const std::string report = Read(prefix + ".html");
+  EXPECT_NE(report.find("Surface interrogation: spline patch"), std::string::npos);
+  EXPECT_EQ(report.find("not rendered"), std::string::npos);
 }
 
 TEST_F(InterrogateCommand, BadInputIsRefusedClearly) {
