@@ -18,6 +18,7 @@
 #include <benchmark/benchmark.h>
 #include <omp.h>
 
+#include <Eigen/Geometry>
 #include <cstdio>
 #include <memory>
 #include <random>
@@ -211,21 +212,70 @@ void FootPointsRefineOnly(benchmark::State& state, const std::string& name) {
 }
 
 // Assembly of the 6x6 rigid normal equations (registration/rigid_step.h) from per-point SDM constraints:
-// the model-registration step's accumulation, excluding the model evaluation.
-void RigidAssembly(benchmark::State& state) {
+// the model-registration step's accumulation, excluding the model evaluation. The constraints are given as
+// SDM's frame (a unit normal with weight 1, two tangents with curvature weights), as a field query returns
+// them.
+struct SdmFrameConstraint {
+  Eigen::Vector3d x, residual, normal, tangent1, tangent2;
+  double beta1 = 0.0, beta2 = 0.0;
+};
+
+std::vector<SdmFrameConstraint> RandomSdmConstraints() {
   std::mt19937_64 rng(9);
   std::normal_distribution<double> gauss(0, 1);
-  std::vector<PointConstraint> constraints(4096);
-  for (PointConstraint& c : constraints) {
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::vector<SdmFrameConstraint> constraints(4096);
+  for (SdmFrameConstraint& c : constraints) {
     c.x = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
-    c.target = c.x + 0.01 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
-    const Eigen::Vector3d n = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
-    c.M = n * n.transpose() + 0.1 * (Eigen::Matrix3d::Identity() - n * n.transpose());
-    c.weight = 1e-4;
+    c.residual = 0.01 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    c.normal = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+    c.tangent1 = c.normal.unitOrthogonal();
+    c.tangent2 = c.normal.cross(c.tangent1);
+    c.beta1 = unit(rng);
+    c.beta2 = unit(rng);
   }
+  return constraints;
+}
+
+// M = n n^T + beta1 T1 T1^T + beta2 T2 T2^T formed, then added by its symmetric blocks (the field pass's
+// SDM).
+void RigidAssembly(benchmark::State& state) {
+  const std::vector<SdmFrameConstraint> constraints = RandomSdmConstraints();
   for (auto _ : state) {
     RigidNormalEquations eq;
-    for (const PointConstraint& c : constraints) eq.Add(c);
+    for (const SdmFrameConstraint& c : constraints) {
+      const Eigen::Matrix3d m = c.normal * c.normal.transpose() +
+                                c.beta1 * c.tangent1 * c.tangent1.transpose() +
+                                c.beta2 * c.tangent2 * c.tangent2.transpose();
+      eq.AddSymmetric(c.x, m, 1e-4, c.residual);
+    }
+    benchmark::DoNotOptimize(eq.H.data());
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<long long>(constraints.size()));
+}
+
+// The same constraints as three rank-one terms (the field pass's SDM before AddSymmetric).
+void RigidAssemblyByDirections(benchmark::State& state) {
+  const std::vector<SdmFrameConstraint> constraints = RandomSdmConstraints();
+  for (auto _ : state) {
+    RigidNormalEquations eq;
+    for (const SdmFrameConstraint& c : constraints) {
+      eq.AddDirection(c.x, c.normal, 1e-4, c.normal.dot(c.residual));
+      eq.AddDirection(c.x, c.tangent1, 1e-4 * c.beta1, c.tangent1.dot(c.residual));
+      eq.AddDirection(c.x, c.tangent2, 1e-4 * c.beta2, c.tangent2.dot(c.residual));
+    }
+    benchmark::DoNotOptimize(eq.H.data());
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<long long>(constraints.size()));
+}
+
+// TDM's one rank-one term per point, for the SDM/TDM ratio of the assembly.
+void RigidAssemblyTdm(benchmark::State& state) {
+  const std::vector<SdmFrameConstraint> constraints = RandomSdmConstraints();
+  for (auto _ : state) {
+    RigidNormalEquations eq;
+    for (const SdmFrameConstraint& c : constraints)
+      eq.AddDirection(c.x, c.normal, 1e-4, c.normal.dot(c.residual));
     benchmark::DoNotOptimize(eq.H.data());
   }
   state.SetItemsProcessed(state.iterations() * static_cast<long long>(constraints.size()));
@@ -334,6 +384,8 @@ BENCHMARK_CAPTURE(FootPointsWarm, helical, std::string("helical"));
 BENCHMARK_CAPTURE(FootPointsCold, spiral, std::string("spiral"));
 BENCHMARK_CAPTURE(FootPointsWarm, spiral, std::string("spiral"));
 BENCHMARK(RigidAssembly);
+BENCHMARK(RigidAssemblyByDirections);
+BENCHMARK(RigidAssemblyTdm);
 BENCHMARK(RegistrationAssemblyOnSurface);
 BENCHMARK_CAPTURE(SquaredDistanceFieldQueries, bspline_surface, std::string("bspline-surface"));
 BENCHMARK_CAPTURE(SquaredDistanceFieldQueries, cylinder, std::string("cylinder"));

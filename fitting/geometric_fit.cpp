@@ -186,35 +186,39 @@ std::optional<std::string> UnobservableShape(const ParametricModel& model, const
 }  // namespace
 
 Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s) {
-  Eigen::Matrix3d identity = Eigen::Matrix3d::Zero();
-  identity.topLeftCorner(s, s).setIdentity();
-  Eigen::Matrix3d normal_space = Eigen::Matrix3d::Zero();
-  for (int k = 0; k < f.normal_count; ++k) {
-    normal_space +=
-        f.normals[static_cast<std::size_t>(k)] * f.normals[static_cast<std::size_t>(k)].transpose();
-  }
+  // Only the parts a term needs are formed: the field's registration pass calls this once per point.
+  auto identity = [s] {
+    Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+    m.topLeftCorner(s, s).setIdentity();
+    return m;
+  };
+  auto normal_space = [&f] {
+    Eigen::Matrix3d m = f.normals[0] * f.normals[0].transpose();
+    if (f.normal_count > 1) m.noalias() += f.normals[1] * f.normals[1].transpose();
+    return m;
+  };
   switch (term) {
     case ErrorTerm::kPdm:
-      return identity;
+      return identity();
     case ErrorTerm::kTdm:
       return f.normals[0] * f.normals[0].transpose();
     case ErrorTerm::kGtdm:
-      return normal_space;
+      return normal_space();
     case ErrorTerm::kSdm:
     case ErrorTerm::kCdm: {
-      Eigen::Matrix3d m = normal_space;
+      Eigen::Matrix3d m = normal_space();
       for (int k = 0; k < f.tangent_count; ++k) {
         const auto i = static_cast<std::size_t>(k);
         const double w = term == ErrorTerm::kSdm ? SdmWeight(f.delta, f.curvatures[i])
                                                  : CdmWeight(f.delta, f.curvatures[i]);
-        m += w * f.tangents[i] * f.tangents[i].transpose();
+        if (w != 0.0) m.noalias() += w * f.tangents[i] * f.tangents[i].transpose();
       }
       return m;
     }
     case ErrorTerm::kGn:
-      return identity;  // GN builds its own Jacobian; M is used only for boundary points
+      return identity();  // GN builds its own Jacobian; M is used only for boundary points
   }
-  return identity;
+  return identity();
 }
 
 Eigen::Matrix3d EndRuleMatrix(ErrorTerm term, const PrincipalFrame& f, const Eigen::Vector3d& offset, int s) {

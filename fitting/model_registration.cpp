@@ -22,8 +22,8 @@
 namespace s2m {
 namespace {
 
-// TDM's and SDM's error matrices at an exact foot on a surface in 3D, added as rank-one directions
-// (RigidNormalEquations::AddDirection) straight from the model's derivatives `g` at the foot: TDM needs only
+// TDM's and SDM's error matrices at an exact foot on a surface in 3D, added straight from the model's
+// derivatives `g` at the foot (TDM as one rank-one direction, SDM by the symmetric blocks): TDM needs only
 // the unit normal n = C_u x C_v / |C_u x C_v|; SDM adds the principal directions T_k with the weights
 // SdmWeight(delta, kappa_k) (docs/method.md section 2), the principal curvatures and directions being the
 // eigenpairs of the shape operator S = I^-1 II (first and second fundamental forms; do Carmo, section 3-3),
@@ -54,15 +54,19 @@ bool AddSurfaceDirections(ErrorTerm term, const LocalGeometry& g, const Eigen::V
   Eigen::Matrix2d directions;
   Eigen::Vector2d curvatures;
   if (!SolvePrincipalCurvatures(second, first, directions, curvatures)) return false;
-  eq.AddDirection(x, n, weight, delta);
   const double b1 = SdmWeight(delta, curvatures[0]), b2 = SdmWeight(delta, curvatures[1]);
-  if (!(b1 > 0) && !(b2 > 0)) return true;
+  if (!(b1 > 0) && !(b2 > 0)) {
+    eq.AddDirection(x, n, weight, delta);
+    return true;
+  }
   // The I-orthonormal eigenvector of k1 maps to a unit tangent C_t v (at an umbilic any tangent will do: then
   // b1 == b2 and M's tangential part is b1 (I - n n^T) whatever the directions).
   const Eigen::Vector3d t1 = (directions(0, 0) * su + directions(1, 0) * sv).normalized();
   const Eigen::Vector3d t2 = n.cross(t1);  // principal directions are orthogonal
-  if (b1 > 0) eq.AddDirection(x, t1, weight * b1, t1.dot(r));
-  if (b2 > 0) eq.AddDirection(x, t2, weight * b2, t2.dot(r));
+  // M by its symmetric blocks (RigidNormalEquations::AddSymmetric), cheaper than three rank-one terms.
+  const Eigen::Matrix3d error_matrix = n * n.transpose() + (b1 > 0 ? b1 : 0.0) * t1 * t1.transpose() +
+                                       (b2 > 0 ? b2 : 0.0) * t2 * t2.transpose();
+  eq.AddSymmetric(x, error_matrix, weight, r);
   return true;
 }
 
@@ -300,17 +304,12 @@ void RegistrationProblem::Pass(const Eigen::Matrix3Xd& points, bool warm, bool u
           const double weight = weight_ * weighting_.Weight(out[i].distance);
           const PrincipalFrame& f = answer.frame;
           const Eigen::Vector3d x3 = points.col(j), r = x3 - answer.foot;
-          if (term == ErrorTerm::kTdm || term == ErrorTerm::kSdm) {
-            // M = n n^T (+ sum_k SdmWeight(delta, kappa_k) T_k T_k^T for SDM) as rank-one terms.
+          // TDM's M = n n^T as one rank-one term; SDM's n n^T + sum_k SdmWeight(delta, kappa_k) T_k T_k^T
+          // (and the others') by the symmetric blocks, cheaper than three rank-one terms.
+          if (term == ErrorTerm::kTdm)
             mine.AddDirection(x3, f.normals[0], weight, f.normals[0].dot(r));
-            for (int k = 0; k < 2 && term == ErrorTerm::kSdm; ++k) {
-              const auto uk = static_cast<std::size_t>(k);
-              const double beta = SdmWeight(f.delta, f.curvatures[uk]);
-              if (beta > 0) mine.AddDirection(x3, f.tangents[uk], weight * beta, f.tangents[uk].dot(r));
-            }
-          } else {
-            mine.Add({x3, answer.foot, ErrorMatrix(term, f, 3), weight});
-          }
+          else
+            mine.AddSymmetric(x3, ErrorMatrix(term, f, 3), weight, r);
           return;
         }
         const VecS x = points.col(j);

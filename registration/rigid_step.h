@@ -1,9 +1,9 @@
 #pragma once
-// One linearized rigid-registration step (docs/method.md section 5; Liu, Pottmann, Wang, CAD 38(6) 2006, section
-// 3): a small motion of a point about its current position x is x' = x + cbar + c x x. With each point's
-// quadratic error term (x' - s)^T M (x' - s) frozen at its model point s, the motion (c, cbar) solves a 6x6
-// linear system. PDM (M = I) is classic ICP, TDM (M = n n^T) point-to-plane ICP (Chen-Medioni), SDM adds
-// curvature-weighted tangents.
+// One linearized rigid-registration step (docs/method.md section 5; Liu, Pottmann, Wang, CAD 38(6) 2006,
+// section 3): a small motion of a point about its current position x is x' = x + cbar + c x x. With each
+// point's quadratic error term (x' - s)^T M (x' - s) frozen at its model point s, the motion (c, cbar) solves
+// a 6x6 linear system. PDM (M = I) is classic ICP, TDM (M = n n^T) point-to-plane ICP (Chen-Medioni), SDM
+// adds curvature-weighted tangents.
 
 #include <Eigen/Core>
 #include <vector>
@@ -35,7 +35,14 @@ inline Eigen::Matrix<double, 3, 6> MotionJacobian(const Eigen::Vector3d& x) {
 struct RigidNormalEquations {
   Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();  // sum w A^T M (x - s)
+  // One point's term w (x' - s)^T M (x' - s) with a symmetric M (AddSymmetric).
   void Add(const PointConstraint& p);
+  // The term weight * (x' - s)^T M (x' - s) of a symmetric M (its upper triangle is read), with
+  // residual = x - s, by the blocks of A^T W A, W = weight * M (docs/method.md eq. 16a): fewer operations
+  // than the general product, and faster than three AddDirection calls (bench/micro_benchmarks.cpp:
+  // RigidAssembly against RigidAssemblyByDirections).
+  void AddSymmetric(const Eigen::Vector3d& x, const Eigen::Matrix3d& M, double weight,
+                    const Eigen::Vector3d& residual);
   // One rank-one term weight * (v . (x' - s))^2 of an error matrix M = sum_k w_k v_k v_k^T: its row
   // A^T v = [x x v; v], right-hand side v . (x - s). Cheaper than Add when M's eigen-decomposition is known.
   void AddDirection(const Eigen::Vector3d& x, const Eigen::Vector3d& v, double weight, double v_dot_residual);

@@ -116,6 +116,21 @@ TEST(RigidNormalEquations, RankOneDirectionsEqualTheFullErrorMatrix) {
   EXPECT_LT((twice.H - 2.0 * full.H).norm(), 1e-14 * full.H.norm());
 }
 
+TEST(RigidNormalEquations, BlockAssemblyEqualsTheExplicitProduct) {
+  // AddSymmetric's blocks against w A^T M A and w A^T M (x - s) with A = MotionJacobian(x) formed explicitly.
+  std::mt19937 rng(17);
+  for (const PointConstraint& p : RandomConstraints(rng, 20)) {
+    RigidNormalEquations blocks;
+    blocks.AddSymmetric(p.x, p.M, p.weight, p.x - p.target);
+    const Eigen::Matrix<double, 3, 6> a = MotionJacobian(p.x);
+    const Matrix6 h = p.weight * a.transpose() * p.M * a;
+    const Vector6 g = p.weight * a.transpose() * p.M * (p.x - p.target);
+    EXPECT_LT((blocks.H - h).norm(), 1e-14 * h.norm());
+    EXPECT_LT((blocks.g - g).norm(), 1e-14 * (1.0 + g.norm()));
+    EXPECT_EQ(blocks.H, blocks.H.transpose());
+  }
+}
+
 TEST(RigidNormalEquations, SolvedVelocityIsTheObjectivesMinimum) {
   std::mt19937 rng(13);
   const std::vector<PointConstraint> constraints = RandomConstraints(rng, 30);
