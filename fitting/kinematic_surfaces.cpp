@@ -576,16 +576,38 @@ double SpiralSurface::WhorlExpansionRate() const {
 }
 
 Eigen::Vector4d SpiralSurface::Extents() const {
+  return ExtentsBetween(basis_.lo(), basis_.hi(), CurvePoint(basis_.lo()), CurvePoint(basis_.hi()));
+}
+
+Eigen::Vector2d SpiralSurface::CurvePoint(double u, int derivative) const {
+  if (derivative < 0 || derivative > 2) throw std::invalid_argument("CurvePoint: derivative 0, 1 or 2");
+  return Generatrix(basis_, profile_, std::clamp(u, basis_.lo(), basis_.hi()), derivative).col(derivative);
+}
+
+Eigen::Vector4d SpiralSurface::ExtentsBetween(double u_lo, double u_hi, const Eigen::Vector2d& end_lo,
+                                              const Eigen::Vector2d& end_hi) const {
+  if (!(u_lo <= u_hi)) throw std::invalid_argument("ExtentsBetween: u_lo > u_hi (or NaN)");
+  u_lo = std::clamp(u_lo, basis_.lo(), basis_.hi());
+  u_hi = std::clamp(u_hi, basis_.lo(), basis_.hi());
   double r_min = std::numeric_limits<double>::infinity(), r_max = -r_min, z_min = r_min, z_max = -r_min;
-  constexpr int kSamples = 2001;
-  for (int i = 0; i < kSamples; ++i) {
-    const double u = basis_.lo() + (basis_.hi() - basis_.lo()) * i / (kSamples - 1);
-    const Eigen::Vector2d rz = Generatrix(basis_, profile_, u, 0).col(0);
+  auto take = [&](const Eigen::Vector2d& rz) {
     r_min = std::min(r_min, rz.x());
     r_max = std::max(r_max, rz.x());
     z_min = std::min(z_min, rz.y());
     z_max = std::max(z_max, rz.y());
-  }
+  };
+  // Eq. S5a: the end point moved onto the tangent line c + s t at its end, s = t . (p - c) / |t|^2.
+  auto onto_tangent = [&](double u, const Eigen::Vector2d& p) {
+    const Eigen::Matrix<double, 2, 3> rz = Generatrix(basis_, profile_, u, 1);
+    const Eigen::Vector2d c = rz.col(0), t = rz.col(1);
+    const double tt = t.squaredNorm();
+    return tt > 0 ? Eigen::Vector2d(c + t * (t.dot(p - c) / tt)) : c;
+  };
+  take(onto_tangent(u_lo, end_lo));
+  take(onto_tangent(u_hi, end_hi));
+  constexpr int kSamples = 2001;
+  for (int i = 1; i + 1 < kSamples; ++i)
+    take(Generatrix(basis_, profile_, u_lo + (u_hi - u_lo) * i / (kSamples - 1), 0).col(0));
   return {r_min, r_max, z_min, z_max};
 }
 
@@ -608,7 +630,10 @@ SpiralSurface::Raup SpiralSurface::RaupParameters() const {
 }
 
 SpiralSurface::Whorl SpiralSurface::WhorlAt(double v) const {
-  const Eigen::Vector4d e = Extents();
+  return WhorlAt(v, Extents());
+}
+
+SpiralSurface::Whorl SpiralSurface::WhorlAt(double v, const Eigen::Vector4d& e) const {
   const Scales here = ScalesAt(v), opposite = ScalesAt(v - M_PI);
   Whorl w;
   w.height = here.axial * (e[3] - e[2]);                                        // eq. S4

@@ -132,6 +132,18 @@ class SpiralSurface final : public ParametricModel {
     double height = 0.0, width = 0.0, umbilical_width = 0.0, diameter = 0.0;
   };
   Whorl WhorlAt(double v) const;
+  // The same with given extents (r_min, r_max, z_min, z_max) of the generating curve, e.g. ExtentsBetween's.
+  Whorl WhorlAt(double v, const Eigen::Vector4d& extents) const;
+  // The generating curve (r, z) at u (derivative 0), or its derivative d/du (1) or d2/du2 (2).
+  Eigen::Vector2d CurvePoint(double u, int derivative = 0) const;
+  // The generating curve's extents (r_min, r_max, z_min, z_max) over the part of it the data cover, u in
+  // [u_lo, u_hi] within the basis' range (docs/shells.md eq. S5a): 2001 samples, the two ends being the
+  // points `end_lo`, `end_hi` (where the data end) moved onto the curve's tangent line at u_lo, u_hi. To
+  // first order that is their foot on the curve: a change of the curve that slides it along itself leaves
+  // the ends where the data put them. With end_lo = CurvePoint(u_lo), end_hi = CurvePoint(u_hi) on this
+  // curve they are its plain extents there.
+  Eigen::Vector4d ExtentsBetween(double u_lo, double u_hi, const Eigen::Vector2d& end_lo,
+                                 const Eigen::Vector2d& end_hi) const;
   // Raup's coiling parameters of the surface (docs/archaeology.md section 7): W = exp(2 pi p); D = r_min /
   // r_max, the generating curve's inner edge over its outer edge (distances from the axis); T = z_c / r_c,
   // the axial over the radial coordinate of the generating curve's centre (the middle of its extent in r

@@ -9,6 +9,7 @@
 #include <limits>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 
 #include "acquisition/format_error.h"
 #include "fitting/elliptic_fourier.h"
@@ -614,6 +615,11 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     // the coiling angles the data cover.
     std::optional<SpiralSurface> section_surface;
     double section_lo = 0.0, section_hi = 0.0;
+    // The whorl rows and where the data lie on the shell (eqs. S7a, S7b): the Monte Carlo trials below
+    // measure the rows again when they are the logarithmic surface's, the one the trials refit.
+    std::vector<WhorlMeasures> whorl_rows;
+    ShellCoverage whorl_coverage;
+    bool whorls_on_fitted_surface = false;
     if (spiral) {
       // A shell's whorls over the coiling angles its kept points' feet cover, and the test of the logarithmic
       // spiral against the allometric one (docs/shells.md sections 2-3); a shell that grows allometrically
@@ -654,17 +660,12 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       for (std::size_t k = 0; k < K; ++k) measured_points.push_back(measured_poses[k].apply(scans[k]));
       std::vector<FootPoint> coil_feet;
       ComputeFootPoints(measured, Concatenate(measured_points)(Eigen::all, kept), coil_feet);
-      std::vector<double> coil_angles;
-      for (const FootPoint& f : coil_feet)
-        if (!f.on_boundary) coil_angles.push_back(f.t[1]);
-      double angle_lo = std::numeric_limits<double>::infinity(), angle_hi = -angle_lo;
-      for (const double angle : coil_angles) {
-        angle_lo = std::min(angle_lo, angle);
-        angle_hi = std::max(angle_hi, angle);
-      }
-      j["growth"]["whorls"] =
-          WhorlsJson(MeasureWhorls(measured, allometric ? nested.result.shape_covariance : r.shape_covariance,
-                                   angle_lo, angle_hi, LastAngleUncertainty(coil_angles, angle_hi), units));
+      whorl_coverage = MeasureCoverage(coil_feet);
+      const double angle_lo = whorl_coverage.angle_lo, angle_hi = whorl_coverage.angle_hi;
+      whorl_rows = MeasureWhorls(measured, allometric ? nested.result.shape_covariance : r.shape_covariance,
+                                 whorl_coverage, units);
+      whorls_on_fitted_surface = !allometric;
+      j["growth"]["whorls"] = WhorlsJson(whorl_rows);
       if (std::isfinite(angle_lo) && std::isfinite(angle_hi)) {
         section_surface = measured;
         section_lo = angle_lo;
@@ -814,7 +815,10 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       std::vector<Derived> derived;
       // The same quantities of a refitted model (the base end as decided for the fit).
       const bool base_at_start = up_sign * samples.front()[0] <= up_sign * samples.back()[0];
-      auto quantities_of = [&](const ParametricModel& m) {
+      // `coverage`, `last_angle`, `end_lo`, `end_hi`: where a trial's data lie and its shell ends, for the
+      // whorl rows (a spiral's only).
+      auto quantities_of = [&](const ParametricModel& m, const ShellCoverage& coverage, double last_angle,
+                               const Eigen::Vector2d& end_lo, const Eigen::Vector2d& end_hi) {
         std::vector<double> y;
         if (const auto* k = dynamic_cast<const KinematicSurface*>(&m)) {
           if (vessel) {
@@ -832,6 +836,16 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
           y.push_back(sp->WhorlExpansionRate());
           y.push_back(raup.d);
           y.push_back(raup.t);
+          if (whorls_on_fitted_surface)
+            for (const WhorlMeasures& w : whorl_rows) {
+              const SpiralSurface::Whorl at =
+                  sp->WhorlAt(last_angle - 2 * M_PI * w.whorls_from_last,
+                              sp->ExtentsBetween(coverage.curve_lo, coverage.curve_hi, end_lo, end_hi));
+              y.push_back(at.height);
+              y.push_back(at.width);
+              if (std::isfinite(w.umbilical_width.value)) y.push_back(at.umbilical_width);
+              if (std::isfinite(w.diameter.value)) y.push_back(at.diameter);
+            }
         }
         return y;
       };
@@ -850,6 +864,18 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
                            shell->whorl_expansion_rate.uncertainty, ""});
         derived.push_back({"Raup D", shell->raup_d.value, shell->raup_d.uncertainty, ""});
         derived.push_back({"Raup T", shell->raup_t.value, shell->raup_t.uncertainty, ""});
+        // The whorl rows (docs/shells.md section 2), when they are the fitted surface's: the allometric
+        // surface the test keeps otherwise is not what the trials refit.
+        if (whorls_on_fitted_surface)
+          for (const WhorlMeasures& w : whorl_rows) {
+            const std::string row = "whorl -" + std::to_string(w.whorls_from_last) + " ";
+            for (const auto& [name, measure] : {std::pair<const char*, const Measure*>{"height", &w.height},
+                                                {"width", &w.width},
+                                                {"umbilical width", &w.umbilical_width},
+                                                {"diameter", &w.diameter}})
+              if (std::isfinite(measure->value))
+                derived.push_back({row + name, measure->value, measure->uncertainty, units});
+          }
       }
       std::vector<MonteCarloSummary> mc;
       if (method.kind == UncertaintyMethod::Kind::kMonteCarlo) {
@@ -892,7 +918,35 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
                 std::unique_ptr<ParametricModel> m = model->Clone();
                 RefinableGeneratrixFit refit(*m, trial, r.model_T_scan, trial_options, max_control_points);
                 refit.Fit();
-                const std::vector<double> q = quantities_of(*m);
+                // A shell's whorl rows sit at its ends as estimated from where the trial's data end, along
+                // the coil and along the generating curve (the trial's feet, as measured above; eq. S7c),
+                // each end moved by a draw of its own uncertainty (eqs. S7a, S7b): the trial's points keep
+                // the original feet's places on the surface, so where the data end is an input of its own
+                // ([GUM-S1] 6.4).
+                ShellCoverage coverage;
+                double ends_angle = 0.0;
+                Eigen::Vector2d end_lo = Eigen::Vector2d::Zero(), end_hi = end_lo;
+                if (whorls_on_fitted_surface && !whorl_rows.empty()) {
+                  const auto& trial_shell = dynamic_cast<const SpiralSurface&>(*m);
+                  const std::vector<RigidMotion>& poses = refit.result().model_T_scan;
+                  std::vector<Eigen::Matrix3Xd> moved;
+                  for (std::size_t k = 0; k < K; ++k) moved.push_back(poses[k].apply(trial[k]));
+                  std::vector<FootPoint> trial_feet;
+                  ComputeFootPoints(trial_shell, Concatenate(moved)(Eigen::all, kept), trial_feet);
+                  coverage = MeasureCoverage(trial_feet);
+                  if (!coverage.covered())
+                    throw std::runtime_error("no foot of the trial's points inside the coil");
+                  auto draw = [&](double u) {
+                    return std::isfinite(u) && u > 0 ? std::normal_distribution<double>(0.0, u)(random) : 0.0;
+                  };
+                  const ShellEnds ends = EstimateEnds(trial_shell, coverage);
+                  ends_angle = ends.angle + draw(coverage.angle_uncertainty);
+                  end_lo = ends.curve_lo +
+                           draw(coverage.curve_lo_uncertainty) * trial_shell.CurvePoint(coverage.curve_lo, 1);
+                  end_hi = ends.curve_hi +
+                           draw(coverage.curve_hi_uncertainty) * trial_shell.CurvePoint(coverage.curve_hi, 1);
+                }
+                const std::vector<double> q = quantities_of(*m, coverage, ends_angle, end_lo, end_hi);
                 y = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size()));
               } catch (const std::exception&) {
               }

@@ -42,42 +42,101 @@ double LastAngleUncertainty(const std::vector<double>& foot_angles, double angle
   return in_window > 0 ? kWindow / static_cast<double>(in_window) : kNaN;
 }
 
+double CurveEndUncertainty(const std::vector<double>& foot_parameters, double lo, double hi, bool at_hi) {
+  const double window = 0.1 * (hi - lo);  // a tenth of the covered range, as eq. S7a's tenth of a turn
+  if (!(window > 0)) return kNaN;
+  const auto in_window = std::count_if(foot_parameters.begin(), foot_parameters.end(), [&](double u) {
+    return at_hi ? u >= hi - window && u <= hi : u >= lo && u <= lo + window;
+  });
+  return in_window > 0 ? window / static_cast<double>(in_window) : kNaN;
+}
+
+ShellCoverage MeasureCoverage(const std::vector<FootPoint>& feet) {
+  ShellCoverage c;
+  std::vector<double> angles, parameters;
+  for (const FootPoint& f : feet)
+    if (!f.on_boundary && !f.excluded && std::isfinite(f.t[0]) && std::isfinite(f.t[1])) {
+      parameters.push_back(f.t[0]);
+      angles.push_back(f.t[1]);
+    }
+  if (angles.empty()) return c;
+  const auto [angle_lo, angle_hi] = std::minmax_element(angles.begin(), angles.end());
+  const auto [curve_lo, curve_hi] = std::minmax_element(parameters.begin(), parameters.end());
+  c.angle_lo = *angle_lo;
+  c.angle_hi = *angle_hi;
+  c.angle_uncertainty = LastAngleUncertainty(angles, c.angle_hi);
+  c.curve_lo = *curve_lo;
+  c.curve_hi = *curve_hi;
+  c.curve_lo_uncertainty = CurveEndUncertainty(parameters, c.curve_lo, c.curve_hi, false);
+  c.curve_hi_uncertainty = CurveEndUncertainty(parameters, c.curve_lo, c.curve_hi, true);
+  return c;
+}
+
+ShellEnds EstimateEnds(const SpiralSurface& shell, const ShellCoverage& coverage) {
+  auto spacing = [](double u) { return std::isfinite(u) && u > 0 ? u : 0.0; };
+  ShellEnds e;
+  e.angle = coverage.angle_hi + spacing(coverage.angle_uncertainty);
+  e.curve_lo = shell.CurvePoint(coverage.curve_lo) -
+               spacing(coverage.curve_lo_uncertainty) * shell.CurvePoint(coverage.curve_lo, 1);
+  e.curve_hi = shell.CurvePoint(coverage.curve_hi) +
+               spacing(coverage.curve_hi_uncertainty) * shell.CurvePoint(coverage.curve_hi, 1);
+  return e;
+}
+
 std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
-                                         double angle_lo, double angle_hi, double angle_uncertainty,
-                                         const std::string& units) {
+                                         const ShellCoverage& coverage, const std::string& units) {
   std::vector<WhorlMeasures> out;
-  if (!(angle_hi >= angle_lo)) return out;
+  if (!coverage.covered()) return out;
   const bool propagate = shape_covariance.rows() == shell.num_parameters();
-  for (int k = 0; angle_hi - 2 * M_PI * k >= angle_lo; ++k) {
+  // Where the shell ends (eq. S7c) on the fitted generating curve, and the curve's direction there (per
+  // unit u).
+  const ShellEnds ends = EstimateEnds(shell, coverage);
+  const Eigen::Vector2d end_lo = ends.curve_lo, end_hi = ends.curve_hi;
+  const Eigen::Vector2d along_lo = shell.CurvePoint(coverage.curve_lo, 1),
+                        along_hi = shell.CurvePoint(coverage.curve_hi, 1);
+  auto measures = [&](const SpiralSurface& s, double angle, const Eigen::Vector2d& lo,
+                      const Eigen::Vector2d& hi) {
+    const SpiralSurface::Whorl m =
+        s.WhorlAt(angle, s.ExtentsBetween(coverage.curve_lo, coverage.curve_hi, lo, hi));
+    Eigen::VectorXd y(4);
+    y << m.height, m.width, m.umbilical_width, m.diameter;
+    return y;
+  };
+  for (int k = 0; coverage.angle_hi - 2 * M_PI * k >= coverage.angle_lo; ++k) {
     WhorlMeasures w;
     w.whorls_from_last = k;
-    w.angle = angle_hi - 2 * M_PI * k;
-    const bool across = w.angle - M_PI >= angle_lo;  // the opposite side is in the data too
-    auto measures = [](const SpiralSurface& s, double angle) {
-      const SpiralSurface::Whorl m = s.WhorlAt(angle);
-      Eigen::VectorXd y(4);
-      y << m.height, m.width, m.umbilical_width, m.diameter;
-      return y;
-    };
-    const Eigen::VectorXd value = measures(shell, w.angle);
+    w.angle = ends.angle - 2 * M_PI * k;
+    const bool across = w.angle - M_PI >= coverage.angle_lo;  // the opposite side is in the data too
+    const Eigen::VectorXd value = measures(shell, w.angle, end_lo, end_hi);
     Eigen::VectorXd uncertainty = Eigen::VectorXd::Constant(4, kNaN);
     if (propagate) {
+      // The shape's share, the ends held where the data put them (eq. S5a): a change of the curve that only
+      // slides it along itself, which the data do not see, moves no extent.
       const std::vector<LinearPropagation> u = PropagateLinear(
           [&](const Eigen::VectorXd& p) {
             SpiralSurface moved = shell;
             moved.set_parameters(p);
-            return measures(moved, w.angle);
+            return measures(moved, w.angle, end_lo, end_hi);
           },
           shell.parameters(), shape_covariance);
-      for (int i = 0; i < 4; ++i) uncertainty[i] = u[static_cast<std::size_t>(i)].standard_uncertainty;
-      // Eq. S7a: the rows sit at the data's last angle, itself uncertain; the measures' derivative along the
-      // coil (central difference) times that uncertainty, in quadrature.
-      if (std::isfinite(angle_uncertainty) && angle_uncertainty > 0) {
-        constexpr double kStep = 1e-4;
-        const Eigen::VectorXd along =
-            (measures(shell, w.angle + kStep) - measures(shell, w.angle - kStep)) / (2 * kStep);
-        uncertainty = (uncertainty.array().square() + (along.array() * angle_uncertainty).square()).sqrt();
-      }
+      Eigen::ArrayXd variance(4);
+      for (int i = 0; i < 4; ++i)
+        variance[i] = std::pow(u[static_cast<std::size_t>(i)].standard_uncertainty, 2);
+      // Where the data end, each by its derivative (central differences) times its uncertainty, in
+      // quadrature: along the coil (eq. S7a; all rows move with angle_hi) and along the generating curve at
+      // either end (eq. S7b; the end slid along the curve's tangent).
+      constexpr double kStep = 1e-4;
+      auto add = [&](const Eigen::VectorXd& plus, const Eigen::VectorXd& minus, double step, double share) {
+        if (std::isfinite(share) && share > 0)
+          variance += (((plus - minus) / (2 * step)).array() * share).square();
+      };
+      add(measures(shell, w.angle + kStep, end_lo, end_hi), measures(shell, w.angle - kStep, end_lo, end_hi),
+          kStep, coverage.angle_uncertainty);
+      add(measures(shell, w.angle, end_lo + kStep * along_lo, end_hi),
+          measures(shell, w.angle, end_lo - kStep * along_lo, end_hi), kStep, coverage.curve_lo_uncertainty);
+      add(measures(shell, w.angle, end_lo, end_hi + kStep * along_hi),
+          measures(shell, w.angle, end_lo, end_hi - kStep * along_hi), kStep, coverage.curve_hi_uncertainty);
+      uncertainty = variance.sqrt().matrix();
     }
     w.height = {value[0], uncertainty[0], units};
     w.width = {value[1], uncertainty[1], units};

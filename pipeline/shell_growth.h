@@ -4,6 +4,7 @@
 // (the growth rate changing along the coil, the axial scale outgrowing the radial one).
 
 #include <Eigen/Core>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -26,18 +27,45 @@ struct WhorlMeasures {
   Measure height, width, umbilical_width, diameter;
 };
 
-// The whorls in [angle_lo, angle_hi], the coiling angles the data cover: one at angle_hi and one a turn
-// before it, and so on, while inside the range. `angle_uncertainty` is the standard uncertainty of angle_hi
-// itself (where the data end; docs/shells.md eq. S7a): the rows move with it, and its share (the measure's
-// derivative along the coil times it) is added in quadrature to the shape covariance's.
+// Where the data lie on a shell (docs/shells.md section 2), from the feet of its kept points (those on the
+// surface's boundary left out): the coiling angles they cover, the last one's own standard uncertainty (eq.
+// S7a), and the part of the generating curve they cover, u in [curve_lo, curve_hi], with the standard
+// uncertainties of both ends in u (eq. S7b). NaN where there are no feet.
+struct ShellCoverage {
+  double angle_lo = std::numeric_limits<double>::quiet_NaN(), angle_hi = angle_lo,
+         angle_uncertainty = angle_lo;
+  double curve_lo = angle_lo, curve_hi = angle_lo;
+  double curve_lo_uncertainty = angle_lo, curve_hi_uncertainty = angle_lo;
+  bool covered() const { return angle_lo <= angle_hi && curve_lo <= curve_hi; }
+};
+ShellCoverage MeasureCoverage(const std::vector<FootPoint>& feet);
+
+// Where the shell itself ends, estimated from where its data end (docs/shells.md eq. S7c): the last point
+// falls short of an end by one spacing of the feet there on average, so each end is put one spacing (its
+// standard uncertainty, eqs. S7a and S7b) beyond the last foot, along the coil and along the generating curve
+// (on the curve's tangent line). Without a finite spacing an end stays at the last foot.
+struct ShellEnds {
+  double angle = 0.0;                                                       // the last whorl's coiling angle
+  Eigen::Vector2d curve_lo = Eigen::Vector2d::Zero(), curve_hi = curve_lo;  // (r, z) on the curve's tangent
+};
+ShellEnds EstimateEnds(const SpiralSurface& shell, const ShellCoverage& coverage);
+
+// The whorls at the shell's estimated end (EstimateEnds), a turn before it, and so on while inside the
+// coiling angles the data cover, each measured on the part of the generating curve between its estimated ends
+// (SpiralSurface::ExtentsBetween; eq. S5a). Standard uncertainties: the shape covariance's share (eq. 18 of
+// docs/metrology.md) with the ends following the data, and in quadrature the shares of where the data end,
+// along the coil (eq. S7a: the rows move with angle_hi) and along the generating curve (eq. S7b).
 std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
-                                         double angle_lo, double angle_hi, double angle_uncertainty,
-                                         const std::string& units);
+                                         const ShellCoverage& coverage, const std::string& units);
 
 // The standard uncertainty of the last coiling angle the data reach, from the angles of the points' feet
 // (docs/shells.md eq. S7a): the points sample the coil at random, so the last one falls short of the coil's
 // end by about the local spacing of the angles, the width of the last tenth of a turn over the feet in it.
 double LastAngleUncertainty(const std::vector<double>& foot_angles, double angle_hi);
+
+// The same for an end of the generating curve's covered part (eq. S7b): the width of the tenth of the covered
+// range [lo, hi] next to `end` (lo or hi) over the feet in it; NaN without any.
+double CurveEndUncertainty(const std::vector<double>& foot_parameters, double lo, double hi, bool at_hi);
 
 // The test of the logarithmic spiral against the allometric one (docs/shells.md section 3): the nested
 // model refitted jointly from the logarithmic fit, its q and a with their standard uncertainties, and the

@@ -300,6 +300,44 @@ TEST(SpiralSurface, WhorlMeasuresAgainstTheirClosedForms) {
   EXPECT_EQ(SpiralSurface(UnitSpacedClamped(2, 3), profile, p, -4.0, 8.0).WhorlAt(v).umbilical_width, 0.0);
 }
 
+// ExtentsBetween (docs/shells.md eq. S5a): with the curve's own end points it is the plain extents over the
+// range; with fixed end points, a change of the curve that slides its end along itself (the last control
+// point moved along the end tangent, the direction of the last leg of the control polygon) moves the plain
+// extents that sit at that end but not these, while an interior extreme follows the curve either way.
+TEST(SpiralSurface, ExtentsBetweenHoldTheEndsWhereTheDataEnd) {
+  Eigen::Matrix2Xd profile(2, 6);
+  profile << 20, 25, 30, 31, 26, 19,  //
+      -8, -6, -2, 2, 6, 8;
+  const SpiralSurface shell(UnitSpacedClamped(4, 6), profile, 0.12, -M_PI, 3 * M_PI);
+  const double lo = shell.basis().lo(), hi = shell.basis().hi();
+  const Eigen::Vector2d end_lo = shell.CurvePoint(lo), end_hi = shell.CurvePoint(hi);
+  const Eigen::Vector4d plain = shell.ExtentsBetween(lo, hi, end_lo, end_hi);
+  EXPECT_EQ(shell.WhorlAt(2.0, plain).height, shell.WhorlAt(2.0).height);
+  EXPECT_EQ(plain[2], -8.0);  // z_min and z_max at the clamped ends, r_min at the upper one
+  EXPECT_EQ(plain[3], 8.0);
+  EXPECT_EQ(plain[0], 19.0);
+  // The end's tangent is the last leg of the control polygon: the curve slid along it by 1e-3 of the leg.
+  Eigen::Matrix2Xd slid = profile;
+  slid.col(5) += 1e-3 * (profile.col(5) - profile.col(4));
+  const SpiralSurface moved = shell.WithGeneratrix(shell.basis(), slid);
+  const Eigen::Vector4d moved_plain =
+      moved.ExtentsBetween(lo, hi, moved.CurvePoint(lo), moved.CurvePoint(hi));
+  const Eigen::Vector4d held = moved.ExtentsBetween(lo, hi, end_lo, end_hi);
+  EXPECT_NEAR(moved_plain[3] - plain[3], 2e-3, 1e-12);  // the plain z_max moved with the slide
+  EXPECT_NEAR(moved_plain[0] - plain[0], -7e-3, 1e-12);
+  EXPECT_NEAR(held[3], plain[3], 1e-12);  // held where the data end
+  EXPECT_NEAR(held[0], plain[0], 1e-12);
+  EXPECT_NEAR(held[2], plain[2], 1e-12);        // the other end untouched
+  EXPECT_NEAR(held[1], moved_plain[1], 1e-12);  // r_max inside the curve, as the curve has it
+  // A range inside the curve: the samples between and the two given ends.
+  const Eigen::Vector4d inner = shell.ExtentsBetween(0.5, 2.5, shell.CurvePoint(0.5), shell.CurvePoint(2.5));
+  EXPECT_NEAR(inner[2], shell.CurvePoint(0.5).y(), 1e-12);
+  EXPECT_NEAR(inner[3], shell.CurvePoint(2.5).y(), 1e-12);
+  EXPECT_NEAR(shell.CurvePoint(1.0, 1).x(),
+              (shell.CurvePoint(1.0 + 1e-6).x() - shell.CurvePoint(1.0 - 1e-6).x()) / 2e-6, 1e-6);
+  EXPECT_THROW(shell.ExtentsBetween(2.0, 1.0, end_lo, end_hi), std::invalid_argument);
+}
+
 // The nested model at q = a = 0 is the logarithmic surface: same points and derivatives, two more
 // parameters named after the growth.
 TEST(SpiralSurface, AllometricAtZeroIsTheLogarithmicSpiral) {

@@ -23,6 +23,7 @@
 #include "fitting/kinematic_surfaces.h"
 #include "one_cloud_fit.h"
 #include "pipeline/batch.h"
+#include "pipeline/fit_option_table.h"
 #include "pipeline/fit_options.h"
 #include "pipeline/output.h"
 #include "registration/scan.h"
@@ -87,6 +88,119 @@ TEST(ShellGrowth, LogarithmicShellHoldsAndItsWhorlsAreMeasured) {
     EXPECT_NEAR(whorls[0]["width"]["value"].get<double>() / whorls[1]["width"]["value"].get<double>(),
                 growth["whorl_expansion_rate"].get<double>(), 1e-6);
   }
+}
+
+// The whorl rows' standard uncertainties against the spread of the rows over independent scans of one shell
+// (new points and noise each; docs/shells.md section 2, "Calibration"): the spread's ratio to the mean
+// reported uncertainty within the sampling error of a standard deviation from n scans (3 / sqrt(2 (n - 1))),
+// and the mean row within 3 standard errors of the truth's. About 10 s a scan: it runs only with
+// S2M_SHELL_CALIBRATION_SCANS (at least 10) set.
+TEST(ShellGrowth, WhorlUncertaintiesAgainstTheSpreadOfIndependentScans) {
+  const char* env = std::getenv("S2M_SHELL_CALIBRATION_SCANS");
+  const int n = env ? std::atoi(env) : 0;
+  if (n < 10) GTEST_SKIP() << "set S2M_SHELL_CALIBRATION_SCANS to 10 or more scans to run it";
+  const char* keys[] = {"height", "width", "umbilical_width", "diameter"};
+  std::vector<std::vector<double>> values(8), uncertainties(8);
+  Eigen::VectorXd truth(8);
+  for (int scan = 1; scan <= n; ++scan) {
+    const KinematicCloud cloud =
+        AllometricShellCloud(0.0, 0.0, kNoise, kPoints, static_cast<std::uint64_t>(100 + scan));
+    const auto& shell = dynamic_cast<const SpiralSurface&>(*cloud.truth);
+    for (int row = 0; row < 2; ++row) {
+      const SpiralSurface::Whorl w = shell.WhorlAt(3 * M_PI - 2 * M_PI * row);
+      truth.segment<4>(4 * row) << w.height, w.width, w.umbilical_width, w.diameter;
+    }
+    const pipeline::FitOutcome outcome = FitShell(cloud.points);
+    const nlohmann::json& whorls = outcome.document["growth"]["whorls"];
+    ASSERT_GE(whorls.size(), 2u);
+    for (std::size_t i = 0; i < 8; ++i) {
+      const nlohmann::json& m = whorls[i / 4][keys[i % 4]];
+      ASSERT_TRUE(m["value"].is_number()) << keys[i % 4];
+      values[i].push_back(m["value"].get<double>());
+      uncertainties[i].push_back(m["uncertainty"].get<double>());
+    }
+  }
+  const double count = n, allowed = 3.0 / std::sqrt(2.0 * (count - 1));
+  for (std::size_t i = 0; i < 8; ++i) {
+    SCOPED_TRACE("whorl -" + std::to_string(i / 4) + " " + keys[i % 4]);
+    double mean = 0, u = 0, variance = 0;
+    for (std::size_t k = 0; k < values[i].size(); ++k) {
+      mean += values[i][k] / count;
+      u += uncertainties[i][k] / count;
+    }
+    for (const double v : values[i]) variance += (v - mean) * (v - mean) / (count - 1);
+    const double spread = std::sqrt(variance), ratio = spread / u;
+    std::printf("  whorl -%zu %s: mean - truth %+.4f, spread %.4g, mean u %.4g, spread / u %.2f\n", i / 4,
+                keys[i % 4], mean - truth[static_cast<Eigen::Index>(i)], spread, u, ratio);
+    EXPECT_LT(std::abs(mean - truth[static_cast<Eigen::Index>(i)]), 3 * spread / std::sqrt(count));
+    EXPECT_GT(ratio, 1 / (1 + allowed));
+    EXPECT_LT(ratio, 1 + allowed);
+  }
+}
+
+// --uncertainty monte-carlo:N on a logarithmic shell (docs/metrology.md section 7a): each trial refits the
+// whole joint fit to perturbed feet and measures the whorl rows again at its own ends (docs/shells.md eq.
+// S7c), each moved by a draw of its own uncertainty (eqs. S7a, S7b). The rows are derived quantities beside
+// growth, W, D and T, with the linear uncertainty of the growth section's rows; the Monte Carlo and the
+// linear standard uncertainties agree within the primitive test's 10 % plus twice the Monte Carlo estimate's
+// sampling error (1/sqrt(2N)), and the last whorl is the truth's within 3 Monte Carlo standard uncertainties.
+TEST(ShellGrowth, MonteCarloCoversTheWhorlRows) {
+  const int trials = 40;
+  const KinematicCloud cloud = AllometricShellCloud(0.0, 0.0, kNoise, kPoints, 1u);
+  auto fit = [&](const std::string& method) {
+    pipeline::FitOptions o = test::OneCloudFitOptions(cloud.points, "shell", "spiral");
+    pipeline::ApplyFitOption(*pipeline::FindManifestOption("uncertainty"), method, o);
+    return pipeline::ComputeFit(o);
+  };
+  const pipeline::FitOutcome linear = fit("linear"), mc = fit("monte-carlo:" + std::to_string(trials));
+  const nlohmann::json& rows = linear.document["growth"]["whorls"];
+  ASSERT_GE(rows.size(), 2u);
+  auto find = [](const nlohmann::json& measurands, const std::string& name) -> const nlohmann::json* {
+    for (const nlohmann::json& m : measurands)
+      if (m.at("name") == name) return &m;
+    return nullptr;
+  };
+  const SpiralSurface::Whorl truth = dynamic_cast<const SpiralSurface&>(*cloud.truth).WhorlAt(3 * M_PI);
+  const double allowed = 0.1 + 2.0 / std::sqrt(2.0 * trials);
+  int compared = 0;
+  for (const nlohmann::json& row : rows) {
+    const std::string prefix = "whorl -" + std::to_string(row["whorls_from_last"].get<int>()) + " ";
+    for (const auto& [key, name] : {std::pair<const char*, const char*>{"height", "height"},
+                                    {"width", "width"},
+                                    {"umbilical_width", "umbilical width"},
+                                    {"diameter", "diameter"}}) {
+      SCOPED_TRACE(prefix + name);
+      const nlohmann::json *l = find(linear.document["measurands"], prefix + name),
+                           *m = find(mc.document["measurands"], prefix + name);
+      if (!row[key]["value"].is_number()) {  // the opposite side not in the data: no row, no measurand
+        EXPECT_EQ(l, nullptr);
+        EXPECT_EQ(m, nullptr);
+        continue;
+      }
+      ASSERT_NE(l, nullptr);
+      ASSERT_NE(m, nullptr);
+      EXPECT_EQ(l->at("value").get<double>(), row[key]["value"].get<double>());
+      EXPECT_EQ(l->at("standard_uncertainty").get<double>(), row[key]["uncertainty"].get<double>());
+      EXPECT_EQ(
+          m->at("monte_carlo").at("trials").get<int>() + m->at("monte_carlo").at("failed_trials").get<int>(),
+          trials);
+      const double ratio =
+          m->at("standard_uncertainty").get<double>() / l->at("standard_uncertainty").get<double>();
+      std::printf("  %s%s: linear u %.3g, Monte Carlo u %.3g (ratio %.2f)\n", prefix.c_str(), name,
+                  l->at("standard_uncertainty").get<double>(), m->at("standard_uncertainty").get<double>(),
+                  ratio);
+      EXPECT_GT(ratio, 1.0 - allowed);
+      EXPECT_LT(ratio, 1.0 + allowed);
+      ++compared;
+    }
+  }
+  EXPECT_GE(compared, 6);  // height, width, umbilicus and diameter of the last whorl, two of the one before
+  const nlohmann::json& last = *find(mc.document["measurands"], "whorl -0 width");
+  EXPECT_LT(std::abs(last.at("value").get<double>() - truth.width),
+            3 * last.at("standard_uncertainty").get<double>());
+  const nlohmann::json& last_height = *find(mc.document["measurands"], "whorl -0 height");
+  EXPECT_LT(std::abs(last_height.at("value").get<double>() - truth.height),
+            3 * last_height.at("standard_uncertainty").get<double>());
 }
 
 // Allometric shells: the whorl expansion rate grows by e^{4 pi^2 q} = 1.17 per whorl and the whorl's
@@ -281,6 +395,46 @@ TEST(ShellGrowth, LastAngleUncertaintyIsTheLocalSpacing) {
   for (int i = 0; i <= 1000; ++i) angles.push_back(0.01 * i);
   EXPECT_NEAR(pipeline::LastAngleUncertainty(angles, 10.0), 0.2 * M_PI / 63, 1e-12);  // 63 feet in 0.628 rad
   EXPECT_TRUE(std::isnan(pipeline::LastAngleUncertainty(angles, 20.0)));
+}
+
+// Eq. S7b: the width of the tenth of the covered range next to an end over the feet in it; eq. S7c: the
+// shell's ends one spacing beyond the last feet, along the coil and along the curve's tangent.
+TEST(ShellGrowth, CoverageAndEstimatedEnds) {
+  std::vector<double> parameters;
+  for (int i = 0; i <= 100; ++i) parameters.push_back(1.0 + 0.02 * i);                       // u in [1, 3]
+  EXPECT_NEAR(pipeline::CurveEndUncertainty(parameters, 1.0, 3.0, false), 0.2 / 11, 1e-12);  // 11 feet in 0.2
+  EXPECT_NEAR(pipeline::CurveEndUncertainty(parameters, 1.0, 3.0, true), 0.2 / 11, 1e-12);
+  EXPECT_TRUE(std::isnan(pipeline::CurveEndUncertainty(parameters, 1.0, 1.0, true)));
+  std::vector<FootPoint> feet;
+  for (int i = 0; i <= 100; ++i) {
+    FootPoint f;
+    f.t = {1.0 + 0.02 * i, 0.1 * i};
+    feet.push_back(f);
+  }
+  feet.push_back(FootPoint{});  // a foot on the boundary does not count
+  feet.back().t = {9.0, 99.0};
+  feet.back().on_boundary = true;
+  const pipeline::ShellCoverage c = pipeline::MeasureCoverage(feet);
+  ASSERT_TRUE(c.covered());
+  EXPECT_EQ(c.angle_lo, 0.0);
+  EXPECT_NEAR(c.angle_hi, 10.0, 1e-12);
+  EXPECT_NEAR(c.angle_uncertainty, 0.2 * M_PI / 7, 1e-12);  // 7 feet in the last 0.628 rad
+  EXPECT_EQ(c.curve_lo, 1.0);
+  EXPECT_NEAR(c.curve_hi, 3.0, 1e-12);
+  EXPECT_NEAR(c.curve_lo_uncertainty, 0.2 / 11, 1e-12);
+  Eigen::Matrix2Xd profile(2, 6);
+  profile << 20, 25, 30, 31, 26, 19,  //
+      -8, -6, -2, 2, 6, 8;
+  const SpiralSurface shell(UnitSpacedClamped(4, 6), profile, 0.12, -M_PI, 3 * M_PI);
+  const pipeline::ShellEnds ends = pipeline::EstimateEnds(shell, c);
+  EXPECT_NEAR(ends.angle, c.angle_hi + c.angle_uncertainty, 1e-12);
+  EXPECT_LT(
+      (ends.curve_lo - (shell.CurvePoint(1.0) - c.curve_lo_uncertainty * shell.CurvePoint(1.0, 1))).norm(),
+      1e-12);
+  EXPECT_LT(
+      (ends.curve_hi - (shell.CurvePoint(3.0) + c.curve_hi_uncertainty * shell.CurvePoint(3.0, 1))).norm(),
+      1e-12);
+  EXPECT_FALSE(pipeline::MeasureCoverage({}).covered());
 }
 
 }  // namespace
