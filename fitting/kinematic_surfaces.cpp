@@ -619,7 +619,10 @@ SpiralSurface::Scales SpiralSurface::ScalesAt(double v) const {
 }
 
 SpiralSurface::Raup SpiralSurface::RaupParameters() const {
-  const Eigen::Vector4d e = Extents();
+  return RaupParameters(Extents());
+}
+
+SpiralSurface::Raup SpiralSurface::RaupParameters(const Eigen::Vector4d& e) const {
   const double r_min = e[0], r_max = e[1], z_min = e[2], z_max = e[3];
   Raup out;
   out.w = WhorlExpansionRate();

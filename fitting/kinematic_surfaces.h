@@ -154,6 +154,8 @@ class SpiralSurface final : public ParametricModel {
     double w = 0.0, d = 0.0, t = 0.0;
   };
   Raup RaupParameters() const;
+  // The same with given extents (r_min, r_max, z_min, z_max) of the generating curve, e.g. ExtentsBetween's.
+  Raup RaupParameters(const Eigen::Vector4d& extents) const;
   // The growing-tube parameters (Okamoto 1988) of the logarithmic coil with Raup's W, D and T
   // (docs/archaeology.md section 7, eqs. A18-A20): the centre of a circular generating curve of radius r
   // moves along a conical logarithmic helix of arc length s; E = dr/ds (the tube's expansion per length),

@@ -503,33 +503,6 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     if (spiral) {
       shell =
           MeasureShell(spiral->growth(), UncertaintyOf(*model, r, "growth"), spiral->WhorlExpansionRate());
-      // Raup's D and T with their standard uncertainties from the shape covariance (eq. 18 of
-      // docs/metrology.md; the generatrix's ends held, as for a vessel's radii).
-      const SpiralSurface::Raup raup = spiral->RaupParameters();
-      shell->raup_d.value = raup.d;
-      shell->raup_t.value = raup.t;
-      const SpiralSurface::GrowingTube tube = SpiralSurface::GrowingTubeFromRaup(raup);
-      shell->tube_expansion.value = tube.expansion;
-      shell->tube_curvature.value = tube.curvature;
-      shell->tube_torsion.value = tube.torsion;
-      if (r.shape_covariance.rows() == spiral->num_parameters()) {
-        const std::vector<LinearPropagation> u = PropagateLinear(
-            [&](const Eigen::VectorXd& q) {
-              SpiralSurface moved = *spiral;
-              moved.set_parameters(q);
-              const SpiralSurface::Raup m = moved.RaupParameters();
-              const SpiralSurface::GrowingTube g = SpiralSurface::GrowingTubeFromRaup(m);
-              Eigen::VectorXd y(5);
-              y << m.d, m.t, g.expansion, g.curvature, g.torsion;
-              return y;
-            },
-            spiral->parameters(), r.shape_covariance);
-        shell->raup_d.uncertainty = u[0].standard_uncertainty;
-        shell->raup_t.uncertainty = u[1].standard_uncertainty;
-        shell->tube_expansion.uncertainty = u[2].standard_uncertainty;
-        shell->tube_curvature.uncertainty = u[3].standard_uncertainty;
-        shell->tube_torsion.uncertainty = u[4].standard_uncertainty;
-      }
       j["growth"] = shell->ToJson();
     }
     std::vector<RigidMotion> corrected;
@@ -618,9 +591,21 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     // The whorl rows and where the data lie on the shell (eqs. S7a, S7b): the Monte Carlo trials below
     // measure the rows again when they are the logarithmic surface's, the one the trials refit.
     std::vector<WhorlMeasures> whorl_rows;
-    ShellCoverage whorl_coverage;
+    ShellCoverage whorl_coverage, raup_coverage;
     bool whorls_on_fitted_surface = false;
     if (spiral) {
+      // Raup's D and T and the growing tube on the generating curve between where the data end on it, the
+      // ends held there (docs/shells.md section 2, eqs. S5a, S7b-S7c; docs/archaeology.md section 7).
+      {
+        std::vector<Eigen::Matrix3Xd> fitted_points;
+        for (std::size_t k = 0; k < K; ++k) fitted_points.push_back(r.model_T_scan[k].apply(scans[k]));
+        std::vector<FootPoint> fitted_feet;
+        ComputeFootPoints(*spiral, Concatenate(fitted_points)(Eigen::all, kept), fitted_feet);
+        raup_coverage = MeasureCoverage(fitted_feet);
+        MeasureRaup(*spiral, r.shape_covariance, raup_coverage, *shell);
+        const nlohmann::json growth = shell->ToJson();
+        if (growth.contains("raup")) j["growth"]["raup"] = growth["raup"];
+      }
       // A shell's whorls over the coiling angles its kept points' feet cover, and the test of the logarithmic
       // spiral against the allometric one (docs/shells.md sections 2-3); a shell that grows allometrically
       // is not adequately described by W, D and T: the verdict says so.
@@ -831,7 +816,10 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
           }
           if (k->helical()) y.push_back(k->pitch());
         } else if (const auto* sp = dynamic_cast<const SpiralSurface*>(&m)) {
-          const SpiralSurface::Raup raup = sp->RaupParameters();
+          const SpiralSurface::Raup raup = coverage.covered()
+                                               ? sp->RaupParameters(sp->ExtentsBetween(
+                                                     coverage.curve_lo, coverage.curve_hi, end_lo, end_hi))
+                                               : sp->RaupParameters();
           y.push_back(sp->growth());
           y.push_back(sp->WhorlExpansionRate());
           y.push_back(raup.d);
@@ -926,8 +914,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
                 ShellCoverage coverage;
                 double ends_angle = 0.0;
                 Eigen::Vector2d end_lo = Eigen::Vector2d::Zero(), end_hi = end_lo;
-                if (whorls_on_fitted_surface && !whorl_rows.empty()) {
-                  const auto& trial_shell = dynamic_cast<const SpiralSurface&>(*m);
+                if (const auto* sp = dynamic_cast<const SpiralSurface*>(m.get())) {
+                  const SpiralSurface& trial_shell = *sp;
                   const std::vector<RigidMotion>& poses = refit.result().model_T_scan;
                   std::vector<Eigen::Matrix3Xd> moved;
                   for (std::size_t k = 0; k < K; ++k) moved.push_back(poses[k].apply(trial[k]));

@@ -6,6 +6,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 #include "fitting/measurement_uncertainty.h"
 #include "pipeline/output.h"
@@ -145,6 +146,58 @@ std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen
     out.push_back(w);
   }
   return out;
+}
+
+void MeasureRaup(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
+                 const ShellCoverage& coverage, ShellMeasures& out) {
+  const bool held = coverage.covered();
+  const ShellEnds ends = held ? EstimateEnds(shell, coverage) : ShellEnds{};
+  auto measures = [&](const SpiralSurface& s, const Eigen::Vector2d& lo, const Eigen::Vector2d& hi) {
+    const SpiralSurface::Raup m =
+        held ? s.RaupParameters(s.ExtentsBetween(coverage.curve_lo, coverage.curve_hi, lo, hi))
+             : s.RaupParameters();
+    const SpiralSurface::GrowingTube g = SpiralSurface::GrowingTubeFromRaup(m);
+    Eigen::VectorXd y(5);
+    y << m.d, m.t, g.expansion, g.curvature, g.torsion;
+    return y;
+  };
+  const Eigen::VectorXd value = measures(shell, ends.curve_lo, ends.curve_hi);
+  Eigen::VectorXd uncertainty = Eigen::VectorXd::Constant(5, kNaN);
+  if (shape_covariance.rows() == shell.num_parameters()) {
+    const std::vector<LinearPropagation> u = PropagateLinear(
+        [&](const Eigen::VectorXd& p) {
+          SpiralSurface moved = shell;
+          moved.set_parameters(p);
+          return measures(moved, ends.curve_lo, ends.curve_hi);
+        },
+        shell.parameters(), shape_covariance);
+    Eigen::ArrayXd variance(5);
+    for (int i = 0; i < 5; ++i)
+      variance[i] = std::pow(u[static_cast<std::size_t>(i)].standard_uncertainty, 2);
+    if (held) {
+      // Each end slid along the curve's tangent (central differences) times its uncertainty (eq. S7b).
+      constexpr double kStep = 1e-4;
+      const Eigen::Vector2d along_lo = shell.CurvePoint(coverage.curve_lo, 1),
+                            along_hi = shell.CurvePoint(coverage.curve_hi, 1);
+      for (const auto& [along, share, at_hi] :
+           {std::tuple<Eigen::Vector2d, double, bool>{along_lo, coverage.curve_lo_uncertainty, false},
+            {along_hi, coverage.curve_hi_uncertainty, true}}) {
+        if (!(std::isfinite(share) && share > 0)) continue;
+        const Eigen::Vector2d step = kStep * along;
+        const Eigen::VectorXd plus = at_hi ? measures(shell, ends.curve_lo, ends.curve_hi + step)
+                                           : measures(shell, ends.curve_lo + step, ends.curve_hi);
+        const Eigen::VectorXd minus = at_hi ? measures(shell, ends.curve_lo, ends.curve_hi - step)
+                                            : measures(shell, ends.curve_lo - step, ends.curve_hi);
+        variance += (((plus - minus) / (2 * kStep)).array() * share).square();
+      }
+    }
+    uncertainty = variance.sqrt().matrix();
+  }
+  out.raup_d = {value[0], uncertainty[0], ""};
+  out.raup_t = {value[1], uncertainty[1], ""};
+  out.tube_expansion = {value[2], uncertainty[2], ""};
+  out.tube_curvature = {value[3], uncertainty[3], ""};
+  out.tube_torsion = {value[4], uncertainty[4], ""};
 }
 
 nlohmann::json WhorlsJson(const std::vector<WhorlMeasures>& whorls) {

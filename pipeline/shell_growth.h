@@ -58,6 +58,13 @@ ShellEnds EstimateEnds(const SpiralSurface& shell, const ShellCoverage& coverage
 std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
                                          const ShellCoverage& coverage, const std::string& units);
 
+// Raup's D and T and the growing tube's E, C and T of a shell (docs/archaeology.md section 7), written into
+// `out`, on the part of its generating curve between its estimated ends (EstimateEnds; eq. S5a), or on the
+// whole curve when `coverage` is not covered. Standard uncertainties: the shape covariance's share with the
+// ends held and, in quadrature, each end's own (eq. S7b).
+void MeasureRaup(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
+                 const ShellCoverage& coverage, ShellMeasures& out);
+
 // The standard uncertainty of the last coiling angle the data reach, from the angles of the points' feet
 // (docs/shells.md eq. S7a): the points sample the coil at random, so the last one falls short of the coil's
 // end by about the local spacing of the angles, the width of the last tenth of a turn over the feet in it.
