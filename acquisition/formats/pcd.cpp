@@ -258,9 +258,13 @@ class PcdParser {
         return v;
       };
       const auto col = static_cast<Eigen::Index>(i);
-      raw_.col(col) << number(cx), number(cy), number(cz);
+      // Every value parsed before the column is written (a braced list evaluates left to right): a format
+      // error thrown inside an Eigen comma initializer leaves it half-filled, which Eigen's assertions abort
+      // on.
+      raw_.col(col) = Eigen::Vector3d{number(cx), number(cy), number(cz)};
       if (HasNormals())
-        raw_normals_.col(col) << number(Column(nx_)), number(Column(ny_)), number(Column(nz_));
+        raw_normals_.col(col) =
+            Eigen::Vector3d{number(Column(nx_)), number(Column(ny_)), number(Column(nz_))};
       if (label_ >= 0) raw_labels_[i] = Label(number(Column(label_)), i, where);
     }
   }
@@ -279,8 +283,8 @@ class PcdParser {
         return LoadAsDouble(record + field.offset, field.scalar, true);
       };
       const auto col = static_cast<Eigen::Index>(i);
-      raw_.col(col) << value(x_), value(y_), value(z_);
-      if (HasNormals()) raw_normals_.col(col) << value(nx_), value(ny_), value(nz_);
+      raw_.col(col) = Eigen::Vector3d{value(x_), value(y_), value(z_)};
+      if (HasNormals()) raw_normals_.col(col) = Eigen::Vector3d{value(nx_), value(ny_), value(nz_)};
       if (label_ >= 0) raw_labels_[i] = Label(value(label_), i, AtByte(data_start_ + i * record_size_));
     }
   }
@@ -320,8 +324,8 @@ class PcdParser {
         return LoadAsDouble(p, field.scalar, true);
       };
       const auto col = static_cast<Eigen::Index>(i);
-      raw_.col(col) << value(x_), value(y_), value(z_);
-      if (HasNormals()) raw_normals_.col(col) << value(nx_), value(ny_), value(nz_);
+      raw_.col(col) = Eigen::Vector3d{value(x_), value(y_), value(z_)};
+      if (HasNormals()) raw_normals_.col(col) = Eigen::Vector3d{value(nx_), value(ny_), value(nz_)};
       if (label_ >= 0) raw_labels_[i] = Label(value(label_), i, "compressed data");
     }
   }

@@ -226,9 +226,13 @@ class PlyParser {
              "vertex " + std::to_string(i) + ": " + what + " is not finite (" + std::to_string(x) + ")");
       return x;
     };
-    scan_.points.col(c) << finite(layout_.x, "x"), finite(layout_.y, "y"), finite(layout_.z, "z");
+    // Every value read before the column is written (left to right), not by a comma initializer a format
+    // error would leave half-filled (Eigen's assertions abort on that).
+    scan_.points.col(c) =
+        Eigen::Vector3d{finite(layout_.x, "x"), finite(layout_.y, "y"), finite(layout_.z, "z")};
     if (layout_.has_normals())
-      scan_.normals.col(c) << finite(layout_.nx, "nx"), finite(layout_.ny, "ny"), finite(layout_.nz, "nz");
+      scan_.normals.col(c) =
+          Eigen::Vector3d{finite(layout_.nx, "nx"), finite(layout_.ny, "ny"), finite(layout_.nz, "nz")};
     if (layout_.weight >= 0) scan_.weights[c] = finite(layout_.weight, "weight");
   }
 
