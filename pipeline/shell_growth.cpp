@@ -3,10 +3,10 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
-#include <tuple>
 
 #include "fitting/measurement_uncertainty.h"
 #include "pipeline/output.h"
@@ -84,17 +84,54 @@ ShellEnds EstimateEnds(const SpiralSurface& shell, const ShellCoverage& coverage
   return e;
 }
 
+namespace {
+
+// Values f(shell, end_lo, end_hi) of a shell measured between the ends of its generating curve, and their
+// variances: the shape covariance's share with the ends held where the data end (eq. S5a: a change of the
+// curve that only slides it along itself, which the data do not see, moves no end), and each end's own
+// share (eq. S7b), the end slid along the curve's tangent (central differences) times its uncertainty.
+using HeldEndMeasures =
+    std::function<Eigen::VectorXd(const SpiralSurface&, const Eigen::Vector2d&, const Eigen::Vector2d&)>;
+Eigen::ArrayXd HeldEndVariance(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
+                               const ShellCoverage& coverage, const ShellEnds& ends,
+                               const HeldEndMeasures& f) {
+  const std::vector<LinearPropagation> u = PropagateLinear(
+      [&](const Eigen::VectorXd& p) {
+        SpiralSurface moved = shell;
+        moved.set_parameters(p);
+        return f(moved, ends.curve_lo, ends.curve_hi);
+      },
+      shell.parameters(), shape_covariance);
+  Eigen::ArrayXd variance(static_cast<Eigen::Index>(u.size()));
+  for (std::size_t i = 0; i < u.size(); ++i)
+    variance[static_cast<Eigen::Index>(i)] = std::pow(u[i].standard_uncertainty, 2);
+  // An end's derivative along the curve's tangent (central differences) times its uncertainty.
+  auto add_end = [&](double share, double at, bool at_hi) {
+    if (!(std::isfinite(share) && share > 0)) return;
+    constexpr double kStep = 1e-4;
+    const Eigen::Vector2d step = kStep * shell.CurvePoint(at, 1);
+    const Eigen::VectorXd derivative = at_hi ? (f(shell, ends.curve_lo, ends.curve_hi + step) -
+                                                f(shell, ends.curve_lo, ends.curve_hi - step)) /
+                                                   (2 * kStep)
+                                             : (f(shell, ends.curve_lo + step, ends.curve_hi) -
+                                                f(shell, ends.curve_lo - step, ends.curve_hi)) /
+                                                   (2 * kStep);
+    variance += (derivative.array() * share).square();
+  };
+  add_end(coverage.curve_lo_uncertainty, coverage.curve_lo, false);
+  add_end(coverage.curve_hi_uncertainty, coverage.curve_hi, true);
+  return variance;
+}
+
+}  // namespace
+
 std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
                                          const ShellCoverage& coverage, const std::string& units) {
   std::vector<WhorlMeasures> out;
   if (!coverage.covered()) return out;
   const bool propagate = shape_covariance.rows() == shell.num_parameters();
-  // Where the shell ends (eq. S7c) on the fitted generating curve, and the curve's direction there (per
-  // unit u).
+  // Where the shell ends (eq. S7c).
   const ShellEnds ends = EstimateEnds(shell, coverage);
-  const Eigen::Vector2d end_lo = ends.curve_lo, end_hi = ends.curve_hi;
-  const Eigen::Vector2d along_lo = shell.CurvePoint(coverage.curve_lo, 1),
-                        along_hi = shell.CurvePoint(coverage.curve_hi, 1);
   auto measures = [&](const SpiralSurface& s, double angle, const Eigen::Vector2d& lo,
                       const Eigen::Vector2d& hi) {
     const SpiralSurface::Whorl m =
@@ -108,35 +145,25 @@ std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen
     w.whorls_from_last = k;
     w.angle = ends.angle - 2 * M_PI * k;
     const bool across = w.angle - M_PI >= coverage.angle_lo;  // the opposite side is in the data too
-    const Eigen::VectorXd value = measures(shell, w.angle, end_lo, end_hi);
+    const Eigen::VectorXd value = measures(shell, w.angle, ends.curve_lo, ends.curve_hi);
     Eigen::VectorXd uncertainty = Eigen::VectorXd::Constant(4, kNaN);
     if (propagate) {
-      // The shape's share, the ends held where the data put them (eq. S5a): a change of the curve that only
-      // slides it along itself, which the data do not see, moves no extent.
-      const std::vector<LinearPropagation> u = PropagateLinear(
-          [&](const Eigen::VectorXd& p) {
-            SpiralSurface moved = shell;
-            moved.set_parameters(p);
-            return measures(moved, w.angle, end_lo, end_hi);
-          },
-          shell.parameters(), shape_covariance);
-      Eigen::ArrayXd variance(4);
-      for (int i = 0; i < 4; ++i)
-        variance[i] = std::pow(u[static_cast<std::size_t>(i)].standard_uncertainty, 2);
-      // Where the data end, each by its derivative (central differences) times its uncertainty, in
-      // quadrature: along the coil (eq. S7a; all rows move with angle_hi) and along the generating curve at
-      // either end (eq. S7b; the end slid along the curve's tangent).
-      constexpr double kStep = 1e-4;
-      auto add = [&](const Eigen::VectorXd& plus, const Eigen::VectorXd& minus, double step, double share) {
-        if (std::isfinite(share) && share > 0)
-          variance += (((plus - minus) / (2 * step)).array() * share).square();
-      };
-      add(measures(shell, w.angle + kStep, end_lo, end_hi), measures(shell, w.angle - kStep, end_lo, end_hi),
-          kStep, coverage.angle_uncertainty);
-      add(measures(shell, w.angle, end_lo + kStep * along_lo, end_hi),
-          measures(shell, w.angle, end_lo - kStep * along_lo, end_hi), kStep, coverage.curve_lo_uncertainty);
-      add(measures(shell, w.angle, end_lo, end_hi + kStep * along_hi),
-          measures(shell, w.angle, end_lo, end_hi - kStep * along_hi), kStep, coverage.curve_hi_uncertainty);
+      Eigen::ArrayXd variance =
+          HeldEndVariance(shell, shape_covariance, coverage, ends,
+                          [&](const SpiralSurface& s, const Eigen::Vector2d& lo, const Eigen::Vector2d& hi) {
+                            return measures(s, w.angle, lo, hi);
+                          });
+      // Eq. S7a: all rows move with the coil's end; the measures' derivative along the coil (central
+      // differences) times its uncertainty, in quadrature.
+      if (const double share = coverage.angle_uncertainty; std::isfinite(share) && share > 0) {
+        constexpr double kStep = 1e-4;
+        variance += (((measures(shell, w.angle + kStep, ends.curve_lo, ends.curve_hi) -
+                       measures(shell, w.angle - kStep, ends.curve_lo, ends.curve_hi)) /
+                      (2 * kStep))
+                         .array() *
+                     share)
+                        .square();
+      }
       uncertainty = variance.sqrt().matrix();
     }
     w.height = {value[0], uncertainty[0], units};
@@ -163,36 +190,10 @@ void MeasureRaup(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covari
   };
   const Eigen::VectorXd value = measures(shell, ends.curve_lo, ends.curve_hi);
   Eigen::VectorXd uncertainty = Eigen::VectorXd::Constant(5, kNaN);
-  if (shape_covariance.rows() == shell.num_parameters()) {
-    const std::vector<LinearPropagation> u = PropagateLinear(
-        [&](const Eigen::VectorXd& p) {
-          SpiralSurface moved = shell;
-          moved.set_parameters(p);
-          return measures(moved, ends.curve_lo, ends.curve_hi);
-        },
-        shell.parameters(), shape_covariance);
-    Eigen::ArrayXd variance(5);
-    for (int i = 0; i < 5; ++i)
-      variance[i] = std::pow(u[static_cast<std::size_t>(i)].standard_uncertainty, 2);
-    if (held) {
-      // Each end slid along the curve's tangent (central differences) times its uncertainty (eq. S7b).
-      constexpr double kStep = 1e-4;
-      const Eigen::Vector2d along_lo = shell.CurvePoint(coverage.curve_lo, 1),
-                            along_hi = shell.CurvePoint(coverage.curve_hi, 1);
-      for (const auto& [along, share, at_hi] :
-           {std::tuple<Eigen::Vector2d, double, bool>{along_lo, coverage.curve_lo_uncertainty, false},
-            {along_hi, coverage.curve_hi_uncertainty, true}}) {
-        if (!(std::isfinite(share) && share > 0)) continue;
-        const Eigen::Vector2d step = kStep * along;
-        const Eigen::VectorXd plus = at_hi ? measures(shell, ends.curve_lo, ends.curve_hi + step)
-                                           : measures(shell, ends.curve_lo + step, ends.curve_hi);
-        const Eigen::VectorXd minus = at_hi ? measures(shell, ends.curve_lo, ends.curve_hi - step)
-                                            : measures(shell, ends.curve_lo - step, ends.curve_hi);
-        variance += (((plus - minus) / (2 * kStep)).array() * share).square();
-      }
-    }
-    uncertainty = variance.sqrt().matrix();
-  }
+  if (shape_covariance.rows() == shell.num_parameters())
+    uncertainty = HeldEndVariance(shell, shape_covariance, held ? coverage : ShellCoverage{}, ends, measures)
+                      .sqrt()
+                      .matrix();
   out.raup_d = {value[0], uncertainty[0], ""};
   out.raup_t = {value[1], uncertainty[1], ""};
   out.tube_expansion = {value[2], uncertainty[2], ""};
