@@ -24,7 +24,11 @@ namespace {
 // 8 m (x f(x))^2 at the median x, f the chi-square density x^(k/2 - 1) exp(-x/2) / (2^(k/2) Gamma(k/2)).
 double MedianEstimateDof(int m, int k) {
   const double x = ChiSquareMedian(k), h = 0.5 * k;
-  const double xf = std::exp(h * std::log(x) - 0.5 * x - h * std::log(2.0) - std::lgamma(h));
+  // lgamma_r, not std::lgamma: lgamma writes the global signgam, a data race between a batch's threads
+  // (ThreadSanitizer, docs/reliability.md).
+  int sign = 0;
+  const double log_gamma = ::lgamma_r(h, &sign);
+  const double xf = std::exp(h * std::log(x) - 0.5 * x - h * std::log(2.0) - log_gamma);
   return 8.0 * m * xf * xf;
 }
 
