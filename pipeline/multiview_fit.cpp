@@ -591,21 +591,23 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     // The whorl rows and where the data lie on the shell (eqs. S7a, S7b): the Monte Carlo trials below
     // measure the rows again when they are the logarithmic surface's, the one the trials refit.
     std::vector<WhorlMeasures> whorl_rows;
-    ShellCoverage whorl_coverage, raup_coverage;
     bool whorls_on_fitted_surface = false;
     if (spiral) {
       // Raup's D and T and the growing tube on the generating curve between where the data end on it, the
       // ends held there (docs/shells.md section 2, eqs. S5a, S7b-S7c; docs/archaeology.md section 7).
-      {
-        std::vector<Eigen::Matrix3Xd> fitted_points;
-        for (std::size_t k = 0; k < K; ++k) fitted_points.push_back(r.model_T_scan[k].apply(scans[k]));
-        std::vector<FootPoint> fitted_feet;
-        ComputeFootPoints(*spiral, Concatenate(fitted_points)(Eigen::all, kept), fitted_feet);
-        raup_coverage = MeasureCoverage(fitted_feet);
-        MeasureRaup(*spiral, r.shape_covariance, raup_coverage, *shell);
-        const nlohmann::json growth = shell->ToJson();
-        if (growth.contains("raup")) j["growth"]["raup"] = growth["raup"];
-      }
+      // Where the kept points' feet lie on the fitted (logarithmic) surface; the whorls below reuse it when
+      // they are measured on that surface.
+      auto coverage_on = [&](const SpiralSurface& surface, const std::vector<RigidMotion>& poses) {
+        std::vector<Eigen::Matrix3Xd> posed;
+        for (std::size_t k = 0; k < K; ++k) posed.push_back(poses[k].apply(scans[k]));
+        std::vector<FootPoint> feet_on;
+        ComputeFootPoints(surface, Concatenate(posed)(Eigen::all, kept), feet_on);
+        return MeasureCoverage(feet_on);
+      };
+      const ShellCoverage fitted_coverage = coverage_on(*spiral, r.model_T_scan);
+      MeasureRaup(*spiral, r.shape_covariance, fitted_coverage, *shell);
+      if (const nlohmann::json growth = shell->ToJson(); growth.contains("raup"))
+        j["growth"]["raup"] = growth["raup"];
       // A shell's whorls over the coiling angles its kept points' feet cover, and the test of the logarithmic
       // spiral against the allometric one (docs/shells.md sections 2-3); a shell that grows allometrically
       // is not adequately described by W, D and T: the verdict says so.
@@ -639,13 +641,8 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       const bool allometric = allometry.verdict == "does not hold";
       const SpiralSurface& measured =
           allometric ? dynamic_cast<const SpiralSurface&>(*nested.model) : *spiral;
-      const std::vector<RigidMotion>& measured_poses =
-          allometric ? nested.result.model_T_scan : r.model_T_scan;
-      std::vector<Eigen::Matrix3Xd> measured_points;
-      for (std::size_t k = 0; k < K; ++k) measured_points.push_back(measured_poses[k].apply(scans[k]));
-      std::vector<FootPoint> coil_feet;
-      ComputeFootPoints(measured, Concatenate(measured_points)(Eigen::all, kept), coil_feet);
-      whorl_coverage = MeasureCoverage(coil_feet);
+      const ShellCoverage whorl_coverage =
+          allometric ? coverage_on(measured, nested.result.model_T_scan) : fitted_coverage;
       const double angle_lo = whorl_coverage.angle_lo, angle_hi = whorl_coverage.angle_hi;
       whorl_rows = MeasureWhorls(measured, allometric ? nested.result.shape_covariance : r.shape_covariance,
                                  whorl_coverage, units);
@@ -816,19 +813,20 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
           }
           if (k->helical()) y.push_back(k->pitch());
         } else if (const auto* sp = dynamic_cast<const SpiralSurface*>(&m)) {
-          const SpiralSurface::Raup raup = coverage.covered()
-                                               ? sp->RaupParameters(sp->ExtentsBetween(
-                                                     coverage.curve_lo, coverage.curve_hi, end_lo, end_hi))
-                                               : sp->RaupParameters();
+          // The generating curve's extents between the trial's ends, once for D, T and every row.
+          const std::optional<Eigen::Vector4d> extents =
+              coverage.covered()
+                  ? std::optional(sp->ExtentsBetween(coverage.curve_lo, coverage.curve_hi, end_lo, end_hi))
+                  : std::nullopt;
+          const SpiralSurface::Raup raup = extents ? sp->RaupParameters(*extents) : sp->RaupParameters();
           y.push_back(sp->growth());
           y.push_back(sp->WhorlExpansionRate());
           y.push_back(raup.d);
           y.push_back(raup.t);
-          if (whorls_on_fitted_surface)
+          if (whorls_on_fitted_surface && extents)
             for (const WhorlMeasures& w : whorl_rows) {
               const SpiralSurface::Whorl at =
-                  sp->WhorlAt(last_angle - 2 * M_PI * w.whorls_from_last,
-                              sp->ExtentsBetween(coverage.curve_lo, coverage.curve_hi, end_lo, end_hi));
+                  sp->WhorlAt(last_angle - 2 * M_PI * w.whorls_from_last, *extents);
               y.push_back(at.height);
               y.push_back(at.width);
               if (std::isfinite(w.umbilical_width.value)) y.push_back(at.umbilical_width);

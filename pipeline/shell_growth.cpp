@@ -191,9 +191,7 @@ void MeasureRaup(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covari
   const Eigen::VectorXd value = measures(shell, ends.curve_lo, ends.curve_hi);
   Eigen::VectorXd uncertainty = Eigen::VectorXd::Constant(5, kNaN);
   if (shape_covariance.rows() == shell.num_parameters())
-    uncertainty = HeldEndVariance(shell, shape_covariance, held ? coverage : ShellCoverage{}, ends, measures)
-                      .sqrt()
-                      .matrix();
+    uncertainty = HeldEndVariance(shell, shape_covariance, coverage, ends, measures).sqrt().matrix();
   out.raup_d = {value[0], uncertainty[0], ""};
   out.raup_t = {value[1], uncertainty[1], ""};
   out.tube_expansion = {value[2], uncertainty[2], ""};
