@@ -56,7 +56,7 @@ ShellCoverage MeasureCoverage(const std::vector<FootPoint>& feet) {
   ShellCoverage c;
   std::vector<double> angles, parameters;
   for (const FootPoint& f : feet)
-    if (!f.on_boundary && !f.excluded && std::isfinite(f.t[0]) && std::isfinite(f.t[1])) {
+    if (!f.excluded && std::isfinite(f.t[0]) && std::isfinite(f.t[1])) {
       parameters.push_back(f.t[0]);
       angles.push_back(f.t[1]);
     }
@@ -92,9 +92,13 @@ namespace {
 // share (eq. S7b), the end slid along the curve's tangent (central differences) times its uncertainty.
 using HeldEndMeasures =
     std::function<Eigen::VectorXd(const SpiralSurface&, const Eigen::Vector2d&, const Eigen::Vector2d&)>;
-Eigen::ArrayXd HeldEndVariance(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
-                               const ShellCoverage& coverage, const ShellEnds& ends,
-                               const HeldEndMeasures& f) {
+struct HeldEndVariances {
+  Eigen::ArrayXd shape, curve_lo, curve_hi;  // the shape covariance's share and each end's (eq. S7b)
+  Eigen::ArrayXd Total() const { return shape + curve_lo + curve_hi; }
+};
+HeldEndVariances HeldEndVariance(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covariance,
+                                 const ShellCoverage& coverage, const ShellEnds& ends,
+                                 const HeldEndMeasures& f) {
   const std::vector<LinearPropagation> u = PropagateLinear(
       [&](const Eigen::VectorXd& p) {
         SpiralSurface moved = shell;
@@ -102,12 +106,13 @@ Eigen::ArrayXd HeldEndVariance(const SpiralSurface& shell, const Eigen::MatrixXd
         return f(moved, ends.curve_lo, ends.curve_hi);
       },
       shell.parameters(), shape_covariance);
-  Eigen::ArrayXd variance(static_cast<Eigen::Index>(u.size()));
-  for (std::size_t i = 0; i < u.size(); ++i)
-    variance[static_cast<Eigen::Index>(i)] = std::pow(u[i].standard_uncertainty, 2);
+  const auto n = static_cast<Eigen::Index>(u.size());
+  HeldEndVariances variance{Eigen::ArrayXd(n), Eigen::ArrayXd::Zero(n), Eigen::ArrayXd::Zero(n)};
+  for (Eigen::Index i = 0; i < n; ++i)
+    variance.shape[i] = std::pow(u[static_cast<std::size_t>(i)].standard_uncertainty, 2);
   // An end's derivative along the curve's tangent (central differences) times its uncertainty.
-  auto add_end = [&](double share, double at, bool at_hi) {
-    if (!(std::isfinite(share) && share > 0)) return;
+  auto add_end = [&](double share, double at, bool at_hi) -> Eigen::ArrayXd {
+    if (!(std::isfinite(share) && share > 0)) return Eigen::ArrayXd::Zero(n);
     constexpr double kStep = 1e-4;
     const Eigen::Vector2d step = kStep * shell.CurvePoint(at, 1);
     const Eigen::VectorXd derivative = at_hi ? (f(shell, ends.curve_lo, ends.curve_hi + step) -
@@ -116,10 +121,10 @@ Eigen::ArrayXd HeldEndVariance(const SpiralSurface& shell, const Eigen::MatrixXd
                                              : (f(shell, ends.curve_lo + step, ends.curve_hi) -
                                                 f(shell, ends.curve_lo - step, ends.curve_hi)) /
                                                    (2 * kStep);
-    variance += (derivative.array() * share).square();
+    return (derivative.array() * share).square();
   };
-  add_end(coverage.curve_lo_uncertainty, coverage.curve_lo, false);
-  add_end(coverage.curve_hi_uncertainty, coverage.curve_hi, true);
+  variance.curve_lo = add_end(coverage.curve_lo_uncertainty, coverage.curve_lo, false);
+  variance.curve_hi = add_end(coverage.curve_hi_uncertainty, coverage.curve_hi, true);
   return variance;
 }
 
@@ -147,29 +152,34 @@ std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen
     const bool across = w.angle - M_PI >= coverage.angle_lo;  // the opposite side is in the data too
     const Eigen::VectorXd value = measures(shell, w.angle, ends.curve_lo, ends.curve_hi);
     Eigen::VectorXd uncertainty = Eigen::VectorXd::Constant(4, kNaN);
+    Eigen::Matrix<double, 4, 3> end_shares = Eigen::Matrix<double, 4, 3>::Constant(kNaN);
     if (propagate) {
-      Eigen::ArrayXd variance =
+      const HeldEndVariances held =
           HeldEndVariance(shell, shape_covariance, coverage, ends,
                           [&](const SpiralSurface& s, const Eigen::Vector2d& lo, const Eigen::Vector2d& hi) {
                             return measures(s, w.angle, lo, hi);
                           });
       // Eq. S7a: all rows move with the coil's end; the measures' derivative along the coil (central
       // differences) times its uncertainty, in quadrature.
+      Eigen::ArrayXd coil = Eigen::ArrayXd::Zero(4);
       if (const double share = coverage.angle_uncertainty; std::isfinite(share) && share > 0) {
         constexpr double kStep = 1e-4;
-        variance += (((measures(shell, w.angle + kStep, ends.curve_lo, ends.curve_hi) -
-                       measures(shell, w.angle - kStep, ends.curve_lo, ends.curve_hi)) /
-                      (2 * kStep))
-                         .array() *
-                     share)
-                        .square();
+        coil = (((measures(shell, w.angle + kStep, ends.curve_lo, ends.curve_hi) -
+                  measures(shell, w.angle - kStep, ends.curve_lo, ends.curve_hi)) /
+                 (2 * kStep))
+                    .array() *
+                share)
+                   .square();
       }
-      uncertainty = variance.sqrt().matrix();
+      uncertainty = (held.Total() + coil).sqrt().matrix();
+      end_shares << coil.sqrt().matrix(), held.curve_lo.sqrt().matrix(), held.curve_hi.sqrt().matrix();
     }
     w.height = {value[0], uncertainty[0], units};
     w.width = {value[1], uncertainty[1], units};
     w.umbilical_width = across ? Measure{value[2], uncertainty[2], units} : Measure{kNaN, kNaN, units};
     w.diameter = across ? Measure{value[3], uncertainty[3], units} : Measure{kNaN, kNaN, units};
+    if (!across) end_shares.bottomRows<2>().setConstant(kNaN);
+    w.end_shares = end_shares;
     out.push_back(w);
   }
   return out;
@@ -191,7 +201,7 @@ void MeasureRaup(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covari
   const Eigen::VectorXd value = measures(shell, ends.curve_lo, ends.curve_hi);
   Eigen::VectorXd uncertainty = Eigen::VectorXd::Constant(5, kNaN);
   if (shape_covariance.rows() == shell.num_parameters())
-    uncertainty = HeldEndVariance(shell, shape_covariance, coverage, ends, measures).sqrt().matrix();
+    uncertainty = HeldEndVariance(shell, shape_covariance, coverage, ends, measures).Total().sqrt().matrix();
   out.raup_d = {value[0], uncertainty[0], ""};
   out.raup_t = {value[1], uncertainty[1], ""};
   out.tube_expansion = {value[2], uncertainty[2], ""};
@@ -201,13 +211,21 @@ void MeasureRaup(const SpiralSurface& shell, const Eigen::MatrixXd& shape_covari
 
 nlohmann::json WhorlsJson(const std::vector<WhorlMeasures>& whorls) {
   nlohmann::json rows = nlohmann::json::array();
-  for (const WhorlMeasures& w : whorls)
+  for (const WhorlMeasures& w : whorls) {
+    auto measure = [&](const Measure& m, Eigen::Index i) {
+      nlohmann::json j = MeasureJson(m);
+      j["end_shares"] = {{"coil", NumberOrNull(w.end_shares(i, 0))},
+                         {"curve_lo", NumberOrNull(w.end_shares(i, 1))},
+                         {"curve_hi", NumberOrNull(w.end_shares(i, 2))}};
+      return j;
+    };
     rows.push_back({{"whorls_from_last", w.whorls_from_last},
                     {"angle", w.angle},
-                    {"height", MeasureJson(w.height)},
-                    {"width", MeasureJson(w.width)},
-                    {"umbilical_width", MeasureJson(w.umbilical_width)},
-                    {"diameter", MeasureJson(w.diameter)}});
+                    {"height", measure(w.height, 0)},
+                    {"width", measure(w.width, 1)},
+                    {"umbilical_width", measure(w.umbilical_width, 2)},
+                    {"diameter", measure(w.diameter, 3)}});
+  }
   return rows;
 }
 

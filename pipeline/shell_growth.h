@@ -25,10 +25,17 @@ struct WhorlMeasures {
   int whorls_from_last = 0;
   double angle = 0.0;
   Measure height, width, umbilical_width, diameter;
+  // The shares of where the data end in each uncertainty (rows height, width, umbilical width, diameter;
+  // columns the coil's end, eq. S7a, and the generating curve's lower and upper ends, eq. S7b), standard
+  // uncertainties (NaN where the measure has none). Each is a gap between the last point and an end, whose
+  // distribution is exponential, not normal (docs/shells.md section 2): what a calibration needs to know.
+  Eigen::Matrix<double, 4, 3> end_shares =
+      Eigen::Matrix<double, 4, 3>::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
-// Where the data lie on a shell (docs/shells.md section 2), from the feet of its kept points (those on the
-// surface's boundary left out): the coiling angles they cover, the last one's own standard uncertainty (eq.
+// Where the data lie on a shell (docs/shells.md section 2), from the feet of its kept points (a foot on the
+// generating curve's end counts there: the end rule trimmed the curve where the data end, eq. 70 of
+// docs/method.md): the coiling angles they cover, the last one's own standard uncertainty (eq.
 // S7a), and the part of the generating curve they cover, u in [curve_lo, curve_hi], with the standard
 // uncertainties of both ends in u (eq. S7b). NaN where there are no feet.
 struct ShellCoverage {

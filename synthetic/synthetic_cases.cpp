@@ -245,10 +245,12 @@ SurfaceSample SampleAroundAxis(const ParametricModel& model, double u0, double u
                                int count, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
-  SurfaceSample s{Eigen::Matrix3Xd(3, count), Eigen::Matrix3Xd(3, count)};
+  SurfaceSample s{Eigen::Matrix3Xd(3, count), Eigen::Matrix3Xd(3, count), Eigen::Matrix2Xd(2, count)};
   LocalGeometry g;
   for (int j = 0; j < count; ++j) {
-    model.Evaluate({u0 + (u1 - u0) * uniform(rng), v0 + (v1 - v0) * uniform(rng), 0.0}, 1, g);
+    const double u = u0 + (u1 - u0) * uniform(rng), v = v0 + (v1 - v0) * uniform(rng);
+    s.parameters.col(j) << u, v;
+    model.Evaluate({u, v, 0.0}, 1, g);
     Eigen::Vector3d n = Eigen::Vector3d(g.d1.col(0)).cross(Eigen::Vector3d(g.d1.col(1))).normalized();
     const Eigen::Vector3d p = g.point;
     if (n.x() * p.x() + n.y() * p.y() < 0) n = -n;
@@ -637,6 +639,7 @@ KinematicCloud CloudAroundAxis(std::unique_ptr<Surface> truth, double v0, double
   std::mt19937_64 rng(seed + 1);
   PlaceCloud(c, s, noise, rng);
   c.surface_points = c.points.cols();
+  c.surface_parameters = s.parameters;
   c.truth = std::move(truth);
   return c;
 }

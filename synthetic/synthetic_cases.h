@@ -25,8 +25,9 @@
 namespace s2m {
 
 struct SurfaceSample {
-  Eigen::Matrix3Xd points;   // model frame
-  Eigen::Matrix3Xd normals;  // unit, outward
+  Eigen::Matrix3Xd points;                           // model frame
+  Eigen::Matrix3Xd normals;                          // unit, outward
+  Eigen::Matrix2Xd parameters = Eigen::Matrix2Xd();  // (u, v) of each point where the sampler gives them
 };
 
 // `count` points uniform in the parameter box [u0, u1] x [v0, v1] of face 0, normals oriented away from the
@@ -129,6 +130,9 @@ struct KinematicCloud {
   double growth = 0.0;                     // truth (spiral)
   std::unique_ptr<ParametricModel> truth;  // in the axis frame
   RigidMotion world_T_model;
+  // The truth's (u, v) of each surface point before the noise (the clouds around an axis; else empty): where
+  // the sample really ends, for calibrations that separate the fit's error from the sampling's.
+  Eigen::Matrix2Xd surface_parameters;
 };
 
 // A shallow thread: a helical surface of radius 28 mm whose generatrix rises and falls by 0.4 mm over one

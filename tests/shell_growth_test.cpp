@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -15,6 +17,7 @@
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -91,51 +94,98 @@ TEST(ShellGrowth, LogarithmicShellHoldsAndItsWhorlsAreMeasured) {
 }
 
 // The whorl rows' standard uncertainties against the spread of the rows over independent scans of one shell
-// (new points and noise each; docs/shells.md section 2, "Calibration"): the spread's ratio to the mean
-// reported uncertainty within the sampling error of a standard deviation from n scans (3 / sqrt(2 (n - 1))),
-// and the mean row within 3 standard errors of the truth's. About 10 s a scan: it runs only with
+// (new points and noise each; docs/shells.md section 2, "Calibration"), in two parts. Each scan's error is
+// split at the "ideal" row: the truth measured where the scan's own sample really ends, by the same rule
+// (EstimateEnds on the sample's true parameters, eq. S7c). The sampling's part, ideal - truth, is compared
+// with the root sum of squares of the reported end shares s_j (eqs. S7a, S7b); the fit's part, reported -
+// ideal, with the shape's share sqrt(u^2 - sum s_j^2); the whole error with u. The spreads of the whole and
+// of the sampling's part over their mean stated uncertainties within 3 sampling errors of a standard
+// deviation from n scans (the fit's part printed beside them), of the errors' stated distribution: an end's
+// share is an exponential gap (excess kurtosis 6), so k = 6 sum s_j^4 / (sum s_j^2)^2 for the sampling's
+// part, 6 sum s_j^4 / u^4 for the whole, 0 for the fit's (normal), and Var(s^2) / sigma^4 = 2 / (n - 1) + k /
+// n (eq. S7d). The means within 3 standard errors of zero. About 15 s a scan: it runs only with
 // S2M_SHELL_CALIBRATION_SCANS (at least 10) set.
 TEST(ShellGrowth, WhorlUncertaintiesAgainstTheSpreadOfIndependentScans) {
   const char* env = std::getenv("S2M_SHELL_CALIBRATION_SCANS");
   const int n = env ? std::atoi(env) : 0;
   if (n < 10) GTEST_SKIP() << "set S2M_SHELL_CALIBRATION_SCANS to 10 or more scans to run it";
   const char* keys[] = {"height", "width", "umbilical_width", "diameter"};
-  std::vector<std::vector<double>> values(8), uncertainties(8);
-  Eigen::VectorXd truth(8);
+  // Per value (8: two rows of four) and per scan: the three errors and their stated uncertainties.
+  struct Part {
+    std::vector<double> error, uncertainty, kurtosis;
+  };
+  enum { kWhole, kSampling, kFit };
+  const char* part_names[] = {"whole", "sampling", "fit"};
+  std::vector<std::array<Part, 3>> parts(8);
   for (int scan = 1; scan <= n; ++scan) {
     const KinematicCloud cloud =
         AllometricShellCloud(0.0, 0.0, kNoise, kPoints, static_cast<std::uint64_t>(100 + scan));
     const auto& shell = dynamic_cast<const SpiralSurface&>(*cloud.truth);
-    for (int row = 0; row < 2; ++row) {
-      const SpiralSurface::Whorl w = shell.WhorlAt(3 * M_PI - 2 * M_PI * row);
-      truth.segment<4>(4 * row) << w.height, w.width, w.umbilical_width, w.diameter;
-    }
+    // The truth's rows at the sample's real ends: its feet are its own parameters.
+    std::vector<FootPoint> feet(static_cast<std::size_t>(cloud.surface_parameters.cols()));
+    for (std::size_t j = 0; j < feet.size(); ++j)
+      feet[j].t = {cloud.surface_parameters(0, static_cast<Eigen::Index>(j)),
+                   cloud.surface_parameters(1, static_cast<Eigen::Index>(j))};
+    const std::vector<pipeline::WhorlMeasures> ideal =
+        pipeline::MeasureWhorls(shell, Eigen::MatrixXd(), pipeline::MeasureCoverage(feet), "mm");
+    ASSERT_GE(ideal.size(), 2u);
     const pipeline::FitOutcome outcome = FitShell(cloud.points);
     const nlohmann::json& whorls = outcome.document["growth"]["whorls"];
     ASSERT_GE(whorls.size(), 2u);
     for (std::size_t i = 0; i < 8; ++i) {
-      const nlohmann::json& m = whorls[i / 4][keys[i % 4]];
+      const std::size_t row = i / 4;
+      const nlohmann::json& m = whorls[row][keys[i % 4]];
       ASSERT_TRUE(m["value"].is_number()) << keys[i % 4];
-      values[i].push_back(m["value"].get<double>());
-      uncertainties[i].push_back(m["uncertainty"].get<double>());
+      const pipeline::WhorlMeasures& w = ideal[row];
+      const double ideal_value = std::array<double, 4>{w.height.value, w.width.value, w.umbilical_width.value,
+                                                       w.diameter.value}[i % 4];
+      // The truth at the true ends of the coil (3 pi) and of the curve (its whole parameter range).
+      const SpiralSurface::Whorl t = shell.WhorlAt(3 * M_PI - 2 * M_PI * static_cast<double>(row));
+      const double truth = std::array<double, 4>{t.height, t.width, t.umbilical_width, t.diameter}[i % 4];
+      const double value = m["value"].get<double>(), u = m["uncertainty"].get<double>();
+      double squares = 0, fourth = 0;
+      for (const char* end : {"coil", "curve_lo", "curve_hi"}) {
+        ASSERT_TRUE(m["end_shares"][end].is_number()) << keys[i % 4] << " " << end;
+        const double share = m["end_shares"][end].get<double>();
+        squares += share * share;
+        fourth += std::pow(share, 4);
+      }
+      auto add = [&](int part, double error, double uncertainty, double kurtosis) {
+        parts[i][static_cast<std::size_t>(part)].error.push_back(error);
+        parts[i][static_cast<std::size_t>(part)].uncertainty.push_back(uncertainty);
+        parts[i][static_cast<std::size_t>(part)].kurtosis.push_back(kurtosis);
+      };
+      add(kWhole, value - truth, u, 6 * fourth / (u * u * u * u));
+      add(kSampling, ideal_value - truth, std::sqrt(squares), 6 * fourth / (squares * squares));
+      add(kFit, value - ideal_value, std::sqrt(std::max(u * u - squares, 0.0)), 0.0);
     }
   }
-  const double count = n, allowed = 3.0 / std::sqrt(2.0 * (count - 1));
-  for (std::size_t i = 0; i < 8; ++i) {
-    SCOPED_TRACE("whorl -" + std::to_string(i / 4) + " " + keys[i % 4]);
-    double mean = 0, u = 0, variance = 0;
-    for (std::size_t k = 0; k < values[i].size(); ++k) {
-      mean += values[i][k] / count;
-      u += uncertainties[i][k] / count;
+  const double count = n;
+  for (std::size_t i = 0; i < 8; ++i)
+    for (int part : {kWhole, kSampling, kFit}) {
+      const Part& p = parts[i][static_cast<std::size_t>(part)];
+      SCOPED_TRACE("whorl -" + std::to_string(i / 4) + " " + keys[i % 4] + ", " + part_names[part]);
+      double mean = 0, u = 0, variance = 0, excess = 0;
+      for (std::size_t k = 0; k < p.error.size(); ++k) {
+        mean += p.error[k] / count;
+        u += p.uncertainty[k] / count;
+        excess += p.kurtosis[k] / count;
+      }
+      for (const double e : p.error) variance += (e - mean) * (e - mean) / (count - 1);
+      // The relative sampling error of a standard deviation, sqrt(Var(s^2)) / (2 sigma^2) (eq. S7d).
+      const double allowed = 3 * 0.5 * std::sqrt(2 / (count - 1) + excess / count);
+      const double spread = std::sqrt(variance), ratio = spread / u;
+      std::printf(
+          "  whorl -%zu %-15s %-8s mean error %+.4f, spread %.4g, mean u %.4g, spread / u %.2f "
+          "(excess kurtosis %.2f: 1 +- %.2f)\n",
+          i / 4, keys[i % 4], part_names[part], mean, spread, u, ratio, excess, allowed);
+      EXPECT_LT(std::abs(mean), 3 * spread / std::sqrt(count));
+      // The fit's part is printed, not asserted: for the width and the umbilical width it is 1.4-2.0 times
+      // its stated share, about a seventh of the whole (docs/shells.md section 2, "Calibration").
+      if (part == kFit) continue;
+      EXPECT_GT(ratio, 1 / (1 + allowed));
+      EXPECT_LT(ratio, 1 + allowed);
     }
-    for (const double v : values[i]) variance += (v - mean) * (v - mean) / (count - 1);
-    const double spread = std::sqrt(variance), ratio = spread / u;
-    std::printf("  whorl -%zu %s: mean - truth %+.4f, spread %.4g, mean u %.4g, spread / u %.2f\n", i / 4,
-                keys[i % 4], mean - truth[static_cast<Eigen::Index>(i)], spread, u, ratio);
-    EXPECT_LT(std::abs(mean - truth[static_cast<Eigen::Index>(i)]), 3 * spread / std::sqrt(count));
-    EXPECT_GT(ratio, 1 / (1 + allowed));
-    EXPECT_LT(ratio, 1 + allowed);
-  }
 }
 
 // --uncertainty monte-carlo:N on a logarithmic shell (docs/metrology.md section 7a): each trial refits the
@@ -389,6 +439,39 @@ TEST(ShellSection, SvgIsXmlAndPutsTheOppositeSideLeftOfTheAxis) {
   }
 }
 
+// Eqs. S7a, S7c and S7d over random samples: n points drawn evenly over [0, L], the end estimated one spacing
+// (LastAngleUncertainty) beyond the last one. Its error is the spacing minus an exponential gap: mean zero,
+// standard deviation the spacing, and below -3 spacings with probability e^-4 = 1.83 % (a standard
+// uncertainty that covers +-3 u 98.2 % of the time, the tail all on the short side). 4000 draws, each checked
+// within 3 standard errors.
+TEST(ShellGrowth, EndOneSpacingBeyondTheLastPointIsUnbiasedWithTheSpacingsSpread) {
+  constexpr int kDraws = 4000, kCount = 2000;
+  const double length = 4 * M_PI;
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> uniform(0.0, length);
+  double sum = 0, sum_squares = 0, spacing = 0;
+  int short_by_three = 0;
+  std::vector<double> angles(kCount);
+  for (int d = 0; d < kDraws; ++d) {
+    for (double& a : angles) a = uniform(rng);
+    const double last = *std::max_element(angles.begin(), angles.end());
+    const double u = pipeline::LastAngleUncertainty(angles, last);
+    const double error = last + u - length;
+    sum += error / u;
+    sum_squares += error * error / (u * u);
+    short_by_three += error < -3 * u;
+    spacing += u / kDraws;
+  }
+  const double mean = sum / kDraws, sd = std::sqrt(sum_squares / kDraws - mean * mean);
+  std::printf("  mean error %.4f spacings, sd %.4f spacings, short by 3: %.4f (spacing %.3g)\n", mean, sd,
+              static_cast<double>(short_by_three) / kDraws, spacing);
+  EXPECT_NEAR(mean, 0.0, 3 * sd / std::sqrt(kDraws));
+  // The sample standard deviation of an exponential variable: relative error sqrt(2 + 6) / (2 sqrt(n)).
+  EXPECT_NEAR(sd, 1.0, 3 * std::sqrt(8.0) / (2 * std::sqrt(kDraws)));
+  const double p = std::exp(-4.0);
+  EXPECT_NEAR(static_cast<double>(short_by_three) / kDraws, p, 3 * std::sqrt(p * (1 - p) / kDraws));
+}
+
 // Eq. S7a: feet every 0.01 rad give the last angle to 0.01 rad; none in the last tenth of a turn give NaN.
 TEST(ShellGrowth, LastAngleUncertaintyIsTheLocalSpacing) {
   std::vector<double> angles;
@@ -411,17 +494,21 @@ TEST(ShellGrowth, CoverageAndEstimatedEnds) {
     f.t = {1.0 + 0.02 * i, 0.1 * i};
     feet.push_back(f);
   }
-  feet.push_back(FootPoint{});  // a foot on the boundary does not count
-  feet.back().t = {9.0, 99.0};
+  feet.push_back(FootPoint{});  // a foot on the curve's (trimmed) end counts there
+  feet.back().t = {3.0, 10.0};
   feet.back().on_boundary = true;
+  feet.push_back(FootPoint{});  // a left-out point does not count
+  feet.back().t = {9.0, 99.0};
+  feet.back().excluded = true;
   const pipeline::ShellCoverage c = pipeline::MeasureCoverage(feet);
   ASSERT_TRUE(c.covered());
   EXPECT_EQ(c.angle_lo, 0.0);
   EXPECT_NEAR(c.angle_hi, 10.0, 1e-12);
-  EXPECT_NEAR(c.angle_uncertainty, 0.2 * M_PI / 7, 1e-12);  // 7 feet in the last 0.628 rad
+  EXPECT_NEAR(c.angle_uncertainty, 0.2 * M_PI / 8, 1e-12);  // 8 feet in the last 0.628 rad
   EXPECT_EQ(c.curve_lo, 1.0);
   EXPECT_NEAR(c.curve_hi, 3.0, 1e-12);
   EXPECT_NEAR(c.curve_lo_uncertainty, 0.2 / 11, 1e-12);
+  EXPECT_NEAR(c.curve_hi_uncertainty, 0.2 / 12, 1e-12);
   Eigen::Matrix2Xd profile(2, 6);
   profile << 20, 25, 30, 31, 26, 19,  //
       -8, -6, -2, 2, 6, 8;
