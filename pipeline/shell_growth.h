@@ -34,8 +34,9 @@ struct WhorlMeasures {
 };
 
 // Where the data lie on a shell (docs/shells.md section 2), from the feet of its kept points (a foot on the
-// generating curve's end counts there: the end rule trimmed the curve where the data end, eq. 70 of
-// docs/method.md): the coiling angles they cover, the last one's own standard uncertainty (eq.
+// surface's boundary counts at its clamped parameters: the end rule trimmed the generating curve where the
+// data end, eq. 70 of docs/method.md, and the angle range reaches a margin beyond them, so such a foot is a
+// point at the curve's end): the coiling angles they cover, the last one's own standard uncertainty (eq.
 // S7a), and the part of the generating curve they cover, u in [curve_lo, curve_hi], with the standard
 // uncertainties of both ends in u (eq. S7b). NaN where there are no feet.
 struct ShellCoverage {
