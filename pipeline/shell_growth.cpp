@@ -92,6 +92,17 @@ namespace {
 // share (eq. S7b), the end slid along the curve's tangent (central differences) times its uncertainty.
 using HeldEndMeasures =
     std::function<Eigen::VectorXd(const SpiralSurface&, const Eigen::Vector2d&, const Eigen::Vector2d&)>;
+
+// The step of the central differences along an end (the coil's angle, the curve's parameter).
+constexpr double kEndStep = 1e-4;
+
+// The variance an end's standard uncertainty `share` adds to values whose central differences over
+// +-kEndStep along that end are `plus` and `minus`: (df/ds share)^2; zero without a finite positive share.
+Eigen::ArrayXd EndShareVariance(const Eigen::VectorXd& plus, const Eigen::VectorXd& minus, double share) {
+  if (!(std::isfinite(share) && share > 0)) return Eigen::ArrayXd::Zero(plus.size());
+  return ((plus - minus).array() / (2 * kEndStep) * share).square();
+}
+
 struct HeldEndVariances {
   Eigen::ArrayXd shape, curve_lo, curve_hi;  // the shape covariance's share and each end's (eq. S7b)
   Eigen::ArrayXd Total() const { return shape + curve_lo + curve_hi; }
@@ -110,21 +121,17 @@ HeldEndVariances HeldEndVariance(const SpiralSurface& shell, const Eigen::Matrix
   HeldEndVariances variance{Eigen::ArrayXd(n), Eigen::ArrayXd::Zero(n), Eigen::ArrayXd::Zero(n)};
   for (Eigen::Index i = 0; i < n; ++i)
     variance.shape[i] = std::pow(u[static_cast<std::size_t>(i)].standard_uncertainty, 2);
-  // An end's derivative along the curve's tangent (central differences) times its uncertainty.
-  auto add_end = [&](double share, double at, bool at_hi) -> Eigen::ArrayXd {
-    if (!(std::isfinite(share) && share > 0)) return Eigen::ArrayXd::Zero(n);
-    constexpr double kStep = 1e-4;
-    const Eigen::Vector2d step = kStep * shell.CurvePoint(at, 1);
-    const Eigen::VectorXd derivative = at_hi ? (f(shell, ends.curve_lo, ends.curve_hi + step) -
-                                                f(shell, ends.curve_lo, ends.curve_hi - step)) /
-                                                   (2 * kStep)
-                                             : (f(shell, ends.curve_lo + step, ends.curve_hi) -
-                                                f(shell, ends.curve_lo - step, ends.curve_hi)) /
-                                                   (2 * kStep);
-    return (derivative.array() * share).square();
-  };
-  variance.curve_lo = add_end(coverage.curve_lo_uncertainty, coverage.curve_lo, false);
-  variance.curve_hi = add_end(coverage.curve_hi_uncertainty, coverage.curve_hi, true);
+  // Each end slid along the curve's tangent.
+  if (const double share = coverage.curve_lo_uncertainty; std::isfinite(share) && share > 0) {
+    const Eigen::Vector2d step = kEndStep * shell.CurvePoint(coverage.curve_lo, 1);
+    variance.curve_lo = EndShareVariance(f(shell, ends.curve_lo + step, ends.curve_hi),
+                                         f(shell, ends.curve_lo - step, ends.curve_hi), share);
+  }
+  if (const double share = coverage.curve_hi_uncertainty; std::isfinite(share) && share > 0) {
+    const Eigen::Vector2d step = kEndStep * shell.CurvePoint(coverage.curve_hi, 1);
+    variance.curve_hi = EndShareVariance(f(shell, ends.curve_lo, ends.curve_hi + step),
+                                         f(shell, ends.curve_lo, ends.curve_hi - step), share);
+  }
   return variance;
 }
 
@@ -161,16 +168,9 @@ std::vector<WhorlMeasures> MeasureWhorls(const SpiralSurface& shell, const Eigen
                           });
       // Eq. S7a: all rows move with the coil's end; the measures' derivative along the coil (central
       // differences) times its uncertainty, in quadrature.
-      Eigen::ArrayXd coil = Eigen::ArrayXd::Zero(4);
-      if (const double share = coverage.angle_uncertainty; std::isfinite(share) && share > 0) {
-        constexpr double kStep = 1e-4;
-        coil = (((measures(shell, w.angle + kStep, ends.curve_lo, ends.curve_hi) -
-                  measures(shell, w.angle - kStep, ends.curve_lo, ends.curve_hi)) /
-                 (2 * kStep))
-                    .array() *
-                share)
-                   .square();
-      }
+      const Eigen::ArrayXd coil = EndShareVariance(
+          measures(shell, w.angle + kEndStep, ends.curve_lo, ends.curve_hi),
+          measures(shell, w.angle - kEndStep, ends.curve_lo, ends.curve_hi), coverage.angle_uncertainty);
       uncertainty = (held.Total() + coil).sqrt().matrix();
       end_shares << coil.sqrt().matrix(), held.curve_lo.sqrt().matrix(), held.curve_hi.sqrt().matrix();
     }
