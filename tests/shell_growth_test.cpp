@@ -126,9 +126,13 @@ TEST(ShellGrowth, WhorlUncertaintiesAgainstTheSpreadOfIndependentScans) {
     for (std::size_t j = 0; j < feet.size(); ++j)
       feet[j].t = {cloud.surface_parameters(0, static_cast<Eigen::Index>(j)),
                    cloud.surface_parameters(1, static_cast<Eigen::Index>(j))};
+    const pipeline::ShellCoverage sampled = pipeline::MeasureCoverage(feet);
     const std::vector<pipeline::WhorlMeasures> ideal =
-        pipeline::MeasureWhorls(shell, Eigen::MatrixXd(), pipeline::MeasureCoverage(feet), "mm");
+        pipeline::MeasureWhorls(shell, Eigen::MatrixXd(), sampled, "mm");
     ASSERT_GE(ideal.size(), 2u);
+    // How far short of the coil's end (3 pi) the sample stops, in spacings of its last tenth of a turn.
+    std::printf("  scan %d: the sample's coil ends %.2f spacings short\n", scan,
+                (3 * M_PI - sampled.angle_hi) / sampled.angle_uncertainty);
     const pipeline::FitOutcome outcome = FitShell(cloud.points);
     const nlohmann::json& whorls = outcome.document["growth"]["whorls"];
     ASSERT_GE(whorls.size(), 2u);
