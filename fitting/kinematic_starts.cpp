@@ -501,30 +501,67 @@ std::vector<AxisCandidate> RevolutionAxisCandidates(const Eigen::Matrix3Xd& poin
   return refined;
 }
 
+bool OffSurfaceTest::IsValid(std::string* why) const {
+  const auto fail = [why](const char* message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (!(distance_in_sigma > 0.0) || !std::isfinite(distance_in_sigma))
+    return fail("the distance limit must be finite and positive");
+  if (!(min_angle_deg > 0.0) || !(max_angle_deg <= 90.0) || !(min_angle_deg <= max_angle_deg))
+    return fail("the normal limits must satisfy 0 < min <= max <= 90 degrees");
+  if (min_points_for_spread < 1) return fail("min_points_for_spread must be at least 1");
+  return true;
+}
+
+double NormalAngleLimitDeg(std::vector<double> angles_rad, const OffSurfaceTest& test) {
+  if (!test.angle_from_spread || static_cast<int>(angles_rad.size()) < test.min_points_for_spread)
+    return test.max_angle_deg;
+  // docs/method.md eq. (77a). A unit normal's error across the surface is a 2-D normal variable of standard
+  // deviation s per component, so the angle it makes is Rayleigh(s): median s sqrt(2 ln 2), tail
+  // P(theta > t) = exp(-t^2 / (2 s^2)). The limit puts that tail at the distance test's two-sided normal tail
+  // erfc(k / sqrt 2), k = distance_in_sigma: t = s sqrt(-2 ln erfc(k / sqrt 2)) (5.06 s at k = 4.6851).
+  const auto mid = angles_rad.begin() + static_cast<std::ptrdiff_t>(angles_rad.size() / 2);
+  std::nth_element(angles_rad.begin(), mid, angles_rad.end());
+  const double scale = *mid / std::sqrt(2.0 * std::log(2.0));
+  const double tail = std::erfc(test.distance_in_sigma / std::sqrt(2.0));
+  const double limit_deg = scale * std::sqrt(-2.0 * std::log(tail)) / kDegree;
+  return std::clamp(limit_deg, test.min_angle_deg, test.max_angle_deg);
+}
+
 std::vector<bool> PointsOffTheSurface(const ParametricModel& model, const Eigen::Matrix3Xd& points,
-                                      const Eigen::Matrix3Xd& normals, double distance_in_sigma,
-                                      double max_angle_deg, double* sigma, Eigen::VectorXd* distances) {
+                                      const Eigen::Matrix3Xd& normals, const OffSurfaceTest& test,
+                                      double* sigma, Eigen::VectorXd* distances, double* angle_limit_deg) {
+  std::string why;
+  if (!test.IsValid(&why)) throw std::invalid_argument("points off the surface: " + why);
   std::vector<FootPoint> feet;
   ComputeFootPoints(model, points, feet);
   const Eigen::VectorXd d = FootPointDistances(feet);
   const double s = MadSigma(d);
   if (sigma) *sigma = s;
   if (distances) *distances = d;
-  const double cos_limit = std::cos(max_angle_deg * kDegree);
+  if (angle_limit_deg) *angle_limit_deg = 0.0;
   std::vector<bool> off(static_cast<std::size_t>(points.cols()), false);
+  for (Eigen::Index j = 0; j < points.cols(); ++j)
+    off[static_cast<std::size_t>(j)] = d[j] > test.distance_in_sigma * s;
+  if (normals.cols() != points.cols()) return off;
+  // The angle between each point's normal (sign arbitrary) and the surface normal at its foot; NaN where
+  // either is degenerate (such a point is judged by its distance alone).
+  Eigen::VectorXd angle = Eigen::VectorXd::Constant(points.cols(), std::nan(""));
+  std::vector<double> in_band;
   LocalGeometry g;
   for (Eigen::Index j = 0; j < points.cols(); ++j) {
-    const auto i = static_cast<std::size_t>(j);
-    if (d[j] > distance_in_sigma * s) {
-      off[i] = true;
-      continue;
-    }
-    if (normals.cols() != points.cols()) continue;
-    model.Evaluate(feet[i].t, 1, g);
+    model.Evaluate(feet[static_cast<std::size_t>(j)].t, 1, g);
     const Eigen::Vector3d surface_normal = To3(g.d1.col(0)).cross(To3(g.d1.col(1)));
     const double norm = surface_normal.norm() * normals.col(j).norm();
-    if (norm > 0 && std::abs(surface_normal.dot(normals.col(j))) < cos_limit * norm) off[i] = true;
+    if (!(norm > 0)) continue;
+    angle[j] = std::acos(std::min(1.0, std::abs(surface_normal.dot(normals.col(j))) / norm));
+    if (!off[static_cast<std::size_t>(j)]) in_band.push_back(angle[j]);
   }
+  const double limit_deg = NormalAngleLimitDeg(std::move(in_band), test);
+  if (angle_limit_deg) *angle_limit_deg = limit_deg;
+  for (Eigen::Index j = 0; j < points.cols(); ++j)
+    if (angle[j] > limit_deg * kDegree) off[static_cast<std::size_t>(j)] = true;
   return off;
 }
 
@@ -615,8 +652,7 @@ std::vector<KinematicStart> FindKinematicStarts(const Eigen::Matrix3Xd& points,
     };
     auto on_surface = [&](const ParametricModel& model, const Eigen::Matrix3Xd& q,
                           const Eigen::Matrix3Xd& qn) {
-      const std::vector<bool> off =
-          PointsOffTheSurface(model, q, qn, options.off_distance, options.off_angle_deg);
+      const std::vector<bool> off = PointsOffTheSurface(model, q, qn, options.off_surface);
       std::vector<Eigen::Index> on;
       for (Eigen::Index j = 0; j < q.cols(); ++j)
         if (!off[static_cast<std::size_t>(j)]) on.push_back(j);
@@ -633,8 +669,7 @@ std::vector<KinematicStart> FindKinematicStarts(const Eigen::Matrix3Xd& points,
       continue;  // a candidate the data cannot carry (e.g. no extent along it)
     }
     s.searched_value = kind == KinematicKind::kRevolution ? 0.0 : value;
-    s.off_surface = PointsOffTheSurface(*s.model, all, all_normals, options.off_distance,
-                                        options.off_angle_deg, &s.score);
+    s.off_surface = PointsOffTheSurface(*s.model, all, all_normals, options.off_surface, &s.score);
     starts.push_back(std::move(s));
   }
   if (starts.empty()) throw std::invalid_argument("no initial surface fits the points");
@@ -750,8 +785,7 @@ StartedJointFit FitJointlyFromStarts(const std::vector<KinematicStart>& starts,
             with_normals ? Eigen::Matrix3Xd(fit.model_T_scan[k].rotation() * scan_normals[k])
                          : Eigen::Matrix3Xd();
         Eigen::VectorXd d;
-        masks[k] = PointsOffTheSurface(*model, placed, normals, start_options.off_distance,
-                                       start_options.off_angle_deg, nullptr, &d);
+        masks[k] = PointsOffTheSurface(*model, placed, normals, start_options.off_surface, nullptr, &d);
         parts.push_back(d);
         count += placed.cols();
       }

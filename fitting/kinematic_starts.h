@@ -42,6 +42,26 @@ KinematicAxis RobustKinematicAxisFromNormals(const Eigen::Matrix3Xd& points, con
 Eigen::VectorXd AxisFromNormalsResiduals(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& normals,
                                          const KinematicAxis& axis, KinematicKind kind);
 
+// The test of eq. (77) for points off a fitted surface: a point is off when its distance exceeds
+// `distance_in_sigma` robust standard deviations of all distances (eq. 47; 4.6851 is Tukey's rejection point)
+// or its normal makes more than the angle limit with the surface normal at its foot. The limit is
+// max_angle_deg, or with `angle_from_spread` it is taken from the normals' own spread (eq. 77a: the angles of
+// the points within the distance band read as Rayleigh distributed, the limit where their tail equals the
+// distance test's two-sided normal tail), kept within [min_angle_deg, max_angle_deg]. The command turns the
+// spread on for fragments (docs/method.md section 19), whose breaks' creases it is for: estimated normals
+// have heavier tails than a Rayleigh's wherever a neighbourhood straddles two sheets (a thin wall), and on a
+// whole object those points are on the surface.
+struct OffSurfaceTest {
+  double distance_in_sigma = 4.6851;
+  bool angle_from_spread = false;
+  double min_angle_deg = 5.0;
+  double max_angle_deg = 45.0;
+  // Points within the distance band needed to read the normals' spread; fewer: max_angle_deg.
+  int min_points_for_spread = 20;
+
+  bool IsValid(std::string* why = nullptr) const;
+};
+
 struct KinematicStartOptions {
   int num_control = 8;  // of the initial generatrix
   int order = 4;
@@ -56,12 +76,8 @@ struct KinematicStartOptions {
   int max_sample = 4000;        // points the searches use (a deterministic stride through the data)
   int direction_samples = 600;  // revolution: directions on a hemisphere scored by (54)
   RobustLoss axis_loss{LossKind::kTukey};  // of the axis from normals (eq. 71)
-  // A point is off the surface when its distance exceeds `off_distance` robust standard deviations of all
-  // distances (eq. 47; 4.6851 is Tukey's rejection point) or its normal makes more than `off_angle_deg`
-  // with the surface's (eq. 77).
-  double off_distance = 4.6851;
-  double profile_margin = 0.05;  // revolution: InitialRevolution's margin
-  double off_angle_deg = 45.0;
+  double profile_margin = 0.05;            // revolution: InitialRevolution's margin
+  OffSurfaceTest off_surface;              // which points are left out as off the surface (eq. 77)
 };
 
 // Invariant coordinates of points under a candidate motion (eqs. 72-73) and the entropy of their
@@ -120,14 +136,18 @@ std::vector<KinematicStart> FindKinematicStarts(const Eigen::Matrix3Xd& points,
                                                 const Eigen::Matrix3Xd& normals, KinematicKind kind,
                                                 const KinematicStartOptions& options = {});
 
-// Points off a fitted surface (eq. 77): farther than `distance_in_sigma` robust standard deviations (eq. 47,
-// over all points) or with their normal more than `max_angle_deg` from the surface normal at their foot.
-// `normals` may be empty (distance test only). Fills `sigma` with the robust scale and `distances` with
-// every point's distance when given.
+// Points off a fitted surface by `test` (eq. 77, 77a). `normals` may be empty (distance test only). Fills
+// `sigma` with the distances' robust scale, `distances` with every point's distance and `angle_limit_deg`
+// with the normal limit used (0 without normals) when given.
 std::vector<bool> PointsOffTheSurface(const ParametricModel& model, const Eigen::Matrix3Xd& points,
-                                      const Eigen::Matrix3Xd& normals, double distance_in_sigma,
-                                      double max_angle_deg, double* sigma = nullptr,
-                                      Eigen::VectorXd* distances = nullptr);
+                                      const Eigen::Matrix3Xd& normals, const OffSurfaceTest& test,
+                                      double* sigma = nullptr, Eigen::VectorXd* distances = nullptr,
+                                      double* angle_limit_deg = nullptr);
+
+// The normal limit of eq. (77a) from the angles (radians) between the normals of the points within the
+// distance band and the surface's: Rayleigh scale median / sqrt(2 ln 2), limit where the Rayleigh tail
+// equals the two-sided normal tail at `distance_in_sigma`, clamped to the test's range (degrees).
+double NormalAngleLimitDeg(std::vector<double> angles_rad, const OffSurfaceTest& test);
 
 // The all-points objective of a fit (eq. 79): the mean over ALL points, those left out as off the surface
 // included, of Tukey's rho (eq. 44) of their distances at the common scale c = 4.6851 s, divided by its

@@ -594,7 +594,8 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
           out.push_back(Flat("preserved_fraction", sh["preserved_fraction"].get<double>(),
                              sh["preserved_fraction_uncertainty"], ""));
         out.push_back(Flat("rim_up", sh["up_from"] == "rim" ? 1.0 : 0.0, nullptr, ""));
-        // 0 where the stated uncertainties are lower bounds (under 30 % of the circumference).
+        // 0 where the stated uncertainties are lower bounds (under kCalibratedSherdFraction of the
+        // circumference).
         out.push_back(Flat("uncertainties_calibrated", sh.value("uncertainties_calibrated", true) ? 1.0 : 0.0,
                            nullptr, ""));
       }

@@ -162,11 +162,12 @@ struct ProfileSample {
 // measured as one (docs/archaeology.md sections 6 and 9).
 constexpr double kFragmentTurn = 0.9;
 // Below this preserved fraction of the circumference a single-surface sherd's stated uncertainties of the
-// axis, the diameters and the preserved fraction are too small, and the output says so (docs/archaeology.md
-// section 9: over 50 synthetic rim sherds per size they held at 40 % of the circumference; at 20 % and 10 %
-// the root mean squares of the standardized errors were 1.42 and 1.83 (rim diameter), 1.19 and 1.72
-// (preserved fraction), and the axis' components fell beyond 3 u in 13 % and 27 % of the cases).
-constexpr double kCalibratedSherdFraction = 0.3;
+// axis, the diameters and the preserved fraction are not known to hold, and the output says so
+// (docs/archaeology.md section 9: over 50 synthetic rim sherds per size, at 40, 20 and 10 % of the
+// circumference, the root mean squares of the standardized errors were 0.80-0.88 (rim diameter) and
+// 0.83-0.98 (preserved fraction), with at most 1 axis component in 96 beyond 3 u; the 10 % sherds preserve
+// about 0.09 at the rim, and nothing smaller was measured).
+constexpr double kCalibratedSherdFraction = 0.08;
 
 // What a sherd adds to its vessel's measures (docs/archaeology.md section 9): how its way up was decided
 // and the preserved fraction of the circumference.

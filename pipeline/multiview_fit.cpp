@@ -287,14 +287,16 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
     start_options.order = o.order;
     start_options.estimate = estimate;
     // The points off the surface (eq. 77) at a fit's solution, with each view's own normals, and one refit
-    // without them when they differ from `before` (docs/method.md section 19).
+    // without them when they differ from `before` (docs/method.md section 19). A fragment's normal limit is
+    // taken from its normals' spread (eq. 77a): the creases along its breaks.
     auto leave_out_off_surface = [&](Searched& f, const std::vector<Eigen::Matrix3Xd>& view_normals,
                                      const std::vector<std::vector<bool>>& before) {
+      OffSurfaceTest test = start_options.off_surface;
+      if (f.turn < kFragmentTurn) test.angle_from_spread = true;
       std::vector<std::vector<bool>> masks(scans.size());
       for (std::size_t k = 0; k < scans.size(); ++k)
         masks[k] = PointsOffTheSurface(*f.model, f.result.model_T_scan[k].apply(scans[k]),
-                                       f.result.model_T_scan[k].rotation() * view_normals[k],
-                                       start_options.off_distance, start_options.off_angle_deg);
+                                       f.result.model_T_scan[k].rotation() * view_normals[k], test);
       if (masks != before) {
         JointFitOptions opts = options;
         opts.fairness = f.fairness;
@@ -703,18 +705,18 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
       if (sherd) {
         const double base = std::min(up_sign * samples.front()[0], up_sign * samples.back()[0]);
         vessel->sherd = SummarizeSherd(*sherd, up_sign, base);
-        // Said where the fit's type-A uncertainties are known to fall short (kCalibratedSherdFraction): on a
-        // short arc the profile's approximation error leaks into the axis, which the covariance does not
-        // hold.
+        // Said where the fit's type-A uncertainties were not measured to hold (kCalibratedSherdFraction): on
+        // a shorter arc the profile's approximation error may leak into the axis, which the covariance does
+        // not hold.
         const double preserved = vessel->sherd->preserved_fraction.value;
         if (std::isfinite(preserved) && preserved < kCalibratedSherdFraction) {
           vessel->sherd->uncertainties_calibrated = false;
           outcome.notes.push_back(
               "the sherd preserves about " + Format(100 * preserved, 2) + " % of the circumference: under " +
               Format(100 * kCalibratedSherdFraction, 2) +
-              " % the stated uncertainties of the axis, the diameters and the preserved fraction are too "
-              "small (on synthetic sherds the errors were 1.2 to 1.8 times them; docs/archaeology.md section "
-              "9): read them as lower bounds");
+              " % the stated uncertainties of the axis, the diameters and the preserved fraction are not "
+              "checked (they held on synthetic sherds of 10 % and more; docs/archaeology.md section 9): read "
+              "them as lower bounds");
         }
       }
       // The volume the fitted surface encloses, closed by the planes through the generatrix's ends, and up

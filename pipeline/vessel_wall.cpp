@@ -500,14 +500,17 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     {
       std::vector<std::vector<bool>> off(K);
       Eigen::Index count = 0;
-      const KinematicStartOptions defaults;
+      // A fragment's normal limit from its normals' spread (eq. 77a), for the creases along its breaks.
+      OffSurfaceTest test = KinematicStartOptions().off_surface;
+      test.angle_from_spread = CoveredTurnFraction(registered_of(result), Eigen::Vector3d::Zero(),
+                                                   Eigen::Vector3d::UnitZ()) < kFragmentTurn;
       for (std::size_t k = 0; k < K; ++k) {
         off[k] =
             PointsOffTheSurface(wall, result.model_T_scan[k].apply(scans[k]),
                                 view_normals[k].cols() == scans[k].cols()
                                     ? Eigen::Matrix3Xd(result.model_T_scan[k].rotation() * view_normals[k])
                                     : Eigen::Matrix3Xd(),
-                                defaults.off_distance, defaults.off_angle_deg);
+                                test);
         count += std::count(off[k].begin(), off[k].end(), true);
       }
       if (off != masks) {

@@ -185,7 +185,7 @@ TEST(Batch, FiftyObjectsSurviveAKillAndMatchSingleRuns) {
     EXPECT_GT(u, 0.0) << id << sherd;
     EXPECT_GT(fraction, 0.5 - 3 * u) << id << sherd;
     EXPECT_LT(fraction, 0.75 + 3 * u) << id << sherd;
-    EXPECT_EQ(sherd["uncertainties_calibrated"], true) << id;  // over 30 % of the circumference
+    EXPECT_EQ(sherd["uncertainties_calibrated"], true) << id;  // over kCalibratedSherdFraction
     if (sherd["edges"]["top"]["level"] == true && sherd["edges"]["bottom"]["level"] == true)
       EXPECT_EQ(sherd["up_from"], "world") << id << sherd;
     else

@@ -9,8 +9,12 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
 
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
@@ -181,6 +185,87 @@ TEST(KinematicStarts, AxisOfSherds) {
       }
     }
   }
+}
+
+// eq. (77a): the normal limit reads the angles as Rayleigh distributed and puts its tail at the distance
+// test's two-sided normal tail. Drawn from a known scale, the limit is that scale times the constant, within
+// the sampling error of a median (relative standard deviation 0.72 / sqrt(N) for a Rayleigh sample:
+// 1 / (2 f(m) sqrt N) with f(m) = sqrt(2 ln 2) / (2 s) at the median m = s sqrt(2 ln 2)).
+TEST(OffSurface, NormalLimitIsTheRayleighTailAtTheDistanceTestsTail) {
+  OffSurfaceTest test;
+  test.angle_from_spread = true;
+  const double factor = std::sqrt(-2.0 * std::log(std::erfc(test.distance_in_sigma / std::sqrt(2.0))));
+  EXPECT_NEAR(factor, 5.06, 0.005);  // the figure docs/method.md states
+  std::mt19937 rng(77);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const int n = 20000;
+  for (const double scale_deg : {1.5, 3.0, 6.0}) {
+    std::vector<double> angles(n);
+    for (double& a : angles)
+      a = std::hypot(normal(rng), normal(rng)) * scale_deg * kDegree;  // Rayleigh of that scale
+    const double limit = NormalAngleLimitDeg(angles, test);
+    EXPECT_NEAR(limit / (factor * scale_deg), 1.0, 4 * 0.72 / std::sqrt(double(n))) << scale_deg;
+  }
+  // Clamped to the range; the maximum without enough points or with the spread switched off.
+  EXPECT_EQ(NormalAngleLimitDeg(std::vector<double>(100, 0.1 * kDegree), test), test.min_angle_deg);
+  EXPECT_EQ(NormalAngleLimitDeg(std::vector<double>(100, 20 * kDegree), test), test.max_angle_deg);
+  EXPECT_EQ(NormalAngleLimitDeg(std::vector<double>(test.min_points_for_spread - 1, 1 * kDegree), test),
+            test.max_angle_deg);
+  OffSurfaceTest fixed = test;
+  fixed.angle_from_spread = false;
+  EXPECT_EQ(NormalAngleLimitDeg(std::vector<double>(100, 1 * kDegree), fixed), fixed.max_angle_deg);
+  OffSurfaceTest bad = test;
+  bad.min_angle_deg = 50;
+  std::string why;
+  EXPECT_FALSE(bad.IsValid(&why));
+  EXPECT_FALSE(why.empty());
+}
+
+// A cylinder's points whose normals err by 1.5 degrees (Rayleigh), and 2 % of them along a crease whose
+// normals lean 20 degrees towards the axis' direction (a break's face mixed into the plane fits): the limit
+// from the spread (about 7.6 degrees) leaves the crease out and keeps the surface; the fixed 45 degrees
+// keeps both.
+TEST(OffSurface, CreasePointsWithinFortyFiveDegreesAreLeftOutByTheSpread) {
+  std::mt19937 rng(78);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const int n = 5000, crease = 100;
+  const double radius = 50, noise = 0.02, spread = 1.5 * kDegree;
+  Eigen::Matrix3Xd points(3, n), normals(3, n);
+  for (int j = 0; j < n; ++j) {
+    const double v = 1.2 * uniform(rng), z = -20 + 40 * uniform(rng);
+    const Eigen::Vector3d radial(std::cos(v), std::sin(v), 0), along(-std::sin(v), std::cos(v), 0);
+    points.col(j) = (radius + noise * normal(rng)) * radial + Eigen::Vector3d(0, 0, z);
+    const double tilt = j < crease ? 20 * kDegree : 0.0;
+    normals.col(j) = (std::cos(tilt) * radial + std::sin(tilt) * Eigen::Vector3d::UnitZ() +
+                      spread * (normal(rng) * along + normal(rng) * Eigen::Vector3d::UnitZ()))
+                         .normalized();
+  }
+  const KinematicSurface cylinder = InitialRevolution(points, 6, 4);
+  const auto count = [&](const std::vector<bool>& off, int from, int to) {
+    return std::count(off.begin() + from, off.begin() + to, true);
+  };
+  OffSurfaceTest from_spread;
+  from_spread.angle_from_spread = true;
+  double limit = 0;
+  const std::vector<bool> off =
+      PointsOffTheSurface(cylinder, points, normals, from_spread, nullptr, nullptr, &limit);
+  std::printf("    limit %.2f degrees; off: crease %ld of %d, surface %ld of %d\n", limit,
+              static_cast<long>(count(off, 0, crease)), crease, static_cast<long>(count(off, crease, n)),
+              n - crease);
+  EXPECT_NEAR(limit, 5.06 * 1.5, 0.5);
+  EXPECT_EQ(count(off, 0, crease), crease);
+  // A surface point is left out by the normal test with probability exp(-(limit/scale)^2 / 2), about 3e-6,
+  // and by the distance test about as rarely: none of 4900 expected; allow a few for the fitted start.
+  EXPECT_LE(count(off, crease, n), 5);
+  const OffSurfaceTest fixed;  // the default: 45 degrees
+  const std::vector<bool> off_fixed =
+      PointsOffTheSurface(cylinder, points, normals, fixed, nullptr, nullptr, &limit);
+  EXPECT_EQ(limit, 45.0);
+  EXPECT_EQ(count(off_fixed, 0, crease), 0);
+  // Without normals only the distance test runs.
+  const std::vector<bool> off_distance = PointsOffTheSurface(cylinder, points, Eigen::Matrix3Xd(), {});
+  EXPECT_LE(count(off_distance, 0, n), 5);
 }
 
 }  // namespace
