@@ -49,8 +49,8 @@ Eigen::VectorXd AxisFromNormalsResiduals(const Eigen::Matrix3Xd& points, const E
 // the points within the distance band read as Rayleigh distributed, the limit where their tail equals the
 // distance test's two-sided normal tail), kept within [min_angle_deg, max_angle_deg]. The command turns the
 // spread on for fragments (docs/method.md section 19), whose breaks' creases it is for: estimated normals
-// have heavier tails than a Rayleigh's wherever a neighbourhood straddles two sheets (a thin wall), and on a
-// whole object those points are on the surface.
+// can have a far heavier tail than a Rayleigh's (measured on a whole thin-walled vessel, whose points are all
+// on its surfaces), and a whole object keeps the fixed limit.
 struct OffSurfaceTest {
   double distance_in_sigma = 4.6851;
   bool angle_from_spread = false;

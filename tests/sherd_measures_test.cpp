@@ -152,15 +152,16 @@ TEST(SherdEdges, ALevelEdgeIsTheRim) {
 // ---- through the command's path ----
 
 struct SherdFitError {
-  bool adequate = false;   // the fit's own verdict (docs/method.md section 17)
-  bool rim_up = false;     // the rim found and drawn up
-  bool rim_wrong = false;  // a rim claimed at the wrong end
-  double tilt_z = 0;       // the axis' direction error over its uncertainty (largest of two components)
-  double offset_z = 0;     // the axis' offset at the data's middle height over its uncertainty (largest)
-  double rim_z = 0;        // rim diameter error / u
-  double fraction_z = 0;   // preserved fraction error / u
-  double fraction = 0;     // the preserved fraction (NaN when not given)
-  double fraction_u = 0;   // u of the preserved fraction
+  bool adequate = false;     // the fit's own verdict (docs/method.md section 17)
+  bool rim_up = false;       // the rim found and drawn up
+  bool rim_wrong = false;    // a rim claimed at the wrong end
+  bool rim_claimed = false;  // a rim claimed (up_from "rim"), at either end
+  double tilt_z = 0;         // the axis' direction error over its uncertainty (largest of two components)
+  double offset_z = 0;       // the axis' offset at the data's middle height over its uncertainty (largest)
+  double rim_z = 0;          // rim diameter error / u
+  double fraction_z = 0;     // preserved fraction error / u
+  double fraction = 0;       // the preserved fraction (NaN when not given)
+  double fraction_u = 0;     // u of the preserved fraction
   double rim_u = 0;
 };
 
@@ -203,9 +204,10 @@ SherdFitError FitSherd(const SherdSpec& spec, bool print) {
   }
   e.adequate = doc["adequacy"]["adequate"] == true;
   e.fraction = preserved;
-  e.rim_up = s["up_from"] == "rim" && vec(v["up"]).dot(c.axis_direction) > 0;
-  e.rim_wrong = s["up_from"] == "rim" && !e.rim_up;
-  if (!e.rim_up)
+  e.rim_claimed = s["up_from"] == "rim";
+  e.rim_up = spec.rim && e.rim_claimed && vec(v["up"]).dot(c.axis_direction) > 0;
+  e.rim_wrong = spec.rim && e.rim_claimed && !e.rim_up;
+  if (!e.rim_up && spec.rim)
     std::printf("  seed %2llu: rim not found: %s, %s\n", static_cast<unsigned long long>(spec.seed),
                 s["up_reason"].get<std::string>().c_str(), s["edges"].dump().c_str());
   if (!e.adequate) {
@@ -303,8 +305,10 @@ int Seeds() {
 // confident wrong answer). With S2M_SHERD_STRICT the calibration the issue asks is asserted too: the rim
 // found in every adequate fit, every fit adequate, and the standardized errors of the axis, the rim diameter
 // and the preserved fraction as standard uncertainties should be (at most 2 in 50 beyond 3, a root mean
-// square between 0.6 and 1.4). It does not hold yet for every size: docs/archaeology.md section 9 gives the
-// measured figures.
+// square between 0.6 and 1.4); on rim sherds the standardized errors' criteria hold at 10, 20 and 40 %, the
+// first two do not (docs/archaeology.md section 9 gives the measured figures). A body sherd has no rim: any
+// rim it claims is a level break taken for one, counted and printed (not yet asserted: it happens, section 9
+// says how often).
 struct CaseSummary {
   double mean_fraction_u = 0;  // relative: u(f) / f
   double mean_rim_u = 0;       // over the fits that give one
@@ -315,12 +319,13 @@ CaseSummary CheckSherdCase(SherdSpec spec, const char* name) {
   std::printf("%s (%.0f %% of the circumference, %d seeds):\n", name, 100 * spec.arc_fraction, seeds);
   std::vector<double> rim, fraction;
   int adequate = 0, rim_found = 0, rim_wrong = 0, beyond = 0, axis_beyond = 0, rim_u_count = 0;
-  int rim_compared = 0;
+  int rim_compared = 0, rim_claimed = 0;
   CaseSummary summary;
   for (int k = 0; k < seeds; ++k) {
     spec.seed = 1000 + static_cast<std::uint64_t>(k);
     const SherdFitError e = FitSherd(spec, k < 3 || std::getenv("S2M_SHERD_DEBUG") != nullptr);
     rim_wrong += e.rim_wrong;
+    rim_claimed += e.rim_claimed;
     if (!e.adequate) continue;
     ++adequate;
     rim_found += e.rim_up;
@@ -351,14 +356,25 @@ CaseSummary CheckSherdCase(SherdSpec spec, const char* name) {
       "components); mean u: relative of the fraction %.4f, rim diameter %.3f mm\n",
       adequate, seeds, rim_found, rms(rim), rim.size(), rim_compared, rms(fraction), beyond, axis_beyond,
       summary.mean_fraction_u, summary.mean_rim_u);
-  EXPECT_EQ(rim_wrong, 0);
+  if (spec.rim) {
+    EXPECT_EQ(rim_wrong, 0);
+  } else {
+    std::printf("  a rim claimed (a level break taken for one) in %d of %d fits\n", rim_claimed, seeds);
+  }
   EXPECT_GT(adequate, 0);
+  // The issue's count criterion (at most 2 in 50 beyond 3 u) holds for the axis of every sherd measured and
+  // for a rim sherd's rim diameter and preserved fraction (docs/archaeology.md section 9): asserted always.
+  const int allowed = std::max(1, 2 * seeds / 50);
+  EXPECT_LE(axis_beyond, 2 * allowed);  // two components each of tilt and offset
+  if (spec.rim) {
+    EXPECT_LE(beyond, allowed);
+  }
   if (strict) {
     EXPECT_EQ(adequate, seeds);
-    EXPECT_EQ(rim_found, adequate);
-    const int allowed = std::max(1, 2 * seeds / 50);
+    if (spec.rim) {
+      EXPECT_EQ(rim_found, adequate);
+    }
     EXPECT_LE(beyond, allowed);
-    EXPECT_LE(axis_beyond, 2 * allowed);  // two components each of tilt and offset
     EXPECT_GT(rms(rim), 0.6);
     EXPECT_LT(rms(rim), 1.4);
     EXPECT_GT(rms(fraction), 0.6);
@@ -380,11 +396,25 @@ TEST(SherdFit, RimSherdsWithBreaksFoundUpsideDown) {
     by_size.push_back(CheckSherdCase(spec, "rim sherd with breaks"));
   }
   // The smaller the fragment, the less its points say about the axis: the rim diameter's uncertainty grows
-  // (measured over 50 seeds: 0.025, 0.087, 0.35 mm). The preserved fraction's relative uncertainty is mostly
+  // (measured over 50 seeds: 0.027, 0.094, 0.38 mm). The preserved fraction's relative uncertainty is mostly
   // the sampling of the breaks in the band below the rim (eq. A14), which holds about as many points at every
   // size: it stays near 2 % (docs/archaeology.md section 9), and is not compared.
   EXPECT_LT(by_size[0].mean_rim_u, by_size[1].mean_rim_u);
   EXPECT_LT(by_size[1].mean_rim_u, by_size[2].mean_rim_u);
+}
+
+// Body sherds (between about 30 and 110 mm of the vase's height, both breaks wandering, their faces scanned):
+// the axis and the preserved fraction (the widest of ten bands) against the truth, as for the rim sherds.
+TEST(SherdFit, BodySherdsWithBreaks) {
+  SherdSpec spec;
+  spec.rim = false;
+  spec.fracture_faces = true;
+  spec.count = 3000;
+  spec.noise = 0.05;
+  for (const double fraction : {0.4, 0.2, 0.1}) {
+    spec.arc_fraction = fraction;
+    CheckSherdCase(spec, "body sherd with breaks");
+  }
 }
 
 // Rim sherds smaller than any whose uncertainties were measured (5 and 7 % of the circumference, about 0.045
