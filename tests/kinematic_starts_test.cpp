@@ -204,7 +204,7 @@ TEST(OffSurface, NormalLimitIsTheRayleighTailAtTheDistanceTestsTail) {
     for (double& a : angles)
       a = std::hypot(normal(rng), normal(rng)) * scale_deg * kDegree;  // Rayleigh of that scale
     const double limit = NormalAngleLimitDeg(angles, test);
-    EXPECT_NEAR(limit / (factor * scale_deg), 1.0, 4 * 0.72 / std::sqrt(double(n))) << scale_deg;
+    EXPECT_NEAR(limit / (factor * scale_deg), 1.0, 4 * 0.72 / std::sqrt(static_cast<double>(n))) << scale_deg;
   }
   // Clamped to the range; the maximum without enough points or with the spread switched off.
   EXPECT_EQ(NormalAngleLimitDeg(std::vector<double>(100, 0.1 * kDegree), test), test.min_angle_deg);
