@@ -545,18 +545,19 @@ std::vector<bool> PointsOffTheSurface(const ParametricModel& model, const Eigen:
   for (Eigen::Index j = 0; j < points.cols(); ++j)
     off[static_cast<std::size_t>(j)] = d[j] > test.distance_in_sigma * s;
   if (normals.cols() != points.cols()) return off;
-  // The angle between each point's normal (sign arbitrary) and the surface normal at its foot; NaN where
-  // either is degenerate (such a point is judged by its distance alone).
+  // The angle between each in-band point's normal (sign arbitrary) and the surface normal at its foot; NaN
+  // where either is degenerate (such a point is judged by its distance alone) and for points already off.
   Eigen::VectorXd angle = Eigen::VectorXd::Constant(points.cols(), std::nan(""));
   std::vector<double> in_band;
   LocalGeometry g;
   for (Eigen::Index j = 0; j < points.cols(); ++j) {
+    if (off[static_cast<std::size_t>(j)]) continue;  // already off by its distance
     model.Evaluate(feet[static_cast<std::size_t>(j)].t, 1, g);
     const Eigen::Vector3d surface_normal = To3(g.d1.col(0)).cross(To3(g.d1.col(1)));
     const double norm = surface_normal.norm() * normals.col(j).norm();
     if (!(norm > 0)) continue;
     angle[j] = std::acos(std::min(1.0, std::abs(surface_normal.dot(normals.col(j))) / norm));
-    if (!off[static_cast<std::size_t>(j)]) in_band.push_back(angle[j]);
+    in_band.push_back(angle[j]);
   }
   const double limit_deg = NormalAngleLimitDeg(std::move(in_band), test);
   if (angle_limit_deg) *angle_limit_deg = limit_deg;

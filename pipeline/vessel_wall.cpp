@@ -501,7 +501,7 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
       std::vector<std::vector<bool>> off(K);
       Eigen::Index count = 0;
       // A fragment's normal limit from its normals' spread (eq. 77a), for the creases along its breaks.
-      OffSurfaceTest test = KinematicStartOptions().off_surface;
+      OffSurfaceTest test;
       test.angle_from_spread = CoveredTurnFraction(registered_of(result), Eigen::Vector3d::Zero(),
                                                    Eigen::Vector3d::UnitZ()) < kFragmentTurn;
       for (std::size_t k = 0; k < K; ++k) {
