@@ -223,4 +223,48 @@ SherdMeasures MeasureSherd(const Eigen::Matrix3Xd& points, const std::vector<int
   return m;
 }
 
+std::vector<bool> NearGeneratrixContinuation(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile,
+                                             const Eigen::Matrix3Xd& points, double band) {
+  if (basis.periodic()) throw std::invalid_argument("a generatrix's continuation needs a clamped basis");
+  if (profile.cols() != basis.num_control())
+    throw std::invalid_argument("one profile column per control point is needed");
+  if (!(band > 0)) throw std::invalid_argument("the band about the continuation must be positive");
+  std::vector<bool> near(static_cast<std::size_t>(points.cols()), false);
+  const std::vector<double> breakpoints = basis.Breakpoints();
+  const std::size_t last = breakpoints.size() - 1;
+  // Eq. A12a: C(t_end + delta) = C + C' delta + C'' delta^2 / 2 for delta over one end span (outwards),
+  // as a polyline fine enough that its chords stay well inside the band.
+  constexpr int kSegments = 64;
+  for (const int end : {-1, 1}) {
+    const double t = end < 0 ? basis.lo() : basis.hi();
+    const double span = end < 0 ? breakpoints[1] - breakpoints[0] : breakpoints[last] - breakpoints[last - 1];
+    BSplineBasis::Values v;
+    basis.Evaluate(t, 2, v);
+    Eigen::Matrix<double, 2, 3> c = Eigen::Matrix<double, 2, 3>::Zero();  // C, C', C''
+    for (int k = 0; k < basis.order(); ++k)
+      for (int d = 0; d < 3; ++d)
+        c.col(d) += v.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(k)] *
+                    profile.col(basis.ControlIndex(v.first, k));
+    Eigen::Matrix2Xd line(2, kSegments + 1);
+    for (int i = 0; i <= kSegments; ++i) {
+      const double delta = end * span * i / kSegments;
+      line.col(i) = c.col(0) + c.col(1) * delta + 0.5 * c.col(2) * delta * delta;
+    }
+    for (Eigen::Index j = 0; j < points.cols(); ++j) {
+      if (near[static_cast<std::size_t>(j)]) continue;
+      const Eigen::Vector2d q(points.col(j).head<2>().norm(), points(2, j));
+      for (int i = 0; i < kSegments; ++i) {
+        const Eigen::Vector2d a = line.col(i), ab = line.col(i + 1) - a;
+        const double length2 = ab.squaredNorm();
+        const double s = length2 > 0 ? std::clamp((q - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
+        if ((q - a - s * ab).squaredNorm() <= band * band) {
+          near[static_cast<std::size_t>(j)] = true;
+          break;
+        }
+      }
+    }
+  }
+  return near;
+}
+
 }  // namespace s2m

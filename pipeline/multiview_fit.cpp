@@ -681,10 +681,12 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
         // the fit kept). The normals' half is not applied: it also drops the surface's points next to the
         // breaks, where the normals mix surface and break, and would shrink the arc; the breaks' points this
         // keeps lie next to the surface's edges, at the edges' angles about the axis.
+        // Points beyond the generatrix's trimmed ends count when they lie on its continuation (eq. A12a):
+        // without them a wandering break would be traced along the end circle, level by construction.
         const double near = TuningConstant(LossKind::kTukey) * MadSigma(judged);
-        std::vector<bool> take(static_cast<std::size_t>(deviations.size()));
+        std::vector<bool> take = NearGeneratrixContinuation(basis, profile, registered, near);
         for (Eigen::Index i = 0; i < deviations.size(); ++i)
-          take[static_cast<std::size_t>(i)] = std::abs(deviations[i]) <= near;
+          if (std::abs(deviations[i]) <= near) take[static_cast<std::size_t>(i)] = true;
         std::vector<Eigen::Index> view_sizes;
         for (const Eigen::Matrix3Xd& scan : scans) view_sizes.push_back(scan.cols());
         std::vector<Eigen::Matrix<double, 6, 6>> pose_covariance;

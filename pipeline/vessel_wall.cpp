@@ -20,6 +20,7 @@
 #include "fitting/residual_structure.h"
 #include "fitting/revolution_wall.h"
 #include "fitting/robust_loss.h"
+#include "fitting/sherd_measures.h"
 #include "fitting/signed_distance.h"
 #include "pipeline/complexity.h"
 #include "pipeline/domain_measures.h"
@@ -568,9 +569,11 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
       const double near = TuningConstant(LossKind::kTukey) *
                           MadSigma(Eigen::Map<const Eigen::VectorXd>(
                               distances.data(), static_cast<Eigen::Index>(distances.size())));
-      std::vector<bool> take(feet.size());
+      // With those on the outer generatrix's continuation beyond its ends (eq. A12a).
+      const KinematicSurface& outer = wall.face(RevolutionWall::kOuter);
+      std::vector<bool> take = NearGeneratrixContinuation(outer.basis(), outer.profile(), registered, near);
       for (std::size_t i = 0; i < feet.size(); ++i)
-        take[i] = feet[i].t[2] == RevolutionWall::kOuter && feet[i].distance <= near;
+        if (feet[i].t[2] == RevolutionWall::kOuter && feet[i].distance <= near) take[i] = true;
       std::vector<Eigen::Index> view_sizes;
       for (const Eigen::Matrix3Xd& scan : scans) view_sizes.push_back(scan.cols());
       std::vector<Eigen::Matrix<double, 6, 6>> pose_covariance;

@@ -1028,6 +1028,10 @@ SherdTruth MakeSherd(const SherdSpec& spec) {
   out.cloud.world_T_model = out.cloud.world_T_model * RigidMotion(flip, Eigen::Vector3d::Zero());
   out.cloud.axis_direction = out.cloud.world_T_model.rotation().col(2);
   out.cloud.surface_points = outer_count;
+  out.cloud.surface_parameters.resize(2, outer_count);
+  for (Eigen::Index i = 0; i < outer_count; ++i)
+    out.cloud.surface_parameters.col(i) << params[static_cast<std::size_t>(i)].first,
+        params[static_cast<std::size_t>(i)].second;
   out.inner_points = surface_count - outer_count;
   out.wall_thickness = thickness;
   out.profile_lo = u0;

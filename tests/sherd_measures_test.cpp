@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -149,6 +150,57 @@ TEST(SherdEdges, ALevelEdgeIsTheRim) {
   EXPECT_THROW(MeasureSherd(make(true, false), view, covariance, 0.05, bad), std::invalid_argument);
 }
 
+TEST(SherdEdges, PointsOnTheGeneratrixContinuationBeyondItsEndsAreFound) {
+  // A generatrix r = 40 + 0.01 z^2 over z in [0, 30] as a clamped cubic B-spline (a quadratic in u lies in
+  // its space exactly, so the least-squares control points reproduce it and its second-order continuation
+  // (eq. A12a) is the same quadratic): three spans, each 10 mm of height.
+  const BSplineBasis basis = BSplineBasis::ClampedUniform(4, 6, 0.0, 1.0);
+  auto radius = [](double z) { return 40 + 0.01 * z * z; };
+  const int samples = 60;
+  Eigen::MatrixXd collocation = Eigen::MatrixXd::Zero(samples, basis.num_control());
+  Eigen::MatrixX2d target(samples, 2);
+  BSplineBasis::Values v;
+  for (int i = 0; i < samples; ++i) {
+    const double u = i / (samples - 1.0);
+    basis.Evaluate(u, 0, v);
+    for (int k = 0; k < basis.order(); ++k)
+      collocation(i, basis.ControlIndex(v.first, k)) = v.values[0][static_cast<std::size_t>(k)];
+    target.row(i) << radius(30 * u), 30 * u;
+  }
+  const Eigen::Matrix2Xd profile = collocation.colPivHouseholderQr().solve(target).transpose();
+  auto at = [](double r, double z, double angle) {
+    return Eigen::Vector3d(r * std::cos(angle), r * std::sin(angle), z);
+  };
+  // Columns: on the surface beyond the top by 5 mm and below the bottom by 8 mm (found); beyond the top by
+  // 15 mm, past one span (not); a break's face across the wall 0.3 mm beyond the top, 2 mm in (not); on
+  // the surface inside the ends (not: those are the surface's own, judged by their distance to it).
+  Eigen::Matrix3Xd points(3, 5);
+  points << at(radius(35), 35, 0.3), at(radius(-8), -8, 2.0), at(radius(45), 45, 1.0),
+      at(radius(30.3) - 2, 30.3, 0.5), at(radius(15), 15, 0.0);
+  const std::vector<bool> near = NearGeneratrixContinuation(basis, profile, points, 0.05);
+  EXPECT_EQ(near, (std::vector<bool>{true, true, false, false, false}));
+  // With noise of 0.02 mm across the surface the points beyond the ends stay within a band of 4.7 sigma.
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> gauss(0.0, 0.02);
+  std::uniform_real_distribution<double> beyond(0.0, 10.0), angle(0.0, 2 * M_PI);
+  Eigen::Matrix3Xd noisy(3, 400);
+  for (Eigen::Index i = 0; i < noisy.cols(); ++i) {
+    const double z = i % 2 == 0 ? 30 + beyond(rng) : -beyond(rng);
+    // Along the normal of the (r, z) curve: (1, -dr/dz) normalized.
+    const Eigen::Vector2d normal = Eigen::Vector2d(1.0, -0.02 * z).normalized();
+    const double e = gauss(rng);
+    noisy.col(i) = at(radius(z) + e * normal.x(), z + e * normal.y(), angle(rng));
+  }
+  const std::vector<bool> found = NearGeneratrixContinuation(basis, profile, noisy, 4.6851 * 0.02);
+  const auto count = std::count(found.begin(), found.end(), true);
+  EXPECT_GE(count, 398);  // a normal sample beyond 4.6851 sigma: 3 in a million
+  // Bad input.
+  EXPECT_THROW(NearGeneratrixContinuation(basis, profile, points, 0.0), std::invalid_argument);
+  EXPECT_THROW(NearGeneratrixContinuation(basis, profile.leftCols(5), points, 0.05), std::invalid_argument);
+  EXPECT_THROW(NearGeneratrixContinuation(BSplineBasis::PeriodicUniform(4, 6), profile, points, 0.05),
+               std::invalid_argument);
+}
+
 // ---- through the command's path ----
 
 struct SherdFitError {
@@ -210,6 +262,10 @@ SherdFitError FitSherd(const SherdSpec& spec, bool print) {
   if (!e.rim_up && spec.rim)
     std::printf("  seed %2llu: rim not found: %s, %s\n", static_cast<unsigned long long>(spec.seed),
                 s["up_reason"].get<std::string>().c_str(), s["edges"].dump().c_str());
+  if (e.rim_claimed && !spec.rim)
+    std::printf("  seed %2llu: a rim claimed on a body sherd: %s, %s\n",
+                static_cast<unsigned long long>(spec.seed), s["up_reason"].get<std::string>().c_str(),
+                s["edges"].dump().c_str());
   if (!e.adequate) {
     // Its uncertainties are marked untrustworthy (some may be null): not compared.
     EXPECT_EQ(v["uncertainty_trusted"], false);
