@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <random>
 #include <stdexcept>
 
 namespace s2m {
@@ -49,6 +50,35 @@ double Median(std::vector<double> v) {
   return 0.5 * (*mid + *std::max_element(v.begin(), mid));
 }
 
+// Eq. A12: 1.4826 x the median absolute deviation from the median.
+double RobustSpread(const std::vector<double>& heights) {
+  const double centre = Median(heights);
+  std::vector<double> deviation;
+  deviation.reserve(heights.size());
+  for (const double h : heights) deviation.push_back(std::abs(h - centre));
+  return kMadToSigma * Median(deviation);
+}
+
+// Eq. A13a: the (1 - alpha) quantile of the robust spread of a level edge's sector heights, each the edge
+// less an exponential gap of its sector's mean `gaps[s]` plus normal noise `sigma`, by `draws` draws from a
+// fixed seed (the same data give the same verdict).
+double LevelSpreadQuantile(const std::vector<double>& gaps, double sigma, double alpha, int draws) {
+  std::mt19937_64 rng(20261207);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::vector<double> spreads(static_cast<std::size_t>(draws)), heights(gaps.size());
+  for (double& spread : spreads) {
+    for (std::size_t s = 0; s < gaps.size(); ++s) {
+      const double gap = gaps[s] > 0 ? std::exponential_distribution<double>(1.0 / gaps[s])(rng) : 0.0;
+      heights[s] = -gap + (sigma > 0 ? sigma * noise(rng) : 0.0);
+    }
+    spread = RobustSpread(heights);
+  }
+  const auto k = std::min(spreads.size() - 1,
+                          static_cast<std::size_t>(std::ceil((1 - alpha) * static_cast<double>(draws))) - 1);
+  std::nth_element(spreads.begin(), spreads.begin() + static_cast<std::ptrdiff_t>(k), spreads.end());
+  return spreads[k];
+}
+
 // d theta / d(c, cbar) of a point p under x' = x + cbar + c x x (docs/archaeology.md eq. A15):
 // rho^2 d theta = -x z c_x - y z c_y + rho^2 c_z - y cbar_x + x cbar_y.
 Eigen::Matrix<double, 6, 1> AngleGradient(const Eigen::Vector3d& p) {
@@ -66,7 +96,9 @@ bool SherdMeasureOptions::IsValid(std::string* why) const {
     return false;
   };
   if (sectors < 3) return fail("sectors must be at least 3");
-  if (!(level_factor > 0)) return fail("level_factor must be positive");
+  if (!(level_false_rejection > 0 && level_false_rejection < 1))
+    return fail("level_false_rejection must be in (0, 1)");
+  if (null_draws < 100) return fail("null_draws must be at least 100");
   if (!(rim_band_depth > 0 && rim_band_depth <= 1)) return fail("rim_band_depth must be in (0, 1]");
   if (bands < 1) return fail("bands must be at least 1");
   if (min_band_points < 3) return fail("min_band_points must be at least 3");
@@ -155,26 +187,26 @@ SherdMeasures MeasureSherd(const Eigen::Matrix3Xd& points, const std::vector<int
   }
   // Eq. A13: in a sector of n points spread over a height H, the extreme point lies about H / (n + 1) short
   // of the edge (an exponential gap: its standard deviation is its mean), and the noise moves it by up to
-  // sigma: a level edge varies from sector to sector by about sqrt(mean (H / (n + 1))^2 + sigma^2).
+  // sigma: a level edge varies from sector to sector by about sqrt(mean (H / (n + 1))^2 + sigma^2). The
+  // verdict takes the spread's own distribution under that model (A13a).
   auto levelness = [&](const std::vector<double>& edge) {
     EdgeLevelness e;
-    std::vector<double> heights;
+    std::vector<double> heights, gaps;
     double gap2 = 0.0;
     for (int s = 0; s < S; ++s) {
       const auto k = static_cast<std::size_t>(s);
       if (count[k] < 3) continue;
       heights.push_back(edge[k]);
-      const double gap = (top[k] - bottom[k]) / (count[k] + 1);
-      gap2 += gap * gap;
+      gaps.push_back((top[k] - bottom[k]) / (count[k] + 1));
+      gap2 += gaps.back() * gaps.back();
     }
     e.sectors = static_cast<int>(heights.size());
     if (e.sectors < 3) return e;
     e.height = Median(heights);
-    std::vector<double> deviation;
-    for (const double h : heights) deviation.push_back(std::abs(h - e.height));
-    e.spread = kMadToSigma * Median(deviation);
+    e.spread = RobustSpread(heights);
     e.expected = std::sqrt(gap2 / e.sectors + noise * noise);
-    e.level = e.spread <= options.level_factor * e.expected;
+    e.limit = LevelSpreadQuantile(gaps, noise, options.level_false_rejection, options.null_draws);
+    e.level = e.spread <= e.limit;
     return e;
   };
   m.upper = levelness(top);

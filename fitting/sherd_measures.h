@@ -17,9 +17,13 @@ struct SherdMeasureOptions {
   // The covered arc is cut into this many sectors of equal angle; in each, the highest and the lowest point
   // along the axis trace the sherd's top and bottom edges.
   int sectors = 8;
-  // An edge is level (across the axis, as a rim is) when its robust spread over the sectors is at most this
-  // many times what a level edge would show from the sampling and the noise alone (eq. A13).
-  double level_factor = 3.0;
+  // An edge is level (across the axis, as a rim is) when its robust spread over the sectors is within what a
+  // level edge shows from the sampling and the noise alone in all but this fraction of cases: the (1 -
+  // level_false_rejection) quantile of the spread under that null (eq. A13a), from `null_draws` seeded draws.
+  // A level edge (a rim) is then missed this often; a break is taken for a level edge less often the smaller
+  // it is.
+  double level_false_rejection = 1e-3;
+  int null_draws = 20000;
   // The preserved fraction is measured in a band this deep (a fraction of the sherd's height) below the rim,
   // or, on a body sherd, in each of `bands` bands of equal height (the widest reported); a band needs
   // `min_band_points` points.
@@ -34,6 +38,7 @@ struct EdgeLevelness {
   double height = std::numeric_limits<double>::quiet_NaN();    // median over the sectors
   double spread = std::numeric_limits<double>::quiet_NaN();    // 1.4826 x median |h_s - height|
   double expected = std::numeric_limits<double>::quiet_NaN();  // of a level edge (eq. A13)
+  double limit = std::numeric_limits<double>::quiet_NaN();     // a level edge's spread stays under (A13a)
   int sectors = 0;                                             // holding points
   bool level = false;
 };

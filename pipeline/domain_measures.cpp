@@ -446,9 +446,11 @@ SherdSummary SummarizeSherd(const SherdMeasures& sherd, double up_sign, double b
   const EdgeLevelness& bottom = up_sign > 0 ? sherd.lower : sherd.upper;
   s.top_spread = top.spread;
   s.top_expected = top.expected;
+  s.top_limit = top.limit;
   s.top_level = top.level;
   s.bottom_spread = bottom.spread;
   s.bottom_expected = bottom.expected;
+  s.bottom_limit = bottom.limit;
   s.bottom_level = bottom.level;
   return s;
 }
@@ -515,9 +517,11 @@ nlohmann::json RoundnessJson(const std::vector<RoundnessBand>& bands) {
 
 // The "sherd" member of "vessel" (docs/archaeology.md section 9) and back.
 nlohmann::json SherdJson(const SherdSummary& s) {
-  auto edge = [](double spread, double expected, bool level) {
-    return nlohmann::json{
-        {"spread", NumberOrNull(spread)}, {"expected_if_level", NumberOrNull(expected)}, {"level", level}};
+  auto edge = [](double spread, double expected, double limit, bool level) {
+    return nlohmann::json{{"spread", NumberOrNull(spread)},
+                          {"expected_if_level", NumberOrNull(expected)},
+                          {"limit_if_level", NumberOrNull(limit)},
+                          {"level", level}};
   };
   return {{"up_from", s.up_from},
           {"up_reason", s.up_reason},
@@ -530,8 +534,8 @@ nlohmann::json SherdJson(const SherdSummary& s) {
           {"band_height_hi", s.band_hi},
           {"band_points", s.band_points},
           {"edges",
-           {{"top", edge(s.top_spread, s.top_expected, s.top_level)},
-            {"bottom", edge(s.bottom_spread, s.bottom_expected, s.bottom_level)}}},
+           {{"top", edge(s.top_spread, s.top_expected, s.top_limit, s.top_level)},
+            {"bottom", edge(s.bottom_spread, s.bottom_expected, s.bottom_limit, s.bottom_level)}}},
           {"uncertainties_calibrated", s.uncertainties_calibrated}};
 }
 
@@ -555,9 +559,11 @@ SherdSummary SherdFromJson(const nlohmann::json& j) {
     const nlohmann::json& bottom = j.at("edges").at("bottom");
     s.top_spread = number(top, "spread");
     s.top_expected = number(top, "expected_if_level");
+    s.top_limit = number(top, "limit_if_level");
     s.top_level = top.value("level", false);
     s.bottom_spread = number(bottom, "spread");
     s.bottom_expected = number(bottom, "expected_if_level");
+    s.bottom_limit = number(bottom, "limit_if_level");
     s.bottom_level = bottom.value("level", false);
   }
   return s;

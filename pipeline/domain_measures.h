@@ -186,10 +186,11 @@ struct SherdSummary {
   std::string preserved_where;
   double band_lo = 0, band_hi = 0;
   long long band_points = 0;
-  // The edges' evidence in the drawing's orientation (eqs. A12-A13): robust spread of the edge's height over
-  // the sectors of the arc, and what a level edge would show.
-  double top_spread = std::numeric_limits<double>::quiet_NaN(), top_expected = top_spread;
-  double bottom_spread = top_spread, bottom_expected = top_spread;
+  // The edges' evidence in the drawing's orientation (eqs. A12-A13a): robust spread of the edge's height over
+  // the sectors of the arc, what a level edge would show, and the spread a level edge stays under.
+  double top_spread = std::numeric_limits<double>::quiet_NaN(), top_expected = top_spread,
+         top_limit = top_spread;
+  double bottom_spread = top_spread, bottom_expected = top_spread, bottom_limit = top_spread;
   bool top_level = false, bottom_level = false;
   // False below kCalibratedSherdFraction: the fit's uncertainties of the axis, the diameters and the
   // preserved fraction are then lower bounds, and a note says so.

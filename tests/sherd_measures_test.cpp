@@ -150,6 +150,49 @@ TEST(SherdEdges, ALevelEdgeIsTheRim) {
   EXPECT_THROW(MeasureSherd(make(true, false), view, covariance, 0.05, bad), std::invalid_argument);
 }
 
+TEST(SherdEdges, ALevelEdgeIsMissedAsOftenAsAskedAndAWanderingOneIsNot) {
+  // Eq. A13a on point data rather than on its own model: a quarter of a cylinder of radius 50 with 1500
+  // points uniform over heights 0 to 30 (noise-free, so the sector heights scatter by the sampling alone and
+  // the model's exponential gaps are the whole story). Both edges are level; with a false-rejection rate of
+  // 5 %, over 300 clouds (600 edges) about 30 edges are called not level (binomial sd 5.3).
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  SherdMeasureOptions options;
+  options.level_false_rejection = 0.05;
+  const std::vector<int> view(1500, 0);
+  const std::vector<Covariance6> covariance(1, Covariance6::Identity() * 1e-8);
+  int rejected = 0;
+  const int clouds = 300;
+  for (int c = 0; c < clouds; ++c) {
+    Eigen::Matrix3Xd p(3, 1500);
+    for (Eigen::Index i = 0; i < p.cols(); ++i) {
+      const double a = 0.5 * M_PI * unit(rng);
+      p.col(i) << 50 * std::cos(a), 50 * std::sin(a), 30 * unit(rng);
+    }
+    const SherdMeasures m = MeasureSherd(p, view, covariance, 0.0, options);
+    rejected += !m.upper.level + !m.lower.level;
+    EXPECT_GT(m.upper.limit, 0.0);
+  }
+  std::printf("level edges called not level: %d of %d (5 %% asked)\n", rejected, 2 * clouds);
+  EXPECT_NEAR(rejected, 0.05 * 2 * clouds, 4 * std::sqrt(0.05 * 0.95 * 2 * clouds));
+  // What the robust spread (A12) is built to ignore, and what it therefore cannot see: an edge level over
+  // most of the arc but 1 mm lower in two of the eight sectors (a corner cut by a side break, or a break
+  // level over most of its length, as the test sherds' breaks taken for rims were: docs/archaeology.md
+  // section 9) reads level; lower in half of the sectors, it does not.
+  auto dipped = [&](int sectors_dipped) {
+    Eigen::Matrix3Xd p(3, 3000);
+    for (Eigen::Index i = 0; i < p.cols();) {
+      const double a = 0.5 * M_PI * unit(rng), z = 30 * unit(rng);
+      const int sector = std::min(7, static_cast<int>(a / (0.5 * M_PI) * 8));
+      if (sector < sectors_dipped && z > 29) continue;
+      p.col(i++) << 50 * std::cos(a), 50 * std::sin(a), z;
+    }
+    return MeasureSherd(p, std::vector<int>(3000, 0), covariance, 0.05);
+  };
+  EXPECT_TRUE(dipped(2).upper.level);
+  EXPECT_FALSE(dipped(4).upper.level);
+}
+
 TEST(SherdEdges, PointsOnTheGeneratrixContinuationBeyondItsEndsAreFound) {
   // A generatrix r = 40 + 0.01 z^2 over z in [0, 30] as a clamped cubic B-spline (a quadratic in u lies in
   // its space exactly, so the least-squares control points reproduce it and its second-order continuation
@@ -372,7 +415,8 @@ struct CaseSummary {
 CaseSummary CheckSherdCase(SherdSpec spec, const char* name) {
   const int seeds = Seeds();
   const bool strict = std::getenv("S2M_SHERD_STRICT") != nullptr;
-  std::printf("%s (%.0f %% of the circumference, %d seeds):\n", name, 100 * spec.arc_fraction, seeds);
+  std::printf("%s (%.0f %% of the circumference, noise %.3g mm, %d seeds):\n", name, 100 * spec.arc_fraction,
+              spec.noise, seeds);
   std::vector<double> rim, fraction;
   int adequate = 0, rim_found = 0, rim_wrong = 0, beyond = 0, axis_beyond = 0, rim_u_count = 0;
   int rim_compared = 0, rim_claimed = 0;
@@ -390,7 +434,12 @@ CaseSummary CheckSherdCase(SherdSpec spec, const char* name) {
     if (e.rim_up && std::isfinite(e.rim_z)) rim.push_back(e.rim_z);
     rim_compared += e.rim_up;
     fraction.push_back(e.fraction_z);
-    beyond += (e.rim_up && !(std::abs(e.rim_z) <= 3)) + !(std::abs(e.fraction_z) <= 3);
+    const int beyond_here = (e.rim_up && !(std::abs(e.rim_z) <= 3)) + !(std::abs(e.fraction_z) <= 3);
+    if (beyond_here > 0)
+      std::printf("  seed %llu: beyond 3 u: rim diameter %.2f u, preserved fraction %.2f u (%.4f +- %.4f)\n",
+                  static_cast<unsigned long long>(spec.seed), e.rim_z, e.fraction_z, e.fraction,
+                  e.fraction_u);
+    beyond += beyond_here;
     axis_beyond += !(e.tilt_z <= 3) + !(e.offset_z <= 3);
     summary.mean_fraction_u += e.fraction_u / e.fraction;
     if (e.rim_up && std::isfinite(e.rim_u)) {
@@ -439,15 +488,17 @@ CaseSummary CheckSherdCase(SherdSpec spec, const char* name) {
   return summary;
 }
 
-// The test sherds: 3000 points on the surface with 0.05 mm noise, the breaks' faces scanned; a rim sherd
-// placed rim down in the world, a body sherd as cut.
+// The test sherds: 3000 points on the surface with 0.05 mm noise (S2M_SHERD_NOISE: another level, in mm;
+// the issue asks 0.02-0.1), the breaks' faces scanned; a rim sherd placed rim down in the world, a body
+// sherd as cut.
 SherdSpec TestSherd(bool rim) {
   SherdSpec spec;
   spec.rim = rim;
   spec.fracture_faces = true;
   spec.upside_down = rim;
   spec.count = 3000;
-  spec.noise = 0.05;
+  const char* noise = std::getenv("S2M_SHERD_NOISE");
+  spec.noise = noise ? std::atof(noise) : 0.05;
   return spec;
 }
 
