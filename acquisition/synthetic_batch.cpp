@@ -8,9 +8,9 @@
 
 #include "acquisition/format_error.h"
 #include "acquisition/scan_set_io.h"
-#include "synthetic/synthetic_cases.h"
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
+#include "synthetic/synthetic_cases.h"
 
 namespace s2m {
 namespace {

@@ -1,8 +1,9 @@
 #pragma once
 // The parts of a Horus/Ciclop-style laser-line turntable scanner (issue 6), as interfaces, so that the scan
-// loop (devices/horus_scan.h) runs the same against the real board (libusb, devices/horus_board.h), an emulated
-// one (umockdev in the tests), a real camera (OpenCV/V4L2, devices/opencv_camera.h) or rendered images (the
-// virtual scanner). Nothing here includes libusb or OpenCV headers: images are plain byte buffers.
+// loop (devices/horus_scan.h) runs the same against the real board (libusb, devices/horus_board.h), an
+// emulated one (umockdev in the tests), a real camera (OpenCV/V4L2, devices/opencv_camera.h) or rendered
+// images (the virtual scanner). Nothing here includes libusb or OpenCV headers: images are plain byte
+// buffers.
 
 #include <Eigen/Core>
 #include <array>
@@ -82,8 +83,8 @@ struct HorusCalibration {
   CameraIntrinsics camera;
   std::vector<LaserPlane> lasers;  // laser 0, 1 in the camera frame
   RigidMotion platform_T_camera;   // camera coordinates to platform coordinates
-  // Angle convention: a point p fixed on the table at angle theta is at Rz(theta) p in the platform frame at 0,
-  // so a frame at angle theta has world_T_scan = Rz(-theta) * platform_T_camera.
+  // Angle convention: a point p fixed on the table at angle theta is at Rz(theta) p in the platform frame at
+  // 0, so a frame at angle theta has world_T_scan = Rz(-theta) * platform_T_camera.
 };
 
 }  // namespace s2m

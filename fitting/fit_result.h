@@ -7,8 +7,8 @@
 
 namespace s2m {
 
-// Residual statistics at exact foot points (docs/method.md section 2: RMS = sqrt(1/n sum ||X_j - s_j||^2), max
-// distance).
+// Residual statistics at exact foot points (docs/method.md section 2: RMS = sqrt(1/n sum ||X_j - s_j||^2),
+// max distance).
 struct ResidualStatistics {
   Eigen::Index count = 0;
   double rms = 0.0;

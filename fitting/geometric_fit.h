@@ -1,8 +1,8 @@
 #pragma once
 // The fitting engine: minimizes 1/2 sum_j d^2(X_j, C(P; .)) + F_s(P) over the shape parameters P of any
 // ParametricModel by alternating exact foot points and one linear least-squares step on a local quadratic
-// model built with one of the six error terms of docs/method.md section 2 (Wang, Pottmann, Liu, ACM TOG 25 (2006);
-// Liu & Wang, GMP 2008).
+// model built with one of the six error terms of docs/method.md section 2 (Wang, Pottmann, Liu, ACM TOG 25
+// (2006); Liu & Wang, GMP 2008).
 
 #include <Eigen/Core>
 #include <functional>
@@ -29,8 +29,8 @@ const char* ToString(ErrorTerm term);
 // The 3x3 matrix M of the quadratic error term e^T M e of one data point in the principal frame `f` at its
 // foot point (first s rows and columns used). For kGn, which builds its own Jacobian, the identity.
 Eigen::Matrix3d ErrorMatrix(ErrorTerm term, const PrincipalFrame& f, int s);
-// The error term of a data point whose foot point lies on an open boundary (the end rule of docs/method.md section
-// 4), with offset = X - s: cos(theta) I + (1 - cos(theta)) M_term.
+// The error term of a data point whose foot point lies on an open boundary (the end rule of docs/method.md
+// section 4), with offset = X - s: cos(theta) I + (1 - cos(theta)) M_term.
 Eigen::Matrix3d EndRuleMatrix(ErrorTerm term, const PrincipalFrame& f, const Eigen::Vector3d& offset, int s);
 ErrorTerm ErrorTermFromString(const std::string& name);  // "pdm", "tdm", ...; throws std::invalid_argument
 

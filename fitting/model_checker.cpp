@@ -500,8 +500,8 @@ void Checker::CheckInvariantMotions(const ParametricModel& m, const std::vector<
     const Eigen::Matrix3Xd normals = NormalSpace(g);
     const Eigen::Vector3d point = To3(g.point);
     for (std::size_t k = 0; k < motions.size(); ++k) {
-      // The velocity of the model point under the motion, x' = x + cbar + c x x (docs/method.md section 5): the
-      // model maps onto itself to first order iff it is tangent, i.e. the distance of any point near the
+      // The velocity of the model point under the motion, x' = x + cbar + c x x (docs/method.md section 5):
+      // the model maps onto itself to first order iff it is tangent, i.e. the distance of any point near the
       // model does not change to first order.
       const Eigen::Vector3d c = motions[k].head<3>(), cbar = motions[k].tail<3>();
       const Eigen::Vector3d velocity = cbar + c.cross(point);
@@ -659,7 +659,8 @@ void Checker::CheckApplyStep(const ParametricModel& m, const std::vector<Sample>
         check,
         (c1 - PointAt(*set, s.t)).norm() / (step.norm() * size_ + kFloorFraction * size_ * o_.step_fraction),
         [&] { return where + ": ApplyStep(D) and set_parameters(P + D) differ"; });
-    // ... moves the points by J D to first order (docs/method.md section 6: the linearized problem's step) ...
+    // ... moves the points by J D to first order (docs/method.md section 6: the linearized problem's step)
+    // ...
     DenseJacobian(m, s.t, false, columns);
     const Eigen::Vector3d predicted = columns * step;
     Record(check,

@@ -11,7 +11,7 @@
 namespace s2m {
 
 struct PolygonClosureOptions {
-  double penalty = 1e4;          // R of the augmented objective (the same for every constraint)
+  double penalty = 1e4;            // R of the augmented objective (the same for every constraint)
   int max_outer_iterations = 100;  // multiplier updates
   double tolerance = 1e-12;        // on the closure error relative to the perimeter and on sum(theta) - 2 pi
   bool IsValid(std::string* why = nullptr) const;

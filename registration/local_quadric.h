@@ -10,12 +10,12 @@
 
 namespace s2m {
 
-// The SDM weight of one tangential direction, delta*kappa / (delta*kappa - 1) clamped at 0 (docs/method.md section
-// 2; Wang, Pottmann, Liu, ACM TOG 25 (2006), eq. 9), with kappa signed w.r.t. the unit normal n and delta =
-// n.(X - s). It is the coefficient d/(d - rho_k) of the second-order approximant of the squared distance
-// function in the principal frame at the foot point (Pottmann & Hofer, "Geometry of the squared distance
-// function to curves and surfaces", Visualization and Mathematics III, 2003), written with kappa = 1/rho so
-// that flat directions (kappa = 0) need no special case.
+// The SDM weight of one tangential direction, delta*kappa / (delta*kappa - 1) clamped at 0 (docs/method.md
+// section 2; Wang, Pottmann, Liu, ACM TOG 25 (2006), eq. 9), with kappa signed w.r.t. the unit normal n and
+// delta = n.(X - s). It is the coefficient d/(d - rho_k) of the second-order approximant of the squared
+// distance function in the principal frame at the foot point (Pottmann & Hofer, "Geometry of the squared
+// distance function to curves and surfaces", Visualization and Mathematics III, 2003), written with kappa =
+// 1/rho so that flat directions (kappa = 0) need no special case.
 inline double SdmWeight(double delta, double kappa) {
   const double dk = delta * kappa;
   const double denom = dk - 1.0;
@@ -24,8 +24,8 @@ inline double SdmWeight(double delta, double kappa) {
 }
 
 // A point of a surface with its first- and second-order geometry. kappa1 <= kappa2 are signed w.r.t.
-// `normal`: positive when the surface bends towards the normal (docs/method.md section 2). direction1, direction2,
-// normal are orthonormal.
+// `normal`: positive when the surface bends towards the normal (docs/method.md section 2). direction1,
+// direction2, normal are orthonormal.
 struct SurfacePoint {
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
@@ -87,8 +87,8 @@ class LocalQuadric {
 std::vector<SurfacePoint> EstimatePrincipalCurvatures(const Eigen::Matrix3Xd& points, int neighbours);
 
 // The SDM error matrix M = sum_k SdmWeight(delta, kappa_k) T_k T_k^T + n n^T at the foot point s of x, with
-// the normal oriented towards x so that delta = n.(x - s) >= 0 (docs/method.md section 2). (x' - s)^T M (x' - s)
-// is the second-order approximant of the squared distance of x' to the surface (Pottmann & Hofer 2003).
+// the normal oriented towards x so that delta = n.(x - s) >= 0 (docs/method.md section 2). (x' - s)^T M (x' -
+// s) is the second-order approximant of the squared distance of x' to the surface (Pottmann & Hofer 2003).
 Eigen::Matrix3d SdmErrorMatrix(const SurfacePoint& foot, const Eigen::Vector3d& x);
 
 }  // namespace s2m

@@ -4,6 +4,8 @@
 // (automatic) damping scaling; and each single scaling's documented failure. Data:
 // ../shared/data/nist_strd_nonlinear (skipped when absent).
 
+#include "fitting/least_squares.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -14,7 +16,6 @@
 #include <string>
 #include <vector>
 
-#include "fitting/least_squares.h"
 #include "jet.h"
 #include "test_paths.h"
 

@@ -3,13 +3,13 @@
 // freshly built part after set_parameters and ApplySimilarity (no stale quantity), the distance must be
 // |C(t) - x| at the returned t, and C(t) - x orthogonal to the face there, for every analytic face type.
 
+#include "fitting/part_model.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
 #include <random>
-
-#include "fitting/part_model.h"
 
 namespace s2m {
 namespace {

@@ -740,8 +740,8 @@ TEST(FitDispatch, FeSurfaceOfANoisyPlaneKeepsEveryPointInsideItsDomainAndIsAdequ
   // The automatic domain is the points' convex hull with its short edges merged outwards: no point may lie
   // beyond the patch's edge, where its distance to the edge would count as misfit. Dropping short hull edges'
   // vertices instead (the old rule) cut corners off: on this plane the largest distance was 0.011 (plane
-  // chart) and 0.032 (cylinder chart, RMS 1.5 times the noise); on another sample of 800 points 0.147, and the
-  // fit of a plane was "not adequate" at 6.3 times the noise.
+  // chart) and 0.032 (cylinder chart, RMS 1.5 times the noise); on another sample of 800 points 0.147, and
+  // the fit of a plane was "not adequate" at 6.3 times the noise.
   const fs::path dir = FreshDir("fe_surface_plane");
   std::mt19937 rng(1);
   std::uniform_real_distribution<double> coordinate(-3.0, 3.0);

@@ -11,10 +11,10 @@
 #include <cmath>
 #include <random>
 
-#include "synthetic/synthetic_cases.h"
 #include "fitting/foot_point.h"
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
+#include "synthetic/synthetic_cases.h"
 
 namespace s2m {
 namespace {

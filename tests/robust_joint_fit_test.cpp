@@ -8,12 +8,12 @@
 #include <cstdio>
 #include <random>
 
-#include "synthetic/synthetic_cases.h"
 #include "fitting/bspline_models.h"
 #include "fitting/foot_point.h"
 #include "fitting/joint_fit.h"
 #include "fitting/model_registration.h"
 #include "fitting/robust_loss.h"
+#include "synthetic/synthetic_cases.h"
 
 namespace s2m {
 namespace {

@@ -3,6 +3,8 @@
 // degrees and 2 mm. Every case: every measured quantity within 3 standard uncertainties, every observable
 // pose component within 4, RMS at the noise, and per-scan motions beat fitting the pre-registered cloud.
 
+#include "synthetic/synthetic_cases.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,7 +12,6 @@
 #include <cstdlib>
 #include <string>
 
-#include "synthetic/synthetic_cases.h"
 #include "fitting/initial_models.h"
 #include "fitting/kinematic_surfaces.h"
 #include "fitting/part_model.h"
@@ -92,8 +93,8 @@ TEST_P(MultiViewCase, PerScanMotionsBeatFittingThePreRegisteredCloud) {
   EXPECT_LT(error[1], 0.5 * error[0]);
 }
 
-// docs/method.md section 8: the axis (and pitch, or spiral centre and growth) from normals estimated on the noisy
-// merged views, placed anywhere in the world.
+// docs/method.md section 8: the axis (and pitch, or spiral centre and growth) from normals estimated on the
+// noisy merged views, placed anywhere in the world.
 TEST(InitialGuess, KinematicAxesFromNormalsByLineGeometry) {
   const RigidMotion world_T_model = RigidMotion::FromHelicalVelocity({0.3, -0.5, 0.2}, {40.0, -25.0, 60.0});
   for (const std::string& name : {std::string("vase"), std::string("helical"), std::string("spiral")}) {
