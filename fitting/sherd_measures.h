@@ -20,8 +20,8 @@ struct SherdMeasureOptions {
   // An edge is level (across the axis, as a rim is) when its robust spread over the sectors is within what a
   // level edge shows from the sampling and the noise alone in all but this fraction of cases: the (1 -
   // level_false_rejection) quantile of the spread under that null (eq. A13a), from `null_draws` seeded draws.
-  // A level edge (a rim) is then missed this often; a break is taken for a level edge less often the smaller
-  // it is.
+  // A level edge (a rim) is then missed this often; the smaller it is, the wider the limit and the more often
+  // a break that is nearly level is taken for a rim.
   double level_false_rejection = 1e-3;
   int null_draws = 20000;
   // The preserved fraction is measured in a band this deep (a fraction of the sherd's height) below the rim,
