@@ -223,8 +223,9 @@ KinematicSurface KinematicSurface::Helical(BSplineBasis basis, Eigen::Matrix2Xd 
   return KinematicSurface(std::move(basis), std::move(profile), true, pitch, turns);
 }
 
-Eigen::Vector2d KinematicSurface::ProfilePoint(double u) const {
-  return ProfileAt(u, 0).col(0);
+Eigen::Vector2d KinematicSurface::ProfilePoint(double u, int derivative) const {
+  if (derivative < 0 || derivative > 2) throw std::invalid_argument("ProfilePoint: derivative 0, 1 or 2");
+  return ProfileAt(u, derivative).col(derivative);
 }
 
 double KinematicSurface::RadiusAtHeight(double height, Eigen::VectorXd* gradient) const {

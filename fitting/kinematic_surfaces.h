@@ -22,8 +22,8 @@ class KinematicSurface final : public ParametricModel {
   const Eigen::Matrix2Xd& profile() const { return profile_; }
   double pitch() const { return pitch_; }
   bool helical() const { return helical_; }
-  // Radius and height of the generatrix at u.
-  Eigen::Vector2d ProfilePoint(double u) const;
+  // Radius and height of the generatrix at u (derivative 0), or their derivative d/du (1) or d2/du2 (2).
+  Eigen::Vector2d ProfilePoint(double u, int derivative = 0) const;
   // The radius where the generatrix reaches `height` (Newton on z(u) = height; the profile must be monotone
   // in height there), and its gradient with respect to the shape parameters (implicit function: dr/dP - r'/z'
   // dz/dP), which propagates a parameter covariance to the radius. Throws std::domain_error when the height

@@ -255,11 +255,12 @@ SherdMeasures MeasureSherd(const Eigen::Matrix3Xd& points, const std::vector<int
   return m;
 }
 
-std::vector<bool> NearGeneratrixContinuation(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile,
-                                             const Eigen::Matrix3Xd& points, double band) {
+std::vector<bool> NearGeneratrixContinuation(const KinematicSurface& surface, const Eigen::Matrix3Xd& points,
+                                             double band) {
+  const BSplineBasis& basis = surface.basis();
+  if (surface.helical())
+    throw std::invalid_argument("a generatrix's continuation needs a surface of revolution");
   if (basis.periodic()) throw std::invalid_argument("a generatrix's continuation needs a clamped basis");
-  if (profile.cols() != basis.num_control())
-    throw std::invalid_argument("one profile column per control point is needed");
   if (!(band > 0)) throw std::invalid_argument("the band about the continuation must be positive");
   std::vector<bool> near(static_cast<std::size_t>(points.cols()), false);
   const std::vector<double> breakpoints = basis.Breakpoints();
@@ -270,21 +271,20 @@ std::vector<bool> NearGeneratrixContinuation(const BSplineBasis& basis, const Ei
   for (const int end : {-1, 1}) {
     const double t = end < 0 ? basis.lo() : basis.hi();
     const double span = end < 0 ? breakpoints[1] - breakpoints[0] : breakpoints[last] - breakpoints[last - 1];
-    BSplineBasis::Values v;
-    basis.Evaluate(t, 2, v);
-    Eigen::Matrix<double, 2, 3> c = Eigen::Matrix<double, 2, 3>::Zero();  // C, C', C''
-    for (int k = 0; k < basis.order(); ++k)
-      for (int d = 0; d < 3; ++d)
-        c.col(d) += v.values[static_cast<std::size_t>(d)][static_cast<std::size_t>(k)] *
-                    profile.col(basis.ControlIndex(v.first, k));
+    const Eigen::Vector2d c0 = surface.ProfilePoint(t), c1 = surface.ProfilePoint(t, 1),
+                          c2 = surface.ProfilePoint(t, 2);
     Eigen::Matrix2Xd line(2, kSegments + 1);
     for (int i = 0; i <= kSegments; ++i) {
       const double delta = end * span * i / kSegments;
-      line.col(i) = c.col(0) + c.col(1) * delta + 0.5 * c.col(2) * delta * delta;
+      line.col(i) = c0 + c1 * delta + 0.5 * c2 * delta * delta;
     }
+    // Most points lie nowhere near an end: the polyline's box grown by the band rules them out cheaply.
+    const Eigen::Vector2d box_lo = line.rowwise().minCoeff().array() - band,
+                          box_hi = line.rowwise().maxCoeff().array() + band;
     for (Eigen::Index j = 0; j < points.cols(); ++j) {
       if (near[static_cast<std::size_t>(j)]) continue;
       const Eigen::Vector2d q(points.col(j).head<2>().norm(), points(2, j));
+      if ((q.array() < box_lo.array()).any() || (q.array() > box_hi.array()).any()) continue;
       for (int i = 0; i < kSegments; ++i) {
         const Eigen::Vector2d a = line.col(i), ab = line.col(i + 1) - a;
         const double length2 = ab.squaredNorm();

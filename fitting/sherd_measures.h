@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "fitting/bspline_basis.h"
+#include "fitting/kinematic_surfaces.h"
 
 namespace s2m {
 
@@ -82,14 +82,13 @@ PreservedArc MeasureArc(const Eigen::Matrix3Xd& points, const std::vector<int>& 
                         const std::vector<Eigen::Matrix<double, 6, 6>>& pose_covariance, double height_lo,
                         double height_hi, int min_points);
 
-// Which of `points` (in the frame of a surface of revolution whose axis is the z axis) lie within `band` of
-// its generatrix continued beyond each end (docs/archaeology.md eq. A12a): the end's second-order Taylor
-// expansion in the (radius, height) half-plane, over one end knot span's parameter length. `profile` holds
-// the generatrix's control points as (radius, height) columns on the clamped `basis`. A sherd's generatrix
-// can end short of its surface points (trimmed to the feet of the points the fit kept, eq. 70); those beyond
-// the end lie on the continuation, the breaks' faces across it. Throws std::invalid_argument for a periodic
-// basis, a profile of the wrong size or a band that is not positive.
-std::vector<bool> NearGeneratrixContinuation(const BSplineBasis& basis, const Eigen::Matrix2Xd& profile,
-                                             const Eigen::Matrix3Xd& points, double band);
+// Which of `points` (in the frame of `surface`, a surface of revolution about the z axis) lie within `band`
+// of its generatrix continued beyond each end (docs/archaeology.md eq. A12a): the end's second-order Taylor
+// expansion in the (radius, height) half-plane, over one end knot span's parameter length. A sherd's
+// generatrix can end short of its surface points (trimmed to the feet of the points the fit kept, eq. 70);
+// those beyond the end lie on the continuation, the breaks' faces across it. Throws std::invalid_argument
+// for a helical surface, a periodic basis or a band that is not positive.
+std::vector<bool> NearGeneratrixContinuation(const KinematicSurface& surface, const Eigen::Matrix3Xd& points,
+                                             double band);
 
 }  // namespace s2m

@@ -684,7 +684,7 @@ FitOutcome ComputeMultiViewFit(const FitOptions& given) {
         // Points beyond the generatrix's trimmed ends count when they lie on its continuation (eq. A12a):
         // without them a wandering break would be traced along the end circle, level by construction.
         const double near = TuningConstant(LossKind::kTukey) * MadSigma(judged);
-        std::vector<bool> take = NearGeneratrixContinuation(basis, profile, registered, near);
+        std::vector<bool> take = NearGeneratrixContinuation(*kinematic, registered, near);
         for (Eigen::Index i = 0; i < deviations.size(); ++i)
           if (std::abs(deviations[i]) <= near) take[static_cast<std::size_t>(i)] = true;
         std::vector<Eigen::Index> view_sizes;

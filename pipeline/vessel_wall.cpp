@@ -570,8 +570,8 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
                           MadSigma(Eigen::Map<const Eigen::VectorXd>(
                               distances.data(), static_cast<Eigen::Index>(distances.size())));
       // With those on the outer generatrix's continuation beyond its ends (eq. A12a).
-      const KinematicSurface& outer = wall.face(RevolutionWall::kOuter);
-      std::vector<bool> take = NearGeneratrixContinuation(outer.basis(), outer.profile(), registered, near);
+      std::vector<bool> take =
+          NearGeneratrixContinuation(wall.face(RevolutionWall::kOuter), registered, near);
       for (std::size_t i = 0; i < feet.size(); ++i)
         if (feet[i].t[2] == RevolutionWall::kOuter && feet[i].distance <= near) take[i] = true;
       std::vector<Eigen::Index> view_sizes;

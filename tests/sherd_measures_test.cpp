@@ -211,6 +211,12 @@ TEST(SherdEdges, PointsOnTheGeneratrixContinuationBeyondItsEndsAreFound) {
     target.row(i) << radius(30 * u), 30 * u;
   }
   const Eigen::Matrix2Xd profile = collocation.colPivHouseholderQr().solve(target).transpose();
+  const KinematicSurface surface = KinematicSurface::Revolution(basis, profile);
+  // The generatrix's derivatives the continuation is built from, at the top (u = 1, z = 30): dr/du = 30 x
+  // 0.02 z, dz/du = 30, d2r/du2 = 900 x 0.02, d2z/du2 = 0.
+  EXPECT_LT((surface.ProfilePoint(1.0, 1) - Eigen::Vector2d(18, 30)).norm(), 1e-9);
+  EXPECT_LT((surface.ProfilePoint(1.0, 2) - Eigen::Vector2d(18, 0)).norm(), 1e-9);
+  EXPECT_THROW(surface.ProfilePoint(1.0, 3), std::invalid_argument);
   auto at = [](double r, double z, double angle) {
     return Eigen::Vector3d(r * std::cos(angle), r * std::sin(angle), z);
   };
@@ -220,7 +226,7 @@ TEST(SherdEdges, PointsOnTheGeneratrixContinuationBeyondItsEndsAreFound) {
   Eigen::Matrix3Xd points(3, 5);
   points << at(radius(35), 35, 0.3), at(radius(-8), -8, 2.0), at(radius(45), 45, 1.0),
       at(radius(30.3) - 2, 30.3, 0.5), at(radius(15), 15, 0.0);
-  const std::vector<bool> near = NearGeneratrixContinuation(basis, profile, points, 0.05);
+  const std::vector<bool> near = NearGeneratrixContinuation(surface, points, 0.05);
   EXPECT_EQ(near, (std::vector<bool>{true, true, false, false, false}));
   // With noise of 0.02 mm across the surface the points beyond the ends stay within a band of 4.7 sigma.
   std::mt19937_64 rng(11);
@@ -234,13 +240,12 @@ TEST(SherdEdges, PointsOnTheGeneratrixContinuationBeyondItsEndsAreFound) {
     const double e = gauss(rng);
     noisy.col(i) = at(radius(z) + e * normal.x(), z + e * normal.y(), angle(rng));
   }
-  const std::vector<bool> found = NearGeneratrixContinuation(basis, profile, noisy, 4.6851 * 0.02);
+  const std::vector<bool> found = NearGeneratrixContinuation(surface, noisy, 4.6851 * 0.02);
   const auto count = std::count(found.begin(), found.end(), true);
   EXPECT_GE(count, 398);  // a normal sample beyond 4.6851 sigma: 3 in a million
   // Bad input.
-  EXPECT_THROW(NearGeneratrixContinuation(basis, profile, points, 0.0), std::invalid_argument);
-  EXPECT_THROW(NearGeneratrixContinuation(basis, profile.leftCols(5), points, 0.05), std::invalid_argument);
-  EXPECT_THROW(NearGeneratrixContinuation(BSplineBasis::PeriodicUniform(4, 6), profile, points, 0.05),
+  EXPECT_THROW(NearGeneratrixContinuation(surface, points, 0.0), std::invalid_argument);
+  EXPECT_THROW(NearGeneratrixContinuation(KinematicSurface::Helical(basis, profile, 1.0, 2.0), points, 0.05),
                std::invalid_argument);
 }
 
