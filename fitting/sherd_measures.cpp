@@ -122,6 +122,20 @@ PreservedArc MeasureArc(const Eigen::Matrix3Xd& points, const std::vector<int>& 
   out.points = static_cast<Eigen::Index>(inside.size());
   if (out.points < std::max(min_points, 3)) return out;
   const Arc arc = CoveredArc(angles);
+  // Eq. A14a: the range of the central 90 % of the points, by their angles from the arc's first point.
+  {
+    std::vector<double> along;
+    along.reserve(angles.size());
+    for (const double angle : angles) {
+      const double a = angle - angles[arc.first];
+      along.push_back(a < 0 ? a + kTwoPi : a);
+    }
+    std::sort(along.begin(), along.end());
+    const auto at = [&](double q) {
+      return along[static_cast<std::size_t>(std::lround(q * static_cast<double>(along.size() - 1)))];
+    };
+    out.central_fraction = (at(0.95) - at(0.05)) / kTwoPi;
+  }
   // Eq. A14: n points spread uniformly over an arc L leave a range of expected length L (n - 1) / (n + 1),
   // with variance 2 (n - 1) L^2 / ((n + 1)^2 (n + 2)) (order statistics of the uniform distribution), so
   // L = R (n + 1) / (n - 1) is unbiased with standard deviation L sqrt(2 / ((n - 1) (n + 2))).
@@ -244,12 +258,18 @@ SherdMeasures MeasureSherd(const Eigen::Matrix3Xd& points, const std::vector<int
     m.preserved_at_rim = std::isfinite(m.preserved.fraction);
   }
   if (!m.preserved_at_rim) {
-    // A body sherd: the widest of `bands` bands of equal height.
-    for (int b = 0; b < options.bands; ++b) {
+    // A body sherd: the widest of `bands` bands of equal height, told by the range of its central points
+    // (eq. A14a): the widest by (A14) itself would be the one whose end points happened to fall closest to
+    // its ends, biased up by the choice. The two end bands are left out when there are more: the breaks
+    // across the profile run through them, and where a break's face was scanned and the fitted generatrix
+    // turned the corner onto it (a level break's face is itself a surface of revolution) their points
+    // are the face's.
+    const int first_band = options.bands >= 3 ? 1 : 0, last_band = options.bands - first_band;
+    for (int b = first_band; b < last_band; ++b) {
       const double lo = z_lo + height * b / options.bands, hi = z_lo + height * (b + 1) / options.bands;
       const PreservedArc a =
           MeasureArc(points, view_of_point, pose_covariance, lo, hi, options.min_band_points);
-      if (std::isfinite(a.fraction) && !(a.fraction <= m.preserved.fraction)) m.preserved = a;
+      if (std::isfinite(a.fraction) && !(a.central_fraction <= m.preserved.central_fraction)) m.preserved = a;
     }
   }
   return m;

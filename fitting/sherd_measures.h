@@ -25,10 +25,11 @@ struct SherdMeasureOptions {
   double level_false_rejection = 1e-3;
   int null_draws = 20000;
   // The preserved fraction is measured in a band this deep (a fraction of the sherd's height) below the rim,
-  // or, on a body sherd, in each of `bands` bands of equal height (the widest reported); a band needs
-  // `min_band_points` points.
+  // or, on a body sherd, in each of `bands` bands of equal height but the two at the ends (the one whose
+  // central 90 % of points spans the widest arc is reported, eq. A14a; thin bands keep a break slanting
+  // across one from thinning its ends); a band needs `min_band_points` points.
   double rim_band_depth = 0.03;
-  int bands = 10;
+  int bands = 20;
   int min_band_points = 30;
   bool IsValid(std::string* why = nullptr) const;
 };
@@ -49,6 +50,9 @@ struct PreservedArc {
   double uncertainty = std::numeric_limits<double>::quiet_NaN();  // combined (eq. A16)
   double axis_uncertainty = std::numeric_limits<double>::quiet_NaN();      // from the poses (eq. A15)
   double sampling_uncertainty = std::numeric_limits<double>::quiet_NaN();  // from the point spacing
+  // The range of the central 90 % of the points (their angles' 5th to 95th percentile): what the band's
+  // arc sets and its two end points hardly move (eq. A14a).
+  double central_fraction = std::numeric_limits<double>::quiet_NaN();
   double height_lo = 0, height_hi = 0;  // the band, model frame (along the axis)
   Eigen::Index points = 0;
 };
@@ -76,8 +80,9 @@ SherdMeasures MeasureSherd(const Eigen::Matrix3Xd& points, const std::vector<int
                            const SherdMeasureOptions& options = {});
 
 // The angular extent of `points` about the z axis as a fraction of a turn, corrected for the sampling, with
-// its uncertainty (eqs. A14-A16); points with heights outside [height_lo, height_hi] are skipped. NaN when
-// fewer than `min_points` are inside.
+// its uncertainty (eqs. A14-A16), and the range of its central 90 % (A14a); points with heights outside
+// [height_lo, height_hi] are skipped. NaN when fewer than `min_points` are inside. Throws
+// std::invalid_argument when a point's view has no pose covariance.
 PreservedArc MeasureArc(const Eigen::Matrix3Xd& points, const std::vector<int>& view_of_point,
                         const std::vector<Eigen::Matrix<double, 6, 6>>& pose_covariance, double height_lo,
                         double height_hi, int min_points);
