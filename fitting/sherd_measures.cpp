@@ -264,12 +264,16 @@ SherdMeasures MeasureSherd(const Eigen::Matrix3Xd& points, const std::vector<int
     // across the profile run through them, and where a break's face was scanned and the fitted generatrix
     // turned the corner onto it (a level break's face is itself a surface of revolution) their points
     // are the face's.
-    const int first_band = options.bands >= 3 ? 1 : 0, last_band = options.bands - first_band;
-    for (int b = first_band; b < last_band; ++b) {
-      const double lo = z_lo + height * b / options.bands, hi = z_lo + height * (b + 1) / options.bands;
-      const PreservedArc a =
-          MeasureArc(points, view_of_point, pose_covariance, lo, hi, options.min_band_points);
-      if (std::isfinite(a.fraction) && !(a.central_fraction <= m.preserved.central_fraction)) m.preserved = a;
+    // A sparse sherd whose inner bands all hold fewer than `min_band_points` points is cut into half as many.
+    for (int bands = options.bands; bands >= 1 && !std::isfinite(m.preserved.fraction); bands /= 2) {
+      const int first_band = bands >= 3 ? 1 : 0, last_band = bands - first_band;
+      for (int b = first_band; b < last_band; ++b) {
+        const double lo = z_lo + height * b / bands, hi = z_lo + height * (b + 1) / bands;
+        const PreservedArc a =
+            MeasureArc(points, view_of_point, pose_covariance, lo, hi, options.min_band_points);
+        if (std::isfinite(a.fraction) && !(a.central_fraction <= m.preserved.central_fraction))
+          m.preserved = a;
+      }
     }
   }
   return m;

@@ -27,7 +27,8 @@ struct SherdMeasureOptions {
   // The preserved fraction is measured in a band this deep (a fraction of the sherd's height) below the rim,
   // or, on a body sherd, in each of `bands` bands of equal height but the two at the ends (the one whose
   // central 90 % of points spans the widest arc is reported, eq. A14a; thin bands keep a break slanting
-  // across one from thinning its ends); a band needs `min_band_points` points.
+  // across one from thinning its ends); a band needs `min_band_points` points (when no band has them, the
+  // sherd is cut into half as many bands, and so on).
   double rim_band_depth = 0.03;
   int bands = 20;
   int min_band_points = 30;

@@ -145,6 +145,13 @@ TEST(SherdEdges, ALevelEdgeIsTheRim) {
   EXPECT_NE(body.rim_reason.find("neither edge"), std::string::npos);
   EXPECT_FALSE(body.preserved_at_rim);
   EXPECT_NEAR(body.preserved.fraction, 0.25, 3 * body.preserved.uncertainty);
+  // A sparse body sherd (300 points: 15 in each of twenty bands, fewer than the 30 a band needs) is measured
+  // in fewer, taller bands rather than not at all.
+  const Eigen::Matrix3Xd sparse = make(false, false).leftCols(300);
+  const SherdMeasures few = MeasureSherd(sparse, std::vector<int>(300, 0), covariance, 0.05);
+  EXPECT_FALSE(few.preserved_at_rim);
+  EXPECT_GE(few.preserved.points, 30);
+  EXPECT_NEAR(few.preserved.fraction, 0.25, 3 * few.preserved.uncertainty);
   // Bad input: too few points, a view index without a covariance, invalid options.
   EXPECT_THROW(MeasureSherd(Eigen::Matrix3Xd::Zero(3, 5), std::vector<int>(5, 0), covariance, 0.05),
                std::invalid_argument);
