@@ -42,16 +42,22 @@ const Fault kFaults[] = {
     {"fsync_error", "EIO", true, "disk I/O error", "Input/output error"},
 };
 
+// `env` with the shim preloaded. Under AddressSanitizer (gcc's, whose runtime is a shared library) the shim
+// comes after ASan's runtime in the preload order, which ASan accepts only when told; the run's own
+// ASAN_OPTIONS are kept.
+std::string WithShim() {
+  return std::string("env LD_PRELOAD=") + S2M_IO_FAULT_SHIM +
+         " ASAN_OPTIONS=\"${ASAN_OPTIONS:+$ASAN_OPTIONS:}verify_asan_link_order=0\" ";
+}
+
 // `scan2model ARGS` with the shim failing writes to files whose path contains `path_part` after `budget`
-// bytes. Under AddressSanitizer the shim comes after ASan's runtime in the preload order, which ASan accepts
-// only when told.
+// bytes.
 test::ShellResult RunWithFault(const Fault& fault, const std::string& path_part, long long budget,
                                const std::string& args) {
-  const std::string env =
-      std::string("env LD_PRELOAD=") + S2M_IO_FAULT_SHIM + " S2M_FAULT_PATH=" + test::Quote({path_part}) +
-      " S2M_FAULT_AFTER_BYTES=" + std::to_string(budget) + " S2M_FAULT_ERRNO=" + fault.errno_name +
-      " S2M_FAULT_FSYNC=" + (fault.fsync ? "1" : "0") +
-      " ASAN_OPTIONS=verify_asan_link_order=0:detect_leaks=1 ";
+  const std::string env = WithShim() + "S2M_FAULT_PATH=" + test::Quote({path_part}) +
+                          " S2M_FAULT_AFTER_BYTES=" + std::to_string(budget) +
+                          " S2M_FAULT_ERRNO=" + fault.errno_name +
+                          " S2M_FAULT_FSYNC=" + (fault.fsync ? "1" : "0") + " ";
   return test::Shell(env + S2M_CLI_PATH + " " + args);
 }
 
@@ -81,8 +87,8 @@ TEST(IoFault, ShimIsIdleUnlessAsked) {
   S2M_NEEDS_VIRTUAL_SCANNER();
   const fs::path dir = test::FreshTempDir("io_fault_idle");
   const test::ShellResult r =
-      test::Shell(std::string("env LD_PRELOAD=") + S2M_IO_FAULT_SHIM + " " + S2M_CLI_PATH +
-                  " record --device virtual:vase,steps=2 -q -o " + (dir / "idle.s2mrec").string());
+      test::Shell(WithShim() + S2M_CLI_PATH + " record --device virtual:vase,steps=2 -q -o " +
+                  (dir / "idle.s2mrec").string());
   EXPECT_EQ(r.exit_code, 0) << r.out;
   EXPECT_EQ(ReadEveryFrame(dir / "idle.s2mrec"), 2u);
   fs::remove_all(dir);
