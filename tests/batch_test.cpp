@@ -382,6 +382,11 @@ long PeakResidentKib(const fs::path& manifest, const fs::path& out) {
 // while summary.json is written: measured 20 KiB per object); the bound, 32 KiB per object, fails whenever
 // records are kept again.
 TEST(Batch, MemoryDoesNotGrowWithTheRecords) {
+#if defined(__SANITIZE_ADDRESS__)
+  // AddressSanitizer holds freed memory back (its quarantine, 256 MiB by default) and maps shadow for every
+  // allocation, so the peak grows with what the batch allocated over its run, not with what it keeps.
+  GTEST_SKIP() << "peak memory under AddressSanitizer measures its quarantine, not the batch";
+#endif
   const fs::path dir = FreshDir("memory");
   Scan sphere;
   sphere.points.resize(3, 2000);
