@@ -619,7 +619,9 @@ void SectionBunny(const Settings& s, Csv& csv) {
       const double seconds = Since(t0);
       report(term == ScanErrorTerm::kTdm ? "ours TDM (scan-to-scan)" : "ours SDM (scan-to-scan)", r.sweeps,
              seconds, r.world_T_scan[0].inverse() * r.world_T_scan[1],
-             r.converged ? "converged" : "sweep cap");
+             r.converged ? "converged"
+             : r.stalled ? "stalled"
+                         : "sweep cap");
     }
     // The ICPs' source: evenly spaced samples of b; their target: all of a with normals.
     const Eigen::Index n = b.points.cols();
@@ -713,7 +715,9 @@ void SectionBunny(const Settings& s, Csv& csv) {
       report_all(term == ScanErrorTerm::kTdm ? "ours TDM (all 10 views)" : "ours SDM (all 10 views)",
                  r.sweeps, Since(t0), r.world_T_scan,
                  "error: worst rotation deg; final_error: worst displacement RMS mm; seconds: whole run",
-                 r.converged ? "converged" : "sweep cap");
+                 r.converged ? "converged"
+                 : r.stalled ? "stalled"
+                             : "sweep cap");
     }
     if (bench::HaveOpen3d()) {
       const auto t0 = Clock::now();

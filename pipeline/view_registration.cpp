@@ -144,7 +144,12 @@ void ScanToScan(const RegisterOptions& o, const ScanSet& views, const RegisterPr
   j["mode"] = "scan-to-scan";
   j["sweeps"] = r.sweeps;
   j["converged"] = r.converged;
+  if (options.error_term == ScanErrorTerm::kPdm) j["stalled"] = r.stalled;
+  j["last_step"] = {{"angle_deg", r.last_step_angle * 180.0 / M_PI}, {"displacement", r.last_step_shift}};
   j["rms_per_sweep"] = r.rms_per_sweep;
+  if (options.error_term == ScanErrorTerm::kPdm)
+    j["pending_point_to_plane_step"] = {{"angle_deg", r.pending_plane_angle * 180.0 / M_PI},
+                                        {"displacement", r.pending_plane_shift}};
   j["fixed_view"] = o.fixed_view;
   j["samples_per_view"] = o.samples_per_view;
   j["seconds"] = seconds;
@@ -153,15 +158,34 @@ void ScanToScan(const RegisterOptions& o, const ScanSet& views, const RegisterPr
   std::ostringstream text;
   text << "scan2model register: " << K << " views of " << o.input << " to each other (" << o.method
        << ", view " << o.fixed_view << " fixed), " << r.sweeps << " sweeps, "
-       << (r.converged ? "converged" : "stopped at the sweep cap") << ", " << Format(seconds, 3) << " s\n";
+       << (r.converged ? "converged"
+           : r.stalled ? "stalled (not converged)"
+                       : "stopped at the sweep cap")
+       << ", " << Format(seconds, 3) << " s\n";
   text << ViewTable(entries, units);
   text << "\n  RMS and max: distances of each view's accepted pairs to the other views' local "
        << (options.error_term == ScanErrorTerm::kSdm ? "quadrics" : "planes") << " (" << units
        << "), measured in the last sweep\n";
   outcome.text = text.str();
-  if (!r.converged)
-    outcome.notes.push_back("the poses still moved by more than the tolerances after " +
-                            std::to_string(r.sweeps) + " sweeps (--max-sweeps): check the views' overlap");
+  if (r.stalled) {
+    // PDM's own steps settled while the views are still off each other's surfaces (its pairs with the nearest
+    // sample hold them): how far, by the point-to-plane step the same pairs still ask for.
+    outcome.notes.push_back(
+        "point-to-point pairs stalled after " + std::to_string(r.sweeps) +
+        " sweeps short of the surfaces: the point-to-plane step of the same pairs is still " +
+        Format(r.pending_plane_angle * 180.0 / M_PI, 3) + " deg, " + Format(r.pending_plane_shift, 3) + " " +
+        units + ": the poses have not reached the surfaces' fit (use --method tdm)");
+  } else if (!r.converged) {
+    std::string note = "the poses still moved by more than the tolerances after " + std::to_string(r.sweeps) +
+                       " sweeps (--max-sweeps; the last sweep moved a view by up to " +
+                       Format(r.last_step_angle * 180.0 / M_PI, 3) + " deg, " + Format(r.last_step_shift, 3) +
+                       " " + units + "): check the views' overlap";
+    if (options.error_term == ScanErrorTerm::kPdm)
+      note += "; the point-to-plane step of the last sweep's pairs was " +
+              Format(r.pending_plane_angle * 180.0 / M_PI, 3) + " deg, " + Format(r.pending_plane_shift, 3) +
+              " " + units;
+    outcome.notes.push_back(note);
+  }
 }
 
 void ToNominal(const RegisterOptions& o, const ScanSet& views, const RegisterProgress& progress,

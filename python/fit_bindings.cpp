@@ -255,6 +255,7 @@ void BindFits(py::module_& m) {
         for (const RigidMotion& pose : r.world_T_scan) j["world_T_scan"].push_back(PoseJson(pose));
         j["sweeps"] = r.sweeps;
         j["converged"] = r.converged;
+        j["stalled"] = r.stalled;  // PDM only: settled short of the surfaces (scan_to_scan.h)
         j["rms_per_sweep"] = r.rms_per_sweep;
         j["unregistered_views"] = r.unconstrained_views;
         return result;

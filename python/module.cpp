@@ -156,6 +156,9 @@ void BindResults(py::module_& m) {
           "One 4 x 4 pose per view (maps scan coordinates to world coordinates).")
       .def_property_readonly("rms_per_sweep", member("rms_per_sweep"))
       .def_property_readonly("converged", member("converged"))
+      .def_property_readonly("stalled", member("stalled"),
+                             "PDM only: its steps settled while the point-to-plane step of its pairs did not "
+                             "(not converged).")
       .def_property_readonly(
           "unregistered_views", member("unregistered_views"),
           "Views whose poses the overlap does not determine (empty when all are registered).");

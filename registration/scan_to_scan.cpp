@@ -104,6 +104,7 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
     Eigen::Matrix3d M = Eigen::Matrix3d::Identity();            // the error term's matrix, world coordinates
     double distance = std::numeric_limits<double>::infinity();  // |x - nearest sample|: pairing and rejection
     double surface_distance = 0.0;                              // to the local plane or quadric: the RMS
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();           // PDM: the target's plane normal (world)
   };
   // Every view's samples with their pairs of the previous sweep: the previous partner bounds the search for
   // the new one (a warm start), and the views are searched with the best distance found so far, so a view
@@ -116,12 +117,42 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
     pairs_of_view[k].resize(static_cast<std::size_t>((n + stride_of_view[k] - 1) / stride_of_view[k]));
   }
   const Eigen::Index dim = 6 * static_cast<Eigen::Index>(K);
+  const bool pdm = options.error_term == ScanErrorTerm::kPdm;
+  // The step of all poses from a sweep's normal equations: the fixed view anchors the gauge (its block is
+  // removed), the views left out are held the same way, and tiny damping keeps weakly constrained views
+  // stable. Returns the largest rotation (rad) and displacement of the step's motions in `angle`, `shift`.
+  const auto solve_step = [&](Eigen::MatrixXd& H, Eigen::VectorXd& g, const std::vector<char>& excluded,
+                              std::vector<RigidMotion>& steps, double& angle, double& shift) {
+    for (std::size_t k = 0; k < K; ++k) {
+      if (k != options.fixed_view && !excluded[k]) continue;
+      const Eigen::Index b = 6 * static_cast<Eigen::Index>(k);
+      for (Eigen::Index i = 0; i < 6; ++i) {
+        H.row(b + i).setZero();
+        H.col(b + i).setZero();
+        H(b + i, b + i) = 1.0;
+        g[b + i] = 0.0;
+      }
+    }
+    H.diagonal() += 1e-9 * H.diagonal();
+    const Eigen::VectorXd v = H.ldlt().solve(-g);
+    steps.resize(K);
+    angle = shift = 0.0;
+    for (std::size_t k = 0; k < K; ++k) {
+      const Eigen::Matrix<double, 6, 1> vk = v.segment<6>(6 * static_cast<Eigen::Index>(k));
+      steps[k] = RigidMotion::FromHelicalVelocity(vk.head<3>(), vk.tail<3>());
+      angle = std::max(angle, steps[k].angle());
+      shift = std::max(shift, steps[k].translation().norm());
+    }
+  };
   for (int sweep = 0; sweep < options.max_sweeps; ++sweep) {
     std::vector<RigidMotion> scan_T_world(K);
     for (std::size_t l = 0; l < K; ++l) scan_T_world[l] = result.world_T_scan[l].inverse();
     // Pairs: every view's samples with their nearest point over all other views (the view they overlap).
     Eigen::MatrixXd H = Eigen::MatrixXd::Zero(dim, dim);
     Eigen::VectorXd g = Eigen::VectorXd::Zero(dim);
+    // PDM: the point-to-plane system of the same pairs beside it (the stall check of pending_plane_angle).
+    Eigen::MatrixXd H_plane = pdm ? Eigen::MatrixXd::Zero(dim, dim) : Eigen::MatrixXd();
+    Eigen::VectorXd g_plane = pdm ? Eigen::VectorXd::Zero(dim) : Eigen::VectorXd();
     double sum_sq = 0.0;
     std::size_t pairs_total = 0;
     std::vector<ScanToScanViewResidual> view_residuals(K);
@@ -202,6 +233,7 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
           const Eigen::Vector3d normal = rotation * geometry[best.l].normals[slot];
           best.M = options.error_term == ScanErrorTerm::kTdm ? Eigen::Matrix3d(normal * normal.transpose())
                                                              : Eigen::Matrix3d::Identity();
+          best.normal = normal;
           best.surface_distance = std::abs(normal.dot(best.x - best.target));
         }
       }
@@ -261,34 +293,38 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
         H.block<6, 6>(bl, bk) += ml * jk;
         g.segment<6>(bk) += mk * residual;
         g.segment<6>(bl) += ml * residual;
+        if (pdm) {
+          const Eigen::Matrix<double, 6, 1> nk = jk.transpose() * p.normal, nl = jl.transpose() * p.normal;
+          const double distance = p.normal.dot(residual);
+          H_plane.block<6, 6>(bk, bk) += nk * nk.transpose();
+          H_plane.block<6, 6>(bl, bl) += nl * nl.transpose();
+          H_plane.block<6, 6>(bk, bl) += nk * nl.transpose();
+          H_plane.block<6, 6>(bl, bk) += nl * nk.transpose();
+          g_plane.segment<6>(bk) += nk * distance;
+          g_plane.segment<6>(bl) += nl * distance;
+        }
         sum_sq += p.surface_distance * p.surface_distance;
         ++pairs_total;
       }
       if (residual_k.pairs > 0)
         residual_k.rms = std::sqrt(residual_k.rms / static_cast<double>(residual_k.pairs));
     }
-    // The fixed view anchors the gauge (its block is removed); the views left out are held the same way; tiny
-    // damping keeps weakly constrained views stable.
-    for (std::size_t k = 0; k < K; ++k) {
-      if (k != options.fixed_view && !excluded[k]) continue;
-      const Eigen::Index b = 6 * static_cast<Eigen::Index>(k);
-      for (Eigen::Index i = 0; i < 6; ++i) {
-        H.row(b + i).setZero();
-        H.col(b + i).setZero();
-        H(b + i, b + i) = 1.0;
-        g[b + i] = 0.0;
-      }
-    }
-    H.diagonal() += 1e-9 * H.diagonal();
-    const Eigen::VectorXd v = H.ldlt().solve(-g);
+    std::vector<RigidMotion> steps;
     double max_angle = 0.0, max_shift = 0.0;
+    solve_step(H, g, excluded, steps, max_angle, max_shift);
+    result.last_step_angle = max_angle;
+    result.last_step_shift = max_shift;
     for (std::size_t k = 0; k < K; ++k) {
-      const Eigen::Matrix<double, 6, 1> vk = v.segment<6>(6 * static_cast<Eigen::Index>(k));
-      const RigidMotion step = RigidMotion::FromHelicalVelocity(vk.head<3>(), vk.tail<3>());
-      result.world_T_scan[k] = step * result.world_T_scan[k];
+      result.world_T_scan[k] = steps[k] * result.world_T_scan[k];
       result.world_T_scan[k].normalize();
-      max_angle = std::max(max_angle, step.angle());
-      max_shift = std::max(max_shift, step.translation().norm());
+    }
+    bool plane_step_small = true;
+    if (pdm) {
+      std::vector<RigidMotion> plane_steps;
+      solve_step(H_plane, g_plane, excluded, plane_steps, result.pending_plane_angle,
+                 result.pending_plane_shift);
+      plane_step_small = result.pending_plane_angle <= options.rotation_tolerance &&
+                         result.pending_plane_shift <= options.translation_tolerance * extent;
     }
     result.sweeps = sweep + 1;
     result.rms_per_sweep.push_back(pairs_total ? std::sqrt(sum_sq / static_cast<double>(pairs_total)) : 0.0);
@@ -297,7 +333,9 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
     result.overlap = std::move(overlap);
     if (options.progress) options.progress(result.sweeps, result.rms_per_sweep.back());
     if (max_angle <= options.rotation_tolerance && max_shift <= options.translation_tolerance * extent) {
-      result.converged = true;
+      // Settled: converged, or (PDM) stalled where more sweeps would not move it.
+      result.converged = plane_step_small;
+      result.stalled = !plane_step_small;
       break;
     }
   }

@@ -69,6 +69,19 @@ struct ScanToScanResult {
   std::vector<ScanToScanViewResidual> view_residuals;
   // overlap(k, l): pairs of the last sweep from view k's samples to view l's surface (the overlap graph).
   Eigen::MatrixXi overlap;
+  // The largest rotation (rad) and displacement of the last sweep's step over the views (below the
+  // tolerances when converged).
+  double last_step_angle = 0.0;
+  double last_step_shift = 0.0;
+  // PDM only: the largest rotation (rad) and displacement of the point-to-plane step (TDM's, from the same
+  // pairs and the targets' local planes) the last sweep's poses still asked for. Point-to-point pairs with
+  // the nearest sample stall where the samples' spacing holds the points (docs/registration.md): their own
+  // steps shrink below the tolerances while the views are still off the surfaces, so PDM is declared
+  // converged only when this step is below the tolerances too; `stalled` when its own steps settled while
+  // this one did not (the sweeps stop there: more would not move the poses).
+  double pending_plane_angle = 0.0;
+  double pending_plane_shift = 0.0;
+  bool stalled = false;
   // Views whose pose relative to the fixed view the last sweep's pairs do not determine: not linked to it
   // through views with at least six pairs between them. In every sweep such views are left out of the step
   // (their poses do not move then, and their pairs do not pull on the others). Their poses are not
