@@ -195,10 +195,11 @@ class RegistrationProblem : public NonlinearProblem {
     record.rms = std::sqrt(sum / static_cast<double>(feet_.size()));
   }
 
-  std::optional<StopReason> AfterIteration(const IterationSummary& /*summary*/,
+  std::optional<StopReason> AfterIteration(const IterationSummary& summary,
                                            std::optional<StopReason> proposed) override {
     pose_history_.push_back(pose_);
     if (field_phase_) ++field_iterations_;
+    if (options_.progress) options_.progress(summary.record.iteration, summary.record.rms);
     return proposed;
   }
 

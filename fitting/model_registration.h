@@ -5,6 +5,7 @@
 // from the original scan every iteration, so no drift accumulates.
 
 #include <Eigen/Core>
+#include <functional>
 #include <vector>
 
 #include "fitting/fit_result.h"
@@ -56,6 +57,9 @@ struct ModelRegistrationOptions {
   SquaredDistanceField* squared_distance_field = nullptr;
   double field_step_tolerance = 1e-7;
   int exact_final_iterations = 1;
+  // Called after every accepted iteration with its number (from 1) and the RMS distance of the scan's points
+  // to the model there (input units; approximate in the field phase); may be empty.
+  std::function<void(int iteration, double rms)> progress;
 };
 
 struct ModelRegistrationResult {

@@ -137,6 +137,18 @@ NominalInspection InspectAgainstNominal(const TriangleMeshModel& nominal,
     return keep;
   };
 
+  // The registrations' options, their progress told with the view they register.
+  const auto registration_options = [&](int view) {
+    ModelRegistrationOptions o = options.registration;
+    if (options.progress) {
+      o.progress = [&options, view](int iteration, double rms) {
+        if (options.registration.progress) options.registration.progress(iteration, rms);
+        options.progress(view, iteration, rms);
+      };
+    }
+    return o;
+  };
+
   // (1) All views as one rigid body.
   const int rounds = datums ? options.datum_rounds : 1;
   RigidMotion correction = RigidMotion::Identity();
@@ -150,7 +162,8 @@ NominalInspection InspectAgainstNominal(const TriangleMeshModel& nominal,
     }
     const std::vector<Eigen::Index> keep = selected(merged);
     if (keep.size() < 6) throw std::invalid_argument("fewer than 6 points lie on the datum faces");
-    common = RegisterToModel(target, Columns(merged, keep), RigidMotion::Identity(), options.registration);
+    common =
+        RegisterToModel(target, Columns(merged, keep), RigidMotion::Identity(), registration_options(-1));
     correction = common.model_T_scan * correction;
   }
   out.common_correction = correction;
@@ -176,7 +189,8 @@ NominalInspection InspectAgainstNominal(const TriangleMeshModel& nominal,
       }
       used[k].assign(used[k].size(), 0);
       for (Eigen::Index i : keep) used[k][static_cast<std::size_t>(i)] = 1;
-      result = RegisterToModel(target, Columns(scans[k], keep), out.nominal_T_scan[k], options.registration);
+      result = RegisterToModel(target, Columns(scans[k], keep), out.nominal_T_scan[k],
+                               registration_options(static_cast<int>(k)));
       out.nominal_T_scan[k] = result.model_T_scan;
     }
     out.registration.push_back(result);

@@ -13,6 +13,7 @@
 // sequential primary/secondary/tertiary constraints are not modelled).
 
 #include <Eigen/Core>
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
@@ -28,6 +29,10 @@ struct NominalInspectionOptions {
   bool per_view = true;                   // step (2) above
   std::vector<int> datum_groups;          // face groups of the nominal to align on; empty: every face
   int datum_rounds = 3;
+  // Called after every iteration of every registration with the view (-1: all views as one body, step (1)),
+  // the iteration (from 1) and the RMS distance to the nominal (input units); may be empty.
+  // registration.progress, when set, is called as well.
+  std::function<void(int view, int iteration, double rms)> progress;
   bool IsValid(std::string* why = nullptr) const;
 };
 

@@ -188,6 +188,16 @@ void ScanToScan(const RegisterOptions& o, const ScanSet& views, const RegisterPr
   }
 }
 
+// One progress line per iteration of a registration to a model: "view 3: iteration 2: RMS 0.0123 mm" (view
+// -1: all views as one rigid body).
+void TellIteration(const RegisterProgress& progress, int view, int iteration, double rms,
+                   const std::string& units) {
+  std::ostringstream line;
+  line << (view < 0 ? std::string("all views") : "view " + std::to_string(view)) << ": iteration "
+       << iteration << ": RMS " << Format(rms, 4) << " " << units;
+  progress(line.str());
+}
+
 void ToNominal(const RegisterOptions& o, const ScanSet& views, const RegisterProgress& progress,
                RegisterOutcome& outcome, std::vector<RigidMotion>& world_T_scan) {
   NominalInspectionOptions options;
@@ -216,6 +226,11 @@ void ToNominal(const RegisterOptions& o, const ScanSet& views, const RegisterPro
   if (progress)
     progress("registering " + std::to_string(scans.size()) + " views to " + o.to + " (" +
              std::to_string(mesh.triangle_count()) + " triangles)");
+  if (progress) {
+    options.progress = [&progress, &views](int view, int iteration, double rms) {
+      TellIteration(progress, view, iteration, rms, views.scans[0].units);
+    };
+  }
   const auto t0 = std::chrono::steady_clock::now();
   NominalInspection r;
   try {
@@ -311,10 +326,21 @@ void ToFittedPart(const RegisterOptions& o, const nlohmann::json& fit, const Sca
     progress("registering " + std::to_string(views.scans.size()) + " views to the part measured in " + o.to);
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<ModelRegistrationResult> results;
-  try {
-    results = RegisterScansToModel(part, RigidMotion(), registered, options);
-  } catch (const std::invalid_argument& e) {
-    throw FitFailure(kFitError, std::string("registration to the fitted part failed: ") + e.what());
+  for (std::size_t k = 0; k < registered.scans.size(); ++k) {
+    Scan& scan = registered.scans[k];
+    ModelRegistrationOptions view_options = options;
+    if (progress) {
+      view_options.progress = [&progress, &units, k](int iteration, double rms) {
+        TellIteration(progress, static_cast<int>(k), iteration, rms, units);
+      };
+    }
+    try {
+      results.push_back(RegisterToModel(part, scan.points, scan.world_T_scan, view_options));
+    } catch (const std::invalid_argument& e) {
+      throw FitFailure(kFitError,
+                       "view " + std::to_string(k) + ": registration to the fitted part failed: " + e.what());
+    }
+    scan.world_T_scan = results.back().model_T_scan;  // the part's frame is the world
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   nlohmann::json entries = nlohmann::json::array();
@@ -417,8 +443,14 @@ void ToFittedFeSurface(const RegisterOptions& o, const nlohmann::json& fit, cons
       Eigen::Matrix3Xd chosen(3, static_cast<Eigen::Index>(overlap.inside.size()));
       for (std::size_t i = 0; i < overlap.inside.size(); ++i)
         chosen.col(static_cast<Eigen::Index>(i)) = scan.points.col(overlap.inside[i]);
+      ModelRegistrationOptions view_options = options;
+      if (progress) {
+        view_options.progress = [&progress, &units, k](int iteration, double rms) {
+          TellIteration(progress, static_cast<int>(k), iteration, rms, units);
+        };
+      }
       try {
-        result = RegisterToModel(*surface, chosen, pose, options);
+        result = RegisterToModel(*surface, chosen, pose, view_options);
       } catch (const std::invalid_argument& e) {
         throw FitFailure(kFitError,
                          "view " + std::to_string(k) + ": registration to the surface failed: " + e.what());

@@ -249,9 +249,12 @@ TEST(RegisterCommand, ViewsAreRegisteredToANominalMesh) {
   }
   WriteScanSet(dir / "views.json", set);
   const test::ShellResult r = Register(
-      {(dir / "views.json").string(), "--to", (dir / "box.stl").string(), "--method", "sdm", "--json", "-q"});
+      {(dir / "views.json").string(), "--to", (dir / "box.stl").string(), "--method", "sdm", "--json"}, true);
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  const nlohmann::json j = nlohmann::json::parse(r.out);
+  // Progress on standard error: every iteration of the common registration, then of each view's.
+  EXPECT_NE(r.out.find("scan2model register: all views: iteration 1: RMS"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("scan2model register: view 1: iteration 1: RMS"), std::string::npos) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out.substr(r.out.find("{\n")));
   EXPECT_EQ(j["mode"], "to-nominal");
   EXPECT_EQ(j["nominal"]["triangles"], 12);
   for (std::size_t k = 0; k < 2; ++k) {
@@ -282,9 +285,10 @@ TEST(RegisterCommand, ViewsAreRegisteredToThePartAFitMeasured) {
       false);
   ASSERT_EQ(fit.exit_code, 0) << fit.out;
   const nlohmann::json measured = nlohmann::json::parse(std::ifstream(dir / "fit.json"));
-  const test::ShellResult r = Register({views, "--to", (dir / "fit.json").string(), "--json", "-q"});
+  const test::ShellResult r = Register({views, "--to", (dir / "fit.json").string(), "--json"}, true);
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_NE(r.out.find("scan2model register: view 7: iteration 1: RMS"), std::string::npos) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out.substr(r.out.find("{\n")));
   EXPECT_EQ(j["mode"], "to-part-fit");
   EXPECT_EQ(j["part_fit"]["parameters"], 5);
   ASSERT_EQ(j["views"].size(), measured["views"].size());
