@@ -1168,7 +1168,8 @@ void SectionScaling(const Settings& s, Csv& csv, ScalingSummary& summary) {
 
 void PrintTargets(const RegistrationSummary& reg, double threshold, const FittingSummary& fit,
                   const ScalingSummary& scaling, bool quick) {
-  std::printf("\n## Targets of issue 7 (this run%s)\n\n", quick ? ", QUICK MODE: not numbers to quote" : "");
+  std::printf("\n## Targets of issues 7 and 21 (this run%s)\n\n",
+              quick ? ", QUICK MODE: not numbers to quote" : "");
   std::printf("| target | measured | met |\n|---|---|---|\n");
   // Registration at 100k points against Open3D point-to-plane.
   const long long n = quick ? 2000 : 100000;
@@ -1232,14 +1233,17 @@ void PrintTargets(const RegistrationSummary& reg, double threshold, const Fittin
         n, row.ours, row.target, threshold, Fmt("%.2fx", open3d_s / s).c_str(), s, open3d_s, total,
         Fmt("%.2fx", open3d_s / total).c_str(), e, open3d_e, open3d_s / s >= row.target ? "met" : "not met");
   }
-  if (!std::isnan(scaling.eight_views_1m))
-    std::printf(
-        "| joint iteration, 8 views, 1M points, revolution with 12 control points < 0.5 s | %.3f s (%.2fx "
-        "the budget) | %s |\n",
-        scaling.eight_views_1m, scaling.eight_views_1m / 0.5,
-        scaling.eight_views_1m < 0.5 ? "met" : "not met");
-  else
-    std::printf("| joint iteration, 8 views, 1M points < 0.5 s | not run in this mode | - |\n");
+  // The joint iteration's budget: issue 7's 0.5 s, and issue 21's 0.25 s.
+  for (const double budget : {0.5, 0.25}) {
+    if (!std::isnan(scaling.eight_views_1m))
+      std::printf(
+          "| joint iteration, 8 views, 1M points, revolution with 12 control points < %.2f s | %.3f s (%.2fx "
+          "the budget) | %s |\n",
+          budget, scaling.eight_views_1m, scaling.eight_views_1m / budget,
+          scaling.eight_views_1m < budget ? "met" : "not met");
+    else
+      std::printf("| joint iteration, 8 views, 1M points < %.2f s | not run in this mode | - |\n", budget);
+  }
   // Iterations of SDM against PDM to one target; `what` names the target in the table.
   const auto ratio_row = [](const std::string& name, const std::string& what, int sdm, int pdm, int budget) {
     std::string measured, met = "-";
