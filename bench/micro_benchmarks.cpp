@@ -18,6 +18,7 @@
 #include <benchmark/benchmark.h>
 #include <omp.h>
 
+#include <Eigen/Dense>
 #include <Eigen/Geometry>
 #include <cstdio>
 #include <memory>
@@ -281,6 +282,24 @@ void RigidAssemblyTdm(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * static_cast<long long>(constraints.size()));
 }
 
+// The step of scan-to-scan registration (registration/scan_to_scan.cpp): the dense 6K x 6K system of K
+// views' poses factored and solved once per sweep (argument: K). Its cost against a sweep's pairs is the
+// reason there is no sparse pose graph (docs/registration.md).
+void ScanToScanDenseStep(benchmark::State& state) {
+  const auto n = static_cast<Eigen::Index>(6 * state.range(0));
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  Eigen::MatrixXd a(n, n);
+  for (Eigen::Index i = 0; i < a.size(); ++i) a.data()[i] = gauss(rng);
+  const Eigen::MatrixXd H = a * a.transpose() + static_cast<double>(n) * Eigen::MatrixXd::Identity(n, n);
+  Eigen::VectorXd g(n);
+  for (Eigen::Index i = 0; i < n; ++i) g[i] = gauss(rng);
+  for (auto _ : state) {
+    const Eigen::VectorXd v = H.ldlt().solve(-g);
+    benchmark::DoNotOptimize(v.data());
+  }
+}
+
 // Per point of a model registration step: model evaluation with second derivatives, principal frame, SDM
 // matrix and accumulation (fitting/model_registration.cpp's loop), on the B-spline surface at its foot
 // points.
@@ -387,6 +406,7 @@ BENCHMARK(RigidAssembly);
 BENCHMARK(RigidAssemblyByDirections);
 BENCHMARK(RigidAssemblyTdm);
 BENCHMARK(RegistrationAssemblyOnSurface);
+BENCHMARK(ScanToScanDenseStep)->Arg(10)->Arg(32)->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(SquaredDistanceFieldQueries, bspline_surface, std::string("bspline-surface"));
 BENCHMARK_CAPTURE(SquaredDistanceFieldQueries, cylinder, std::string("cylinder"));
 
