@@ -394,7 +394,8 @@ void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary
       "iteration (exact foot points) after the field's iterations; their time to threshold is at the first "
       "iteration whose pose is below the threshold (usually a field iteration), the notes give the whole "
       "registration's time with the exact iteration. The ICPs' times include their k-d tree but not the "
-      "dense sampling of the model.\n\n",
+      "dense sampling of the model, except in Open3D's rows that say so (the sampling's time, evaluating the "
+      "model with its normals on the grid, added).\n\n",
       field_options.cell_size, field_options.band, field.cell_count(), field.untrusted_cell_count(), build,
       omp_get_max_threads());
   std::printf(
@@ -403,7 +404,11 @@ void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary
   for (long long n : counts) {
     const SurfaceSampling scan_model = SampleSurface(model, n, noise, 7);
     const Eigen::Matrix3Xd scan = truth.inverse().apply(scan_model.points);
+    // The dense sampling of the model the ICPs register to, timed: the model preprocessing Open3D's side
+    // needs (the issue-21 rows with everything included count it, as ours count their field).
+    const auto sampling_start = Clock::now();
     const SurfaceSampling dense = SampleSurface(model, n, -1.0, 0);
+    const double sampling = Since(sampling_start);
     const PoseErrorMeasure measure(scan_model.points, truth);
     const Eigen::Vector3d centre = scan_model.points.rowwise().mean();
     const int starts = s.quick ? 1 : (n >= 1000000 ? 1 : 3);
@@ -485,6 +490,10 @@ void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary
                            max_iterations, cap, 100.0);
          },
          bench::HaveOpen3d()},
+        {"Open3D point-to-plane ICP (model sampling included)", nullptr, bench::HaveOpen3d(),
+         "Open3D point-to-plane ICP", sampling},
+        {"Open3D point-to-plane ICP (model sampling amortized over 10 scans)", nullptr, bench::HaveOpen3d(),
+         "Open3D point-to-plane ICP", sampling / 10},
     };
     for (const Method& m : methods) {
       if (!m.available) {
@@ -499,6 +508,7 @@ void SectionRegistrationToModel(const Settings& s, Csv& csv, RegistrationSummary
           Trajectory copy = summary.runs[{m.copy_of, n}][static_cast<std::size_t>(k)];
           copy.seconds_to_threshold += m.add_seconds;
           copy.total_seconds += m.add_seconds;
+          copy.note += "; " + Fmt("%.4f", m.add_seconds) + " s added";
           runs.push_back(copy);
         }
         const Trajectory& t = runs.back();
@@ -1210,28 +1220,36 @@ void PrintTargets(const RegistrationSummary& reg, double threshold, const Fittin
   }
   // Registration to a known surface with the model's whole preprocessing counted: a lazy field made for the
   // run (>= 3x Open3D), or a field shared by 10 scans of the model (TDM >= 10x, SDM >= 5x).
+  // Each against Open3D with its own model preprocessing counted the same way (the dense sampling, whole or
+  // amortized over 10 scans): the ratio that decides; the ratio against Open3D's ICP alone beside it.
+  const char* const sampled_once = "Open3D point-to-plane ICP (model sampling included)";
+  const char* const sampled_amortized = "Open3D point-to-plane ICP (model sampling amortized over 10 scans)";
   const struct {
     const char* ours;
     double target;
-  } preprocessing_rows[] = {{"ours TDM (lazy d2 field, everything included)", 3.0},
-                            {"ours SDM (lazy d2 field, everything included)", 3.0},
-                            {"ours TDM (d2 field, build amortized over 10 scans)", 10.0},
-                            {"ours SDM (d2 field, build amortized over 10 scans)", 5.0},
-                            {"ours TDM (lazy d2 field shared by 10 scans, mean per scan)", 10.0},
-                            {"ours SDM (lazy d2 field shared by 10 scans, mean per scan)", 5.0}};
+    const char* open3d;
+  } preprocessing_rows[] = {
+      {"ours TDM (lazy d2 field, everything included)", 3.0, sampled_once},
+      {"ours SDM (lazy d2 field, everything included)", 3.0, sampled_once},
+      {"ours TDM (d2 field, build amortized over 10 scans)", 10.0, sampled_amortized},
+      {"ours SDM (d2 field, build amortized over 10 scans)", 5.0, sampled_amortized},
+      {"ours TDM (lazy d2 field shared by 10 scans, mean per scan)", 10.0, sampled_amortized},
+      {"ours SDM (lazy d2 field shared by 10 scans, mean per scan)", 5.0, sampled_amortized}};
   for (const auto& row : preprocessing_rows) {
     const double s = median_of(row.ours, seconds), e = median_of(row.ours, final_error);
-    if (std::isnan(open3d_s) || std::isnan(s)) {
+    const double reference = median_of(row.open3d, seconds);
+    if (std::isnan(open3d_s) || std::isnan(reference) || std::isnan(s)) {
       std::printf("| registration at %lld points (%s) vs Open3D | not measured | - |\n", n, row.ours);
       continue;
     }
     const double total = median_of(row.ours, [](const Trajectory& t) { return t.total_seconds; });
     std::printf(
-        "| registration at %lld points, %s: >= %.0fx less time than Open3D point-to-plane to pose error %.3g "
-        "mm | time ratio %s (%.3f s vs %.3f s); whole registration with the final exact iteration %.3f s "
-        "(ratio %s); final error %.2e vs %.2e mm | %s |\n",
-        n, row.ours, row.target, threshold, Fmt("%.2fx", open3d_s / s).c_str(), s, open3d_s, total,
-        Fmt("%.2fx", open3d_s / total).c_str(), e, open3d_e, open3d_s / s >= row.target ? "met" : "not met");
+        "| registration at %lld points, %s: >= %.0fx less time than %s to pose error %.3g mm | time ratio %s "
+        "(%.3f s vs %.3f s; against the ICP alone, %.3f s: %s); whole registration with the final exact "
+        "iteration %.3f s (ratio %s); final error %.2e vs %.2e mm | %s |\n",
+        n, row.ours, row.target, row.open3d, threshold, Fmt("%.2fx", reference / s).c_str(), s, reference,
+        open3d_s, Fmt("%.2fx", open3d_s / s).c_str(), total, Fmt("%.2fx", reference / total).c_str(), e,
+        open3d_e, reference / s >= row.target ? "met" : "not met");
   }
   // The joint iteration's budget: issue 7's 0.5 s, and issue 21's 0.25 s.
   for (const double budget : {0.5, 0.25}) {
