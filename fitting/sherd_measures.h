@@ -28,7 +28,7 @@ struct SherdMeasureOptions {
   // or, on a body sherd, in each of `bands` bands of equal height but the two at the ends (the one whose
   // central 90 % of points spans the widest arc is reported, eq. A14a; thin bands keep a break slanting
   // across one from thinning its ends); a band needs `min_band_points` points (when no band has them, the
-  // sherd is cut into half as many bands, and so on).
+  // sherd is cut into half as many bands, and so on; with fewer than three bands none is left out).
   double rim_band_depth = 0.03;
   int bands = 20;
   int min_band_points = 30;
