@@ -223,10 +223,9 @@ void ToNominal(const RegisterOptions& o, const ScanSet& views, const RegisterPro
     scans.push_back(views.scans[k].points);
     start.push_back(views.scans[k].world_T_scan);
   }
-  if (progress)
+  if (progress) {
     progress("registering " + std::to_string(scans.size()) + " views to " + o.to + " (" +
              std::to_string(mesh.triangle_count()) + " triangles)");
-  if (progress) {
     options.progress = [&progress, &views](int view, int iteration, double rms) {
       TellIteration(progress, view, iteration, rms, views.scans[0].units);
     };
@@ -436,6 +435,12 @@ void ToFittedFeSurface(const RegisterOptions& o, const nlohmann::json& fit, cons
       throw FitFailure(kInputError, o.input + ": view " + std::to_string(k) + " has no points");
     RigidMotion pose = scan.world_T_scan;
     ModelRegistrationResult result;
+    ModelRegistrationOptions view_options = options;
+    if (progress) {
+      view_options.progress = [&progress, &units, k](int iteration, double rms) {
+        TellIteration(progress, static_cast<int>(k), iteration, rms, units);
+      };
+    }
     PatchOverlap overlap = OverlapWithPatch(*surface, scan.points, pose);
     double conditioning = PoseConditioning(overlap.points, overlap.normals);
     bool moved = false;  // registered at least once
@@ -443,12 +448,6 @@ void ToFittedFeSurface(const RegisterOptions& o, const nlohmann::json& fit, cons
       Eigen::Matrix3Xd chosen(3, static_cast<Eigen::Index>(overlap.inside.size()));
       for (std::size_t i = 0; i < overlap.inside.size(); ++i)
         chosen.col(static_cast<Eigen::Index>(i)) = scan.points.col(overlap.inside[i]);
-      ModelRegistrationOptions view_options = options;
-      if (progress) {
-        view_options.progress = [&progress, &units, k](int iteration, double rms) {
-          TellIteration(progress, static_cast<int>(k), iteration, rms, units);
-        };
-      }
       try {
         result = RegisterToModel(*surface, chosen, pose, view_options);
       } catch (const std::invalid_argument& e) {
