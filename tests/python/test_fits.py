@@ -150,6 +150,7 @@ def test_register_scans_recovers_a_known_motion():
     assert np.abs(r.world_T_scan[1][:3, :3] - truth[:3, :3]).max() < 1e-3
     assert r.to_dict()["method"] == "tdm" and r.rms_per_sweep[-1] < r.rms_per_sweep[0]
     assert r.unregistered_views == []
+    assert not r.stalled  # only PDM stalls (docs/registration.md)
     # A third view 1000 units away overlaps nothing: reported, not registered.
     far = scan2model.ScanSet([scan2model.Scan(sheet(0.0)), scan2model.Scan(in_scanner), scan2model.Scan(world + 1000)])
     assert scan2model.register_scans(far, method="tdm").unregistered_views == [2]
