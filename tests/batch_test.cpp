@@ -386,6 +386,10 @@ TEST(Batch, MemoryDoesNotGrowWithTheRecords) {
   // AddressSanitizer holds freed memory back (its quarantine, 256 MiB by default) and maps shadow for every
   // allocation, so the peak grows with what the batch allocated over its run, not with what it keeps.
   GTEST_SKIP() << "peak memory under AddressSanitizer measures its quarantine, not the batch";
+#elif defined(__SANITIZE_THREAD__)
+  // ThreadSanitizer keeps shadow and history for the memory the batch touched: measured 276 MiB for 50
+  // objects, 316 MiB for 500 (92 KiB per object, no report).
+  GTEST_SKIP() << "peak memory under ThreadSanitizer measures its shadow, not the batch";
 #endif
   const fs::path dir = FreshDir("memory");
   Scan sphere;
