@@ -372,14 +372,27 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
   return result;
 }
 
-std::vector<ModelRegistrationResult> RegisterScansToModel(const ParametricModel& model,
-                                                          const RigidMotion& world_T_model, ScanSet& scans,
-                                                          const ModelRegistrationOptions& options) {
+ModelRegistrationOptions WithProgress(ModelRegistrationOptions options,
+                                      std::function<void(int iteration, double rms)> also) {
+  options.progress = [own = std::move(options.progress), also = std::move(also)](int iteration, double rms) {
+    if (own) own(iteration, rms);
+    if (also) also(iteration, rms);
+  };
+  return options;
+}
+
+std::vector<ModelRegistrationResult> RegisterScansToModel(
+    const ParametricModel& model, const RigidMotion& world_T_model, ScanSet& scans,
+    const ModelRegistrationOptions& options,
+    const std::function<void(std::size_t scan, int iteration, double rms)>& progress) {
   std::vector<ModelRegistrationResult> results;
   const RigidMotion model_T_world = world_T_model.inverse();
-  for (Scan& scan : scans.scans) {
-    ModelRegistrationResult r =
-        RegisterToModel(model, scan.points, model_T_world * scan.world_T_scan, options);
+  for (std::size_t k = 0; k < scans.scans.size(); ++k) {
+    Scan& scan = scans.scans[k];
+    ModelRegistrationResult r = RegisterToModel(
+        model, scan.points, model_T_world * scan.world_T_scan,
+        progress ? WithProgress(options, [&progress, k](int i, double rms) { progress(k, i, rms); })
+                 : options);
     scan.world_T_scan = world_T_model * r.model_T_scan;
     results.push_back(std::move(r));
   }

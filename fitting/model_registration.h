@@ -80,11 +80,18 @@ ModelRegistrationResult RegisterToModel(const ParametricModel& model, const Eige
                                         const RigidMotion& initial,
                                         const ModelRegistrationOptions& options = {});
 
+// `options` whose progress tells `also` as well (after its own, when it has one): one registration's
+// iterations labelled by a caller that runs several (a view, a stage).
+ModelRegistrationOptions WithProgress(ModelRegistrationOptions options,
+                                      std::function<void(int iteration, double rms)> also);
+
 // Registers every scan of the set independently to the model, which is placed in the world by world_T_model;
-// each scan's world_T_scan is updated (accumulated) in place. Returns one result per scan.
-std::vector<ModelRegistrationResult> RegisterScansToModel(const ParametricModel& model,
-                                                          const RigidMotion& world_T_model, ScanSet& scans,
-                                                          const ModelRegistrationOptions& options = {});
+// each scan's world_T_scan is updated (accumulated) in place. Returns one result per scan. `progress` (may be
+// empty) is told every iteration of every scan with the scan's index (options.progress, when set, as well).
+std::vector<ModelRegistrationResult> RegisterScansToModel(
+    const ParametricModel& model, const RigidMotion& world_T_model, ScanSet& scans,
+    const ModelRegistrationOptions& options = {},
+    const std::function<void(std::size_t scan, int iteration, double rms)>& progress = {});
 
 // How well a fixed surface holds a rigid body through points x_i on it with unit normals n_i: the smallest
 // eigenvalue of the point-to-plane normal matrix sum a_i a_i^T, a_i = [(x_i - c) x n_i / r; n_i] (c the

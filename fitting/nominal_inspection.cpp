@@ -139,14 +139,10 @@ NominalInspection InspectAgainstNominal(const TriangleMeshModel& nominal,
 
   // The registrations' options, their progress told with the view they register.
   const auto registration_options = [&](int view) {
-    ModelRegistrationOptions o = options.registration;
-    if (options.progress) {
-      o.progress = [&options, view](int iteration, double rms) {
-        if (options.registration.progress) options.registration.progress(iteration, rms);
-        options.progress(view, iteration, rms);
-      };
-    }
-    return o;
+    if (!options.progress) return options.registration;
+    return WithProgress(options.registration, [&options, view](int iteration, double rms) {
+      options.progress(view, iteration, rms);
+    });
   };
 
   // (1) All views as one rigid body.

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <iomanip>
 #include <sstream>
 #include <stdexcept>
@@ -76,6 +77,11 @@ ScanErrorTerm ScanTerm(const std::string& method) {
   if (method == "tdm") return ScanErrorTerm::kTdm;
   if (method == "sdm") return ScanErrorTerm::kSdm;
   throw FitFailure(kUsage, "--method: registration takes pdm, tdm or sdm, not '" + method + "'");
+}
+
+// A rigid motion's size as the notes give it: "0.0123 deg, 0.0456 mm" (rotation in rad on input).
+std::string MotionSize(double angle, double shift, const std::string& units) {
+  return Format(angle * 180.0 / M_PI, 3) + " deg, " + Format(shift, 3) + " " + units;
 }
 
 void ScanToScan(const RegisterOptions& o, const ScanSet& views, const RegisterProgress& progress,
@@ -173,17 +179,16 @@ void ScanToScan(const RegisterOptions& o, const ScanSet& views, const RegisterPr
     outcome.notes.push_back(
         "point-to-point pairs stalled after " + std::to_string(r.sweeps) +
         " sweeps short of the surfaces: the point-to-plane step of the same pairs is still " +
-        Format(r.pending_plane_angle * 180.0 / M_PI, 3) + " deg, " + Format(r.pending_plane_shift, 3) + " " +
-        units + ": the poses have not reached the surfaces' fit (use --method tdm)");
+        MotionSize(r.pending_plane_angle, r.pending_plane_shift, units) +
+        ": the poses have not reached the surfaces' fit (use --method tdm)");
   } else if (!r.converged) {
     std::string note = "the poses still moved by more than the tolerances after " + std::to_string(r.sweeps) +
                        " sweeps (--max-sweeps; the last sweep moved a view by up to " +
-                       Format(r.last_step_angle * 180.0 / M_PI, 3) + " deg, " + Format(r.last_step_shift, 3) +
-                       " " + units + "): check the views' overlap";
+                       MotionSize(r.last_step_angle, r.last_step_shift, units) +
+                       "): check the views' overlap";
     if (options.error_term == ScanErrorTerm::kPdm)
       note += "; the point-to-plane step of the last sweep's pairs was " +
-              Format(r.pending_plane_angle * 180.0 / M_PI, 3) + " deg, " + Format(r.pending_plane_shift, 3) +
-              " " + units;
+              MotionSize(r.pending_plane_angle, r.pending_plane_shift, units);
     outcome.notes.push_back(note);
   }
 }
@@ -325,21 +330,16 @@ void ToFittedPart(const RegisterOptions& o, const nlohmann::json& fit, const Sca
     progress("registering " + std::to_string(views.scans.size()) + " views to the part measured in " + o.to);
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<ModelRegistrationResult> results;
-  for (std::size_t k = 0; k < registered.scans.size(); ++k) {
-    Scan& scan = registered.scans[k];
-    ModelRegistrationOptions view_options = options;
+  try {
+    std::function<void(std::size_t, int, double)> tell;
     if (progress) {
-      view_options.progress = [&progress, &units, k](int iteration, double rms) {
+      tell = [&progress, &units](std::size_t k, int iteration, double rms) {
         TellIteration(progress, static_cast<int>(k), iteration, rms, units);
       };
     }
-    try {
-      results.push_back(RegisterToModel(part, scan.points, scan.world_T_scan, view_options));
-    } catch (const std::invalid_argument& e) {
-      throw FitFailure(kFitError,
-                       "view " + std::to_string(k) + ": registration to the fitted part failed: " + e.what());
-    }
-    scan.world_T_scan = results.back().model_T_scan;  // the part's frame is the world
+    results = RegisterScansToModel(part, RigidMotion(), registered, options, tell);
+  } catch (const std::invalid_argument& e) {
+    throw FitFailure(kFitError, std::string("registration to the fitted part failed: ") + e.what());
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   nlohmann::json entries = nlohmann::json::array();
@@ -435,12 +435,12 @@ void ToFittedFeSurface(const RegisterOptions& o, const nlohmann::json& fit, cons
       throw FitFailure(kInputError, o.input + ": view " + std::to_string(k) + " has no points");
     RigidMotion pose = scan.world_T_scan;
     ModelRegistrationResult result;
-    ModelRegistrationOptions view_options = options;
-    if (progress) {
-      view_options.progress = [&progress, &units, k](int iteration, double rms) {
-        TellIteration(progress, static_cast<int>(k), iteration, rms, units);
-      };
-    }
+    const ModelRegistrationOptions view_options =
+        progress ? WithProgress(options,
+                                [&progress, &units, k](int iteration, double rms) {
+                                  TellIteration(progress, static_cast<int>(k), iteration, rms, units);
+                                })
+                 : options;
     PatchOverlap overlap = OverlapWithPatch(*surface, scan.points, pose);
     double conditioning = PoseConditioning(overlap.points, overlap.normals);
     bool moved = false;  // registered at least once

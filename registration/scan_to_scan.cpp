@@ -144,6 +144,9 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
       shift = std::max(shift, steps[k].translation().norm());
     }
   };
+  const auto within_tolerances = [&](double angle, double shift) {
+    return angle <= options.rotation_tolerance && shift <= options.translation_tolerance * extent;
+  };
   for (int sweep = 0; sweep < options.max_sweeps; ++sweep) {
     std::vector<RigidMotion> scan_T_world(K);
     for (std::size_t l = 0; l < K; ++l) scan_T_world[l] = result.world_T_scan[l].inverse();
@@ -284,25 +287,20 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
         if (excluded[p.k] || excluded[p.l]) continue;
         const Eigen::Matrix<double, 3, 6> jk = MotionJacobian(p.x);
         const Eigen::Matrix<double, 3, 6> jl = -MotionJacobian(quadric ? p.x : p.target);
-        const Eigen::Matrix<double, 6, 3> mk = jk.transpose() * p.M, ml = jl.transpose() * p.M;
         const Eigen::Vector3d residual = p.x - p.target;
         const Eigen::Index bk = 6 * static_cast<Eigen::Index>(p.k), bl = 6 * static_cast<Eigen::Index>(p.l);
-        H.block<6, 6>(bk, bk) += mk * jk;
-        H.block<6, 6>(bl, bl) += ml * jl;
-        H.block<6, 6>(bk, bl) += mk * jl;
-        H.block<6, 6>(bl, bk) += ml * jk;
-        g.segment<6>(bk) += mk * residual;
-        g.segment<6>(bl) += ml * residual;
-        if (pdm) {
-          const Eigen::Matrix<double, 6, 1> nk = jk.transpose() * p.normal, nl = jl.transpose() * p.normal;
-          const double distance = p.normal.dot(residual);
-          H_plane.block<6, 6>(bk, bk) += nk * nk.transpose();
-          H_plane.block<6, 6>(bl, bl) += nl * nl.transpose();
-          H_plane.block<6, 6>(bk, bl) += nk * nl.transpose();
-          H_plane.block<6, 6>(bl, bk) += nl * nk.transpose();
-          g_plane.segment<6>(bk) += nk * distance;
-          g_plane.segment<6>(bl) += nl * distance;
-        }
+        // The pair's terms r'^T M r' in the system (H, g) of both views' motions.
+        const auto add_pair = [&](Eigen::MatrixXd& H_to, Eigen::VectorXd& g_to, const Eigen::Matrix3d& M) {
+          const Eigen::Matrix<double, 6, 3> mk = jk.transpose() * M, ml = jl.transpose() * M;
+          H_to.block<6, 6>(bk, bk) += mk * jk;
+          H_to.block<6, 6>(bl, bl) += ml * jl;
+          H_to.block<6, 6>(bk, bl) += mk * jl;
+          H_to.block<6, 6>(bl, bk) += ml * jk;
+          g_to.segment<6>(bk) += mk * residual;
+          g_to.segment<6>(bl) += ml * residual;
+        };
+        add_pair(H, g, p.M);
+        if (pdm) add_pair(H_plane, g_plane, p.normal * p.normal.transpose());  // TDM's M, same pairs
         sum_sq += p.surface_distance * p.surface_distance;
         ++pairs_total;
       }
@@ -310,10 +308,7 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
         residual_k.rms = std::sqrt(residual_k.rms / static_cast<double>(residual_k.pairs));
     }
     std::vector<RigidMotion> steps;
-    double max_angle = 0.0, max_shift = 0.0;
-    solve_step(H, g, excluded, steps, max_angle, max_shift);
-    result.last_step_angle = max_angle;
-    result.last_step_shift = max_shift;
+    solve_step(H, g, excluded, steps, result.last_step_angle, result.last_step_shift);
     for (std::size_t k = 0; k < K; ++k) {
       result.world_T_scan[k] = steps[k] * result.world_T_scan[k];
       result.world_T_scan[k].normalize();
@@ -323,8 +318,7 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
       std::vector<RigidMotion> plane_steps;
       solve_step(H_plane, g_plane, excluded, plane_steps, result.pending_plane_angle,
                  result.pending_plane_shift);
-      plane_step_small = result.pending_plane_angle <= options.rotation_tolerance &&
-                         result.pending_plane_shift <= options.translation_tolerance * extent;
+      plane_step_small = within_tolerances(result.pending_plane_angle, result.pending_plane_shift);
     }
     result.sweeps = sweep + 1;
     result.rms_per_sweep.push_back(pairs_total ? std::sqrt(sum_sq / static_cast<double>(pairs_total)) : 0.0);
@@ -332,7 +326,7 @@ ScanToScanResult RegisterScansToEachOther(const std::vector<Eigen::Matrix3Xd>& s
     result.view_residuals = std::move(view_residuals);
     result.overlap = std::move(overlap);
     if (options.progress) options.progress(result.sweeps, result.rms_per_sweep.back());
-    if (max_angle <= options.rotation_tolerance && max_shift <= options.translation_tolerance * extent) {
+    if (within_tolerances(result.last_step_angle, result.last_step_shift)) {
       // Settled: converged, or (PDM) stalled where more sweeps would not move it.
       result.converged = plane_step_small;
       result.stalled = !plane_step_small;
