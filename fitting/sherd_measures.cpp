@@ -19,24 +19,32 @@ double AngleOf(const Eigen::Vector3d& p) {
 }
 
 // The arc the angles cover: the turn less its largest gap between angularly neighbouring points. Returns the
-// indices (into `angles`) of the first point after the gap and of the last point before it, and the arc.
+// indices (into `angles`) of the first point after the gap and of the last point before it, the arc, and the
+// points in angular order with the first point's rank in it (so that the points along the arc, from its
+// first to its last, are order[first_rank], order[first_rank + 1], ... cyclically: no second sort).
 struct Arc {
   std::size_t first = 0, last = 0;
   double extent = 0.0;
+  std::vector<std::size_t> order;
+  std::size_t first_rank = 0;
 };
 Arc CoveredArc(const std::vector<double>& angles) {
-  std::vector<std::size_t> order(angles.size());
+  Arc arc;
+  arc.order.resize(angles.size());
+  std::vector<std::size_t>& order = arc.order;
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return angles[a] < angles[b]; });
   // The wrap-around gap first (from the last angle round to the first).
   double largest = angles[order.front()] + kTwoPi - angles[order.back()];
-  Arc arc{order.front(), order.back(), 0.0};
+  arc.first = order.front();
+  arc.last = order.back();
   for (std::size_t i = 1; i < order.size(); ++i) {
     const double gap = angles[order[i]] - angles[order[i - 1]];
     if (gap > largest) {
       largest = gap;
       arc.first = order[i];
       arc.last = order[i - 1];
+      arc.first_rank = i;
     }
   }
   arc.extent = kTwoPi - largest;
@@ -124,15 +132,11 @@ PreservedArc MeasureArc(const Eigen::Matrix3Xd& points, const std::vector<int>& 
   const Arc arc = CoveredArc(angles);
   // Eq. A14a: the range of the central 90 % of the points, by their angles from the arc's first point.
   {
-    std::vector<double> along;
-    along.reserve(angles.size());
-    for (const double angle : angles) {
-      const double a = angle - angles[arc.first];
-      along.push_back(a < 0 ? a + kTwoPi : a);
-    }
-    std::sort(along.begin(), along.end());
+    const std::size_t count = arc.order.size();
     const auto at = [&](double q) {
-      return along[static_cast<std::size_t>(std::lround(q * static_cast<double>(along.size() - 1)))];
+      const auto rank = static_cast<std::size_t>(std::lround(q * static_cast<double>(count - 1)));
+      const double a = angles[arc.order[(arc.first_rank + rank) % count]] - angles[arc.first];
+      return a < 0 ? a + kTwoPi : a;
     };
     out.central_fraction = (at(0.95) - at(0.05)) / kTwoPi;
   }

@@ -19,6 +19,7 @@
 #include <cstdlib>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <random>
 #include <string>
 #include <vector>
@@ -77,6 +78,23 @@ TEST(SherdArc, CorrectedExtentIsUnbiasedWithTheStatedSpread) {
   // Too few points in the band: no figure.
   EXPECT_TRUE(
       std::isnan(MeasureArc(ArcPoints(20, 0, 1, rng), std::vector<int>(20, 0), none, -1, 21, 30).fraction));
+}
+
+TEST(SherdArc, CentralFractionIsExactOnEvenlySpacedPointsAcrossTheWrap) {
+  // 201 points 0.01 rad apart from 6.0 rad on, past the angle 0, in shuffled order: eq. A14a's ranks 10 and
+  // 190 (0.05 and 0.95 of 200) lie 1.8 rad apart, whatever the order the points come in.
+  std::vector<int> rank(201);
+  std::iota(rank.begin(), rank.end(), 0);
+  std::mt19937_64 rng(11);
+  std::shuffle(rank.begin(), rank.end(), rng);
+  Eigen::Matrix3Xd p(3, 201);
+  for (int i = 0; i < 201; ++i) {
+    const double a = 6.0 + 0.01 * rank[static_cast<std::size_t>(i)];
+    p.col(i) << 50 * std::cos(a), 50 * std::sin(a), 10.0;
+  }
+  const PreservedArc a = MeasureArc(p, std::vector<int>(201, 0), {Covariance6::Zero()}, -1, 21, 30);
+  EXPECT_NEAR(a.central_fraction, 1.8 / (2 * M_PI), 1e-12);
+  EXPECT_NEAR(a.fraction, 2.0 * 202 / 200 / (2 * M_PI), 1e-12);  // eq. A14's (n + 1) / (n - 1) correction
 }
 
 TEST(SherdArc, AxisSensitivityMatchesMovedPoints) {
