@@ -381,6 +381,25 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
           consider(RigidMotion(FrameWithAxis(c.direction), c.point), c.source);
       } catch (const std::invalid_argument&) {  // the normals' axis stands alone
       }
+      // On a small sherd the two surfaces together collapse onto no single generatrix about any axis (the
+      // wall's thickness dominates the combined profile's residuals, eq. 75), so the search above can miss
+      // the axis. Each sheet of the best split so far is one surface, whose own search is the one-surface
+      // sherd's (eqs. 75-76): its candidates are judged like the others.
+      if (best->starts) {
+        const std::array<std::vector<Eigen::Index>, 2> sheet_members = best->members;
+        for (const int group : {1, 0}) {  // Sheets::members: [1] the outer surface, [0] the inner
+          const std::vector<Eigen::Index>& m = sheet_members[static_cast<std::size_t>(group)];
+          const std::string surface = group == 1 ? "outer surface" : "inner surface";
+          if (m.size() < 100) continue;
+          progress("wall: searching the axis' direction of the " + surface + " alone");
+          try {
+            for (const AxisCandidate& c :
+                 RevolutionAxisCandidates(merged(Eigen::all, m), normals(Eigen::all, m)))
+              consider(RigidMotion(FrameWithAxis(c.direction), c.point), c.source + ", " + surface);
+          } catch (const std::invalid_argument&) {  // this sheet carries no axis: the others stand
+          }
+        }
+      }
     }
     const Eigen::Matrix3Xd local = world_T_axis.inverse().apply(merged);
     const Sheets& sheets = *best;
@@ -695,11 +714,24 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
         fill = Measure{v, combine(uncertainty_of(g), plane_term(r_in_bottom)), cubic};
       }
     }
-    // The thickness along the height, at 11 heights spread over those both faces reach (eqs. A21-A22).
+    // The thickness along the height, at 11 heights spread over those both faces reach and both sheets'
+    // own points cover (eqs. A21-A22). Beyond a sheet's own points a face rests only on the points of no
+    // sheet that the fit took back (eq. 77) and gave to the nearer face, or on its end tangent: where the
+    // breaks meet the wall that face is not observed as a surface, and a thickness there measures the fit's
+    // end, not the wall.
     nlohmann::json thickness_rows = nlohmann::json::array();
     double t_min = std::numeric_limits<double>::infinity(), t_max = -t_min, t_sum = 0.0;
     int t_count = 0;
-    const std::array<double, 2> common = wall.CommonHeights();
+    std::array<double, 2> common = wall.CommonHeights();
+    for (int f = 0; f < 2; ++f) {
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      for (std::size_t i = 0; i < used.size(); ++i)
+        if (used[i] && sheet_of_point[i] == f) {
+          lo = std::min(lo, registered(2, static_cast<Eigen::Index>(i)));
+          hi = std::max(hi, registered(2, static_cast<Eigen::Index>(i)));
+        }
+      common = {std::max(common[0], lo), std::min(common[1], hi)};
+    }
     for (int i = 0; i <= 10; ++i) {
       const double z = common[0] + (common[1] - common[0]) * (0.02 + 0.96 * i / 10.0);
       try {
