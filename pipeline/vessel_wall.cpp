@@ -390,7 +390,6 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
         for (const int group : {1, 0}) {  // Sheets::members: [1] the outer surface, [0] the inner
           const std::vector<Eigen::Index>& m = sheet_members[static_cast<std::size_t>(group)];
           const std::string surface = group == 1 ? "outer surface" : "inner surface";
-          if (m.size() < 100) continue;
           progress("wall: searching the axis' direction of the " + surface + " alone");
           try {
             for (const AxisCandidate& c :
@@ -732,7 +731,7 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
         }
       common = {std::max(common[0], lo), std::min(common[1], hi)};
     }
-    for (int i = 0; i <= 10; ++i) {
+    for (int i = 0; i <= 10 && common[1] > common[0]; ++i) {
       const double z = common[0] + (common[1] - common[0]) * (0.02 + 0.96 * i / 10.0);
       try {
         Eigen::VectorXd g;
