@@ -389,10 +389,15 @@ std::vector<ModelRegistrationResult> RegisterScansToModel(
   const RigidMotion model_T_world = world_T_model.inverse();
   for (std::size_t k = 0; k < scans.scans.size(); ++k) {
     Scan& scan = scans.scans[k];
-    ModelRegistrationResult r = RegisterToModel(
-        model, scan.points, model_T_world * scan.world_T_scan,
-        progress ? WithProgress(options, [&progress, k](int i, double rms) { progress(k, i, rms); })
-                 : options);
+    ModelRegistrationResult r;
+    try {
+      r = RegisterToModel(
+          model, scan.points, model_T_world * scan.world_T_scan,
+          progress ? WithProgress(options, [&progress, k](int i, double rms) { progress(k, i, rms); })
+                   : options);
+    } catch (const std::invalid_argument& e) {  // the scan named: a set's caller cannot tell which one
+      throw std::invalid_argument("scan " + std::to_string(k) + ": " + e.what());
+    }
     scan.world_T_scan = world_T_model * r.model_T_scan;
     results.push_back(std::move(r));
   }

@@ -88,6 +88,7 @@ ModelRegistrationOptions WithProgress(ModelRegistrationOptions options,
 // Registers every scan of the set independently to the model, which is placed in the world by world_T_model;
 // each scan's world_T_scan is updated (accumulated) in place. Returns one result per scan. `progress` (may be
 // empty) is told every iteration of every scan with the scan's index (options.progress, when set, as well).
+// Throws RegisterToModel's std::invalid_argument with the failing scan's index ("scan 2: ...").
 std::vector<ModelRegistrationResult> RegisterScansToModel(
     const ParametricModel& model, const RigidMotion& world_T_model, ScanSet& scans,
     const ModelRegistrationOptions& options = {},

@@ -118,6 +118,17 @@ TEST(ModelRegistration, RejectsBadInput) {
   Eigen::Matrix3Xd bad = Eigen::Matrix3Xd::Ones(3, 5);
   bad(2, 2) = std::nan("");
   EXPECT_THROW(RegisterToModel(sheet, bad, RigidMotion::Identity()), std::invalid_argument);
+  // In a set, the failing scan is named.
+  ScanSet set;
+  set.scans.resize(2);
+  set.scans[0].points = ScanOf(sheet, RigidMotion::Identity(), 100, 1);
+  set.scans[1].points = bad;
+  try {
+    RegisterScansToModel(sheet, RigidMotion::Identity(), set);
+    ADD_FAILURE() << "no error for a scan with NaN";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("scan 1: ", 0), 0u) << e.what();
+  }
 }
 
 // A plane leaves three motions free and a sphere its three rotations (conditioning 0 up to rounding); three
