@@ -83,7 +83,8 @@ std::array<double, 2> RevolutionWall::CommonHeights() const {
   return Intersect(HeightRange(faces_[0]), HeightRange(faces_[1]));
 }
 
-double RevolutionWall::ThicknessAtHeight(double height, Eigen::VectorXd* gradient) const {
+double RevolutionWall::ThicknessAtHeight(double height, Eigen::VectorXd* gradient,
+                                         Eigen::Vector2d* inner_foot) const {
   Eigen::VectorXd outer_gradient;
   const double radius = faces_[kOuter].RadiusAtHeight(height, gradient ? &outer_gradient : nullptr);
   // The outer generatrix's point in the meridian half-plane v = 0, and its foot on the inner surface, which
@@ -96,6 +97,7 @@ double RevolutionWall::ThicknessAtHeight(double height, Eigen::VectorXd* gradien
     throw std::domain_error("the inner surface ends before it faces the outer one at height " +
                             std::to_string(height));
   faces_[kInner].Evaluate(foot.t, 0, g);
+  if (inner_foot) *inner_foot = Eigen::Vector2d(To3(g.point).head<2>().norm(), To3(g.point).z());
   const Eigen::Vector3d difference = To3(x) - To3(g.point);
   const double thickness = difference.norm();
   if (gradient) {

@@ -46,10 +46,12 @@ class RevolutionWall final : public ParametricModel {
   // The wall's thickness at `height`: the distance from the outer generatrix's point at that height to the
   // inner generatrix (eq. A21), i.e. measured along the outer surface's normal where the inner surface is
   // the outer's offset (as a calliper held square to the wall measures it). With `gradient`, its gradient
-  // over the wall's parameters (eq. A22), to propagate their covariance. Throws std::domain_error where the
-  // outer generatrix does not reach the height or the nearest point of the inner one is its end (the wall
-  // is not closed there).
-  double ThicknessAtHeight(double height, Eigen::VectorXd* gradient = nullptr) const;
+  // over the wall's parameters (eq. A22), to propagate their covariance; with `inner_foot`, that nearest
+  // point of the inner generatrix as (radius, height). Throws std::domain_error where the outer generatrix
+  // does not reach the height or the nearest point of the inner one is its end (the wall is not closed
+  // there).
+  double ThicknessAtHeight(double height, Eigen::VectorXd* gradient = nullptr,
+                           Eigen::Vector2d* inner_foot = nullptr) const;
 
   // The volume inside face `index` between the heights z_lo and z_hi (KinematicSurface::EnclosedVolume),
   // with its gradient over the wall's parameters (zero on the other face's).

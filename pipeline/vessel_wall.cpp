@@ -731,11 +731,59 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
         }
       common = {std::max(common[0], lo), std::min(common[1], hi)};
     }
+    // A row counts only where each face is observed by its own sheet at the row's two points (eq. A21a):
+    // of the sheet's points within half a row's spacing of the point's height, at least half kept by eq. 77,
+    // and the point's place along the generatrix within the span the kept ones' feet cover. A face bent
+    // along a break's points by its free end leaves its own points there outside eq. 77's band; a fold of
+    // the generatrix has none of its sheet's feet on it.
+    const double half_spacing = 0.5 * 0.096 * (common[1] - common[0]);
+    struct SheetFeet {
+      std::vector<double> height, u;
+      std::vector<bool> kept;
+    };
+    std::array<SheetFeet, 2> sheet_feet;
+    for (int f = 0; f < 2; ++f) {
+      std::vector<Eigen::Index> own;
+      for (std::size_t i = 0; i < used.size(); ++i)
+        if (sheet_of_point[i] == f) own.push_back(static_cast<Eigen::Index>(i));
+      std::vector<FootPoint> own_feet;
+      ComputeFootPoints(wall.face(f), registered(Eigen::all, own), own_feet);
+      SheetFeet& s = sheet_feet[static_cast<std::size_t>(f)];
+      for (std::size_t j = 0; j < own.size(); ++j) {
+        s.height.push_back(registered(2, own[j]));
+        s.u.push_back(own_feet[j].t[0]);
+        s.kept.push_back(used[static_cast<std::size_t>(own[j])]);
+      }
+    }
+    auto observed = [&](int f, const Eigen::Vector2d& radius_height) {
+      const SheetFeet& s = sheet_feet[static_cast<std::size_t>(f)];
+      std::size_t near = 0, kept = 0;
+      double u_lo = std::numeric_limits<double>::infinity(), u_hi = -u_lo;
+      for (std::size_t j = 0; j < s.height.size(); ++j) {
+        if (std::abs(s.height[j] - radius_height.y()) > half_spacing) continue;
+        ++near;
+        if (!s.kept[j]) continue;
+        ++kept;
+        u_lo = std::min(u_lo, s.u[j]);
+        u_hi = std::max(u_hi, s.u[j]);
+      }
+      if (kept == 0 || 2 * kept < near) return false;
+      std::vector<FootPoint> at;
+      ComputeFootPoints(wall.face(f), Eigen::Vector3d(radius_height.x(), 0.0, radius_height.y()), at);
+      return at[0].t[0] >= u_lo && at[0].t[0] <= u_hi;
+    };
+    int unobserved_rows = 0;
     for (int i = 0; i <= 10 && common[1] > common[0]; ++i) {
       const double z = common[0] + (common[1] - common[0]) * (0.02 + 0.96 * i / 10.0);
       try {
         Eigen::VectorXd g;
-        const double t = wall.ThicknessAtHeight(z, &g);
+        Eigen::Vector2d inner_foot;
+        const double t = wall.ThicknessAtHeight(z, &g, &inner_foot);
+        if (!observed(RevolutionWall::kOuter, Eigen::Vector2d(outer.RadiusAtHeight(z), z)) ||
+            !observed(RevolutionWall::kInner, inner_foot)) {
+          ++unobserved_rows;
+          continue;
+        }
         thickness_rows.push_back({above_base(z), t, NumberOrNull(uncertainty_of(g))});
         t_min = std::min(t_min, t);
         t_max = std::max(t_max, t);
@@ -744,6 +792,11 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
       } catch (const std::domain_error&) {
       }
     }
+    if (unobserved_rows > 0)
+      outcome_notes.push_back(
+          std::to_string(unobserved_rows) +
+          " of the wall's thickness rows left out: a face is not observed there by its own surface's points "
+          "(docs/archaeology.md eq. A21a)");
     std::sort(thickness_rows.begin(), thickness_rows.end(),
               [](const nlohmann::json& a, const nlohmann::json& b) {
                 return a[0].get<double>() < b[0].get<double>();
@@ -838,6 +891,7 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
                    {"min", t_count > 0 ? NumberOrNull(t_min) : nullptr},
                    {"max", t_count > 0 ? NumberOrNull(t_max) : nullptr},
                    {"mean", t_count > 0 ? NumberOrNull(t_sum / t_count) : nullptr},
+                   {"unobserved_rows", unobserved_rows},
                    {"method",
                     "square to the wall: from the outer surface's point at each height to the inner "
                     "generatrix (docs/archaeology.md eq. A21)"}}},

@@ -127,6 +127,16 @@ TEST(RevolutionWall, ThicknessOfStraightWallsIsTheirNormalDistance) {
   const RevolutionWall wall(Cone(40, 0.2, 100), Cone(34, 0.2, 100));
   for (const double z : {10.0, 50.0, 90.0})
     EXPECT_NEAR(wall.ThicknessAtHeight(z), 6.0 / std::sqrt(1.04), 1e-9) << z;
+  // The inner foot: on the inner cone, square across from the outer point (along the normal (1, -0.2)).
+  for (const double z : {10.0, 50.0, 90.0}) {
+    Eigen::Vector2d foot;
+    const double t = wall.ThicknessAtHeight(z, nullptr, &foot);
+    const Eigen::Vector2d outer_point(40.0 + 0.2 * z, z);
+    EXPECT_NEAR((outer_point - foot).norm(), t, 1e-9) << z;
+    EXPECT_NEAR(foot.x(), 34.0 + 0.2 * foot.y(), 1e-9) << z;
+    EXPECT_NEAR((outer_point - foot).normalized().dot(Eigen::Vector2d(1.0, -0.2).normalized()), 1.0, 1e-9)
+        << z;
+  }
   // Cylinders: 6.
   const RevolutionWall cylinders(Cone(40, 0.0, 100), Cone(34, 0.0, 100));
   EXPECT_NEAR(cylinders.ThicknessAtHeight(37.0), 6.0, 1e-9);

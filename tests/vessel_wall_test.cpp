@@ -111,8 +111,10 @@ TEST(VesselWall, WholeVesselThicknessAndCapacity) {
 TEST(VesselWall, TwoSurfaceRimSherds) {
   const double noise = 0.05;
   const int seeds = std::getenv("S2M_WALL_SEEDS") ? std::atoi(std::getenv("S2M_WALL_SEEDS")) : 1;
+  // S2M_WALL_FIRST_SEED=k runs seeds k .. k + seeds - 1 (to look again at one seed of a long run).
+  const int first = std::getenv("S2M_WALL_FIRST_SEED") ? std::atoi(std::getenv("S2M_WALL_FIRST_SEED")) : 1;
   for (const double arc : {0.4, 0.2, 0.1}) {
-    for (int seed = 1; seed <= seeds; ++seed) {
+    for (int seed = first; seed < first + seeds; ++seed) {
       SherdSpec spec;
       spec.arc_fraction = arc;
       spec.rim = true;
@@ -147,6 +149,7 @@ TEST(VesselWall, TwoSurfaceRimSherds) {
           arc, seed, adequate ? 1 : 0, s.value("up_from", std::string("-")).c_str(), rim, rim_u,
           truth.rim_diameter, Number(w["thickness"]["min"]), Number(w["thickness"]["max"]), fraction,
           fraction_u, truth_fraction, d["start"]["source"].get<std::string>().c_str());
+      if (!adequate) std::printf("  not adequate: %s\n", d["adequacy"].dump().substr(0, 600).c_str());
       if (arc > 0.3 && seed == 1) {
         EXPECT_TRUE(adequate) << "arc " << arc << " seed " << seed << "\n" << outcome.text;
       }
@@ -154,10 +157,39 @@ TEST(VesselWall, TwoSurfaceRimSherds) {
       EXPECT_EQ(s.value("up_from", std::string()), "rim") << "arc " << arc << " seed " << seed;
       EXPECT_LT(std::abs(rim - truth.rim_diameter), 3 * rim_u) << "arc " << arc << " seed " << seed;
       EXPECT_LT(std::abs(fraction - truth_fraction), 3 * fraction_u) << "arc " << arc << " seed " << seed;
-      EXPECT_NEAR(Number(w["thickness"]["min"]), truth.wall_thickness, noise) << "arc " << arc;
-      EXPECT_NEAR(Number(w["thickness"]["max"]), truth.wall_thickness, noise) << "arc " << arc;
+      EXPECT_NEAR(Number(w["thickness"]["min"]), truth.wall_thickness, noise)
+          << "arc " << arc << " seed " << seed << " rows " << w["thickness"]["rows"].dump();
+      EXPECT_NEAR(Number(w["thickness"]["max"]), truth.wall_thickness, noise)
+          << "arc " << arc << " seed " << seed << " rows " << w["thickness"]["rows"].dump();
     }
   }
+}
+
+// Seed 24 of the 40 % rim sherds: without eq. A21a the outer face's free end, bent along the lower break's
+// points, gave a thickness row 0.31 mm thin (5.69 mm at 5.6 of its standard uncertainties) in a fit judged
+// adequate. The rows where a face is not observed by its own surface's points are left out, counted and
+// said; every row left is the wall within the noise.
+TEST(VesselWall, RowsWhereAFaceIsNotObservedAreLeftOut) {
+  const double noise = 0.05;
+  SherdSpec spec;
+  spec.arc_fraction = 0.4;
+  spec.rim = true;
+  spec.inner_surface = true;
+  spec.fracture_faces = true;
+  spec.upside_down = true;
+  spec.noise = noise;
+  spec.seed = 24;
+  const SherdTruth truth = MakeSherd(spec);
+  const pipeline::FitOutcome outcome = pipeline::ComputeFit(WallOptions(truth.cloud.points, "sherd"));
+  const nlohmann::json& thickness = outcome.document["wall"]["thickness"];
+  EXPECT_GE(thickness["unobserved_rows"].get<int>(), 1);
+  ASSERT_GE(thickness["rows"].size(), 8u);
+  for (const nlohmann::json& row : thickness["rows"])
+    EXPECT_NEAR(row[1].get<double>(), truth.wall_thickness, noise) << row.dump();
+  bool said = false;
+  for (const std::string& note : outcome.notes)
+    said = said || note.find("thickness rows left out: a face is not observed there") != std::string::npos;
+  EXPECT_TRUE(said);
 }
 
 // Data that show one surface (the outside only): refused with a message that says why, not a wall.
