@@ -733,44 +733,47 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     }
     // A row counts only where each face is observed by its own sheet at the row's two points (eq. A21a):
     // of the sheet's points within half a row's spacing of the point's height, at least half kept by eq. 77,
-    // and the point's place along the generatrix within the span the kept ones' feet cover. A face bent
-    // along a break's points by its free end leaves its own points there outside eq. 77's band; a fold of
-    // the generatrix has none of its sheet's feet on it.
+    // and a kept one within the face's band of the point in the meridian half-plane (Tukey's 4.6851 robust
+    // spreads of the kept points' distances to the face, eq. 47). A face bent along a break's points by its
+    // free end leaves its own points there outside eq. 77's band; a fold of the generatrix, which the
+    // breaks' points can carry into the wall, has none of its sheet's points on it.
     const double half_spacing = 0.5 * 0.096 * (common[1] - common[0]);
-    struct SheetFeet {
-      std::vector<double> height, u;
+    struct SheetPoints {
+      std::vector<Eigen::Vector2d> radius_height;
       std::vector<bool> kept;
+      double band = 0.0;
     };
-    std::array<SheetFeet, 2> sheet_feet;
+    std::array<SheetPoints, 2> sheet_points;
     for (int f = 0; f < 2; ++f) {
       std::vector<Eigen::Index> own;
       for (std::size_t i = 0; i < used.size(); ++i)
         if (sheet_of_point[i] == f) own.push_back(static_cast<Eigen::Index>(i));
       std::vector<FootPoint> own_feet;
       ComputeFootPoints(wall.face(f), registered(Eigen::all, own), own_feet);
-      SheetFeet& s = sheet_feet[static_cast<std::size_t>(f)];
+      SheetPoints& s = sheet_points[static_cast<std::size_t>(f)];
+      std::vector<double> kept_distances;
       for (std::size_t j = 0; j < own.size(); ++j) {
-        s.height.push_back(registered(2, own[j]));
-        s.u.push_back(own_feet[j].t[0]);
+        const Eigen::Vector3d x = registered.col(own[j]);
+        s.radius_height.emplace_back(x.head<2>().norm(), x.z());
         s.kept.push_back(used[static_cast<std::size_t>(own[j])]);
+        if (s.kept.back()) kept_distances.push_back(own_feet[j].distance);
       }
+      s.band = TuningConstant(LossKind::kTukey) *
+               MadSigma(Eigen::Map<const Eigen::VectorXd>(kept_distances.data(),
+                                                          static_cast<Eigen::Index>(kept_distances.size())));
     }
     auto observed = [&](int f, const Eigen::Vector2d& radius_height) {
-      const SheetFeet& s = sheet_feet[static_cast<std::size_t>(f)];
+      const SheetPoints& s = sheet_points[static_cast<std::size_t>(f)];
       std::size_t near = 0, kept = 0;
-      double u_lo = std::numeric_limits<double>::infinity(), u_hi = -u_lo;
-      for (std::size_t j = 0; j < s.height.size(); ++j) {
-        if (std::abs(s.height[j] - radius_height.y()) > half_spacing) continue;
+      bool on = false;
+      for (std::size_t j = 0; j < s.kept.size(); ++j) {
+        if (std::abs(s.radius_height[j].y() - radius_height.y()) > half_spacing) continue;
         ++near;
         if (!s.kept[j]) continue;
         ++kept;
-        u_lo = std::min(u_lo, s.u[j]);
-        u_hi = std::max(u_hi, s.u[j]);
+        on = on || (s.radius_height[j] - radius_height).norm() <= s.band;
       }
-      if (kept == 0 || 2 * kept < near) return false;
-      std::vector<FootPoint> at;
-      ComputeFootPoints(wall.face(f), Eigen::Vector3d(radius_height.x(), 0.0, radius_height.y()), at);
-      return at[0].t[0] >= u_lo && at[0].t[0] <= u_hi;
+      return on && 2 * kept >= near;
     };
     int unobserved_rows = 0;
     for (int i = 0; i <= 10 && common[1] > common[0]; ++i) {

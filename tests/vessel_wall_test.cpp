@@ -113,7 +113,10 @@ TEST(VesselWall, TwoSurfaceRimSherds) {
   const int seeds = std::getenv("S2M_WALL_SEEDS") ? std::atoi(std::getenv("S2M_WALL_SEEDS")) : 1;
   // S2M_WALL_FIRST_SEED=k runs seeds k .. k + seeds - 1 (to look again at one seed of a long run).
   const int first = std::getenv("S2M_WALL_FIRST_SEED") ? std::atoi(std::getenv("S2M_WALL_FIRST_SEED")) : 1;
+  // S2M_WALL_ARC=f runs the sherds of that fraction only.
+  const double only_arc = std::getenv("S2M_WALL_ARC") ? std::atof(std::getenv("S2M_WALL_ARC")) : 0.0;
   for (const double arc : {0.4, 0.2, 0.1}) {
+    if (only_arc > 0 && std::abs(arc - only_arc) > 1e-9) continue;
     for (int seed = first; seed < first + seeds; ++seed) {
       SherdSpec spec;
       spec.arc_fraction = arc;
