@@ -157,9 +157,14 @@ TEST(VesselWall, TwoSurfaceRimSherds) {
         EXPECT_TRUE(adequate) << "arc " << arc << " seed " << seed << "\n" << outcome.text;
       }
       if (!adequate) continue;
-      EXPECT_EQ(s.value("up_from", std::string()), "rim") << "arc " << arc << " seed " << seed;
-      EXPECT_LT(std::abs(rim - truth.rim_diameter), 3 * rim_u) << "arc " << arc << " seed " << seed;
-      EXPECT_LT(std::abs(fraction - truth_fraction), 3 * fraction_u) << "arc " << arc << " seed " << seed;
+      // With the rim not told, `rim_diameter` is that of the end up in the world (docs/archaeology.md
+      // section 9), on these sherds placed rim down the break: only the failure to tell it counts.
+      const bool rim_told = s.value("up_from", std::string()) == "rim";
+      EXPECT_TRUE(rim_told) << "arc " << arc << " seed " << seed;
+      if (rim_told) {
+        EXPECT_LT(std::abs(rim - truth.rim_diameter), 3 * rim_u) << "arc " << arc << " seed " << seed;
+        EXPECT_LT(std::abs(fraction - truth_fraction), 3 * fraction_u) << "arc " << arc << " seed " << seed;
+      }
       EXPECT_NEAR(Number(w["thickness"]["min"]), truth.wall_thickness, noise)
           << "arc " << arc << " seed " << seed << " rows " << w["thickness"]["rows"].dump();
       EXPECT_NEAR(Number(w["thickness"]["max"]), truth.wall_thickness, noise)
