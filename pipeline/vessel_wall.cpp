@@ -90,6 +90,26 @@ SheetSplit SplitInTwo(const std::vector<double>& values) {
   return out;
 }
 
+// Whether a generatrix folds back on itself (docs/archaeology.md eq. A21b): two of its points more than
+// pi `band` apart along it and less than `band` apart in the meridian half-plane. Along a smooth curve two
+// points at chord c are at most pi c / 2 apart (a half circle), so only a curve that turns and runs back
+// within the band of itself passes; a scanned surface is not one sheet lying twice over itself.
+bool FoldsBack(const KinematicSurface& face, double band) {
+  const BSplineBasis& basis = face.basis();
+  const int samples = 64 * basis.num_control();
+  std::vector<Eigen::Vector2d> c(static_cast<std::size_t>(samples) + 1);
+  std::vector<double> arc(c.size(), 0.0);
+  for (int i = 0; i <= samples; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    c[k] = face.ProfilePoint(basis.lo() + (basis.hi() - basis.lo()) * i / samples);
+    if (k > 0) arc[k] = arc[k - 1] + (c[k] - c[k - 1]).norm();
+  }
+  for (std::size_t i = 0; i < c.size(); ++i)
+    for (std::size_t j = i + 1; j < c.size(); ++j)
+      if (arc[j] - arc[i] > M_PI * band && (c[j] - c[i]).norm() < band) return true;
+  return false;
+}
+
 // Each face trimmed by the generatrix end rule (docs/method.md eq. 70, face by face): to the parameter span
 // the feet of its own points cover, cut where it folds back. A point is the face's own by the sheets' split
 // (`sheet_of_point`: RevolutionWall::kOuter, kInner, or -1 for neither, then the nearer face's), not by
@@ -827,7 +847,15 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     evidence.order_description = "the height along the axis";
     evidence.weights = RobustWeightsAt(o.loss, result.loss_scale, judged);
     evidence.extent = ComputeBounds(registered).diagonal();
-    const Adequacy adequacy = AssessAdequacy(evidence);
+    Adequacy adequacy = AssessAdequacy(evidence);
+    for (int f = 0; f < 2; ++f)
+      if (FoldsBack(wall.face(f), sheet_points[static_cast<std::size_t>(f)].band)) {
+        adequacy.adequate = false;
+        adequacy.suggestions.push_back(
+            std::string("the ") + (f == RevolutionWall::kOuter ? "outer" : "inner") +
+            " surface's generatrix folds back on itself (docs/archaeology.md eq. A21b): points of the breaks "
+            "carried it into the wall; crop the breaks, or read the wall's thickness and volumes as unsure");
+      }
     const std::optional<bool> trusted = adequacy.uncertainty_trusted();
 
     FitOutcome outcome;

@@ -200,6 +200,29 @@ TEST(VesselWall, RowsWhereAFaceIsNotObservedAreLeftOut) {
   EXPECT_TRUE(said);
 }
 
+// Seed 43 of the 10 % rim sherds: the upper break's points carry the inner generatrix into the wall, where it
+// doubles back on itself; its own group's points (some of them the break's, put in the group by their radial
+// offset) observe the fold, so a row 4.45 mm thin passed (A21a). Eq. A21b tells the fold from the generatrix
+// itself: the fit is not adequate, and says which face folds.
+TEST(VesselWall, AFoldedGeneratrixIsNotAdequate) {
+  SherdSpec spec;
+  spec.arc_fraction = 0.1;
+  spec.rim = true;
+  spec.inner_surface = true;
+  spec.fracture_faces = true;
+  spec.upside_down = true;
+  spec.noise = 0.05;
+  spec.seed = 43;
+  const SherdTruth truth = MakeSherd(spec);
+  const pipeline::FitOutcome outcome = pipeline::ComputeFit(WallOptions(truth.cloud.points, "sherd"));
+  const nlohmann::json& adequacy = outcome.document["adequacy"];
+  EXPECT_FALSE(adequacy["adequate"].get<bool>());
+  bool said = false;
+  for (const nlohmann::json& s : adequacy["suggestions"])
+    said = said || s.get<std::string>().find("inner surface's generatrix folds back") != std::string::npos;
+  EXPECT_TRUE(said) << adequacy.dump();
+}
+
 // Data that show one surface (the outside only): refused with a message that says why, not a wall.
 TEST(VesselWall, OneSurfaceIsRefused) {
   SherdSpec spec;
