@@ -754,9 +754,11 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     // A row counts only where each face is observed by its own sheet at the row's two points (eq. A21a):
     // of the sheet's points within half a row's spacing of the point's height, at least half kept by eq. 77,
     // and a kept one within the face's band of the point in the meridian half-plane (Tukey's 4.6851 robust
-    // spreads of the kept points' distances to the face, eq. 47). A face bent along a break's points by its
-    // free end leaves its own points there outside eq. 77's band; a fold of the generatrix, which the
-    // breaks' points can carry into the wall, has none of its sheet's points on it.
+    // spreads of the kept points' distances to the face, eq. 47), widened by the gap the kept points leave
+    // along the height (on data with little or no noise the band alone is narrower than the gaps between
+    // the points, and the nearest is that far away wherever the face is observed). A face bent along a
+    // break's points by its free end leaves its own points there outside eq. 77's band; a fold of the
+    // generatrix, which the breaks' points can carry into the wall, has none of its sheet's points on it.
     const double half_spacing = 0.5 * 0.096 * (common[1] - common[0]);
     struct SheetPoints {
       std::vector<Eigen::Vector2d> radius_height;
@@ -785,15 +787,19 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     auto observed = [&](int f, const Eigen::Vector2d& radius_height) {
       const SheetPoints& s = sheet_points[static_cast<std::size_t>(f)];
       std::size_t near = 0, kept = 0;
-      bool on = false;
+      double nearest = std::numeric_limits<double>::infinity();
       for (std::size_t j = 0; j < s.kept.size(); ++j) {
         if (std::abs(s.radius_height[j].y() - radius_height.y()) > half_spacing) continue;
         ++near;
         if (!s.kept[j]) continue;
         ++kept;
-        on = on || (s.radius_height[j] - radius_height).norm() <= s.band;
+        nearest = std::min(nearest, (s.radius_height[j] - radius_height).norm());
       }
-      return on && 2 * kept >= near;
+      // The gap about a given height that kept points spread at random over 2h leave with probability
+      // 1e-3: (2h / N_kept) ln 1000.
+      const double gap =
+          2 * half_spacing / static_cast<double>(std::max<std::size_t>(kept, 1)) * std::log(1000.0);
+      return kept > 0 && 2 * kept >= near && nearest <= s.band + gap;
     };
     int unobserved_rows = 0;
     for (int i = 0; i <= 10 && common[1] > common[0]; ++i) {
