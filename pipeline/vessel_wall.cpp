@@ -767,18 +767,14 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     };
     std::array<SheetPoints, 2> sheet_points;
     for (int f = 0; f < 2; ++f) {
-      std::vector<Eigen::Index> own;
-      for (std::size_t i = 0; i < used.size(); ++i)
-        if (sheet_of_point[i] == f) own.push_back(static_cast<Eigen::Index>(i));
-      std::vector<FootPoint> own_feet;
-      ComputeFootPoints(wall.face(f), registered(Eigen::all, own), own_feet);
       SheetPoints& s = sheet_points[static_cast<std::size_t>(f)];
-      std::vector<double> kept_distances;
-      for (std::size_t j = 0; j < own.size(); ++j) {
-        const Eigen::Vector3d x = registered.col(own[j]);
+      std::vector<double> kept_distances;  // from the wall's feet: a kept point of a sheet lies on its face
+      for (std::size_t i = 0; i < used.size(); ++i) {
+        if (sheet_of_point[i] != f) continue;
+        const Eigen::Vector3d x = registered.col(static_cast<Eigen::Index>(i));
         s.radius_height.emplace_back(x.head<2>().norm(), x.z());
-        s.kept.push_back(used[static_cast<std::size_t>(own[j])]);
-        if (s.kept.back()) kept_distances.push_back(own_feet[j].distance);
+        s.kept.push_back(used[i]);
+        if (used[i] && static_cast<int>(feet[i].t[2]) == f) kept_distances.push_back(feet[i].distance);
       }
       s.band = TuningConstant(LossKind::kTukey) *
                MadSigma(Eigen::Map<const Eigen::VectorXd>(kept_distances.data(),

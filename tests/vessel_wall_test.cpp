@@ -29,6 +29,19 @@ pipeline::FitOptions WallOptions(const Eigen::Matrix3Xd& points, const std::stri
   return o;
 }
 
+// A rim sherd scanned inside and out with its fracture faces, placed rim down.
+SherdSpec TwoSurfaceRimSherd(double arc_fraction, double noise, int seed) {
+  SherdSpec spec;
+  spec.arc_fraction = arc_fraction;
+  spec.rim = true;
+  spec.inner_surface = true;
+  spec.fracture_faces = true;
+  spec.upside_down = true;
+  spec.noise = noise;
+  spec.seed = static_cast<std::uint64_t>(seed);
+  return spec;
+}
+
 double Number(const nlohmann::json& j) {
   return j.is_number() ? j.get<double>() : std::nan("");
 }
@@ -131,15 +144,7 @@ TEST(VesselWall, TwoSurfaceRimSherds) {
   for (const double arc : {0.4, 0.2, 0.1}) {
     if (only_arc > 0 && std::abs(arc - only_arc) > 1e-9) continue;
     for (int seed = first; seed < first + seeds; ++seed) {
-      SherdSpec spec;
-      spec.arc_fraction = arc;
-      spec.rim = true;
-      spec.inner_surface = true;
-      spec.fracture_faces = true;
-      spec.upside_down = true;
-      spec.noise = noise;
-      spec.seed = static_cast<std::uint64_t>(seed);
-      const SherdTruth truth = MakeSherd(spec);
+      const SherdTruth truth = MakeSherd(TwoSurfaceRimSherd(arc, noise, seed));
       pipeline::FitOutcome outcome;
       try {
         outcome = pipeline::ComputeFit(WallOptions(truth.cloud.points, "sherd"));
@@ -192,15 +197,7 @@ TEST(VesselWall, TwoSurfaceRimSherds) {
 // said; every row left is the wall within the noise.
 TEST(VesselWall, RowsWhereAFaceIsNotObservedAreLeftOut) {
   const double noise = 0.05;
-  SherdSpec spec;
-  spec.arc_fraction = 0.4;
-  spec.rim = true;
-  spec.inner_surface = true;
-  spec.fracture_faces = true;
-  spec.upside_down = true;
-  spec.noise = noise;
-  spec.seed = 24;
-  const SherdTruth truth = MakeSherd(spec);
+  const SherdTruth truth = MakeSherd(TwoSurfaceRimSherd(0.4, noise, 24));
   const pipeline::FitOutcome outcome = pipeline::ComputeFit(WallOptions(truth.cloud.points, "sherd"));
   const nlohmann::json& thickness = outcome.document["wall"]["thickness"];
   EXPECT_GE(thickness["unobserved_rows"].get<int>(), 1);
@@ -218,15 +215,7 @@ TEST(VesselWall, RowsWhereAFaceIsNotObservedAreLeftOut) {
 // offset) observe the fold, so a row 4.45 mm thin passed (A21a). Eq. A21b tells the fold from the generatrix
 // itself: the fit is not adequate, and says which face folds.
 TEST(VesselWall, AFoldedGeneratrixIsNotAdequate) {
-  SherdSpec spec;
-  spec.arc_fraction = 0.1;
-  spec.rim = true;
-  spec.inner_surface = true;
-  spec.fracture_faces = true;
-  spec.upside_down = true;
-  spec.noise = 0.05;
-  spec.seed = 43;
-  const SherdTruth truth = MakeSherd(spec);
+  const SherdTruth truth = MakeSherd(TwoSurfaceRimSherd(0.1, 0.05, 43));
   const pipeline::FitOutcome outcome = pipeline::ComputeFit(WallOptions(truth.cloud.points, "sherd"));
   const nlohmann::json& adequacy = outcome.document["adequacy"];
   EXPECT_FALSE(adequacy["adequate"].get<bool>());
