@@ -161,19 +161,24 @@ BSplineSurface InitialSurfaceByProjection(const Eigen::Matrix3Xd& points, int nu
 }
 
 KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& p, int num_control, int order, double margin) {
+  return InitialRevolutionAlong(p, p.row(2).transpose(), num_control, order, margin);
+}
+
+KinematicSurface InitialRevolutionAlong(const Eigen::Matrix3Xd& p, const Eigen::VectorXd& along,
+                                        int num_control, int order, double margin) {
   if (p.cols() < num_control) throw std::invalid_argument("fewer points than profile control points");
+  if (along.size() != p.cols()) throw std::invalid_argument("one position along the profile per point");
   const BSplineBasis basis = UnitSpacedClamped(order, num_control);
-  const Eigen::VectorXd z = p.row(2).transpose();
-  const double data_lo = z.minCoeff(), data_hi = z.maxCoeff();
-  if (!(data_hi > data_lo)) throw std::invalid_argument("the points have no extent along the axis");
+  const double data_lo = along.minCoeff(), data_hi = along.maxCoeff();
+  if (!(data_hi > data_lo)) throw std::invalid_argument("the points have no extent along the profile");
   const double lo = data_lo - margin * (data_hi - data_lo), hi = data_hi + margin * (data_hi - data_lo);
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(num_control, num_control);
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(num_control, 2);
   BSplineBasis::Values v;
   for (Eigen::Index j = 0; j < p.cols(); ++j) {
-    const double u = (z[j] - lo) / (hi - lo) * (basis.hi() - basis.lo()) + basis.lo();
+    const double u = (along[j] - lo) / (hi - lo) * (basis.hi() - basis.lo()) + basis.lo();
     basis.Evaluate(u, 0, v);
-    const Eigen::Vector2d rz(std::hypot(p(0, j), p(1, j)), z[j]);
+    const Eigen::Vector2d rz(std::hypot(p(0, j), p(1, j)), p(2, j));
     for (int i = 0; i < basis.order(); ++i) {
       const int ci = basis.ControlIndex(v.first, i);
       b.row(ci) += v.values[0][static_cast<std::size_t>(i)] * rz.transpose();

@@ -36,6 +36,11 @@ class KinematicSurface;
 // carry points past its ends.
 KinematicSurface InitialRevolution(const Eigen::Matrix3Xd& points_in_axis_frame, int num_control, int order,
                                    double margin = 0.0);
+// The same with u proportional to `along` (one value per point) instead of the height: a position along the
+// generatrix for a profile that is not a function of height (a base running level to the axis).
+KinematicSurface InitialRevolutionAlong(const Eigen::Matrix3Xd& points_in_axis_frame,
+                                        const Eigen::VectorXd& along, int num_control, int order,
+                                        double margin = 0.0);
 
 // A helical surface about the z axis of the frame the points are given in, with the given pitch: every point
 // is screwed back onto the half-plane v = 0; its turn is chosen by cutting the heights z - pitch * theta,

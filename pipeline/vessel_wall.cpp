@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <iomanip>
 #include <limits>
 #include <optional>
@@ -215,11 +216,13 @@ nlohmann::json FaceJson(const KinematicSurface& face, Eigen::Index points, doubl
 
 // The points split into the two sheets about one candidate axis (eq. A23), in that axis' frame (`local`,
 // with the points' unit normals `local_normals`), with the start of each sheet's surface and how tightly
-// the sheets lie about them.
+// the sheets lie about them. A base (eq. A23b) is split by its own chart.
 struct Sheets {
   std::vector<bool> across;  // normals far from the mean profile's: a break or a lip, on neither surface
+  std::vector<bool> level;   // the base's points (eq. A23b), split by their axial offsets
   SheetSplit split;
-  std::array<std::vector<Eigen::Index>, 2> members;       // by radial offset: [0] the inner, [1] the outer
+  std::optional<SheetSplit> base_split;                   // eq. A23b's, when a base was found
+  std::array<std::vector<Eigen::Index>, 2> members;       // by offset: [0] the inner, [1] the outer
   std::optional<std::array<KinematicSurface, 2>> starts;  // none when a group is too small (`why`)
   std::string why;
   std::array<double, 2> own_spread{std::numeric_limits<double>::infinity(),
@@ -234,18 +237,67 @@ struct Sheets {
   }
 };
 
+// The value at fraction q of the values' order (q in [0, 1]).
+double QuantileOf(std::vector<double> values, double q) {
+  const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(values.size() - 1));
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  return values[static_cast<std::size_t>(k)];
+}
+
+// The points of a scanned base (eq. A23b): normals within 45 degrees of the axis, at the heights of those
+// near the axis (within a quarter of all points' median radius; between their 1 % and 99 % height quantiles,
+// widened by that span on each side, which takes in the foot's turn), at least 200. A sherd's level breaks
+// and a shoulder stay far from the axis, and so do a rim's points whose normals the estimate took across the
+// wall (its neighbourhoods hold both surfaces there).
+std::vector<bool> BasePoints(const Eigen::Matrix3Xd& local, const Eigen::Matrix3Xd& local_normals) {
+  const Eigen::Index n = local.cols();
+  std::vector<bool> level(static_cast<std::size_t>(n), false);
+  std::vector<double> radii(static_cast<std::size_t>(n));
+  for (Eigen::Index j = 0; j < n; ++j) {
+    radii[static_cast<std::size_t>(j)] = std::hypot(local(0, j), local(1, j));
+    level[static_cast<std::size_t>(j)] = std::abs(local_normals(2, j)) > std::cos(45.0 * M_PI / 180);
+  }
+  const double near_axis = 0.25 * QuantileOf(radii, 0.5);
+  std::vector<double> near_heights;
+  for (Eigen::Index j = 0; j < n; ++j)
+    if (level[static_cast<std::size_t>(j)] && radii[static_cast<std::size_t>(j)] < near_axis)
+      near_heights.push_back(local(2, j));
+  std::size_t count = 0;
+  if (near_heights.size() >= 20) {
+    const double lo = QuantileOf(near_heights, 0.01), hi = QuantileOf(near_heights, 0.99), span = hi - lo;
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const std::size_t i = static_cast<std::size_t>(j);
+      level[i] = level[i] && local(2, j) >= lo - span && local(2, j) <= hi + span;
+      count += level[i] ? 1 : 0;
+    }
+  }
+  if (count < 200) level.assign(level.size(), false);
+  return level;
+}
+
 Sheets SplitSheets(const Eigen::Matrix3Xd& local, const Eigen::Matrix3Xd& local_normals, int order,
                    int first_count) {
   Sheets sheets;
-  // The two sheets (eq. A23): a mid generatrix, the radius as a function of height through all points, and
-  // each point's radial offset from it; its two groups are the two surfaces.
-  const KinematicSurface mid = InitialRevolution(local, 8, order);
+  const Eigen::Index n = local.cols();
+  std::vector<bool>& level = sheets.level;
+  level = BasePoints(local, local_normals);
+  const bool base = std::find(level.begin(), level.end(), true) != level.end();
+  std::vector<Eigen::Index> steep;  // the wall's points, radius a function of height
+  for (Eigen::Index j = 0; j < n; ++j)
+    if (!level[static_cast<std::size_t>(j)]) steep.push_back(j);
+  if (steep.size() < 20) {
+    sheets.why = std::to_string(steep.size()) + " points off the base";
+    return sheets;
+  }
+  // The two sheets (eq. A23): a mid generatrix, the radius as a function of height through the wall's
+  // points, and each point's radial offset from it; its two groups are the two surfaces.
+  const KinematicSurface mid = InitialRevolution(local(Eigen::all, steep), 8, order);
   // Points on neither surface (a sherd's breaks, across the wall; a lip) have normals far from the mean
   // profile's at their height (more than 45 degrees, as in eq. 77): they take no part in the split and
   // start left out of the joint fit (eq. 77 decides again at its solution).
   std::vector<bool>& across = sheets.across;
-  across.assign(static_cast<std::size_t>(local.cols()), false);
-  for (Eigen::Index j = 0; j < local.cols(); ++j) {
+  across.assign(static_cast<std::size_t>(n), false);
+  for (const Eigen::Index j : steep) {
     try {
       const double z = local(2, j), h = 0.5;
       const double slope = (mid.RadiusAtHeight(z + h) - mid.RadiusAtHeight(z - h)) / (2 * h);  // dr/dz
@@ -257,10 +309,10 @@ Sheets SplitSheets(const Eigen::Matrix3Xd& local, const Eigen::Matrix3Xd& local_
     } catch (const std::domain_error&) {  // near the mean profile's ends: judged by the split alone
     }
   }
-  // Radial offsets from a mean profile, for the points between heights lo and hi (NaN elsewhere).
+  // Radial offsets from a mean profile, for the wall's points between heights lo and hi (NaN elsewhere).
   auto offsets_from = [&](const KinematicSurface& mean_profile, double lo, double hi) {
-    std::vector<double> offsets(static_cast<std::size_t>(local.cols()), std::nan(""));
-    for (Eigen::Index j = 0; j < local.cols(); ++j) {
+    std::vector<double> offsets(static_cast<std::size_t>(n), std::nan(""));
+    for (const Eigen::Index j : steep) {
       if (across[static_cast<std::size_t>(j)] || local(2, j) < lo || local(2, j) > hi) continue;
       try {
         offsets[static_cast<std::size_t>(j)] =
@@ -273,40 +325,104 @@ Sheets SplitSheets(const Eigen::Matrix3Xd& local, const Eigen::Matrix3Xd& local_
   auto groups_of = [&](const std::vector<double>& e, SheetSplit* split) {
     *split = SplitInTwo(e);
     std::array<std::vector<Eigen::Index>, 2> groups;
-    for (Eigen::Index j = 0; j < local.cols(); ++j) {
+    for (Eigen::Index j = 0; j < n; ++j) {
       const double x = e[static_cast<std::size_t>(j)];
       if (std::isfinite(x)) groups[x > split->threshold ? 1 : 0].push_back(j);
     }
     return groups;
   };
+  // The range of a coordinate both groups span (their 1 % to 99 % quantiles); empty when a group has
+  // fewer than 100 points.
+  auto common_range = [&](const std::array<std::vector<Eigen::Index>, 2>& groups,
+                          const std::function<double(Eigen::Index)>& coordinate) {
+    std::array<std::array<double, 2>, 2> range;
+    for (std::size_t g = 0; g < 2; ++g) {
+      std::vector<double> values;
+      for (const Eigen::Index j : groups[g]) values.push_back(coordinate(j));
+      if (values.size() < 100) return std::optional<std::array<double, 2>>();
+      std::sort(values.begin(), values.end());
+      range[g] = {values[values.size() / 100], values[values.size() - 1 - values.size() / 100]};
+    }
+    const double lo = std::max(range[0][0], range[1][0]), hi = std::min(range[0][1], range[1][1]);
+    return hi > lo ? std::optional<std::array<double, 2>>({lo, hi}) : std::nullopt;
+  };
+  auto height = [&](Eigen::Index j) { return local(2, j); };
+  auto radius = [&](Eigen::Index j) { return std::hypot(local(0, j), local(1, j)); };
   const double infinity = std::numeric_limits<double>::infinity();
   SheetSplit& split = sheets.split;
   std::array<std::vector<Eigen::Index>, 2>& members = sheets.members;
   members = groups_of(offsets_from(mid, -infinity, infinity), &split);
   // Where only one sheet reaches (above the outside's rim the inside rises on along its slant; a break cut
   // at a slant), the mean profile follows that sheet alone and its points' offsets straddle the threshold.
-  // So again, from a mean profile over the heights both groups span (their 1 % to 99 % quantiles), only
-  // for the points between those heights; the others belong to no sheet in what follows (they still join
-  // the fit through their nearer face).
-  {
-    std::array<std::array<double, 2>, 2> range;
-    for (std::size_t g = 0; g < 2; ++g) {
-      std::vector<double> heights;
-      for (const Eigen::Index j : members[g]) heights.push_back(local(2, j));
-      if (heights.size() < 100) break;
-      std::sort(heights.begin(), heights.end());
-      range[g] = {heights[heights.size() / 100], heights[heights.size() - 1 - heights.size() / 100]};
-    }
-    const double lo = std::max(range[0][0], range[1][0]), hi = std::min(range[0][1], range[1][1]);
-    if (members[0].size() >= 100 && members[1].size() >= 100 && hi > lo) {
+  // So again, from a mean profile over the heights both groups span, only for the points between those
+  // heights; the others belong to no sheet in what follows (they still join the fit through their nearer
+  // face).
+  if (const std::optional<std::array<double, 2>> range = common_range(members, height)) {
+    std::vector<Eigen::Index> between;
+    for (const Eigen::Index j : steep)
+      if (!across[static_cast<std::size_t>(j)] && local(2, j) >= (*range)[0] && local(2, j) <= (*range)[1])
+        between.push_back(j);
+    if (between.size() >= 20)
+      members = groups_of(
+          offsets_from(InitialRevolution(local(Eigen::all, between), 8, order), (*range)[0], (*range)[1]),
+          &split);
+  }
+  // The base (eq. A23b): there the radius is no function of height, the height is one of the radius. Its
+  // points are split by their axial offsets from a mean height profile z_m(rho) as the wall's by their radial
+  // ones (two-means, then again over the radii both groups span); the group away from the wall is the
+  // outside's underside, the other the inside's floor. The mean height profile is InitialRevolution's with
+  // the coordinates swapped (its "height" the radius, its "radius" the height above the lowest point + 1).
+  double base_height = 0.0, wall_height = 0.0;  // the base's and the wall's median heights
+  if (base) {
+    std::vector<Eigen::Index> flat;
+    for (Eigen::Index j = 0; j < n; ++j)
+      if (level[static_cast<std::size_t>(j)]) flat.push_back(j);
+    auto axial_offsets = [&](const std::vector<Eigen::Index>& through, double lo, double hi) {
+      double z_min = infinity;
+      for (const Eigen::Index j : through) z_min = std::min(z_min, local(2, j));
+      Eigen::Matrix3Xd swapped(3, static_cast<Eigen::Index>(through.size()));
+      for (std::size_t i = 0; i < through.size(); ++i)
+        swapped.col(static_cast<Eigen::Index>(i)) << local(2, through[i]) - z_min + 1, 0, radius(through[i]);
+      const KinematicSurface mean_height = InitialRevolution(swapped, 8, order);
+      std::vector<double> offsets(static_cast<std::size_t>(n), std::nan(""));
+      for (const Eigen::Index j : flat) {
+        if (radius(j) < lo || radius(j) > hi) continue;
+        try {
+          offsets[static_cast<std::size_t>(j)] =
+              local(2, j) - (mean_height.RadiusAtHeight(radius(j)) + z_min - 1);
+        } catch (const std::domain_error&) {
+        }
+      }
+      return offsets;
+    };
+    SheetSplit base_split;
+    std::array<std::vector<Eigen::Index>, 2> floors =
+        groups_of(axial_offsets(flat, -infinity, infinity), &base_split);
+    if (const std::optional<std::array<double, 2>> range = common_range(floors, radius)) {
       std::vector<Eigen::Index> between;
-      for (Eigen::Index j = 0; j < local.cols(); ++j)
-        if (!across[static_cast<std::size_t>(j)] && local(2, j) >= lo && local(2, j) <= hi)
-          between.push_back(j);
+      for (const Eigen::Index j : flat)
+        if (radius(j) >= (*range)[0] && radius(j) <= (*range)[1]) between.push_back(j);
       if (between.size() >= 20)
-        members =
-            groups_of(offsets_from(InitialRevolution(local(Eigen::all, between), 8, order), lo, hi), &split);
+        floors = groups_of(axial_offsets(between, (*range)[0], (*range)[1]), &base_split);
     }
+    std::vector<double> wall_heights, base_heights;
+    for (const std::vector<Eigen::Index>& m : members)
+      for (const Eigen::Index j : m) wall_heights.push_back(local(2, j));
+    for (const Eigen::Index j : flat) base_heights.push_back(local(2, j));
+    if (wall_heights.empty()) {
+      sheets.why = "no wall above the base";
+      return sheets;
+    }
+    wall_height = QuantileOf(wall_heights, 0.5);
+    base_height = QuantileOf(base_heights, 0.5);
+    // floors[0] lies lower (smaller axial offsets): the underside when the wall rises above the base.
+    const bool wall_above = wall_height > base_height;
+    for (std::size_t g = 0; g < 2; ++g) {
+      std::vector<Eigen::Index>& to = members[wall_above ? 1 - g : g];
+      to.insert(to.end(), floors[g].begin(), floors[g].end());
+      std::sort(to.begin(), to.end());
+    }
+    sheets.base_split = base_split;
   }
   for (const std::vector<Eigen::Index>& m : members)
     if (static_cast<int>(m.size()) < 4 * first_count) {
@@ -314,15 +430,36 @@ Sheets SplitSheets(const Eigen::Matrix3Xd& local, const Eigen::Matrix3Xd& local_
                    " points in the two groups of radial offsets";
       return sheets;
     }
-  sheets.starts =
-      std::array<KinematicSurface, 2>{InitialRevolution(local(Eigen::all, members[0]), first_count, order),
-                                      InitialRevolution(local(Eigen::all, members[1]), first_count, order)};
+  // Each sheet's start, its generatrix parametrized by height; across a base by the position along the
+  // profile: the height up (or down) the wall, continued from where the base meets the wall (its points'
+  // largest radius, at their median height) by the radius in towards the axis.
+  auto start_of = [&](const std::vector<Eigen::Index>& m) {
+    Eigen::VectorXd along(static_cast<Eigen::Index>(m.size()));
+    std::vector<double> rim_radii, rim_heights;
+    for (const Eigen::Index j : m)
+      if (level[static_cast<std::size_t>(j)]) {
+        rim_radii.push_back(radius(j));
+        rim_heights.push_back(local(2, j));
+      }
+    const double join_radius = rim_radii.empty() ? 0.0 : QuantileOf(rim_radii, 0.99);
+    const double join_height = rim_heights.empty() ? 0.0 : QuantileOf(rim_heights, 0.5);
+    const double towards_axis = base_height > wall_height ? 1.0 : -1.0;
+    for (std::size_t i = 0; i < m.size(); ++i) {
+      const Eigen::Index j = m[i];
+      along[static_cast<Eigen::Index>(i)] = level[static_cast<std::size_t>(j)]
+                                                ? join_height + towards_axis * (join_radius - radius(j))
+                                                : local(2, j);
+    }
+    return InitialRevolutionAlong(local(Eigen::all, m), along, first_count, order);
+  };
+  sheets.starts = std::array<KinematicSurface, 2>{start_of(members[0]), start_of(members[1])};
   // Two surfaces, not one spread out: each group lies near its own start (robust spread of the radial
-  // residuals) much closer than to the other's (the median radial gap), eq. A23.
+  // residuals) much closer than to the other's (the median radial gap), eq. A23; over the wall's points.
   std::vector<double> gaps;
   for (std::size_t g = 0; g < 2; ++g) {
     std::vector<double> own;
     for (const Eigen::Index j : members[g]) {
+      if (level[static_cast<std::size_t>(j)]) continue;
       const double rho = std::hypot(local(0, j), local(1, j));
       try {
         own.push_back(rho - (*sheets.starts)[g].RadiusAtHeight(local(2, j)));
@@ -940,6 +1077,13 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
                    {"offsets", {split.mean[0], split.mean[1]}},
                    {"spreads", {split.spread[0], split.spread[1]}},
                    {"points", {split.count[0], split.count[1]}}}}};
+    // The base's split by axial offsets (eq. A23b); offsets and threshold in the height's direction.
+    j["wall"]["split"]["base"] = nullptr;
+    if (const std::optional<SheetSplit>& b = sheets.base_split)
+      j["wall"]["split"]["base"] = {{"threshold", b->threshold},
+                                    {"offsets", {b->mean[0], b->mean[1]}},
+                                    {"spreads", {b->spread[0], b->spread[1]}},
+                                    {"points", {b->count[0], b->count[1]}}};
     if (fill) {
       j["wall"]["fill_height"] = o.fill_height;
       j["wall"]["fill_capacity"] = measure_json(*fill);
@@ -960,6 +1104,10 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
          << " control points; inner " << face_points[1] << " points, " << inner.basis().num_control()
          << " control points (" << count_reason << ")";
     if (left_out > 0) text << "; " << left_out << " points off both left out";
+    if (sheets.base_split)
+      text << "; the base split into underside and floor by "
+           << sheets.base_split->count[0] + sheets.base_split->count[1]
+           << " level points (docs/archaeology.md eq. A23b)";
     text << "\n  residuals         RMS " << Format(result.residuals.rms, 6) << ", max "
          << Format(result.residuals.max_abs, 6) << "\n";
     text << ViewsTable(j["views"]) << UnobservableText(result);

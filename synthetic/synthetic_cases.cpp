@@ -791,14 +791,20 @@ KinematicCloud SherdCloud(double arc_fraction, bool fracture_faces, double noise
   return c;
 }
 
-WallTruth MakeTwoSurfaceVessel(double noise, int count, std::uint64_t seed) {
+WallTruth MakeTwoSurfaceVessel(double noise, int count, std::uint64_t seed, bool with_base) {
   if (count < 1 || !(noise >= 0)) throw std::invalid_argument("a positive count, a noise >= 0");
   Eigen::Matrix2Xd vase(2, 8);
   vase << 30, 42, 58, 66, 55, 38, 34, 41,  //
       0, 20, 45, 70, 95, 120, 135, 150;
-  auto truth =
-      std::make_unique<KinematicSurface>(KinematicSurface::Revolution(UnitSpacedClamped(4, 8), vase));
-  const double thickness = 6.0, u0 = 0.3, u1 = 5.0;
+  // With its base: the generatrix starts on the axis, runs level out to the foot (its tightest turn there
+  // has a radius of 10.2 mm, so the inside's offset by 6 mm stays a smooth curve), then up the vase.
+  Eigen::Matrix2Xd based(2, 11);
+  based << 0, 14, 28, 38, 44, 58, 66, 55, 38, 34, 41,  //
+      0, 0, 0, 3, 22, 45, 70, 95, 120, 135, 150;
+  auto truth = std::make_unique<KinematicSurface>(
+      with_base ? KinematicSurface::Revolution(UnitSpacedClamped(4, 11), based)
+                : KinematicSurface::Revolution(UnitSpacedClamped(4, 8), vase));
+  const double thickness = 6.0, u0 = with_base ? 0.0 : 0.3, u1 = with_base ? 8.0 : 5.0;
   // The generatrix's unit normal in the meridian plane, pointing away from the axis' side of the wall
   // (outwards): (z', -r') / |(r', z')| for a profile rising with u.
   auto offset_point = [&](double u) {
@@ -863,7 +869,7 @@ WallTruth MakeTwoSurfaceVessel(double noise, int count, std::uint64_t seed) {
   out.inner_points = static_cast<Eigen::Index>(inner_pts.size());
   out.thickness = thickness;
   // The capacity: pi integral r^2 dz along the offset generatrix (composite Simpson over u, 20000 steps;
-  // the offset rises with u, so the integral is the volume between its end heights).
+  // the offset never descends with u, so the integral is the volume between its end heights).
   const int steps = 20000;
   double integral = 0.0;
   const double du = (u1 - u0) / steps, h = 1e-6;
