@@ -796,15 +796,15 @@ WallTruth MakeTwoSurfaceVessel(double noise, int count, std::uint64_t seed, bool
   Eigen::Matrix2Xd vase(2, 8);
   vase << 30, 42, 58, 66, 55, 38, 34, 41,  //
       0, 20, 45, 70, 95, 120, 135, 150;
-  // With its base: the generatrix starts on the axis, runs level out to the foot (its tightest turn there
-  // has a radius of 10.2 mm, so the inside's offset by 6 mm stays a smooth curve), then up the vase.
-  Eigen::Matrix2Xd based(2, 11);
-  based << 0, 14, 28, 38, 44, 58, 66, 55, 38, 34, 41,  //
-      0, 0, 0, 3, 22, 45, 70, 95, 120, 135, 150;
+  // A pot with its base: the generatrix starts on the axis, runs level out to the foot, turns up (its
+  // tightest turn has a radius of 7.8 mm, so the inside's offset by 6 mm stays a smooth curve, turning at
+  // 1.8 mm) and rises straight to the rim. A fifth of its area faces within 45 degrees of the axis.
+  Eigen::Matrix2Xd pot(2, 8);
+  pot << 0, 11, 22, 30, 39, 42, 42, 42,  //
+      0, 0, 0, 0, 3, 13, 46, 80;
   auto truth = std::make_unique<KinematicSurface>(
-      with_base ? KinematicSurface::Revolution(UnitSpacedClamped(4, 11), based)
-                : KinematicSurface::Revolution(UnitSpacedClamped(4, 8), vase));
-  const double thickness = 6.0, u0 = with_base ? 0.0 : 0.3, u1 = with_base ? 8.0 : 5.0;
+      KinematicSurface::Revolution(UnitSpacedClamped(4, 8), with_base ? pot : vase));
+  const double thickness = 6.0, u0 = with_base ? 0.0 : 0.3, u1 = 5.0;
   // The generatrix's unit normal in the meridian plane, pointing away from the axis' side of the wall
   // (outwards): (z', -r') / |(r', z')| for a profile rising with u.
   auto offset_point = [&](double u) {

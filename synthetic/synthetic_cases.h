@@ -193,10 +193,10 @@ SherdTruth MakeSherd(const SherdSpec& spec);
 // A whole vessel scanned inside and out (docs/archaeology.md section 10): the demo vase's surface of
 // revolution (radius 30-66 mm, u in [0.3, 5], heights about 6 to 150 mm) all round as the outside, and its
 // offset 6 mm in along the normal as the inside, `count` points on each, Gaussian noise along the normal.
-// The outside's points come first (`cloud.surface_points` of them), then the inside's. `with_base`: a vessel
-// with its base, the generatrix starting on the axis and running level out to a rounded foot (the outside's
-// underside at height 0, the inside's floor 6 mm above it) before it rises as the vase's (radius 30-66 mm,
-// heights 0 to about 150 mm).
+// The outside's points come first (`cloud.surface_points` of them), then the inside's. `with_base`: instead
+// a straight-walled pot with its base, the generatrix starting on the axis and running level out to a
+// rounded foot (the outside's underside at height 0, the inside's floor 6 mm above it) before it rises
+// straight to the rim (radius 42 mm, height 80 mm).
 struct WallTruth {
   KinematicCloud cloud;  // truth: the outer surface, in the axis frame
   Eigen::Index inner_points = 0;
