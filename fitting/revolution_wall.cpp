@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 #include <string>
 
@@ -87,27 +88,53 @@ double RevolutionWall::ThicknessAtHeight(double height, Eigen::VectorXd* gradien
                                          Eigen::Vector2d* inner_foot) const {
   Eigen::VectorXd outer_gradient;
   const double radius = faces_[kOuter].RadiusAtHeight(height, gradient ? &outer_gradient : nullptr);
+  // Q moves only radially at a fixed height: dQ/dP_outer = (dr/dP, 0, 0) from RadiusAtHeight.
+  return ThicknessFromOuterPoint(
+      Eigen::Vector2d(radius, height),
+      [&](const Eigen::Vector3d& e, Eigen::Ref<Eigen::VectorXd> outer_part) {
+        outer_part = e.x() * outer_gradient;
+      },
+      gradient, inner_foot, "at height " + std::to_string(height));
+}
+
+double RevolutionWall::ThicknessAtOuterParameter(double u, Eigen::VectorXd* gradient,
+                                                 Eigen::Vector2d* inner_foot) const {
+  const KinematicSurface& outer = faces_[kOuter];
+  const ParamT t{u, 0.0, 0.0};
+  // Q = C_o(u) at a fixed parameter: it moves with the outer generatrix's control points, dQ/dP = dC_o/dP.
+  return ThicknessFromOuterPoint(
+      outer.ProfilePoint(u),
+      [&](const Eigen::Vector3d& e, Eigen::Ref<Eigen::VectorXd> outer_part) {
+        std::vector<JacobianEntry> columns;
+        outer.ShapeJacobian(t, false, columns);
+        for (const JacobianEntry& c : columns) outer_part[c.index] += e.dot(c.column);
+      },
+      gradient, inner_foot, "at the outer profile's parameter " + std::to_string(u));
+}
+
+double RevolutionWall::ThicknessFromOuterPoint(
+    const Eigen::Vector2d& radius_height,
+    const std::function<void(const Eigen::Vector3d&, Eigen::Ref<Eigen::VectorXd>)>& outer_gradient,
+    Eigen::VectorXd* gradient, Eigen::Vector2d* inner_foot, const std::string& where) const {
   // The outer generatrix's point in the meridian half-plane v = 0, and its foot on the inner surface, which
   // lies in the same half-plane (docs/method.md section 10).
   VecS x(3);
-  x << radius, 0.0, height;
+  x << radius_height.x(), 0.0, radius_height.y();
   LocalGeometry g;
   const FootPoint foot = FootPointOf(*contexts_[kInner], x, nullptr, WarmStart::kVerified, g);
   if (foot.on_boundary)
-    throw std::domain_error("the inner surface ends before it faces the outer one at height " +
-                            std::to_string(height));
+    throw std::domain_error("the inner surface ends before it faces the outer one " + where);
   faces_[kInner].Evaluate(foot.t, 0, g);
   if (inner_foot) *inner_foot = Eigen::Vector2d(To3(g.point).head<2>().norm(), To3(g.point).z());
   const Eigen::Vector3d difference = To3(x) - To3(g.point);
   const double thickness = difference.norm();
   if (gradient) {
     // eq. A22: d|Q - P| = e . (dQ - dP) with e the unit vector from P to Q; the foot's own motion along the
-    // inner generatrix drops out (e is normal to it there). Q moves only radially: dQ/dP_outer = (dr/dP, 0,
-    // 0) from RadiusAtHeight.
+    // inner generatrix drops out (e is normal to it there).
     const Eigen::Vector3d e =
         thickness > 0 ? Eigen::Vector3d(difference / thickness) : Eigen::Vector3d::Zero();
     gradient->setZero(num_parameters());
-    gradient->head(faces_[kOuter].num_parameters()) = e.x() * outer_gradient;
+    outer_gradient(e, gradient->head(faces_[kOuter].num_parameters()));
     std::vector<JacobianEntry> columns;
     faces_[kInner].ShapeJacobian(foot.t, false, columns);
     for (const JacobianEntry& c : columns) (*gradient)[offset(kInner) + c.index] -= e.dot(c.column);

@@ -13,7 +13,9 @@
 // Parameter t = (u, v, face): face 0 the outer surface, 1 the inner.
 
 #include <array>
+#include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "fitting/kinematic_surfaces.h"
@@ -52,6 +54,11 @@ class RevolutionWall final : public ParametricModel {
   // there).
   double ThicknessAtHeight(double height, Eigen::VectorXd* gradient = nullptr,
                            Eigen::Vector2d* inner_foot = nullptr) const;
+  // The same from the outer generatrix's point C_o(u) at parameter u instead of its point at a height (a
+  // base, where the radius is no function of height, docs/archaeology.md eq. A21c): the gradient's outer
+  // part is then that of C_o(u) at the fixed parameter.
+  double ThicknessAtOuterParameter(double u, Eigen::VectorXd* gradient = nullptr,
+                                   Eigen::Vector2d* inner_foot = nullptr) const;
 
   // The volume inside face `index` between the heights z_lo and z_hi (KinematicSurface::EnclosedVolume),
   // with its gradient over the wall's parameters (zero on the other face's).
@@ -86,6 +93,12 @@ class RevolutionWall final : public ParametricModel {
 
  private:
   void Rebuild();  // the faces' foot-point contexts, after any change of shape
+  // eqs. A21-A22 from the outer point Q = (radius, height): `outer_gradient(e, part)` fills the gradient's
+  // outer part, e.dQ/dP, for the unit vector e from the inner foot to Q.
+  double ThicknessFromOuterPoint(
+      const Eigen::Vector2d& radius_height,
+      const std::function<void(const Eigen::Vector3d&, Eigen::Ref<Eigen::VectorXd>)>& outer_gradient,
+      Eigen::VectorXd* gradient, Eigen::Vector2d* inner_foot, const std::string& where) const;
   std::array<KinematicSurface, 2> faces_;
   std::array<std::unique_ptr<FootPointContext>, 2> contexts_;
 };

@@ -600,14 +600,17 @@ nlohmann::json FlatParameters(const nlohmann::json& d) {
                            nullptr, ""));
       }
     }
-    // A wall (fit option wall, docs/archaeology.md section 10): the thickness' range and mean, the capacity
-    // and the material volume with their uncertainties.
+    // A wall (fit option wall, docs/archaeology.md section 10): the thickness' range and mean, the base's
+    // thickness where the base was measured, the capacity and the material volume with their uncertainties.
     if (d.contains("wall")) {
       const nlohmann::json& w = d["wall"];
       for (const char* key : {"min", "max", "mean"})
         if (w["thickness"][key].is_number())
           out.push_back(
               Flat(std::string("wall_thickness_") + key, w["thickness"][key].get<double>(), nullptr, units));
+      if (w.contains("base_thickness") && w["base_thickness"].is_object())
+        out.push_back(Flat("wall_base_thickness", w["base_thickness"]["value"].get<double>(),
+                           w["base_thickness"]["uncertainty"], units));
       for (const char* key : {"capacity", "material_volume"})
         out.push_back(Flat(key, w[key]["value"].get<double>(), w[key]["uncertainty"], units + "^3"));
     }

@@ -963,6 +963,57 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
               [](const nlohmann::json& a, const nlohmann::json& b) {
                 return a[0].get<double>() < b[0].get<double>();
               });
+    // The base's thickness (eq. A21c): where both generatrices come in to the axis at the base (their base
+    // ends within a tenth of the outer surface's largest radius of it), eq. A21 from the outer generatrix's
+    // point Q at the larger of the two ends' radii, a hundredth of that radius further out at a time while
+    // the inner foot is the inner generatrix's end (at most ten steps). Q is found along the outer generatrix
+    // from its base end, and the thickness taken at Q's parameter (the radius is no function of height
+    // there). The end rule (eq. 70) put both ends where their own points' feet end, so both faces are
+    // observed there.
+    struct BaseThickness {
+      double value = 0, uncertainty = 0, radius = 0;
+    };
+    std::optional<BaseThickness> base_thickness;
+    {
+      auto base_end = [&](const KinematicSurface& f) {
+        const double lo = f.basis().lo(), hi = f.basis().hi();
+        return up_sign * f.ProfilePoint(lo).y() <= up_sign * f.ProfilePoint(hi).y() ? lo : hi;
+      };
+      const int samples = 64 * outer.basis().num_control();
+      double max_radius = 0.0;
+      for (int i = 0; i <= samples; ++i)
+        max_radius = std::max(
+            max_radius,
+            outer.ProfilePoint(outer.basis().lo() + (outer.basis().hi() - outer.basis().lo()) * i / samples)
+                .x());
+      const double u_end = base_end(outer),
+                   u_far = u_end == outer.basis().lo() ? outer.basis().hi() : outer.basis().lo();
+      const double r_outer = std::max(0.0, outer.ProfilePoint(u_end).x());
+      const double r_inner = std::max(0.0, inner.ProfilePoint(base_end(inner)).x());
+      for (int step = 0;
+           step < 10 && !base_thickness && r_outer < 0.1 * max_radius && r_inner < 0.1 * max_radius; ++step) {
+        const double r_b = std::max(r_outer, r_inner) + 0.01 * max_radius * step;
+        // The first sample from the base end reaching r_b, then bisection on r(u) = r_b.
+        double a = u_end, b = u_end;
+        bool found = false;
+        for (int i = 1; i <= samples && !found; ++i) {
+          a = b;
+          b = u_end + (u_far - u_end) * i / samples;
+          found = outer.ProfilePoint(b).x() >= r_b;
+        }
+        if (!found) break;
+        for (int it = 0; it < 60; ++it) {
+          const double m = 0.5 * (a + b);
+          (outer.ProfilePoint(m).x() >= r_b ? b : a) = m;
+        }
+        try {
+          Eigen::VectorXd g;
+          const double t = wall.ThicknessAtOuterParameter(b, &g);
+          base_thickness = BaseThickness{t, uncertainty_of(g), r_b};
+        } catch (const std::domain_error&) {  // the inner foot is its end: a step further out
+        }
+      }
+    }
 
     // Adequacy over both faces: the RMS against the views' noise and the residuals' structure along the
     // height.
@@ -1065,6 +1116,12 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
                    {"method",
                     "square to the wall: from the outer surface's point at each height to the inner "
                     "generatrix (docs/archaeology.md eq. A21)"}}},
+                 {"base_thickness",
+                  base_thickness ? nlohmann::json{{"value", base_thickness->value},
+                                                  {"uncertainty", NumberOrNull(base_thickness->uncertainty)},
+                                                  {"unit", units},
+                                                  {"radius", base_thickness->radius}}
+                                 : nlohmann::json()},
                  {"fragment", vessel.IsFragment()},
                  {"rim_height_above_base", above_base(z_rim)},
                  {"inner_bottom_height_above_base", above_base(z_inner_bottom)},
@@ -1120,6 +1177,11 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
       text << "  " << std::setw(14) << Format(row[0].get<double>(), 6) << " above the base  " << std::setw(10)
            << Format(row[1].get<double>(), 5) << " +- "
            << UncertaintyText(row[2].is_number() ? row[2].get<double>() : std::nan(""), trusted, 2) << "\n";
+    if (base_thickness)
+      text << "  base              thickness " << Format(base_thickness->value, 5) << " +- "
+           << UncertaintyText(base_thickness->uncertainty, trusted, 2) << " " << units << " at "
+           << Format(base_thickness->radius, 3) << " " << units
+           << " from the axis (underside to floor, square to the base)\n";
     auto measure_line = [&](const char* label, const Measure& m, const std::string& what) {
       text << "  " << label << Format(m.value, 7) << " +- " << UncertaintyText(m.uncertainty, trusted, 2)
            << " " << m.unit << " (" << what << ")\n";

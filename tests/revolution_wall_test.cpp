@@ -168,6 +168,46 @@ TEST(RevolutionWall, ThicknessGradientMatchesFiniteDifferences) {
   }
 }
 
+// A pot with its base (docs/archaeology.md eq. A21c): the outer generatrix level at height 0 out from the
+// axis, the inner at height 6, both then rising as straight walls. From the outer point at a parameter on the
+// level part the thickness is the bases' distance, 6, to the inner point straight above it; the gradient
+// matches finite differences there and on the wall.
+TEST(RevolutionWall, ThicknessAtAnOuterParameterAcrossTheBase) {
+  Eigen::Matrix2Xd outer(2, 8), inner(2, 8);
+  outer << 0, 12, 24, 36, 40, 40, 40, 40,  //
+      0, 0, 0, 0, 10, 40, 70, 100;
+  inner << 0, 11, 22, 30, 34, 34, 34, 34,  //
+      6, 6, 6, 6, 14, 40, 70, 100;
+  RevolutionWall wall(KinematicSurface::Revolution(BSplineBasis::ClampedUniform(4, 8), outer),
+                      KinematicSurface::Revolution(BSplineBasis::ClampedUniform(4, 8), inner));
+  const BSplineBasis& basis = wall.face(RevolutionWall::kOuter).basis();
+  // Within the first of the five spans both generatrices are level (only their first four control points
+  // act).
+  const double u_base = basis.lo() + 0.05 * (basis.hi() - basis.lo());
+  Eigen::Vector2d foot;
+  EXPECT_NEAR(wall.ThicknessAtOuterParameter(u_base, nullptr, &foot), 6.0, 1e-9);
+  EXPECT_NEAR(foot.x(), wall.face(RevolutionWall::kOuter).ProfilePoint(u_base).x(), 1e-9);
+  EXPECT_NEAR(foot.y(), 6.0, 1e-9);
+  const Eigen::VectorXd p0 = wall.parameters();
+  for (const double u : {u_base, basis.lo() + 0.7 * (basis.hi() - basis.lo())}) {
+    Eigen::VectorXd gradient;
+    wall.ThicknessAtOuterParameter(u, &gradient);
+    ASSERT_EQ(gradient.size(), wall.num_parameters());
+    for (int k = 0; k < wall.num_parameters(); ++k) {
+      const double h = 1e-6;
+      Eigen::VectorXd p = p0;
+      p[k] += h;
+      wall.set_parameters(p);
+      const double plus = wall.ThicknessAtOuterParameter(u);
+      p[k] -= 2 * h;
+      wall.set_parameters(p);
+      const double minus = wall.ThicknessAtOuterParameter(u);
+      EXPECT_NEAR(gradient[k], (plus - minus) / (2 * h), 1e-6) << "parameter " << u << ", " << k;
+    }
+    wall.set_parameters(p0);
+  }
+}
+
 TEST(RevolutionWall, VolumesOfCylindersAndTheirGradientsPerFace) {
   const RevolutionWall wall(Cone(40, 0.0, 100), Cone(34, 0.0, 100));
   Eigen::VectorXd outer_gradient, inner_gradient;
