@@ -1043,8 +1043,10 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
         adequacy.adequate = false;
         adequacy.suggestions.push_back(
             std::string("the ") + (f == RevolutionWall::kOuter ? "outer" : "inner") +
-            " surface's generatrix folds back on itself (docs/archaeology.md eq. A21b): points of the breaks "
-            "carried it into the wall; crop the breaks, or read the wall's thickness and volumes as unsure");
+            " surface's generatrix folds back on itself (docs/archaeology.md eq. A21b): points of neither "
+            "surface (a sherd's breaks, a lip, a base or foot the split did not separate) carried it into "
+            "the "
+            "wall; crop them, or read the wall's thickness and volumes as unsure");
       }
     const std::optional<bool> trusted = adequacy.uncertainty_trusted();
 
