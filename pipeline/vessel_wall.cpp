@@ -85,8 +85,10 @@ SheetSplit SplitInTwo(const std::vector<double>& values) {
     std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
                      sorted.end());
     out.mean[g] = sorted[sorted.size() / 2];  // the median: robust to the group's stragglers
-    out.spread[g] = MadSigma(
-        Eigen::Map<const Eigen::VectorXd>(groups[g].data(), static_cast<Eigen::Index>(groups[g].size())));
+    // The robust spread about that median (eq. 47 of the deviations from it).
+    for (double& x : sorted) x -= out.mean[g];
+    out.spread[g] =
+        MadSigma(Eigen::Map<const Eigen::VectorXd>(sorted.data(), static_cast<Eigen::Index>(sorted.size())));
   }
   return out;
 }
@@ -415,14 +417,37 @@ Sheets SplitSheets(const Eigen::Matrix3Xd& local, const Eigen::Matrix3Xd& local_
     }
     wall_height = QuantileOf(wall_heights, 0.5);
     base_height = QuantileOf(base_heights, 0.5);
-    // floors[0] lies lower (smaller axial offsets): the underside when the wall rises above the base.
     const bool wall_above = wall_height > base_height;
-    for (std::size_t g = 0; g < 2; ++g) {
-      std::vector<Eigen::Index>& to = members[wall_above ? 1 - g : g];
-      to.insert(to.end(), floors[g].begin(), floors[g].end());
-      std::sort(to.begin(), to.end());
+    // Two surfaces, as eq. A23 judges the wall's: the groups' medians more than 6 of their robust spreads
+    // apart. Otherwise the base shows one surface (the floor not scanned through a narrow opening, or the
+    // underside not scanned on a table), and all its points belong to one face: the inside's floor ends where
+    // the inner wall begins, so its rim (its 5 % of points farthest from the axis) lies at about the height
+    // where both walls begin (the heights both wall groups span), while the underside's rim lies farther
+    // down, by about the wall's thickness along the 45-degree normal there (0.7 of it). The floor when that
+    // height difference is under half the walls' radial gap, else the underside.
+    const bool two =
+        base_split.mean[1] - base_split.mean[0] > 6 * std::max(base_split.spread[0], base_split.spread[1]);
+    if (two) {
+      // floors[0] lies lower (smaller axial offsets): the underside when the wall rises above the base.
+      for (std::size_t g = 0; g < 2; ++g) {
+        std::vector<Eigen::Index>& to = members[wall_above ? 1 - g : g];
+        to.insert(to.end(), floors[g].begin(), floors[g].end());
+      }
+      sheets.base_split = base_split;
+    } else if (const std::optional<std::array<double, 2>> walls = common_range(members, height)) {
+      std::vector<Eigen::Index> by_radius = flat;
+      std::sort(by_radius.begin(), by_radius.end(),
+                [&](Eigen::Index a, Eigen::Index b) { return radius(a) > radius(b); });
+      const std::size_t rim_count = std::max<std::size_t>(1, by_radius.size() / 20);
+      double rim_height = 0.0;
+      for (std::size_t i = 0; i < rim_count; ++i) rim_height += local(2, by_radius[i]);
+      rim_height /= static_cast<double>(rim_count);
+      const double walls_begin = wall_above ? (*walls)[0] : (*walls)[1];
+      const bool floor = std::abs(walls_begin - rim_height) < 0.5 * (split.mean[1] - split.mean[0]);
+      std::vector<Eigen::Index>& to = members[floor ? 0 : 1];
+      to.insert(to.end(), flat.begin(), flat.end());
     }
-    sheets.base_split = base_split;
+    for (std::vector<Eigen::Index>& m : members) std::sort(m.begin(), m.end());
   }
   for (const std::vector<Eigen::Index>& m : members)
     if (static_cast<int>(m.size()) < 4 * first_count) {

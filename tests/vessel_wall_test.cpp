@@ -175,6 +175,37 @@ TEST(VesselWall, BaseIsSplitIntoUndersideAndFloor) {
       w["split"]["base"]["points"][1].get<int>(), w["left_out"].get<int>());
 }
 
+// The same pot whose floor was not scanned (a narrow opening): the base shows the underside only, so eq.
+// A23b's two groups of axial offsets would cut one surface in two by its noise; they lie too close for two
+// surfaces (as eq. A23 judges the wall), the base is not split but given whole to the outer surface (its rim
+// lies well below where both walls begin), and no base thickness is reported. The outer face holds its
+// points and the wall's rows stay right. (The fit says it is not adequate: the inner generatrix folds back
+// by eq. A21b near its free lower end; not examined.)
+TEST(VesselWall, BaseWithoutItsFloorIsNotSplit) {
+  const double noise = 0.05;
+  const WallTruth truth = MakeTwoSurfaceVessel(noise, 6000, 5, true);
+  // The inside's points more than 12 mm above the underside (in the pot's own frame): its floor (6 mm up)
+  // and the foot's turn inside are gone.
+  const Eigen::Matrix3Xd local = truth.cloud.world_T_model.inverse().apply(truth.cloud.points);
+  std::vector<Eigen::Index> kept;
+  for (Eigen::Index j = 0; j < local.cols(); ++j)
+    if (j < truth.cloud.surface_points || local(2, j) > 12.0) kept.push_back(j);
+  const pipeline::FitOutcome outcome =
+      pipeline::ComputeFit(WallOptions(truth.cloud.points(Eigen::all, kept), "pot without its floor"));
+  const nlohmann::json& d = outcome.document;
+  ASSERT_TRUE(d.contains("wall")) << d.dump().substr(0, 400);
+  const nlohmann::json& w = d["wall"];
+  EXPECT_TRUE(w["split"]["base"].is_null()) << w["split"].dump();
+  EXPECT_TRUE(w["base_thickness"].is_null());
+  EXPECT_GT(w["outer"]["points"].get<int>(), 5500);
+  for (const nlohmann::json& row : w["thickness"]["rows"])
+    EXPECT_NEAR(row[1].get<double>(), truth.thickness, noise) << row.dump();
+  std::printf("pot without its floor: adequate %d, %zu points, outer %d, inner %d, thickness %.4f-%.4f\n",
+              d["adequacy"]["adequate"].get<bool>() ? 1 : 0, kept.size(), w["outer"]["points"].get<int>(),
+              w["inner"]["points"].get<int>(), w["thickness"]["min"].get<double>(),
+              w["thickness"]["max"].get<double>());
+}
+
 // The same vessel without noise: eq. A21a's band is then narrower than the gaps between the points, so it is
 // widened by the gap they leave; the rows are kept but where eq. 77, whose band is then the spline's own
 // error, left out most of a face's points (one of eleven, measured), and the wall is 6 mm.
