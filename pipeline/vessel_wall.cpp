@@ -988,8 +988,8 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
               [](const nlohmann::json& a, const nlohmann::json& b) {
                 return a[0].get<double>() < b[0].get<double>();
               });
-    // The base's thickness (eq. A21c): where both generatrices come in to the axis at the base (their base
-    // ends within a tenth of the outer surface's largest radius of it), eq. A21 from the outer generatrix's
+    // The base's thickness (eq. A21c): where both generatrices come in to the axis (their ends nearer it
+    // within a tenth of the outer surface's largest radius of it), eq. A21 from the outer generatrix's
     // point Q at the larger of the two ends' radii, a hundredth of that radius further out at a time while
     // the inner foot is the inner generatrix's end (at most ten steps). Q is found along the outer generatrix
     // from its base end, and the thickness taken at Q's parameter (the radius is no function of height
@@ -1000,9 +1000,10 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
     };
     std::optional<BaseThickness> base_thickness;
     {
+      // The end nearer the axis (whichever way up the vessel stands in the world).
       auto base_end = [&](const KinematicSurface& f) {
         const double lo = f.basis().lo(), hi = f.basis().hi();
-        return up_sign * f.ProfilePoint(lo).y() <= up_sign * f.ProfilePoint(hi).y() ? lo : hi;
+        return f.ProfilePoint(lo).x() <= f.ProfilePoint(hi).x() ? lo : hi;
       };
       const int samples = 64 * outer.basis().num_control();
       double max_radius = 0.0;
@@ -1070,8 +1071,7 @@ FitOutcome ComputeWallFit(const FitOptions& given) {
             std::string("the ") + (f == RevolutionWall::kOuter ? "outer" : "inner") +
             " surface's generatrix folds back on itself (docs/archaeology.md eq. A21b): points of neither "
             "surface (a sherd's breaks, a lip, a base or foot the split did not separate) carried it into "
-            "the "
-            "wall; crop them, or read the wall's thickness and volumes as unsure");
+            "the wall; crop them, or read the wall's thickness and volumes as unsure");
       }
     const std::optional<bool> trusted = adequacy.uncertainty_trusted();
 
