@@ -206,6 +206,39 @@ TEST(VesselWall, BaseWithoutItsFloorIsNotSplit) {
               w["thickness"]["max"].get<double>());
 }
 
+// The same pot standing on a table: its underside (the outside's points less than 4 mm up) was not scanned.
+// The base shows the floor only and goes whole to the inner face (its rim lies where both walls begin), so
+// the capacity, inside the complete inner surface, is right within 3 standard uncertainties and the fit
+// adequate; no base thickness without the underside.
+TEST(VesselWall, BaseWithoutItsUndersideGoesToTheFloor) {
+  const double noise = 0.05;
+  const WallTruth truth = MakeTwoSurfaceVessel(noise, 6000, 5, true);
+  const Eigen::Matrix3Xd local = truth.cloud.world_T_model.inverse().apply(truth.cloud.points);
+  std::vector<Eigen::Index> kept;
+  for (Eigen::Index j = 0; j < local.cols(); ++j)
+    if (j >= truth.cloud.surface_points || local(2, j) > 4.0) kept.push_back(j);
+  const pipeline::FitOutcome outcome =
+      pipeline::ComputeFit(WallOptions(truth.cloud.points(Eigen::all, kept), "pot without its underside"));
+  const nlohmann::json& d = outcome.document;
+  ASSERT_TRUE(d.contains("wall")) << d.dump().substr(0, 400);
+  const nlohmann::json& w = d["wall"];
+  EXPECT_EQ(d["adequacy"]["adequate"], true) << d["adequacy"].dump().substr(0, 600);
+  EXPECT_TRUE(w["split"]["base"].is_null()) << w["split"].dump();
+  EXPECT_TRUE(w["base_thickness"].is_null());
+  EXPECT_GT(w["inner"]["points"].get<int>(), 5500);
+  for (const nlohmann::json& row : w["thickness"]["rows"])
+    EXPECT_NEAR(row[1].get<double>(), truth.thickness, noise) << row.dump();
+  const double capacity = w["capacity"]["value"].get<double>();
+  const double capacity_u = Number(w["capacity"]["uncertainty"]);
+  EXPECT_LT(std::abs(capacity - truth.capacity), 3 * capacity_u) << capacity << " truth " << truth.capacity;
+  std::printf(
+      "pot without its underside: adequate %d, %zu points, outer %d, inner %d, thickness %.4f-%.4f, "
+      "capacity %.1f +- %.1f (truth %.1f)\n",
+      d["adequacy"]["adequate"].get<bool>() ? 1 : 0, kept.size(), w["outer"]["points"].get<int>(),
+      w["inner"]["points"].get<int>(), w["thickness"]["min"].get<double>(),
+      w["thickness"]["max"].get<double>(), capacity, capacity_u, truth.capacity);
+}
+
 // The same vessel without noise: eq. A21a's band is then narrower than the gaps between the points, so it is
 // widened by the gap they leave; the rows are kept but where eq. 77, whose band is then the spline's own
 // error, left out most of a face's points (one of eleven, measured), and the wall is 6 mm.
