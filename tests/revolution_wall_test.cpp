@@ -8,7 +8,9 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <functional>
 #include <iostream>
+#include <string>
 
 #include "fitting/initial_models.h"
 #include "fitting/joint_fit.h"
@@ -146,26 +148,35 @@ TEST(RevolutionWall, ThicknessOfStraightWallsIsTheirNormalDistance) {
   EXPECT_THROW(short_inner.ThicknessAtHeight(120.0), std::domain_error);
 }
 
+// `measure` (with its gradient when given a vector) against each parameter's central difference (h = 1e-6),
+// the wall's parameters restored after each.
+void ExpectGradientMatchesCentralDifferences(RevolutionWall& wall,
+                                             const std::function<double(Eigen::VectorXd*)>& measure,
+                                             const std::string& where) {
+  const Eigen::VectorXd p0 = wall.parameters();
+  Eigen::VectorXd gradient;
+  measure(&gradient);
+  ASSERT_EQ(gradient.size(), wall.num_parameters()) << where;
+  for (int k = 0; k < wall.num_parameters(); ++k) {
+    const double h = 1e-6;
+    Eigen::VectorXd p = p0;
+    p[k] += h;
+    wall.set_parameters(p);
+    const double plus = measure(nullptr);
+    p[k] -= 2 * h;
+    wall.set_parameters(p);
+    const double minus = measure(nullptr);
+    EXPECT_NEAR(gradient[k], (plus - minus) / (2 * h), 1e-6) << where << ", parameter " << k;
+  }
+  wall.set_parameters(p0);
+}
+
 TEST(RevolutionWall, ThicknessGradientMatchesFiniteDifferences) {
   RevolutionWall wall(Belly(0.0), Belly(-6.0));
-  const Eigen::VectorXd p0 = wall.parameters();
-  for (const double z : {15.0, 60.0, 100.0}) {
-    Eigen::VectorXd gradient;
-    wall.ThicknessAtHeight(z, &gradient);
-    ASSERT_EQ(gradient.size(), wall.num_parameters());
-    for (int k = 0; k < wall.num_parameters(); ++k) {
-      const double h = 1e-6;
-      Eigen::VectorXd p = p0;
-      p[k] += h;
-      wall.set_parameters(p);
-      const double plus = wall.ThicknessAtHeight(z);
-      p[k] -= 2 * h;
-      wall.set_parameters(p);
-      const double minus = wall.ThicknessAtHeight(z);
-      EXPECT_NEAR(gradient[k], (plus - minus) / (2 * h), 1e-6) << "height " << z << " parameter " << k;
-    }
-    wall.set_parameters(p0);
-  }
+  for (const double z : {15.0, 60.0, 100.0})
+    ExpectGradientMatchesCentralDifferences(
+        wall, [&](Eigen::VectorXd* g) { return wall.ThicknessAtHeight(z, g); },
+        "height " + std::to_string(z));
 }
 
 // A pot with its base (docs/archaeology.md eq. A21c): the outer generatrix level at height 0 out from the
@@ -188,24 +199,10 @@ TEST(RevolutionWall, ThicknessAtAnOuterParameterAcrossTheBase) {
   EXPECT_NEAR(wall.ThicknessAtOuterParameter(u_base, nullptr, &foot), 6.0, 1e-9);
   EXPECT_NEAR(foot.x(), wall.face(RevolutionWall::kOuter).ProfilePoint(u_base).x(), 1e-9);
   EXPECT_NEAR(foot.y(), 6.0, 1e-9);
-  const Eigen::VectorXd p0 = wall.parameters();
-  for (const double u : {u_base, basis.lo() + 0.7 * (basis.hi() - basis.lo())}) {
-    Eigen::VectorXd gradient;
-    wall.ThicknessAtOuterParameter(u, &gradient);
-    ASSERT_EQ(gradient.size(), wall.num_parameters());
-    for (int k = 0; k < wall.num_parameters(); ++k) {
-      const double h = 1e-6;
-      Eigen::VectorXd p = p0;
-      p[k] += h;
-      wall.set_parameters(p);
-      const double plus = wall.ThicknessAtOuterParameter(u);
-      p[k] -= 2 * h;
-      wall.set_parameters(p);
-      const double minus = wall.ThicknessAtOuterParameter(u);
-      EXPECT_NEAR(gradient[k], (plus - minus) / (2 * h), 1e-6) << "parameter " << u << ", " << k;
-    }
-    wall.set_parameters(p0);
-  }
+  for (const double u : {u_base, basis.lo() + 0.7 * (basis.hi() - basis.lo())})
+    ExpectGradientMatchesCentralDifferences(
+        wall, [&](Eigen::VectorXd* g) { return wall.ThicknessAtOuterParameter(u, g); },
+        "parameter " + std::to_string(u));
 }
 
 TEST(RevolutionWall, VolumesOfCylindersAndTheirGradientsPerFace) {

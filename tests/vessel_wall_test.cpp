@@ -175,6 +175,17 @@ TEST(VesselWall, BaseIsSplitIntoUndersideAndFloor) {
       w["split"]["base"]["points"][1].get<int>(), w["left_out"].get<int>());
 }
 
+// The points of a pot with its base (`truth`, MakeTwoSurfaceVessel with its base) without one surface's
+// points below `height` in the pot's own frame, as where part of its base was not scanned: the outside's
+// when `outside`, else the inside's.
+Eigen::Matrix3Xd PotWithout(const WallTruth& truth, bool outside, double height) {
+  const Eigen::Matrix3Xd local = truth.cloud.world_T_model.inverse().apply(truth.cloud.points);
+  std::vector<Eigen::Index> kept;
+  for (Eigen::Index j = 0; j < local.cols(); ++j)
+    if ((j < truth.cloud.surface_points) != outside || local(2, j) > height) kept.push_back(j);
+  return truth.cloud.points(Eigen::all, kept);
+}
+
 // The same pot whose floor was not scanned (a narrow opening): the base shows the underside only, so eq.
 // A23b's two groups of axial offsets would cut one surface in two by its noise; they lie too close for two
 // surfaces (as eq. A23 judges the wall), the base is not split but given whole to the outer surface (its rim
@@ -184,14 +195,9 @@ TEST(VesselWall, BaseIsSplitIntoUndersideAndFloor) {
 TEST(VesselWall, BaseWithoutItsFloorIsNotSplit) {
   const double noise = 0.05;
   const WallTruth truth = MakeTwoSurfaceVessel(noise, 6000, 5, true);
-  // The inside's points more than 12 mm above the underside (in the pot's own frame): its floor (6 mm up)
-  // and the foot's turn inside are gone.
-  const Eigen::Matrix3Xd local = truth.cloud.world_T_model.inverse().apply(truth.cloud.points);
-  std::vector<Eigen::Index> kept;
-  for (Eigen::Index j = 0; j < local.cols(); ++j)
-    if (j < truth.cloud.surface_points || local(2, j) > 12.0) kept.push_back(j);
-  const pipeline::FitOutcome outcome =
-      pipeline::ComputeFit(WallOptions(truth.cloud.points(Eigen::all, kept), "pot without its floor"));
+  // The inside's points up to 12 mm above the underside: its floor (6 mm up) and the foot's turn inside.
+  const Eigen::Matrix3Xd points = PotWithout(truth, false, 12.0);
+  const pipeline::FitOutcome outcome = pipeline::ComputeFit(WallOptions(points, "pot without its floor"));
   const nlohmann::json& d = outcome.document;
   ASSERT_TRUE(d.contains("wall")) << d.dump().substr(0, 400);
   const nlohmann::json& w = d["wall"];
@@ -201,9 +207,9 @@ TEST(VesselWall, BaseWithoutItsFloorIsNotSplit) {
   for (const nlohmann::json& row : w["thickness"]["rows"])
     EXPECT_NEAR(row[1].get<double>(), truth.thickness, noise) << row.dump();
   std::printf("pot without its floor: adequate %d, %zu points, outer %d, inner %d, thickness %.4f-%.4f\n",
-              d["adequacy"]["adequate"].get<bool>() ? 1 : 0, kept.size(), w["outer"]["points"].get<int>(),
-              w["inner"]["points"].get<int>(), w["thickness"]["min"].get<double>(),
-              w["thickness"]["max"].get<double>());
+              d["adequacy"]["adequate"].get<bool>() ? 1 : 0, static_cast<std::size_t>(points.cols()),
+              w["outer"]["points"].get<int>(), w["inner"]["points"].get<int>(),
+              w["thickness"]["min"].get<double>(), w["thickness"]["max"].get<double>());
 }
 
 // The same pot standing on a table: its underside (the outside's points less than 4 mm up) was not scanned.
@@ -213,12 +219,8 @@ TEST(VesselWall, BaseWithoutItsFloorIsNotSplit) {
 TEST(VesselWall, BaseWithoutItsUndersideGoesToTheFloor) {
   const double noise = 0.05;
   const WallTruth truth = MakeTwoSurfaceVessel(noise, 6000, 5, true);
-  const Eigen::Matrix3Xd local = truth.cloud.world_T_model.inverse().apply(truth.cloud.points);
-  std::vector<Eigen::Index> kept;
-  for (Eigen::Index j = 0; j < local.cols(); ++j)
-    if (j >= truth.cloud.surface_points || local(2, j) > 4.0) kept.push_back(j);
-  const pipeline::FitOutcome outcome =
-      pipeline::ComputeFit(WallOptions(truth.cloud.points(Eigen::all, kept), "pot without its underside"));
+  const Eigen::Matrix3Xd points = PotWithout(truth, true, 4.0);
+  const pipeline::FitOutcome outcome = pipeline::ComputeFit(WallOptions(points, "pot without its underside"));
   const nlohmann::json& d = outcome.document;
   ASSERT_TRUE(d.contains("wall")) << d.dump().substr(0, 400);
   const nlohmann::json& w = d["wall"];
@@ -234,8 +236,8 @@ TEST(VesselWall, BaseWithoutItsUndersideGoesToTheFloor) {
   std::printf(
       "pot without its underside: adequate %d, %zu points, outer %d, inner %d, thickness %.4f-%.4f, "
       "capacity %.1f +- %.1f (truth %.1f)\n",
-      d["adequacy"]["adequate"].get<bool>() ? 1 : 0, kept.size(), w["outer"]["points"].get<int>(),
-      w["inner"]["points"].get<int>(), w["thickness"]["min"].get<double>(),
+      d["adequacy"]["adequate"].get<bool>() ? 1 : 0, static_cast<std::size_t>(points.cols()),
+      w["outer"]["points"].get<int>(), w["inner"]["points"].get<int>(), w["thickness"]["min"].get<double>(),
       w["thickness"]["max"].get<double>(), capacity, capacity_u, truth.capacity);
 }
 
